@@ -1,0 +1,63 @@
+// rangebayes: one binary, subcommands registered by apps/cmd_*.cpp.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+#include <string>
+
+#include "apps/command.h"
+#include "core/error.h"
+
+namespace {
+
+// The name of the subcommand that was parsed, for error messages ("rangebayes smooth: error: ...").
+std::string ParsedName(const CLI::App& app) {
+  std::string name = "rangebayes";
+  const CLI::App* current = &app;
+  while (true) {
+    const auto subs = current->get_subcommands();
+    if (subs.empty()) break;
+    current = subs.front();
+    name += " " + current->get_name();
+  }
+  return name;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "rangebayes: stereo range scanning to clean, compact meshes (Diebel, Thrun, Bruenig, ACM TOG 2006).\n"
+      "Run 'rangebayes SUBCOMMAND --help' for the options of each subcommand."};
+  app.name("rangebayes");
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "rangebayes 0.1.0");
+  app.option_defaults()->always_capture_default();
+  rangebayes::apps::AddRegisteredCommands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line, exit 2, for every usage error (CLI11's own codes vary by kind).
+    std::string message = e.what();
+    for (char& c : message) {
+      if (c == '\n') c = ' ';
+    }
+    std::fprintf(stderr, "%s: error: %s (see --help)\n", ParsedName(app).c_str(), message.c_str());
+    return 2;
+  } catch (const rangebayes::Error& e) {
+    std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "%s: error: out of memory\n", ParsedName(app).c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
+    return 1;
+  }
+  return rangebayes::apps::ExitCode();
+}

@@ -1,0 +1,37 @@
+// Triangle meshes as plain data: Mesh (positions and faces) and NoisyMesh (plus one covariance per vertex).
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+namespace rangebayes {
+
+// Row-major so that the flat unknown vector of a solver lines up with the 3×3 block of each vertex.
+using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using Faces = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using Normals = Vertices;
+
+// A triangle mesh. V: #V×3 positions in model units (metres for meshes from our cameras). F: #F×3 vertex
+// indices, counter-clockwise seen from outside. N: optional per-vertex normals (#V×3, or 0 rows when absent).
+struct Mesh {
+  Vertices V;
+  Faces F;
+  Normals N;
+
+  int num_vertices() const { return static_cast<int>(V.rows()); }
+  int num_faces() const { return static_cast<int>(F.rows()); }
+};
+
+// A mesh whose vertices are noisy measurements: covariance[i] is the 3×3 covariance (model units squared) of
+// vertex i. pixel, when not empty (#V×2), is the (u, v) image position each vertex was triangulated from.
+struct NoisyMesh {
+  Mesh mesh;
+  std::vector<Eigen::Matrix3d> covariance;
+  Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> pixel;
+
+  bool has_covariance() const {
+    return !covariance.empty() && static_cast<int>(covariance.size()) == mesh.num_vertices();
+  }
+};
+
+}  // namespace rangebayes

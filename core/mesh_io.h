@@ -1,0 +1,59 @@
+// Reading and writing meshes: PLY (ascii, binary little/big endian), OBJ and OFF, chosen by file extension.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+enum class MeshFormat { kPly, kObj, kOff };
+enum class PlyEncoding { kBinaryLittleEndian, kAscii, kBinaryBigEndian };
+
+// What a reader noticed that is not an error (polygons triangulated, properties skipped, ...). Each notice
+// is one line a user can read.
+struct MeshReadSummary {
+  MeshFormat format = MeshFormat::kPly;
+  int polygons_triangulated = 0;
+  std::vector<std::string> notices;
+};
+
+// Per-face-corner normals: normal_index(f, k) indexes a row of normals for corner k of face f.
+struct CornerNormals {
+  Normals normals;
+  Faces normal_index;
+  bool empty() const { return normals.rows() == 0; }
+};
+
+struct MeshWriteOptions {
+  PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;  // PLY only
+  bool write_vertex_normals = true;  // write Mesh::N when present
+  CornerNormals corner_normals;      // OBJ `vn` per corner, PLY face property; empty: none
+  int precision = 17;                // significant digits for ascii output (17 round-trips doubles)
+};
+
+// Guesses the format from the extension (.ply, .obj, .off, case-insensitive); throws Error otherwise.
+MeshFormat MeshFormatFromPath(const std::string& path);
+
+// Reads a mesh. Throws Error with one line naming the file and what is wrong on any malformed input.
+// Polygons are fan-triangulated (counted in the summary). Never allocates more than the file size justifies.
+Mesh ReadMesh(const std::string& path, MeshReadSummary* summary = nullptr);
+
+// Reads a mesh and, from PLY vertex properties cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz, its per-vertex
+// covariance (and pixel_u pixel_v into NoisyMesh::pixel). Covariance stays empty when the file has none.
+NoisyMesh ReadNoisyMesh(const std::string& path, MeshReadSummary* summary = nullptr);
+
+// Writes a mesh in the format of the extension. Vertex order and faces are kept exactly.
+void WriteMesh(const Mesh& mesh, const std::string& path, const MeshWriteOptions& options = {});
+
+// Writes covariance (and pixel positions when present) as the PLY vertex properties named above. Only PLY
+// can hold them: other formats throw Error.
+void WriteNoisyMesh(const NoisyMesh& mesh, const std::string& path, const MeshWriteOptions& options = {});
+
+// Writes a mesh whose faces are polygons (each row of `polygons` a list of vertex indices), OBJ or OFF or
+// PLY. Used for the decimator's one-polygon-per-patch output.
+void WritePolygonMesh(const Vertices& V, const std::vector<std::vector<int>>& polygons, const std::string& path,
+                      const MeshWriteOptions& options = {});
+
+}  // namespace rangebayes

@@ -1,0 +1,13 @@
+// Writing pictures for people to look at (PNG), from our plain RgbImage.
+#pragma once
+
+#include <string>
+
+#include "core/image.h"
+
+namespace rangebayes {
+
+// Throws Error naming the path when the file cannot be written.
+void WritePng(const RgbImage& image, const std::string& path);
+
+}  // namespace rangebayes

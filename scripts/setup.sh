@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package that rangebayes' build, tests, benchmarks and fuzzers need.
+# Idempotent: installs only what is missing and says what. Works as root or through sudo.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev          # linear algebra (core, bayes)
+  libopencv-dev          # calibration, rectification, SGBM, image I/O
+  libpcl-dev             # robust model fitting (SAC), kd-trees
+  libflann-dev           # nearest neighbours in metrics
+  libtbb-dev             # parallel loops
+  libcli11-dev           # command line
+  nlohmann-json3-dev     # JSON output
+  libv4l-dev             # V4L2 cameras
+  libcamera-dev          # libcamera cameras
+  libgtest-dev libgmock-dev  # tests
+  libbenchmark-dev       # bench/
+  libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
+  clang libclang-rt-14-dev   # libFuzzer targets
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+
+echo "setup: installing ${missing[*]}"
+if [ "$(id -u)" -eq 0 ]; then
+  as_root=()
+elif command -v sudo >/dev/null 2>&1; then
+  as_root=(sudo)
+else
+  echo "setup: error: need root or sudo to install: ${missing[*]}" >&2
+  exit 1
+fi
+export DEBIAN_FRONTEND=noninteractive
+"${as_root[@]}" apt-get update -q
+"${as_root[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "setup: done"

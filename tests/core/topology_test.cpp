@@ -1,0 +1,109 @@
+#include "core/topology.h"
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+Mesh Tetrahedron() {
+  Mesh mesh;
+  mesh.V.resize(4, 3);
+  mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  mesh.F.resize(4, 3);
+  mesh.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  return mesh;
+}
+
+// An open n×n grid of vertices (2(n−1)² triangles) in the z = 0 plane.
+Mesh Grid(int n) {
+  Mesh mesh;
+  mesh.V.resize(n * n, 3);
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) mesh.V.row(y * n + x) << x, y, 0;
+  }
+  mesh.F.resize(2 * (n - 1) * (n - 1), 3);
+  int f = 0;
+  for (int y = 0; y + 1 < n; ++y) {
+    for (int x = 0; x + 1 < n; ++x) {
+      const int a = y * n + x, b = a + 1, c = a + n, d = c + 1;
+      mesh.F.row(f++) << a, b, d;
+      mesh.F.row(f++) << a, d, c;
+    }
+  }
+  return mesh;
+}
+
+TEST(Topology, TetrahedronIsClosed) {
+  const Mesh mesh = Tetrahedron();
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  EXPECT_EQ(topology.edges.rows(), 6);
+  for (int e = 0; e < 6; ++e) EXPECT_EQ(topology.edge_faces.size(e), 2);
+  EXPECT_EQ(ComputeFacePairs(topology).rows(), 6);
+  EXPECT_TRUE(ComputeBoundaryLoops(mesh, topology).empty());
+  const Adjacency neighbours = ComputeVertexNeighbours(mesh, topology);
+  for (int v = 0; v < 4; ++v) EXPECT_EQ(neighbours.size(v), 3);
+  EXPECT_EQ(ComputeComponents(mesh).count, 1);
+}
+
+TEST(Topology, OpenGridHasOneBoundaryLoop) {
+  const Mesh mesh = Grid(3);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  // 12 grid edges plus 4 diagonals.
+  EXPECT_EQ(topology.edges.rows(), 16);
+  const auto loops = ComputeBoundaryLoops(mesh, topology);
+  ASSERT_EQ(loops.size(), 1u);
+  EXPECT_EQ(loops[0].size(), 8u);
+  // Interior edges: 16 − 8 boundary edges; each gives one face pair.
+  EXPECT_EQ(ComputeFacePairs(topology).rows(), 8);
+  EXPECT_NEAR(MeanEdgeLength(mesh), (12.0 + 4.0 * std::sqrt(2.0)) / 16.0, 1e-12);
+}
+
+TEST(Topology, NonManifoldFanGivesEveryPair) {
+  Mesh mesh;
+  mesh.V.resize(5, 3);
+  mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1;
+  mesh.F.resize(3, 3);
+  mesh.F << 0, 1, 2, 1, 0, 3, 0, 1, 4;
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  int non_manifold = 0;
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) non_manifold += topology.edge_faces.size(e) > 2;
+  EXPECT_EQ(non_manifold, 1);
+  const IndexPairs pairs = ComputeFacePairs(topology);
+  ASSERT_EQ(pairs.rows(), 3);
+  EXPECT_EQ(pairs(0, 0), 0);
+  EXPECT_EQ(pairs(0, 1), 1);
+  EXPECT_EQ(pairs(2, 0), 1);
+  EXPECT_EQ(pairs(2, 1), 2);
+}
+
+TEST(Topology, TwoComponents) {
+  Mesh a = Tetrahedron();
+  Mesh mesh;
+  mesh.V.resize(8, 3);
+  mesh.V << a.V, (a.V.array() + 5.0).matrix();
+  mesh.F.resize(8, 3);
+  mesh.F << a.F, (a.F.array() + 4).matrix();
+  const Components components = ComputeComponents(mesh);
+  EXPECT_EQ(components.count, 2);
+  EXPECT_EQ(components.face_label[0], 0);
+  EXPECT_EQ(components.face_label[7], 1);
+}
+
+TEST(Topology, DegenerateFaceHasNoSelfEdge) {
+  Mesh mesh = Tetrahedron();
+  mesh.F.row(3) << 1, 1, 3;
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  EXPECT_EQ(topology.face_edges(3, 0), -1);
+  EXPECT_GE(topology.face_edges(3, 1), 0);
+}
+
+TEST(Topology, OutOfRangeIndexThrows) {
+  Mesh mesh = Tetrahedron();
+  mesh.F(2, 1) = 17;
+  EXPECT_THROW(ComputeEdgeTopology(mesh), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
