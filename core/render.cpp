@@ -1,0 +1,270 @@
+#include "core/render.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+std::uint8_t ToByte(float v) {
+  const float c = std::clamp(v, 0.0f, 1.0f);
+  return static_cast<std::uint8_t>(std::lround(c * 255.0f));
+}
+
+// Orthonormal camera axes: right, up, and back (towards the viewer), so that view space is right-handed.
+struct CameraAxes {
+  Eigen::Vector3d right, up, back;
+};
+
+CameraAxes MakeAxes(const RenderOptions& options) {
+  CameraAxes axes;
+  const Eigen::Vector3d forward = options.view_direction.normalized();
+  Eigen::Vector3d up = options.up;
+  if (up.norm() < 1e-12 || std::abs(forward.dot(up.normalized())) > 0.999) {
+    // Pick the coordinate axis least aligned with the view direction.
+    Eigen::Index k = 0;
+    forward.cwiseAbs().minCoeff(&k);
+    up = Eigen::Vector3d::Unit(k);
+  }
+  axes.right = forward.cross(up).normalized();
+  axes.up = axes.right.cross(forward).normalized();
+  axes.back = -forward;
+  return axes;
+}
+
+}  // namespace
+
+void RenderOptions::Check(const Mesh& mesh) const {
+  RB_CHECK(width_px >= 1 && width_px <= 16384, "render: width_px ", width_px, " is outside [1, 16384]");
+  RB_CHECK(height_px >= 1 && height_px <= 16384, "render: height_px ", height_px, " is outside [1, 16384]");
+  RB_CHECK(view_direction.allFinite() && view_direction.norm() > 0, "render: view_direction must be nonzero");
+  RB_CHECK(field_of_view_deg > 0 && field_of_view_deg < 170, "render: field_of_view_deg ", field_of_view_deg,
+           " is outside (0, 170)");
+  RB_CHECK(margin_fraction >= 0 && margin_fraction <= 0.45, "render: margin_fraction ", margin_fraction,
+           " is outside [0, 0.45]");
+  RB_CHECK(ambient >= 0 && ambient <= 1, "render: ambient ", ambient, " is outside [0, 1]");
+  RB_CHECK(face_colors.rows() == 0 || face_colors.rows() == mesh.num_faces(), "render: face_colors has ",
+           face_colors.rows(), " rows, the mesh has ", mesh.num_faces(), " faces");
+  RB_CHECK(corner_normals.rows() == 0 || corner_normals.rows() == 3 * static_cast<Eigen::Index>(mesh.num_faces()),
+           "render: corner_normals has ", corner_normals.rows(), " rows, expected 3 × ", mesh.num_faces(),
+           " faces");
+  RB_CHECK(light_in_camera.norm() > 0, "render: light_in_camera must be nonzero");
+}
+
+Normals AreaWeightedVertexNormals(const Mesh& mesh) {
+  Normals normals = Normals::Zero(mesh.num_vertices(), 3);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int a = mesh.F(f, 0), b = mesh.F(f, 1), c = mesh.F(f, 2);
+    RB_CHECK(a >= 0 && b >= 0 && c >= 0 && a < mesh.num_vertices() && b < mesh.num_vertices() &&
+                 c < mesh.num_vertices(),
+             "face ", f, " refers to a vertex outside [0, ", mesh.num_vertices(), ")");
+    const Eigen::Vector3d cross =
+        (mesh.V.row(b) - mesh.V.row(a)).transpose().cross((mesh.V.row(c) - mesh.V.row(a)).transpose());
+    if (!cross.allFinite()) continue;
+    // |cross| is twice the area: summing unnormalised cross products weights by area.
+    for (int v : {a, b, c}) normals.row(v) += cross.transpose();
+  }
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    const double n = normals.row(v).norm();
+    if (n > 0) normals.row(v) /= n;
+  }
+  return normals;
+}
+
+RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
+  options.Check(mesh);
+  const int width = options.width_px, height = options.height_px;
+  RgbImage image(width, height);
+  for (int i = 0; i < width * height; ++i) {
+    for (int ch = 0; ch < 3; ++ch) image.rgb[static_cast<size_t>(i) * 3 + ch] = ToByte(options.background[ch]);
+  }
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+  if (nv == 0 || nf == 0) return image;
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      RB_CHECK(mesh.F(f, k) >= 0 && mesh.F(f, k) < nv, "render: face ", f, " refers to vertex ", mesh.F(f, k),
+               ", but the mesh has ", nv, " vertices");
+    }
+  }
+
+  // Bounding box of the finite vertices that faces use.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (int v = 0; v < nv; ++v) {
+    const Eigen::Vector3d p = mesh.V.row(v).transpose();
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (!(lo.array() <= hi.array()).all()) return image;
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const double radius = std::max(0.5 * (hi - lo).norm(), 1e-300);
+
+  const CameraAxes axes = MakeAxes(options);
+  const bool perspective = options.projection == Projection::kPerspective;
+  const double tan_half = std::tan(0.5 * options.field_of_view_deg * M_PI / 180.0);
+  // Perspective: camera on the view axis far enough for the bounding sphere to fit the field of view.
+  const double distance = perspective ? radius / std::sin(0.5 * options.field_of_view_deg * M_PI / 180.0) * 1.05
+                                      : 0.0;
+
+  // View coordinates: (x right, y up, depth in front of the camera > 0 for perspective).
+  std::vector<Eigen::Vector3d> view(static_cast<size_t>(nv));
+  std::vector<Eigen::Vector2d> projected(static_cast<size_t>(nv));
+  double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x, min_y = min_x, max_y = -min_x;
+  for (int v = 0; v < nv; ++v) {
+    const Eigen::Vector3d d = mesh.V.row(v).transpose() - centre;
+    Eigen::Vector3d q(d.dot(axes.right), d.dot(axes.up), distance - d.dot(axes.back));
+    view[static_cast<size_t>(v)] = q;
+    Eigen::Vector2d p(q.x(), q.y());
+    if (perspective) p = (q.z() > 1e-12 * radius) ? Eigen::Vector2d(q.x() / q.z(), q.y() / q.z())
+                                                   : Eigen::Vector2d::Constant(std::nan(""));
+    projected[static_cast<size_t>(v)] = p;
+    if (p.allFinite()) {
+      min_x = std::min(min_x, p.x());
+      max_x = std::max(max_x, p.x());
+      min_y = std::min(min_y, p.y());
+      max_y = std::max(max_y, p.y());
+    }
+  }
+  if (!(min_x <= max_x)) return image;
+  if (perspective) {
+    // Fit the field of view rather than the projected extent, so that the framing does not jump between
+    // two renderings of similar meshes.
+    min_y = -tan_half;
+    max_y = tan_half;
+    const double aspect = static_cast<double>(width) / height;
+    min_x = -tan_half * aspect;
+    max_x = tan_half * aspect;
+  }
+  const double usable_w = width * (1.0 - 2.0 * options.margin_fraction);
+  const double usable_h = height * (1.0 - 2.0 * options.margin_fraction);
+  const double extent_x = std::max(max_x - min_x, 1e-300), extent_y = std::max(max_y - min_y, 1e-300);
+  const double scale = std::min(usable_w / extent_x, usable_h / extent_y);
+  const double mid_x = 0.5 * (min_x + max_x), mid_y = 0.5 * (min_y + max_y);
+  auto to_pixel = [&](const Eigen::Vector2d& p) {
+    return Eigen::Vector2d(0.5 * width + (p.x() - mid_x) * scale, 0.5 * height - (p.y() - mid_y) * scale);
+  };
+
+  Normals vertex_normals;
+  const bool smooth = options.shading == Shading::kSmooth;
+  const bool use_corners = smooth && options.corner_normals.rows() > 0;
+  if (smooth && !use_corners) {
+    vertex_normals = (mesh.N.rows() == nv) ? mesh.N : AreaWeightedVertexNormals(mesh);
+  }
+  const Eigen::Vector3d light = options.light_in_camera.normalized();
+  auto to_camera = [&](const Eigen::Vector3d& n) {
+    return Eigen::Vector3d(n.dot(axes.right), n.dot(axes.up), n.dot(axes.back));
+  };
+  auto shade = [&](Eigen::Vector3d n_camera) -> float {
+    const double len = n_camera.norm();
+    if (!(len > 0)) return static_cast<float>(options.ambient);
+    n_camera /= len;
+    double lambert = n_camera.dot(light);
+    if (options.two_sided) {
+      lambert = std::abs(lambert);
+    } else if (n_camera.z() < 0) {
+      lambert = 0;
+    }
+    return static_cast<float>(options.ambient + (1.0 - options.ambient) * std::max(0.0, lambert));
+  };
+
+  // Depth key per pixel, smaller is closer: view depth (orthographic) or −1/depth (perspective, linear in
+  // screen space).
+  std::vector<double> zbuffer(static_cast<size_t>(width) * height, std::numeric_limits<double>::infinity());
+  for (int f = 0; f < nf; ++f) {
+    const int idx[3] = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+    Eigen::Vector2d s[3];
+    double key[3];
+    bool ok = true;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d& p = projected[static_cast<size_t>(idx[k])];
+      const Eigen::Vector3d& q = view[static_cast<size_t>(idx[k])];
+      if (!p.allFinite() || !q.allFinite()) ok = false;
+      s[k] = to_pixel(p);
+      key[k] = perspective ? -1.0 / q.z() : q.z();
+    }
+    if (!ok) continue;
+    const double area2 = (s[1] - s[0]).x() * (s[2] - s[0]).y() - (s[1] - s[0]).y() * (s[2] - s[0]).x();
+    if (!(std::abs(area2) > 1e-12)) continue;
+
+    const Eigen::Vector3d face_normal = (mesh.V.row(idx[1]) - mesh.V.row(idx[0]))
+                                            .transpose()
+                                            .cross((mesh.V.row(idx[2]) - mesh.V.row(idx[0])).transpose());
+    Eigen::Vector3d corner_n[3];
+    float corner_light[3];
+    float face_light = 0;
+    if (smooth) {
+      for (int k = 0; k < 3; ++k) {
+        corner_n[k] = use_corners ? Eigen::Vector3d(options.corner_normals.row(3 * static_cast<Eigen::Index>(f) + k))
+                                  : Eigen::Vector3d(vertex_normals.row(idx[k]));
+        if (!corner_n[k].allFinite() || corner_n[k].norm() == 0) corner_n[k] = face_normal;
+        corner_n[k] = to_camera(corner_n[k]);
+        corner_light[k] = shade(corner_n[k]);
+      }
+    } else {
+      face_light = shade(to_camera(face_normal));
+    }
+    const Eigen::Vector3f color =
+        options.face_colors.rows() > 0 ? Eigen::Vector3f(options.face_colors.row(f)) : options.base_color;
+
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].x(), s[1].x(), s[2].x()}))));
+    const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max({s[0].x(), s[1].x(), s[2].x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].y(), s[1].y(), s[2].y()}))));
+    const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max({s[0].y(), s[1].y(), s[2].y()}))));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const Eigen::Vector2d p(x + 0.5, y + 0.5);
+        // Barycentric weights of the pixel centre; the small tolerance closes cracks between faces.
+        double w[3];
+        for (int k = 0; k < 3; ++k) {
+          const Eigen::Vector2d& a = s[(k + 1) % 3];
+          const Eigen::Vector2d& b = s[(k + 2) % 3];
+          w[k] = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / area2;
+        }
+        if (w[0] < -1e-9 || w[1] < -1e-9 || w[2] < -1e-9) continue;
+        const double z = w[0] * key[0] + w[1] * key[1] + w[2] * key[2];
+        double& depth = zbuffer[static_cast<size_t>(y) * width + x];
+        if (!(z < depth)) continue;
+        depth = z;
+        float intensity = face_light;
+        if (smooth) {
+          intensity = shade(w[0] * corner_n[0] + w[1] * corner_n[1] + w[2] * corner_n[2]);
+          if (!std::isfinite(intensity)) intensity = corner_light[0];
+        }
+        std::uint8_t* px = image.at(x, y);
+        for (int ch = 0; ch < 3; ++ch) px[ch] = ToByte(color[ch] * intensity);
+      }
+    }
+  }
+  return image;
+}
+
+RgbImage SideBySide(const std::vector<RgbImage>& images, int gap_px, const Eigen::Vector3f& background) {
+  RB_CHECK(gap_px >= 0, "SideBySide: gap_px ", gap_px, " is negative");
+  if (images.empty()) return RgbImage();
+  int width = 0, height = 0;
+  for (const RgbImage& im : images) {
+    width += im.width;
+    height = std::max(height, im.height);
+  }
+  width += gap_px * static_cast<int>(images.size() - 1);
+  RgbImage out(width, height);
+  for (int i = 0; i < width * height; ++i) {
+    for (int ch = 0; ch < 3; ++ch) out.rgb[static_cast<size_t>(i) * 3 + ch] = ToByte(background[ch]);
+  }
+  int x_offset = 0;
+  for (const RgbImage& im : images) {
+    for (int y = 0; y < im.height; ++y) {
+      std::copy(im.at(0, y), im.at(0, y) + static_cast<size_t>(im.width) * 3, out.at(x_offset, y));
+    }
+    x_offset += im.width + gap_px;
+  }
+  return out;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,123 @@
+#include "core/render.h"
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+Mesh UnitCube() {
+  Mesh mesh;
+  mesh.V.resize(8, 3);
+  for (int i = 0; i < 8; ++i) mesh.V.row(i) << (i & 1), ((i >> 1) & 1), ((i >> 2) & 1);
+  mesh.F.resize(12, 3);
+  mesh.F << 0, 2, 1, 1, 2, 3,  // z = 0
+      4, 5, 6, 5, 7, 6,        // z = 1
+      0, 1, 4, 1, 5, 4,        // y = 0
+      2, 6, 3, 3, 6, 7,        // y = 1
+      0, 4, 2, 2, 4, 6,        // x = 0
+      1, 3, 5, 3, 7, 5;        // x = 1
+  return mesh;
+}
+
+// Two axis-aligned squares, the first at z = 0 and the second at z = 1 (closer to a camera looking along −z),
+// the second smaller so that both are visible.
+Mesh TwoSquares() {
+  Mesh mesh;
+  mesh.V.resize(8, 3);
+  mesh.V << -1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0,  //
+      -0.5, -0.5, 1, 0.5, -0.5, 1, 0.5, 0.5, 1, -0.5, 0.5, 1;
+  mesh.F.resize(4, 3);
+  mesh.F << 0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7;
+  return mesh;
+}
+
+int CountNonBackground(const RgbImage& image) {
+  int count = 0;
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      const auto* p = image.at(x, y);
+      if (p[0] != 255 || p[1] != 255 || p[2] != 255) ++count;
+    }
+  }
+  return count;
+}
+
+TEST(Render, CubeCoversTheImageCentre) {
+  RenderOptions options;
+  options.width_px = 64;
+  options.height_px = 48;
+  options.view_direction = {-1, -1, -1};
+  for (Projection projection : {Projection::kOrthographic, Projection::kPerspective}) {
+    for (Shading shading : {Shading::kFlat, Shading::kSmooth}) {
+      options.projection = projection;
+      options.shading = shading;
+      const RgbImage image = RenderMesh(UnitCube(), options);
+      ASSERT_EQ(image.width, 64);
+      ASSERT_EQ(image.height, 48);
+      EXPECT_GT(CountNonBackground(image), 64 * 48 / 5);
+      const auto* centre = image.at(32, 24);
+      EXPECT_FALSE(centre[0] == 255 && centre[1] == 255 && centre[2] == 255);
+      // The corners stay background (the margin).
+      const auto* corner = image.at(0, 0);
+      EXPECT_EQ(corner[0], 255);
+    }
+  }
+}
+
+TEST(Render, NearerFaceHidesFartherFace) {
+  Mesh mesh = TwoSquares();
+  RenderOptions options;
+  options.width_px = 100;
+  options.height_px = 100;
+  options.face_colors.resize(4, 3);
+  options.face_colors << 1, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 1;
+  for (Projection projection : {Projection::kOrthographic, Projection::kPerspective}) {
+    options.projection = projection;
+    options.view_direction = {0, 0, -1};  // the blue square (z = 1) is in front
+    RgbImage image = RenderMesh(mesh, options);
+    EXPECT_EQ(image.at(50, 50)[0], 0);
+    EXPECT_GT(image.at(50, 50)[2], 100);
+    EXPECT_GT(image.at(10, 50)[0], 100);  // red ring outside the blue square
+    options.view_direction = {0, 0, 1};   // from behind: the red square hides the blue one
+    image = RenderMesh(mesh, options);
+    EXPECT_GT(image.at(50, 50)[0], 100);
+    EXPECT_EQ(image.at(50, 50)[2], 0);
+  }
+}
+
+TEST(Render, CornerNormalsAndDegenerateInput) {
+  Mesh mesh = UnitCube();
+  RenderOptions options;
+  options.width_px = 32;
+  options.height_px = 32;
+  options.shading = Shading::kSmooth;
+  options.corner_normals = Normals::Zero(36, 3);  // zero normals fall back to the face normal
+  EXPECT_GT(CountNonBackground(RenderMesh(mesh, options)), 0);
+  options.corner_normals.resize(5, 3);
+  EXPECT_THROW(RenderMesh(mesh, options), Error);
+  // Zero-area faces, NaN vertices and an empty mesh render without error.
+  Mesh bad = mesh;
+  bad.V.row(7).setConstant(std::nan(""));
+  bad.F.row(0) << 0, 0, 1;
+  EXPECT_NO_THROW(RenderMesh(bad, RenderOptions{}));
+  EXPECT_EQ(CountNonBackground(RenderMesh(Mesh{}, RenderOptions{})), 0);
+  bad.F(1, 0) = 99;
+  EXPECT_THROW(RenderMesh(bad, RenderOptions{}), Error);
+}
+
+TEST(Render, SideBySidePlacesImagesWithGap) {
+  RgbImage a(10, 5, 0), b(20, 8, 100);
+  const RgbImage out = SideBySide({a, b}, 4);
+  EXPECT_EQ(out.width, 34);
+  EXPECT_EQ(out.height, 8);
+  EXPECT_EQ(out.at(9, 4)[0], 0);
+  EXPECT_EQ(out.at(9, 6)[0], 255);   // below the shorter image
+  EXPECT_EQ(out.at(12, 0)[0], 255);  // gap
+  EXPECT_EQ(out.at(14, 7)[0], 100);
+  EXPECT_EQ(SideBySide({}).width, 0);
+}
+
+}  // namespace
+}  // namespace rangebayes
