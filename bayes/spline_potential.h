@@ -1,0 +1,68 @@
+// A learnable pairwise potential φ_θ(d) over the normal difference d = ‖n_s − n_t‖ ∈ [0, 2] (paper §5.1).
+#pragma once
+
+#include <Eigen/Core>
+
+namespace rangebayes {
+
+struct SplinePotentialOptions {
+  int num_knots = 16;              // N, knots equally spaced over [0, 2]; range [3, 256]
+  double epsilon_squared = 1e-4;   // ε² of the square-root base sqrt(d² + ε²) (the paper's offset); range (0, 1]
+  void Check() const;
+};
+
+// φ_θ(d) = b(d) + S(d), b(d) = sqrt(d² + ε²) the paper's square-root potential, S the cubic spline through the
+// residuals r_j = θ_j − b(t_j) at the knots t_j = 2j/(N−1), clamped to zero slope at both ends.
+//
+// So θ_j is exactly the value φ(t_j) at knot j (the paper's parameters), and φ matches the square root's value
+// and slope at d = 0 and d = 2 as the paper clamps it: θ_0 = b(0) and θ_{N−1} = b(2) are fixed, the N − 2
+// interior values are free. Between knots the curve follows the square root plus a cubic correction (rather
+// than a plain cubic), so θ_j = b(t_j) reproduces the square-root potential exactly, including its sharp
+// bend below the first knot that a plain cubic over a knot spacing of 2/(N−1) cannot represent.
+// φ is linear in θ; ∂φ/∂θ_j does not depend on θ.
+class SplinePotential {
+ public:
+  // The square-root potential (θ_j = b(t_j)).
+  explicit SplinePotential(const SplinePotentialOptions& options = {});
+  // θ has N entries; its first and last must equal b(0) and b(2) (within 1e-9), else Error.
+  SplinePotential(const SplinePotentialOptions& options, const Eigen::VectorXd& theta);
+
+  const SplinePotentialOptions& options() const { return options_; }
+  int num_knots() const { return options_.num_knots; }
+  const Eigen::VectorXd& theta() const { return theta_; }
+  // Replaces θ (same N; ends fixed as above).
+  void SetTheta(const Eigen::VectorXd& theta);
+
+  double KnotPosition(int j) const { return j * spacing_; }
+  // The square-root base b(d) and its derivative.
+  double Base(double d) const;
+  double BaseDerivative(double d) const;
+
+  // φ(d) and dφ/dd; d is clamped to [0, 2].
+  double Value(double d) const;
+  double Derivative(double d) const;
+  // Both at once (the smoother's inner loop).
+  void Evaluate(double d, double* value, double* derivative) const;
+
+  // ∂φ(d)/∂θ_j for all j (N entries; 0 for the fixed ends), and ∂²φ/∂d∂θ_j.
+  void ParameterGradient(double d, Eigen::VectorXd* dvalue_dtheta, Eigen::VectorXd* dderivative_dtheta) const;
+  // The same for one knot j (cardinal basis function c_j and its slope).
+  void Basis(int j, double d, double* value, double* derivative) const;
+
+  // θ of the square-root potential for these options (the starting point of learning).
+  static Eigen::VectorXd SquareRootTheta(const SplinePotentialOptions& options);
+
+ private:
+  void Refresh();
+  // Interval index k and local coordinate u ∈ [0, 1] of d.
+  void Locate(double d, int* k, double* u) const;
+
+  SplinePotentialOptions options_;
+  double spacing_ = 0.0;
+  Eigen::VectorXd theta_;
+  Eigen::VectorXd residual_;          // r_j = θ_j − b(t_j)
+  Eigen::VectorXd second_derivative_; // M = G r
+  Eigen::MatrixXd residual_to_m_;     // G, N×N: knot second derivatives of S from the residuals
+};
+
+}  // namespace rangebayes

@@ -1,0 +1,95 @@
+#include "bayes/spline_potential.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+// A θ away from the square root, with the clamped ends kept.
+Eigen::VectorXd WigglyTheta(const SplinePotentialOptions& options, unsigned seed) {
+  Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  for (int j = 1; j + 1 < theta.size(); ++j) theta[j] += jitter(rng);
+  return theta;
+}
+
+TEST(SplinePotential, DefaultIsTheSquareRoot) {
+  const SplinePotential phi;
+  for (double d = 0.0; d <= 2.0; d += 0.0137) {
+    const double expected = std::sqrt(d * d + 1e-4);
+    // Exact up to rounding: the residual spline is identically zero.
+    EXPECT_NEAR(phi.Value(d), expected, 1e-12) << d;
+    EXPECT_NEAR(phi.Derivative(d), d / expected, 1e-12) << d;
+  }
+}
+
+TEST(SplinePotential, InterpolatesKnotsAndKeepsSquareRootEnds) {
+  SplinePotentialOptions options;
+  options.num_knots = 9;
+  const SplinePotential phi(options, WigglyTheta(options, 3));
+  for (int j = 0; j < options.num_knots; ++j) {
+    EXPECT_NEAR(phi.Value(phi.KnotPosition(j)), phi.theta()[j], 1e-12) << j;
+  }
+  EXPECT_NEAR(phi.Value(0.0), std::sqrt(1e-4), 1e-12);
+  EXPECT_NEAR(phi.Value(2.0), std::sqrt(4.0 + 1e-4), 1e-12);
+  EXPECT_NEAR(phi.Derivative(0.0), 0.0, 1e-12);
+  EXPECT_NEAR(phi.Derivative(2.0), 2.0 / std::sqrt(4.0 + 1e-4), 1e-12);
+}
+
+TEST(SplinePotential, SlopeMatchesFiniteDifferences) {
+  const SplinePotentialOptions options;
+  const SplinePotential phi(options, WigglyTheta(options, 7));
+  const double step = 1e-6;
+  // Away from d = 0, where the base sqrt(d² + 1e-4) bends on a 1e-2 scale.
+  for (double d = 0.05; d < 1.99; d += 0.0311) {
+    const double numeric = (phi.Value(d + step) - phi.Value(d - step)) / (2 * step);
+    // Central differences of a C² function with |φ'''| ≲ 1e3 here: error ≲ step² · 1e3 plus rounding 1e-16/step.
+    EXPECT_NEAR(phi.Derivative(d), numeric, 1e-7) << d;
+  }
+}
+
+TEST(SplinePotential, ParameterGradientMatchesFiniteDifferences) {
+  SplinePotentialOptions options;
+  options.num_knots = 12;
+  const Eigen::VectorXd theta = WigglyTheta(options, 11);
+  const SplinePotential phi(options, theta);
+  const double step = 1e-5;
+  for (double d : {0.0, 0.031, 0.2, 0.77, 1.0, 1.4142, 1.9, 2.0}) {
+    Eigen::VectorXd dvalue;
+    Eigen::VectorXd dslope;
+    phi.ParameterGradient(d, &dvalue, &dslope);
+    for (int j = 1; j + 1 < options.num_knots; ++j) {
+      Eigen::VectorXd plus = theta;
+      Eigen::VectorXd minus = theta;
+      plus[j] += step;
+      minus[j] -= step;
+      const SplinePotential p(options, plus);
+      const SplinePotential m(options, minus);
+      // φ is linear in θ, so central differences are exact up to rounding (1e-16 / 1e-5).
+      EXPECT_NEAR(dvalue[j], (p.Value(d) - m.Value(d)) / (2 * step), 1e-9) << d << " " << j;
+      EXPECT_NEAR(dslope[j], (p.Derivative(d) - m.Derivative(d)) / (2 * step), 1e-9) << d << " " << j;
+    }
+    EXPECT_EQ(dvalue[0], 0.0);
+    EXPECT_EQ(dvalue[options.num_knots - 1], 0.0);
+  }
+}
+
+TEST(SplinePotential, RejectsUnclampedEnds) {
+  const SplinePotentialOptions options;
+  Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
+  theta[0] += 0.1;
+  EXPECT_THROW(SplinePotential(options, theta), Error);
+  EXPECT_THROW(SplinePotential(options, Eigen::VectorXd::Zero(3)), Error);
+  SplinePotentialOptions bad;
+  bad.num_knots = 2;
+  EXPECT_THROW(bad.Check(), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
