@@ -1,0 +1,231 @@
+// Recording format: writer/reader round trip, index parsing, bad input, and a writer killed mid-stream.
+#include "capture/recording.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
+#include "tests/capture/test_util.h"
+
+namespace rangebayes {
+namespace {
+namespace fs = std::filesystem;
+
+TEST(Recording, RoundTripKeepsImagesTimestampsAndRig) {
+  const TempDir dir("roundtrip");
+  const std::string folder = dir.path() + "/rec";
+  const StereoRig rig = TestRig(64, 48);
+  {
+    RecordingWriter writer(folder, rig, {{"source", "test"}});
+    for (int i = 0; i < 3; ++i) writer.Write(TestFrame(i, 64, 48, CV_8UC1));
+    writer.Write(TestFrame(5, 64, 48, CV_8UC1));
+    writer.Finish({{"note", "done"}});
+    EXPECT_EQ(writer.summary().frames_written, 4);
+  }
+  RecordingReadSummary summary;
+  const Recording rec = OpenRecording(folder, &summary);
+  ASSERT_EQ(rec.num_frames(), 4);
+  EXPECT_FALSE(summary.truncated_last_line);
+  EXPECT_EQ(summary.missing_files, 0);
+  ASSERT_TRUE(rec.rig.has_value());
+  EXPECT_EQ(rec.rig->width, 64);
+  EXPECT_EQ(rec.meta.at("source"), "test");
+  EXPECT_EQ(rec.meta.at("complete"), "true");
+  EXPECT_EQ(rec.meta.at("frame_count"), "4");
+  EXPECT_EQ(rec.meta.at("note"), "done");
+  for (int i = 0; i < rec.num_frames(); ++i) {
+    const StereoFrame got = LoadRecordingFrame(rec, i);
+    const StereoFrame want = TestFrame(rec.frames[i].index, 64, 48, CV_8UC1);
+    EXPECT_EQ(got.index, want.index);
+    EXPECT_EQ(got.timestamp_left_ns, want.timestamp_left_ns);
+    EXPECT_EQ(got.timestamp_right_ns, want.timestamp_right_ns);
+    EXPECT_EQ(got.pattern_id, want.pattern_id);
+    EXPECT_EQ(cv::norm(got.left, want.left, cv::NORM_INF), 0.0);  // lossless
+    EXPECT_EQ(cv::norm(got.right, want.right, cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(Recording, SixteenBitAndColourAreLossless) {
+  const TempDir dir("depth16");
+  const std::string folder = dir.path() + "/rec";
+  {
+    RecordingWriter writer(folder, std::nullopt, {});
+    writer.Write(TestFrame(0, 32, 16, CV_16UC1));
+    writer.Write(TestFrame(1, 32, 16, CV_8UC3));
+  }  // destructor finishes
+  const Recording rec = OpenRecording(folder);
+  EXPECT_FALSE(rec.rig.has_value());
+  EXPECT_EQ(rec.meta.at("complete"), "true");
+  const StereoFrame a = LoadRecordingFrame(rec, 0);
+  EXPECT_EQ(a.left.type(), CV_16UC1);
+  EXPECT_EQ(cv::norm(a.left, TestFrame(0, 32, 16, CV_16UC1).left, cv::NORM_INF), 0.0);
+  const StereoFrame b = LoadRecordingFrame(rec, 1);
+  EXPECT_EQ(b.left.type(), CV_8UC3);
+}
+
+TEST(Recording, RefusesToOverwriteAnExistingRecording) {
+  const TempDir dir("overwrite");
+  const std::string folder = dir.path() + "/rec";
+  { RecordingWriter writer(folder, std::nullopt, {}); }
+  EXPECT_THROW(RecordingWriter(folder, std::nullopt, {}), Error);
+  RecordingWriterOptions options;
+  options.overwrite = true;
+  EXPECT_NO_THROW(RecordingWriter(folder, std::nullopt, {}, options));
+}
+
+TEST(Recording, WriterRejectsMismatchedAndNonIncreasingFrames) {
+  const TempDir dir("reject");
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {});
+  StereoFrame f = TestFrame(3, 32, 16, CV_8UC1);
+  f.right = cv::Mat(8, 8, CV_8UC1, cv::Scalar(0));
+  EXPECT_THROW(writer.Write(f), Error);
+  writer.Write(TestFrame(3, 32, 16, CV_8UC1));
+  EXPECT_THROW(writer.Write(TestFrame(3, 32, 16, CV_8UC1)), Error);
+  StereoFrame floating = TestFrame(4, 32, 16, CV_8UC1);
+  floating.left.convertTo(floating.left, CV_32F);
+  floating.right.convertTo(floating.right, CV_32F);
+  EXPECT_THROW(writer.Write(floating), Error);
+}
+
+TEST(RecordingIndex, ParsesAndToleratesTruncatedLastLine) {
+  const std::string header = std::string(kRecordingIndexHeader) + "\n";
+  RecordingReadSummary s;
+  const auto entries = ParseRecordingIndex(header + "0,10,11,left/a.png,right/a.png,-1\n1,20,21,left/b.png,rig", "x", &s);
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_EQ(entries[0].timestamp_right_ns, 11);
+  EXPECT_EQ(entries[0].left, "left/a.png");
+  EXPECT_TRUE(s.truncated_last_line);
+  ASSERT_EQ(s.notices.size(), 1u);
+  EXPECT_NE(s.notices[0].find("line 3"), std::string::npos) << s.notices[0];
+}
+
+TEST(RecordingIndex, CompleteLastLineWithoutNewlineIsKept) {
+  RecordingReadSummary s;
+  const auto entries =
+      ParseRecordingIndex(std::string(kRecordingIndexHeader) + "\n4,1,2,l.png,r.png,7", "x", &s);
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_EQ(entries[0].pattern_id, 7);
+  EXPECT_FALSE(s.truncated_last_line);
+}
+
+TEST(RecordingIndex, MalformedLinesNameLineAndField) {
+  const std::string header = std::string(kRecordingIndexHeader) + "\n";
+  auto message = [&](const std::string& body) {
+    try {
+      ParseRecordingIndex(header + body, "frames.csv");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("x,1,2,l,r,0\n").find("line 2 field 'index'"), std::string::npos);
+  EXPECT_NE(message("0,1,2,l,r,0\n0,1,2,l,r,0\n").find("line 3 index 0 does not increase"), std::string::npos);
+  EXPECT_NE(message("0,1,2,../etc/passwd,r,0\n").find("field 'left'"), std::string::npos);
+  EXPECT_NE(message("0,1,2,l,r\n1,1,1,l,r,0\n").find("line 2 has 5 fields"), std::string::npos);
+  try {
+    ParseRecordingIndex("", "frames.csv");
+    FAIL() << "an empty index must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no header"), std::string::npos);
+  }
+  try {
+    ParseRecordingIndex("index,time\n", "frames.csv");
+    FAIL() << "a wrong header must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("expected header"), std::string::npos);
+  }
+}
+
+TEST(Recording, MissingCorruptAndMismatchedImagesNameTheFrame) {
+  const TempDir dir("bad");
+  const std::string folder = dir.path() + "/rec";
+  {
+    RecordingWriter writer(folder, std::nullopt, {});
+    for (int i = 0; i < 4; ++i) writer.Write(TestFrame(i, 32, 16, CV_8UC1));
+  }
+  fs::remove(folder + "/left/000001.png");
+  { std::ofstream(folder + "/right/000002.png") << "not a png"; }
+  cv::imwrite(folder + "/right/000003.png", cv::Mat(10, 10, CV_8UC1, cv::Scalar(1)));
+  RecordingReadSummary s;
+  const Recording rec = OpenRecording(folder, &s);
+  EXPECT_EQ(s.missing_files, 1);
+  EXPECT_FALSE(rec.files_present[1]);
+  EXPECT_NO_THROW(LoadRecordingFrame(rec, 0));
+  auto message = [&](int i) {
+    try {
+      LoadRecordingFrame(rec, i);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message(1).find("frame 1: left/000001.png is missing"), std::string::npos) << message(1);
+  EXPECT_NE(message(2).find("frame 2: right/000002.png is corrupt"), std::string::npos) << message(2);
+  EXPECT_NE(message(3).find("frame 3: left is 32x16 but right is 10x10"), std::string::npos) << message(3);
+}
+
+TEST(Recording, WrongRigFileIsOneClearError) {
+  const TempDir dir("rig");
+  const std::string folder = dir.path() + "/rec";
+  { RecordingWriter writer(folder, TestRig(32, 16), {}); }
+  { std::ofstream(folder + "/rig.yaml") << "%YAML:1.0\nimage_width: 32\n"; }
+  try {
+    OpenRecording(folder);
+    FAIL() << "a broken rig must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("rig.yaml"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(OpenRecording(dir.path() + "/nothing"), Error);
+}
+
+// The writer process is killed without warning in the middle of a stream: everything indexed must load.
+TEST(Recording, KilledWriterLeavesReadableRecording) {
+  const TempDir dir("killed");
+  const std::string folder = dir.path() + "/rec";
+  int ready[2];
+  ASSERT_EQ(pipe(ready), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(ready[0]);
+    try {
+      RecordingWriter writer(folder, TestRig(64, 48), {{"source", "child"}});
+      for (int i = 0;; ++i) {
+        writer.Write(TestFrame(i, 64, 48, CV_8UC1));
+        if (i == 5) {
+          const char c = 'x';
+          (void)!write(ready[1], &c, 1);
+        }
+      }
+    } catch (...) {
+    }
+    _exit(0);
+  }
+  close(ready[1]);
+  char c = 0;
+  ASSERT_EQ(read(ready[0], &c, 1), 1);
+  close(ready[0]);
+  kill(child, SIGKILL);
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status));
+
+  RecordingReadSummary s;
+  const Recording rec = OpenRecording(folder, &s);
+  EXPECT_GE(rec.num_frames(), 6);
+  EXPECT_EQ(rec.meta.at("complete"), "false");
+  EXPECT_EQ(s.missing_files, 0);
+  for (int i = 0; i < rec.num_frames(); ++i) {
+    const StereoFrame f = LoadRecordingFrame(rec, i);
+    EXPECT_EQ(cv::norm(f.left, TestFrame(f.index, 64, 48, CV_8UC1).left, cv::NORM_INF), 0.0);
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes

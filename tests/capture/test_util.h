@@ -1,0 +1,66 @@
+// Helpers shared by the capture tests: temporary folders, deterministic frames, a plausible rig.
+#pragma once
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "calibration/stereo_rig.h"
+#include "capture/stereo_frame.h"
+
+namespace rangebayes {
+
+// A fresh folder under the system temp dir, removed with its contents on destruction.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& name) {
+    path_ = (std::filesystem::temp_directory_path() /
+             ("rb_capture_" + name + "_" + std::to_string(::getpid())))
+                .string();
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// A frame whose pixels and timestamps are a function of its index only (seeded, so reproducible).
+inline StereoFrame TestFrame(std::int64_t index, int width, int height, int type) {
+  StereoFrame f;
+  f.index = index;
+  f.timestamp_left_ns = 1'000'000'000LL + index * 33'333'333LL;
+  f.timestamp_right_ns = f.timestamp_left_ns + 1000 + index;
+  f.pattern_id = static_cast<int>(index % 4);
+  cv::RNG rng(static_cast<std::uint64_t>(1234 + index));
+  f.left.create(height, width, type);
+  f.right.create(height, width, type);
+  const double top = CV_MAT_DEPTH(type) == CV_16U ? 65535.0 : 255.0;
+  rng.fill(f.left, cv::RNG::UNIFORM, 0.0, top);
+  rng.fill(f.right, cv::RNG::UNIFORM, 0.0, top);
+  return f;
+}
+
+// A rectified rig of the given size: f = 100 px, baseline 0.1 m.
+inline StereoRig TestRig(int width, int height) {
+  StereoRig rig;
+  rig.width = width;
+  rig.height = height;
+  rig.K_left << 100, 0, width / 2.0, 0, 100, height / 2.0, 0, 0, 1;
+  rig.K_right = rig.K_left;
+  rig.t_right_from_left_m = Eigen::Vector3d(-0.1, 0, 0);
+  rig.is_rectified = true;
+  rig.P1.leftCols<3>() = rig.K_left;
+  rig.P2.leftCols<3>() = rig.K_right;
+  rig.P2(0, 3) = -0.1 * 100;
+  return rig;
+}
+
+}  // namespace rangebayes
