@@ -64,3 +64,46 @@ inline StereoRig TestRig(int width, int height) {
 }
 
 }  // namespace rangebayes
+
+#include <functional>
+#include <stdexcept>
+
+#include "capture/frame_source.h"
+
+namespace rangebayes {
+
+// An endless (or limited) source of TestFrames; `hook(i)` runs before frame i is returned and may throw
+// (device lost) or return a status other than kFrame (timeout, skip).
+class FakeFrameSource : public FrameSource {
+ public:
+  FakeFrameSource(int width, int height, std::int64_t limit = -1) : width_(width), height_(height), limit_(limit) {}
+  std::function<FrameStatus(std::int64_t)> hook;
+
+  FrameResult Next() override {
+    FrameResult r;
+    if (limit_ >= 0 && next_ >= limit_) return r;
+    const std::int64_t i = next_++;
+    r.status = hook ? hook(i) : FrameStatus::kFrame;
+    if (r.status == FrameStatus::kFrame) {
+      r.frame = TestFrame(i, width_, height_, CV_8UC1);
+      ++stats_.frames_delivered;
+    } else if (r.status == FrameStatus::kTimeout) {
+      ++stats_.timeouts;
+      r.reason = "fake timeout";
+    } else if (r.status == FrameStatus::kSkipped) {
+      ++stats_.frames_skipped;
+      r.reason = "fake skip";
+    }
+    return r;
+  }
+  std::string Describe() const override { return "fake source"; }
+  FrameSourceStats stats() const override { return stats_; }
+
+ private:
+  int width_, height_;
+  std::int64_t limit_;
+  std::int64_t next_ = 0;
+  FrameSourceStats stats_;
+};
+
+}  // namespace rangebayes

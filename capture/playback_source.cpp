@@ -1,0 +1,98 @@
+#include "capture/playback_source.h"
+
+#include <algorithm>
+#include <thread>
+
+#include "core/error.h"
+
+namespace rangebayes {
+
+void PlaybackOptions::Check() const {
+  RB_CHECK(speed_factor > 0.0 && speed_factor <= 1000.0, "playback speed factor must be in (0, 1000], got ",
+           speed_factor);
+  RB_CHECK(first_position >= 0, "playback first position must be >= 0, got ", first_position);
+  RB_CHECK(count >= -1, "playback count must be >= -1, got ", count);
+  RB_CHECK(speed != PlaybackSpeed::kStep || static_cast<bool>(step_gate), "step playback needs a step gate");
+}
+
+PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& options)
+    : recording_(std::move(recording)), options_(options) {
+  options_.Check();
+  const int n = recording_.num_frames();
+  position_ = std::min(options_.first_position, n);
+  end_position_ = options_.count < 0 ? n : std::min(n, position_ + options_.count);
+}
+
+std::string PlaybackSource::Describe() const {
+  return StrCat("recording ", recording_.folder, " (", recording_.num_frames(), " frames)");
+}
+
+RecordingMeta PlaybackSource::Meta() const {
+  RecordingMeta meta = recording_.meta;
+  meta["source"] = Describe();
+  meta.erase("complete");
+  meta.erase("frame_count");
+  return meta;
+}
+
+std::optional<std::int64_t> PlaybackSource::frames_total() const {
+  if (options_.loop) return std::nullopt;
+  return std::max(0, end_position_ - options_.first_position);
+}
+
+StereoFrame PlaybackSource::FrameAt(int position) const { return LoadRecordingFrame(recording_, position); }
+
+StereoFrame PlaybackSource::FrameWithIndex(std::int64_t index) const {
+  const auto it = std::lower_bound(recording_.frames.begin(), recording_.frames.end(), index,
+                                   [](const RecordingEntry& e, std::int64_t i) { return e.index < i; });
+  RB_CHECK(it != recording_.frames.end() && it->index == index, recording_.folder, ": no frame with index ", index);
+  return FrameAt(static_cast<int>(it - recording_.frames.begin()));
+}
+
+void PlaybackSource::Seek(int position) {
+  RB_CHECK(position >= 0 && position <= recording_.num_frames(), recording_.folder, ": seek position ", position,
+           " out of range");
+  position_ = position;
+  clock_started_ = false;
+}
+
+FrameResult PlaybackSource::Next() {
+  FrameResult result;
+  if (position_ >= end_position_) {
+    if (!options_.loop || end_position_ <= options_.first_position) return result;
+    // Indices keep increasing across loops so that sinks and recorders never see one twice.
+    loop_index_offset_ += recording_.frames[static_cast<size_t>(end_position_ - 1)].index + 1;
+    Seek(options_.first_position);
+  }
+  if (options_.speed == PlaybackSpeed::kStep && !options_.step_gate()) return result;
+  const int position = position_++;
+  const RecordingEntry& entry = recording_.frames[static_cast<size_t>(position)];
+  if (options_.speed == PlaybackSpeed::kRecorded) {
+    const std::int64_t t_ns = std::max(entry.timestamp_left_ns, entry.timestamp_right_ns);
+    if (!clock_started_) {
+      clock_started_ = true;
+      wall_start_ = std::chrono::steady_clock::now();
+      recorded_start_ns_ = t_ns;
+    } else {
+      const double offset_s = static_cast<double>(t_ns - recorded_start_ns_) * 1e-9 / options_.speed_factor;
+      if (offset_s > 0) {
+        std::this_thread::sleep_until(wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                        std::chrono::duration<double>(offset_s)));
+      }
+    }
+  }
+  try {
+    result.frame = FrameAt(position);
+    result.frame.index += loop_index_offset_;
+    result.status = FrameStatus::kFrame;
+    ++stats_.frames_delivered;
+  } catch (const Error& e) {
+    result.status = FrameStatus::kSkipped;
+    result.frame.index = entry.index;
+    result.reason = e.what();
+    ++stats_.frames_skipped;
+  }
+  return result;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,251 @@
+// PlaybackSource (speeds, random access, skipping bad frames) and Recorder (limits, stop, device loss,
+// SIGINT and SIGKILL of a recording process).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "capture/playback_source.h"
+#include "capture/recorder.h"
+#include "capture/stop_signal.h"
+#include "core/error.h"
+#include "tests/capture/test_util.h"
+
+namespace rangebayes {
+namespace {
+namespace fs = std::filesystem;
+
+std::string MakeRecording(const TempDir& dir, int frames) {
+  const std::string folder = dir.path() + "/rec";
+  RecordingWriter writer(folder, TestRig(32, 16), {{"source", "test"}});
+  for (int i = 0; i < frames; ++i) writer.Write(TestFrame(i, 32, 16, CV_8UC1));
+  writer.Finish();
+  return folder;
+}
+
+TEST(Playback, FastestDeliversEveryFrameInOrder) {
+  const TempDir dir("play");
+  PlaybackSource source(OpenRecording(MakeRecording(dir, 5)));
+  EXPECT_EQ(source.frames_total().value_or(-1), 5);
+  for (int i = 0; i < 5; ++i) {
+    const FrameResult r = source.Next();
+    ASSERT_EQ(r.status, FrameStatus::kFrame);
+    EXPECT_EQ(r.frame.index, i);
+    EXPECT_EQ(r.frame.pattern_id, i % 4);
+  }
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
+  EXPECT_EQ(source.stats().frames_delivered, 5);
+}
+
+TEST(Playback, MissingAndCorruptFramesAreSkippedWithTheirIndex) {
+  const TempDir dir("skip");
+  const std::string folder = MakeRecording(dir, 4);
+  fs::remove(folder + "/right/000001.png");
+  { std::ofstream(folder + "/left/000002.png") << "garbage"; }
+  PlaybackSource source(OpenRecording(folder));
+  std::vector<FrameStatus> statuses;
+  std::vector<std::string> reasons;
+  for (FrameResult r = source.Next(); r.status != FrameStatus::kEndOfStream; r = source.Next()) {
+    statuses.push_back(r.status);
+    reasons.push_back(r.reason);
+  }
+  ASSERT_EQ(statuses.size(), 4u);
+  EXPECT_EQ(statuses[0], FrameStatus::kFrame);
+  EXPECT_EQ(statuses[1], FrameStatus::kSkipped);
+  EXPECT_NE(reasons[1].find("frame 1"), std::string::npos) << reasons[1];
+  EXPECT_EQ(statuses[2], FrameStatus::kSkipped);
+  EXPECT_NE(reasons[2].find("frame 2"), std::string::npos) << reasons[2];
+  EXPECT_EQ(statuses[3], FrameStatus::kFrame);
+  EXPECT_EQ(source.stats().frames_skipped, 2);
+}
+
+TEST(Playback, RandomAccessStepAndRecordedSpeed) {
+  const TempDir dir("access");
+  const Recording rec = OpenRecording(MakeRecording(dir, 6));
+  PlaybackOptions step;
+  step.speed = PlaybackSpeed::kStep;
+  int gate_calls = 0;
+  step.step_gate = [&] { return ++gate_calls <= 2; };
+  PlaybackSource source(rec, step);
+  EXPECT_EQ(source.FrameWithIndex(4).index, 4);
+  EXPECT_THROW(source.FrameWithIndex(40), Error);
+  EXPECT_EQ(source.Next().frame.index, 0);
+  EXPECT_EQ(source.Next().frame.index, 1);
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);  // the gate said stop
+
+  PlaybackOptions recorded;
+  recorded.speed = PlaybackSpeed::kRecorded;
+  recorded.speed_factor = 1000.0;  // 33 ms gaps become 33 µs: exercises the clock without slowing the test
+  recorded.first_position = 2;
+  recorded.count = 3;
+  PlaybackSource timed(rec, recorded);
+  EXPECT_EQ(timed.frames_total().value_or(-1), 3);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = timed.Next(); r.status == FrameStatus::kFrame; r = timed.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got, (std::vector<std::int64_t>{2, 3, 4}));
+
+  PlaybackOptions bad;
+  bad.speed = PlaybackSpeed::kStep;  // without a gate
+  EXPECT_THROW(PlaybackSource(rec, bad), Error);
+}
+
+TEST(Playback, LoopKeepsIndicesIncreasing) {
+  const TempDir dir("loop");
+  PlaybackOptions options;
+  options.loop = true;
+  PlaybackSource source(OpenRecording(MakeRecording(dir, 3)), options);
+  std::int64_t last = -1;
+  for (int i = 0; i < 8; ++i) {
+    const FrameResult r = source.Next();
+    ASSERT_EQ(r.status, FrameStatus::kFrame);
+    EXPECT_GT(r.frame.index, last);
+    last = r.frame.index;
+  }
+}
+
+TEST(Recorder, StopsAtLimitAndFinishesIndex) {
+  const TempDir dir("limit");
+  FakeFrameSource source(32, 16);
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, source.Meta());
+  RecorderOptions options;
+  options.max_frames = 7;
+  const RecorderSummary s = Record(source, writer, options);
+  EXPECT_EQ(s.stop, RecorderStop::kMaxFrames);
+  EXPECT_EQ(s.frames_written, 7);
+  const Recording rec = OpenRecording(dir.path() + "/rec");
+  EXPECT_EQ(rec.num_frames(), 7);
+  EXPECT_EQ(rec.meta.at("complete"), "true");
+  EXPECT_EQ(rec.meta.at("source"), "fake source");
+}
+
+TEST(Recorder, DeviceLostMidStreamKeepsRecording) {
+  const TempDir dir("lost");
+  FakeFrameSource source(32, 16);
+  source.hook = [](std::int64_t i) {
+    if (i == 3) return FrameStatus::kSkipped;
+    if (i == 5) throw Error("/dev/video9: device disappeared (ENODEV) after frame 4");
+    return FrameStatus::kFrame;
+  };
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {});
+  const RecorderSummary s = Record(source, writer);
+  EXPECT_EQ(s.stop, RecorderStop::kSourceError);
+  EXPECT_NE(s.error.find("ENODEV"), std::string::npos);
+  EXPECT_EQ(s.frames_written, 4);
+  EXPECT_EQ(s.frames_skipped, 1);
+  const Recording rec = OpenRecording(dir.path() + "/rec");
+  EXPECT_EQ(rec.num_frames(), 4);
+  EXPECT_EQ(rec.meta.at("complete"), "true");
+  EXPECT_NE(rec.meta.at("error").find("ENODEV"), std::string::npos);
+  for (int i = 0; i < rec.num_frames(); ++i) EXPECT_NO_THROW(LoadRecordingFrame(rec, i));
+}
+
+TEST(Recorder, StalledSourceEndsAfterTimeouts) {
+  const TempDir dir("stall");
+  FakeFrameSource source(32, 16);
+  source.hook = [](std::int64_t i) { return i < 2 ? FrameStatus::kFrame : FrameStatus::kTimeout; };
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {});
+  RecorderOptions options;
+  options.max_consecutive_timeouts = 4;
+  const RecorderSummary s = Record(source, writer, options);
+  EXPECT_EQ(s.stop, RecorderStop::kStalled);
+  EXPECT_EQ(s.timeouts, 4);
+  EXPECT_EQ(s.frames_written, 2);
+}
+
+TEST(Recorder, StopFlagEndsCleanly) {
+  const TempDir dir("flag");
+  std::atomic<bool> stop{false};
+  FakeFrameSource source(32, 16);
+  source.hook = [&](std::int64_t i) {
+    if (i == 4) stop = true;
+    return FrameStatus::kFrame;
+  };
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {});
+  RecorderOptions options;
+  options.stop = &stop;
+  const RecorderSummary s = Record(source, writer, options);
+  EXPECT_EQ(s.stop, RecorderStop::kStopRequested);
+  EXPECT_EQ(s.frames_written, 5);
+}
+
+// Runs a recorder in a child process on an endless source; returns the child's pid once it has written
+// at least `frames` frames.
+pid_t StartRecordingChild(const std::string& folder, int frames) {
+  int ready[2];
+  if (pipe(ready) != 0) return -1;
+  const pid_t child = fork();
+  if (child != 0) {
+    close(ready[1]);
+    char c = 0;
+    if (read(ready[0], &c, 1) != 1) return -1;
+    close(ready[0]);
+    return child;
+  }
+  close(ready[0]);
+  int code = 3;
+  try {
+    InstallStopSignalHandlers();
+    FakeFrameSource source(64, 48);
+    source.hook = [&](std::int64_t i) {
+      if (i == frames) {
+        const char c = 'x';
+        (void)!write(ready[1], &c, 1);
+      }
+      if (i > frames) usleep(2000);
+      return FrameStatus::kFrame;
+    };
+    RecordingWriter writer(folder, TestRig(64, 48), {});
+    RecorderOptions options;
+    options.stop = &StopFlag();
+    const RecorderSummary s = Record(source, writer, options);
+    code = s.stop == RecorderStop::kStopRequested ? 0 : 4;
+  } catch (...) {
+    code = 5;
+  }
+  _exit(code);
+}
+
+TEST(Recorder, SigintFinishesTheIndex) {
+  const TempDir dir("sigint");
+  const std::string folder = dir.path() + "/rec";
+  const pid_t child = StartRecordingChild(folder, 5);
+  ASSERT_GT(child, 0);
+  kill(child, SIGINT);
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  RecordingReadSummary rs;
+  const Recording rec = OpenRecording(folder, &rs);
+  EXPECT_GE(rec.num_frames(), 5);
+  EXPECT_FALSE(rs.truncated_last_line);
+  EXPECT_EQ(rec.meta.at("complete"), "true");
+  EXPECT_EQ(rec.meta.at("stopped"), "stop requested");
+  EXPECT_EQ(rec.meta.at("frame_count"), std::to_string(rec.num_frames()));
+}
+
+TEST(Recorder, SigkillLeavesReadableRecording) {
+  const TempDir dir("sigkill");
+  const std::string folder = dir.path() + "/rec";
+  const pid_t child = StartRecordingChild(folder, 8);
+  ASSERT_GT(child, 0);
+  kill(child, SIGKILL);
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  RecordingReadSummary rs;
+  const Recording rec = OpenRecording(folder, &rs);
+  EXPECT_GE(rec.num_frames(), 8);
+  EXPECT_EQ(rec.meta.at("complete"), "false");
+  EXPECT_EQ(rs.missing_files, 0);
+  for (int i = 0; i < rec.num_frames(); ++i) {
+    const StereoFrame f = LoadRecordingFrame(rec, i);
+    EXPECT_EQ(cv::norm(f.right, TestFrame(f.index, 64, 48, CV_8UC1).right, cv::NORM_INF), 0.0);
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes
