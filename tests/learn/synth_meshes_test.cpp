@@ -1,0 +1,101 @@
+#include "bayes/synth_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+double SignedVolume(const Mesh& mesh) {
+  double volume = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0));
+    const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1));
+    const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2));
+    volume += a.dot(b.cross(c)) / 6.0;
+  }
+  return volume;
+}
+
+TEST(SynthMeshes, EveryShapeIsAClosedOutwardManifold) {
+  for (int s = 0; s < 4; ++s) {
+    for (std::uint64_t seed : {1u, 2u, 3u}) {
+      RightAngledObjectOptions options;
+      options.shape = static_cast<RightAngledShape>(s);
+      const Mesh mesh = MakeRightAngledObject(options, seed);
+      const EdgeTopology topology = ComputeEdgeTopology(mesh);
+      for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+        ASSERT_EQ(topology.edge_faces.size(e), 2) << RightAngledShapeName(options.shape) << " edge " << e;
+      }
+      EXPECT_GT(SignedVolume(mesh), 0.0) << RightAngledShapeName(options.shape);
+      // Euler characteristic 2: a sphere-like closed surface (none of the shapes has a hole).
+      EXPECT_EQ(mesh.num_vertices() - topology.edges.rows() + mesh.num_faces(), 2);
+      // Unit squares cut in two, jittered by ≤ 0.2: edges between 0.6 and 1.9.
+      const double le = MeanEdgeLength(mesh, topology);
+      EXPECT_GT(le, 1.0);
+      EXPECT_LT(le, 1.3);
+      // Every face normal of a right-angled object is parallel or orthogonal to every other.
+      const Eigen::Vector3d n0 = (Eigen::Vector3d(mesh.V.row(mesh.F(0, 1)) - mesh.V.row(mesh.F(0, 0)))
+                                      .cross(Eigen::Vector3d(mesh.V.row(mesh.F(0, 2)) - mesh.V.row(mesh.F(0, 0)))))
+                                     .normalized();
+      for (int f = 0; f < mesh.num_faces(); ++f) {
+        const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0));
+        const Eigen::Vector3d n =
+            (Eigen::Vector3d(mesh.V.row(mesh.F(f, 1))) - a).cross(Eigen::Vector3d(mesh.V.row(mesh.F(f, 2))) - a).normalized();
+        const double c = std::abs(n.dot(n0));
+        ASSERT_TRUE(c < 1e-9 || c > 1 - 1e-9) << f;
+      }
+    }
+  }
+}
+
+TEST(SynthMeshes, DeterministicAndDisjoint) {
+  SynthMeshSetOptions options;
+  options.num_train = 4;
+  options.num_test = 4;
+  const SynthMeshSet a = MakeSynthMeshSet(options);
+  const SynthMeshSet b = MakeSynthMeshSet(options);
+  ASSERT_EQ(a.train.size(), 4u);
+  ASSERT_EQ(a.test.size(), 4u);
+  for (size_t i = 0; i < a.train.size(); ++i) {
+    EXPECT_EQ(a.train[i].noisy.mesh.V, b.train[i].noisy.mesh.V);
+    EXPECT_EQ(a.train[i].name, b.train[i].name);
+  }
+  for (const auto& test : a.test) {
+    for (const auto& train : a.train) {
+      EXPECT_FALSE(test.clean.num_vertices() == train.clean.num_vertices() &&
+                   test.clean.F == train.clean.F)
+          << test.name << " " << train.name;
+    }
+  }
+  options.seed = 2;
+  const SynthMeshSet c = MakeSynthMeshSet(options);
+  const Mesh& c0 = c.train[0].noisy.mesh;
+  const Mesh& a0 = a.train[0].noisy.mesh;
+  EXPECT_FALSE(c0.V.rows() == a0.V.rows() && c0.V == a0.V);
+}
+
+TEST(SynthMeshes, NoiseHasTheRequestedSize) {
+  RightAngledObjectOptions object;
+  object.min_cells = object.max_cells = 20;
+  const Mesh clean = MakeRightAngledObject(object, 5);
+  const double le = MeanEdgeLength(clean);
+  for (SynthNoise kind : {SynthNoise::kNormal, SynthNoise::kScanner}) {
+    SynthNoiseOptions noise;
+    noise.kind = kind;
+    noise.k = 0.4;
+    const NoisyMesh noisy = AddSynthNoise(clean, noise, 9);
+    const double rms = std::sqrt((noisy.mesh.V - clean.V).rowwise().squaredNorm().mean());
+    // ~2400 vertices: the sample RMS is within a few % of σ (scanner adds σ/10 laterally: √1.02).
+    EXPECT_NEAR(rms / le, 0.4 * (kind == SynthNoise::kScanner ? std::sqrt(1.02) : 1.0), 0.02);
+    EXPECT_EQ(noisy.has_covariance(), kind == SynthNoise::kScanner);
+    EXPECT_EQ(noisy.mesh.F, clean.F);
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes
