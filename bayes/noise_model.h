@@ -1,0 +1,40 @@
+// The generic noise model for meshes that did not come from our cameras (DESIGN §3.2): per vertex a
+// covariance with standard deviation σ along the mean of the adjacent face normals and σ / across_ratio across
+// it, σ = k · l_e (l_e the mean edge length) given as k, as σ in model units, or estimated from the mesh.
+#pragma once
+
+#include <limits>
+
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+struct GenericNoiseOptions {
+  // k: σ as a multiple of the mean edge length, (0, 10]. NaN: use sigma, or estimate k from the mesh.
+  double noise_edge_multiple = std::numeric_limits<double>::quiet_NaN();
+  // σ in model units, > 0; NaN: not given. Takes precedence over noise_edge_multiple.
+  double sigma = std::numeric_limits<double>::quiet_NaN();
+  // σ_normal / σ_tangent, [1, 100]. Scanner noise is mostly along the surface normal; the ratio is smaller
+  // than a stereo ray's (≥ 10) because the normal of a noisy mesh is itself uncertain.
+  double across_ratio = 2.0;
+  void Check() const;
+};
+
+struct GenericNoiseSummary {
+  double mean_edge_length = 0;       // l_e, model units
+  double noise_edge_multiple = 0;    // k used
+  double sigma = 0;                  // σ along the normal, model units
+  bool estimated = false;            // k came from EstimateNoiseLevel
+};
+
+// Estimate of k = σ / l_e for Gaussian noise along the normals: per vertex, the distance of the vertex from
+// the least-squares plane of its one-ring neighbours; a robust scale (median absolute value) of those
+// distances, divided by a constant calibrated on meshes with known noise (see BENCHMARKS.md). Returns 0 for a
+// mesh without interior vertices.
+double EstimateNoiseLevel(const Mesh& mesh);
+
+// The mesh with the generic covariance per vertex (isolated vertices get the isotropic σ²·I).
+NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options = {},
+                               GenericNoiseSummary* summary = nullptr);
+
+}  // namespace rangebayes

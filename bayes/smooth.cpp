@@ -1,0 +1,446 @@
+#include "bayes/smooth.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <memory>
+
+#include "bayes/smoothing_energy.h"
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+struct Preset {
+  double energy;    // relative energy decrease over kWindow iterations, divided by kWindow
+  double gradient;  // ‖g‖ / ‖g_0‖
+  int max_iterations;
+};
+constexpr int kWindow = 5;
+
+Preset PresetFor(SmoothTolerance tolerance) {
+  switch (tolerance) {
+    case SmoothTolerance::kFast:
+      return {1e-4, 1e-2, 300};
+    case SmoothTolerance::kDefault:
+      return {1e-6, 1e-3, 2000};
+    case SmoothTolerance::kTight:
+      return {1e-9, 1e-6, 20000};
+  }
+  return {1e-6, 1e-3, 2000};
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Line search on φ(α) = E(x + α p): Newton–Raphson on the directional derivative φ'(α) = g(x + α p)·p with
+// the curvature from the last two derivatives (secant), guarded by the Armijo condition: a point is accepted
+// only if φ(α) ≤ φ(0) + c1 α φ'(0), so the energy never rises. Stops when |φ'(α)| ≤ c2 |φ'(0)|.
+struct LineSearchResult {
+  bool success = false;
+  double alpha = 0;
+  double energy = 0;
+  EnergyParts parts;
+  int evaluations = 0;
+};
+
+class Problem {
+ public:
+  Problem(const SmoothingEnergy& energy) : energy_(energy) {}
+  EnergyParts Evaluate(const Eigen::VectorXd& x, Eigen::VectorXd* g) {
+    ++evaluations;
+    return energy_.Evaluate(x, g);
+  }
+  const SmoothingEnergy& energy() const { return energy_; }
+  int evaluations = 0;
+
+ private:
+  const SmoothingEnergy& energy_;
+};
+
+LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Eigen::VectorXd& p, double energy0,
+                            double slope0, double alpha_init, double c2, Eigen::VectorXd* x_out,
+                            Eigen::VectorXd* g_out) {
+  constexpr double kArmijo = 1e-4;
+  constexpr int kMaxEvaluations = 20;
+  LineSearchResult best;
+  best.energy = energy0;
+  Eigen::VectorXd x_trial(x.size()), g_trial(x.size());
+  double lo = 0, slope_lo = slope0;  // largest accepted α with negative slope
+  double hi = std::numeric_limits<double>::infinity();
+  double alpha = alpha_init;
+  const int start_evaluations = problem.evaluations;
+  for (int it = 0; it < kMaxEvaluations; ++it) {
+    if (!(alpha > 0) || !std::isfinite(alpha)) break;
+    x_trial = x + alpha * p;
+    const EnergyParts parts = problem.Evaluate(x_trial, &g_trial);
+    const double e = parts.total();
+    if (!std::isfinite(e) || e > energy0 + kArmijo * alpha * slope0) {
+      // Too far: interpolate a parabola through φ(0), φ'(0), φ(α), kept inside [0.1α, 0.5α] (and above lo).
+      hi = alpha;
+      double next = 0.5 * alpha;
+      if (std::isfinite(e)) {
+        const double denom = 2 * (e - energy0 - slope0 * alpha);
+        if (denom > 0) next = std::clamp(-slope0 * alpha * alpha / denom, 0.1 * alpha, 0.5 * alpha);
+      }
+      alpha = std::max(next, lo + 0.1 * (hi - lo));
+      if (!(alpha < hi)) alpha = 0.5 * (lo + hi);
+      if (hi - lo <= 1e-14 * hi) break;
+      continue;
+    }
+    const double slope = g_trial.dot(p);
+    if (e < best.energy || !best.success) {
+      if (!best.success || e <= best.energy) {
+        best.success = true;
+        best.alpha = alpha;
+        best.energy = e;
+        best.parts = parts;
+        x_out->swap(x_trial);
+        g_out->swap(g_trial);
+        x_trial.resize(x.size());
+        g_trial.resize(x.size());
+      }
+    }
+    if (std::abs(slope) <= c2 * std::abs(slope0)) break;
+    double next;
+    if (slope < 0) {
+      // Still descending: secant through (lo, slope_lo) and (α, slope), else expand.
+      const double denom = slope - slope_lo;
+      next = denom > 0 ? alpha - slope * (alpha - lo) / denom : 4 * alpha;
+      lo = alpha;
+      slope_lo = slope;
+      next = std::min(next, 4 * alpha);
+      if (std::isfinite(hi)) next = (next > lo && next < hi) ? next : 0.5 * (lo + hi);
+      next = std::max(next, 1.1 * alpha);
+      if (std::isfinite(hi) && next >= hi) next = 0.5 * (lo + hi);
+    } else {
+      // Passed the minimum: secant between lo and α lies inside (lo, α).
+      hi = alpha;
+      const double denom = slope - slope_lo;
+      next = denom > 0 ? lo - slope_lo * (alpha - lo) / denom : 0.5 * (lo + alpha);
+      const double width = alpha - lo;
+      next = std::clamp(next, lo + 0.05 * width, alpha - 0.05 * width);
+    }
+    if (std::isfinite(hi) && hi - lo <= 1e-14 * hi) break;
+    alpha = next;
+  }
+  best.evaluations = problem.evaluations - start_evaluations;
+  return best;
+}
+
+std::unique_ptr<Potential> MakePotential(const SmoothOptions& options) {
+  switch (options.prior) {
+    case PriorKind::kSqrt:
+      return std::make_unique<SqrtPotential>(options.sqrt_epsilon_squared);
+    case PriorKind::kQuadratic:
+      return std::make_unique<QuadraticPotential>();
+    case PriorKind::kCauchy:
+      return std::make_unique<CauchyPotential>(options.cauchy_scale);
+  }
+  return std::make_unique<SqrtPotential>(options.sqrt_epsilon_squared);
+}
+
+// Progress estimate: how far the (log) relative decrease has come from its first value to the tolerance.
+double ProgressFraction(double first_decrease, double decrease, double tolerance, int iteration, int max_iterations) {
+  double by_energy = 0;
+  if (first_decrease > tolerance && decrease > 0) {
+    by_energy = std::log(first_decrease / decrease) / std::log(first_decrease / tolerance);
+  }
+  const double by_iterations = static_cast<double>(iteration) / max_iterations;
+  return std::clamp(std::max(by_energy, by_iterations), 0.0, 0.99);
+}
+
+struct MinimiseResult {
+  Eigen::VectorXd x;
+  EnergyParts parts;
+};
+
+MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSummary* summary) {
+  const Preset preset = PresetFor(options.tolerance);
+  const int max_iterations = options.max_iterations > 0 ? options.max_iterations : preset.max_iterations;
+  const SmoothingEnergy& energy = problem.energy();
+  const bool lbfgs = options.minimiser == SmoothMinimiser::kLbfgs;
+  const Eigen::Index n = 3 * static_cast<Eigen::Index>(energy.num_vertices());
+  const int restart_every = options.restart_every > 0 ? options.restart_every : std::max(50, static_cast<int>(n));
+
+  Eigen::VectorXd x = energy.Measurements();
+  Eigen::VectorXd g(n), g_new(n), x_new(n), p(n);
+  EnergyParts parts = problem.Evaluate(x, &g);
+  double e = parts.total();
+  summary->energy.push_back(e);
+  summary->initial_gradient_norm = g.norm();
+  summary->final_gradient_norm = summary->initial_gradient_norm;
+  summary->termination = SmoothTermination::kMaxIterations;
+  if (!(summary->initial_gradient_norm > 0)) {
+    summary->termination = SmoothTermination::kGradientConverged;
+    return {x, parts};
+  }
+  const double gradient_stop = preset.gradient * summary->initial_gradient_norm;
+
+  // L-BFGS history.
+  std::deque<Eigen::VectorXd> s_history, y_history;
+  std::deque<double> rho_history;
+
+  p = -g;
+  double alpha_prev = 0, slope_prev = 0;
+  double first_decrease = -1;
+  int since_restart = 0;
+  for (int iteration = 1; iteration <= max_iterations; ++iteration) {
+    double slope = g.dot(p);
+    if (!(slope < 0)) {
+      p = -g;
+      slope = -g.squaredNorm();
+      ++summary->restarts;
+      since_restart = 0;
+      s_history.clear();
+      y_history.clear();
+      rho_history.clear();
+    }
+    double alpha_init;
+    if (lbfgs && !s_history.empty()) {
+      alpha_init = 1.0;
+    } else if (alpha_prev > 0 && slope_prev < 0) {
+      alpha_init = alpha_prev * std::min(slope_prev / slope, 10.0);
+    } else {
+      const double curvature = energy.DataCurvature(p);
+      alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
+    }
+    LineSearchResult step =
+        LineSearch(problem, x, p, e, slope, alpha_init, lbfgs ? 0.9 : 0.1, &x_new, &g_new);
+    if (!step.success) {
+      if (since_restart == 0) {
+        summary->termination = SmoothTermination::kNoProgress;
+        break;
+      }
+      // Retry once from steepest descent before giving up.
+      p = -g;
+      since_restart = 0;
+      alpha_prev = 0;
+      ++summary->restarts;
+      s_history.clear();
+      y_history.clear();
+      rho_history.clear();
+      --iteration;
+      continue;
+    }
+    const double e_new = step.energy;
+    summary->iterations = iteration;
+    if (lbfgs) {
+      Eigen::VectorXd s = x_new - x, y = g_new - g;
+      const double sy = s.dot(y);
+      if (sy > 1e-12 * s.norm() * y.norm()) {
+        s_history.push_back(std::move(s));
+        y_history.push_back(std::move(y));
+        rho_history.push_back(1.0 / sy);
+        if (static_cast<int>(s_history.size()) > options.lbfgs_memory) {
+          s_history.pop_front();
+          y_history.pop_front();
+          rho_history.pop_front();
+        }
+      }
+    }
+    x.swap(x_new);
+    const double gg_old = g.squaredNorm();
+    // PR+: β = max(0, g_newᵀ(g_new − g) / gᵀg).
+    const double beta_pr = (g_new.squaredNorm() - g_new.dot(g)) / gg_old;
+    g.swap(g_new);
+    alpha_prev = step.alpha;
+    slope_prev = slope;
+    e = e_new;
+    parts = step.parts;
+    summary->energy.push_back(e);
+    summary->final_gradient_norm = g.norm();
+    ++since_restart;
+
+    const int count = static_cast<int>(summary->energy.size());
+    if (count > kWindow) {
+      const double old = summary->energy[static_cast<size_t>(count - 1 - kWindow)];
+      const double decrease = (old - e) / std::max(std::abs(e), 1e-300) / kWindow;
+      if (first_decrease < 0) first_decrease = decrease;
+      if (options.progress) {
+        options.progress(ProgressFraction(first_decrease, decrease, preset.energy, iteration, max_iterations),
+                         "smoothing");
+      }
+      if (decrease < preset.energy) {
+        summary->termination = SmoothTermination::kEnergyConverged;
+        break;
+      }
+    }
+    if (summary->final_gradient_norm <= gradient_stop) {
+      summary->termination = SmoothTermination::kGradientConverged;
+      break;
+    }
+
+    if (lbfgs) {
+      // Two-loop recursion with H0 = (sᵀy / yᵀy) I.
+      Eigen::VectorXd q = g;
+      const int m = static_cast<int>(s_history.size());
+      std::vector<double> a(static_cast<size_t>(m));
+      for (int j = m - 1; j >= 0; --j) {
+        a[static_cast<size_t>(j)] = rho_history[static_cast<size_t>(j)] * s_history[static_cast<size_t>(j)].dot(q);
+        q -= a[static_cast<size_t>(j)] * y_history[static_cast<size_t>(j)];
+      }
+      if (m > 0) {
+        const Eigen::VectorXd& y = y_history.back();
+        q *= 1.0 / (rho_history.back() * y.squaredNorm());
+      }
+      for (int j = 0; j < m; ++j) {
+        const double b = rho_history[static_cast<size_t>(j)] * y_history[static_cast<size_t>(j)].dot(q);
+        q += (a[static_cast<size_t>(j)] - b) * s_history[static_cast<size_t>(j)];
+      }
+      p = -q;
+    } else if (since_restart >= restart_every) {
+      p = -g;
+      since_restart = 0;
+      ++summary->restarts;
+    } else {
+      p = -g + std::max(0.0, beta_pr) * p;
+    }
+  }
+  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 6);
+  return {x, parts};
+}
+
+}  // namespace
+
+SmoothTolerance ParseSmoothTolerance(const std::string& name) {
+  if (name == "fast") return SmoothTolerance::kFast;
+  if (name == "default") return SmoothTolerance::kDefault;
+  if (name == "tight") return SmoothTolerance::kTight;
+  RB_FAIL("unknown tolerance '", name, "' (expected fast, default or tight)");
+}
+
+std::string SmoothToleranceName(SmoothTolerance tolerance) {
+  switch (tolerance) {
+    case SmoothTolerance::kFast:
+      return "fast";
+    case SmoothTolerance::kDefault:
+      return "default";
+    case SmoothTolerance::kTight:
+      return "tight";
+  }
+  return "default";
+}
+
+SmoothMinimiser ParseSmoothMinimiser(const std::string& name) {
+  if (name == "cg") return SmoothMinimiser::kConjugateGradient;
+  if (name == "lbfgs") return SmoothMinimiser::kLbfgs;
+  RB_FAIL("unknown minimiser '", name, "' (expected cg or lbfgs)");
+}
+
+std::string SmoothMinimiserName(SmoothMinimiser minimiser) {
+  return minimiser == SmoothMinimiser::kLbfgs ? "lbfgs" : "cg";
+}
+
+std::string SmoothTerminationName(SmoothTermination termination) {
+  switch (termination) {
+    case SmoothTermination::kEnergyConverged:
+      return "energy converged";
+    case SmoothTermination::kGradientConverged:
+      return "gradient converged";
+    case SmoothTermination::kMaxIterations:
+      return "iteration limit";
+    case SmoothTermination::kNoProgress:
+      return "no further decrease (line search)";
+    case SmoothTermination::kNothingToDo:
+      return "nothing to do";
+  }
+  return "unknown";
+}
+
+void SmoothOptions::Check() const {
+  RB_CHECK(sqrt_epsilon_squared > 0 && sqrt_epsilon_squared <= 4, "smooth: sqrt_epsilon_squared ",
+           sqrt_epsilon_squared, " is outside (0, 4]");
+  RB_CHECK(cauchy_scale > 0 && cauchy_scale <= 2, "smooth: cauchy_scale ", cauchy_scale, " is outside (0, 2]");
+  RB_CHECK(prior_weight >= 0 && prior_weight <= 1e6, "smooth: prior_weight ", prior_weight, " is outside [0, 1e6]");
+  RB_CHECK(max_iterations >= 0 && max_iterations <= 10000000, "smooth: max_iterations ", max_iterations,
+           " is outside [0, 1e7]");
+  RB_CHECK(lbfgs_memory >= 1 && lbfgs_memory <= 50, "smooth: lbfgs_memory ", lbfgs_memory, " is outside [1, 50]");
+  RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
+  RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");
+}
+
+Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
+  const Eigen::Matrix3d symmetric = 0.5 * (covariance + covariance.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(symmetric);
+  Eigen::Vector3d values = solver.eigenvalues();
+  RB_CHECK(solver.info() == Eigen::Success && values.allFinite() && values.maxCoeff() > 0,
+           "covariance is not positive definite");
+  values = values.cwiseMax(1e-6 * values.maxCoeff());
+  return 0.5 * solver.eigenvectors() * values.cwiseInverse().asDiagonal() * solver.eigenvectors().transpose();
+}
+
+Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary* summary_out) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  const Mesh& mesh = noisy.mesh;
+  RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ", noisy.covariance.size(), " covariances for ",
+           mesh.num_vertices(), " vertices (use MakeGenericNoisyMesh for a plain mesh)");
+  SmoothSummary summary;
+  std::unique_ptr<Potential> owned;
+  const Potential* potential = options.potential;
+  if (potential == nullptr) {
+    owned = MakePotential(options);
+    potential = owned.get();
+  }
+  summary.potential_name = potential->Name();
+
+  tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
+  summary.num_threads = arena.max_concurrency();
+  Mesh result;
+  arena.execute([&] {
+    std::vector<Eigen::Matrix3d> information(noisy.covariance.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, information.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        const Eigen::Matrix3d& c = noisy.covariance[i];
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
+        const Eigen::Vector3d values = solver.eigenvalues();
+        if (!c.allFinite() || solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) {
+          information[i].setConstant(std::nan(""));
+          continue;
+        }
+        information[i] = solver.eigenvectors() * (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
+                         solver.eigenvectors().transpose();
+      }
+    });
+    for (size_t i = 0; i < information.size(); ++i) {
+      RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
+               " is not finite and positive definite");
+    }
+    const SmoothingEnergy energy(mesh, information, options.prior_weight, *potential);
+    std::vector<Eigen::Matrix3d>().swap(information);
+    summary.inactive_faces = energy.num_inactive_faces();
+    summary.memory_bytes = energy.MemoryBytes();
+    summary.setup_time_s = Seconds(start);
+    result.F = mesh.F;
+    if (mesh.num_vertices() == 0) {
+      result.V = mesh.V;
+      summary.termination = SmoothTermination::kNothingToDo;
+      return;
+    }
+    Problem problem(energy);
+    MinimiseResult minimum = Minimise(problem, options, &summary);
+    summary.evaluations = problem.evaluations;
+    summary.data_energy = minimum.parts.data;
+    summary.prior_energy = minimum.parts.prior;
+    const Normals before = energy.FaceNormals(energy.Measurements());
+    const Normals after = energy.FaceNormals(minimum.x);
+    for (int f = 0; f < mesh.num_faces(); ++f) {
+      if (before.row(f).dot(after.row(f)) < 0) ++summary.flipped_faces;
+    }
+    result.V = Eigen::Map<const Vertices>(minimum.x.data(), mesh.num_vertices(), 3);
+  });
+  summary.time_s = Seconds(start);
+  if (summary_out != nullptr) *summary_out = std::move(summary);
+  return result;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,87 @@
+// Bayesian mesh smoothing: the MAP estimate of paper §3–4 (DESIGN §3) by nonlinear conjugate gradient.
+//
+//   Mesh smoothed = Smooth(noisy_mesh, options, &summary);
+//
+// The energy is bayes/smoothing_energy.h with W_i = ½ Σ_i⁻¹ from the NoisyMesh covariances and the prior
+// multiplied by β = SmoothOptions::prior_weight. For a mesh that did not come from our cameras, build the
+// covariances with MakeGenericNoisyMesh (bayes/noise_model.h) first.
+//
+// The default rule (DESIGN §3.2, measured in BENCHMARKS.md "Bayesian smoothing"): the data term carries all
+// units (W ∝ 1/σ², σ in model units, so σ = k·l_e scales with the mesh), the prior is unitless, and a single
+// constant β = 1.7 (square-root prior, ε² = 1e-4) balances them on every mesh. No per-mesh tuning.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bayes/potential.h"
+#include "core/mesh.h"
+#include "core/progress.h"
+
+namespace rangebayes {
+
+// Stopping presets (relative energy decrease over 5 iterations / gradient norm relative to the start):
+// fast 1e-4 / 1e-2 (a usable result soon), default 1e-6 / 1e-3, tight 1e-9 / 1e-6.
+enum class SmoothTolerance { kFast, kDefault, kTight };
+enum class SmoothMinimiser { kConjugateGradient, kLbfgs };
+
+SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
+std::string SmoothToleranceName(SmoothTolerance tolerance);
+SmoothMinimiser ParseSmoothMinimiser(const std::string& name);  // "cg", "lbfgs"
+std::string SmoothMinimiserName(SmoothMinimiser minimiser);
+
+struct SmoothOptions {
+  PriorKind prior = PriorKind::kSqrt;  // used when `potential` is null
+  double sqrt_epsilon_squared = 1e-4;  // ε² of the square-root potential (the paper's value), (0, 4]
+  double cauchy_scale = 0.3;           // c of log(1 + d²/c²), (0, 2]
+  // A potential to use instead of `prior` (e.g. a learned spline); not owned, must outlive the call.
+  const Potential* potential = nullptr;
+  double prior_weight = 1.7;  // β, multiplies the prior sum; [0, 1e6]; 1.7 is the measured default rule
+  SmoothTolerance tolerance = SmoothTolerance::kDefault;
+  SmoothMinimiser minimiser = SmoothMinimiser::kConjugateGradient;
+  int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
+  int lbfgs_memory = 6;     // L-BFGS correction pairs, [1, 50]
+  int restart_every = 0;    // CG restart to steepest descent every N iterations; 0: every 3·#V (i.e. rarely)
+  int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
+  ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
+
+  void Check() const;
+};
+
+enum class SmoothTermination {
+  kEnergyConverged,    // relative energy decrease below the tolerance
+  kGradientConverged,  // gradient norm below the tolerance
+  kMaxIterations,
+  kNoProgress,         // the line search found no lower energy (numerically at a minimum)
+  kNothingToDo,        // no vertices
+};
+std::string SmoothTerminationName(SmoothTermination termination);
+
+struct SmoothSummary {
+  int iterations = 0;
+  int evaluations = 0;             // energy + gradient evaluations
+  std::vector<double> energy;      // energy[0] at the start, then after each iteration
+  double data_energy = 0;          // final parts
+  double prior_energy = 0;
+  double initial_gradient_norm = 0;
+  double final_gradient_norm = 0;
+  SmoothTermination termination = SmoothTermination::kNothingToDo;
+  double time_s = 0;               // whole call
+  double setup_time_s = 0;         // topology and buffers
+  int restarts = 0;
+  int flipped_faces = 0;           // faces whose normal turned by more than 90° from the input's
+  int inactive_faces = 0;          // degenerate faces left out of the prior
+  int num_threads = 0;
+  std::string potential_name;
+  size_t memory_bytes = 0;         // solver memory beyond the input mesh (energy buffers + minimiser vectors)
+};
+
+// Smooths `noisy`: same vertex count and order, same faces. Requires noisy.has_covariance() with symmetric
+// positive definite covariances (eigenvalues below 1e-6 of the largest are raised to it); throws Error
+// naming the vertex otherwise, and on non-finite positions or bad face indices.
+Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
+
+// The information matrix W = ½ Σ⁻¹ used for one covariance.
+Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
+
+}  // namespace rangebayes

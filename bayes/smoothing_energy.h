@@ -1,0 +1,80 @@
+// The MAP smoothing energy of paper eq. 11 (DESIGN §3.1) and its gradient (eqs. 13–16, DESIGN §3.3):
+//
+//   E(x) = Σ_i (z_i − x_i)ᵀ W_i (z_i − x_i) + β Σ_(s,t) φ(‖n_s − n_t‖)
+//
+// x, z: #V×3 positions flattened row-major into a 3·#V vector (vertex i at [3i, 3i+3)). W_i: 3×3 symmetric
+// positive semi-definite information matrix per vertex (W = ½ Σ⁻¹, units 1/length²). The prior runs over every
+// pair of faces sharing an edge (ComputeFacePairs: all pairs at a non-manifold edge); β is unitless.
+//
+// Degenerate faces: a face with a repeated vertex index, or whose measured area is below 1e-10 of the mean
+// face area, has no normal; it is left out of the prior for the whole minimisation (so E stays smooth). A face
+// that becomes exactly degenerate during minimisation gets normal 0 and no gradient (never NaN).
+//
+// Evaluation is parallel over faces, then over vertices (TBB, in the calling arena), with per-face buffers and
+// a gather per vertex in a fixed order and reductions of fixed shape: the result is bitwise identical for the
+// same input whatever the thread count.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "bayes/potential.h"
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+struct EnergyParts {
+  double data = 0;   // Σ_i r_iᵀ W_i r_i
+  double prior = 0;  // β Σ φ
+  double total() const { return data + prior; }
+};
+
+class SmoothingEnergy {
+ public:
+  // measured: z and faces (indices checked; throws Error). information: one W_i per vertex (symmetric).
+  // `potential` is not owned and must outlive this object. prior_weight = β ≥ 0.
+  SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::Matrix3d>& information, double prior_weight,
+                  const Potential& potential);
+
+  // E(x) and, when gradient is not null, ∂E/∂x (resized to 3·#V). Not safe to call concurrently on one
+  // object (it reuses internal buffers).
+  EnergyParts Evaluate(const Eigen::VectorXd& x, Eigen::VectorXd* gradient) const;
+
+  // pᵀ H_data p with H_data = blockdiag(2 W_i): the data term's curvature along p (a cheap first step length).
+  double DataCurvature(const Eigen::VectorXd& p) const;
+
+  // The measurements as the starting state.
+  Eigen::VectorXd Measurements() const;
+
+  // Unit face normals of x (#F×3; zero rows for degenerate faces).
+  Normals FaceNormals(const Eigen::VectorXd& x) const;
+
+  int num_vertices() const { return num_vertices_; }
+  int num_faces() const { return static_cast<int>(faces_.rows()); }
+  int num_pairs() const { return static_cast<int>(neighbours_.size() / 2); }
+  int num_inactive_faces() const { return num_inactive_faces_; }
+  // Bytes held by this object beyond the mesh it was built from (for memory reports).
+  size_t MemoryBytes() const;
+
+ private:
+  int num_vertices_ = 0;
+  Faces faces_;
+  Eigen::VectorXd z_;
+  std::vector<double> information_;  // 6 per vertex: xx xy xz yy yz zz
+  double prior_weight_ = 0;
+  const Potential* potential_ = nullptr;
+  // Face neighbours (compressed rows over faces, neighbours ascending) of active faces only.
+  std::vector<int> neighbour_offsets_;
+  std::vector<int> neighbours_;
+  std::vector<char> active_;
+  int num_inactive_faces_ = 0;
+  // Per vertex, its corners 3·f + k in ascending order (the fixed gather order).
+  std::vector<int> corner_offsets_;
+  std::vector<int> corners_;
+  // Scratch: unit normals and 1/|c_t| per face, then h_t per face.
+  mutable std::vector<double> normals_;
+  mutable std::vector<double> inverse_length_;
+  mutable std::vector<double> h_;
+};
+
+}  // namespace rangebayes

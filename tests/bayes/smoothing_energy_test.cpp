@@ -1,0 +1,144 @@
+#include "bayes/smoothing_energy.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <random>
+
+#include "bayes/potential.h"
+#include "core/error.h"
+#include "tests/bayes/test_meshes.h"
+
+namespace rangebayes {
+namespace {
+
+std::vector<Eigen::Matrix3d> RandomInformation(int n, bool anisotropic, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  std::vector<Eigen::Matrix3d> information(static_cast<size_t>(n));
+  for (auto& W : information) {
+    if (anisotropic) {
+      Eigen::Matrix3d A;
+      for (int i = 0; i < 9; ++i) A(i / 3, i % 3) = uniform(rng);
+      W = A * A.transpose() + 0.1 * Eigen::Matrix3d::Identity();
+    } else {
+      W = (2.0 + uniform(rng)) * Eigen::Matrix3d::Identity();
+    }
+  }
+  return information;
+}
+
+std::vector<std::unique_ptr<Potential>> AllPotentials() {
+  std::vector<std::unique_ptr<Potential>> potentials;
+  potentials.push_back(std::make_unique<SqrtPotential>(1e-4));
+  potentials.push_back(std::make_unique<SqrtPotential>(0.04));
+  potentials.push_back(std::make_unique<QuadraticPotential>());
+  potentials.push_back(std::make_unique<CauchyPotential>(0.3));
+  return potentials;
+}
+
+// Central differences of E along every coordinate. Step 1e-6 on O(1) coordinates: truncation error
+// ~h²·E''' ≈ 1e-12 and rounding ~1e-16·E/h ≈ 1e-9 relative, so 1e-5 relative agreement is a real check.
+TEST(SmoothingEnergy, GradientMatchesCentralDifferences) {
+  for (bool anisotropic : {false, true}) {
+    for (const auto& potential : AllPotentials()) {
+      SCOPED_TRACE(potential->Name() + (anisotropic ? " anisotropic W" : " isotropic W"));
+      const Mesh measured = testing::NoisyRoof(3, 4, 0.1, 7);
+      const SmoothingEnergy energy(measured, RandomInformation(measured.num_vertices(), anisotropic, 3), 1.3,
+                                   *potential);
+      // Evaluate away from the measurements so the data term has a gradient too.
+      std::mt19937 rng(11);
+      std::normal_distribution<double> gauss(0.0, 0.05);
+      Eigen::VectorXd x = energy.Measurements();
+      for (Eigen::Index i = 0; i < x.size(); ++i) x[i] += gauss(rng);
+      Eigen::VectorXd gradient;
+      energy.Evaluate(x, &gradient);
+      const double h = 1e-6;
+      for (Eigen::Index i = 0; i < x.size(); ++i) {
+        Eigen::VectorXd xp = x, xm = x;
+        xp[i] += h;
+        xm[i] -= h;
+        const double numeric = (energy.Evaluate(xp, nullptr).total() - energy.Evaluate(xm, nullptr).total()) / (2 * h);
+        EXPECT_NEAR(gradient[i], numeric, 1e-5 * std::max(1.0, std::abs(numeric))) << "coordinate " << i;
+      }
+    }
+  }
+}
+
+TEST(SmoothingEnergy, PartsMatchDefinition) {
+  // Two triangles folded by 90°: d = √2 for their one pair.
+  Mesh mesh;
+  mesh.V.resize(4, 3);
+  mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  mesh.F.resize(2, 3);
+  mesh.F << 0, 1, 2, 0, 3, 1;
+  const QuadraticPotential quadratic;
+  const std::vector<Eigen::Matrix3d> information(4, 2.0 * Eigen::Matrix3d::Identity());
+  const SmoothingEnergy energy(mesh, information, 0.5, quadratic);
+  Eigen::VectorXd x = energy.Measurements();
+  EnergyParts parts = energy.Evaluate(x, nullptr);
+  EXPECT_DOUBLE_EQ(parts.data, 0.0);
+  EXPECT_NEAR(parts.prior, 0.5 * 2.0, 1e-12);  // β · d² with d² = 2
+  x[0] += 0.1;
+  parts = energy.Evaluate(x, nullptr);
+  EXPECT_NEAR(parts.data, 2.0 * 0.01, 1e-12);
+  EXPECT_EQ(energy.num_pairs(), 1);
+}
+
+TEST(SmoothingEnergy, DegenerateFacesGiveFiniteValues) {
+  Mesh mesh = testing::Grid(2, 2);
+  // A face with a repeated index and a face whose three vertices are collinear.
+  mesh.F.conservativeResize(mesh.num_faces() + 2, 3);
+  mesh.F.row(mesh.num_faces() - 2) << 0, 0, 1;
+  mesh.F.row(mesh.num_faces() - 1) << 0, 1, 2;
+  const SqrtPotential potential;
+  const std::vector<Eigen::Matrix3d> information(static_cast<size_t>(mesh.num_vertices()), Eigen::Matrix3d::Identity());
+  const SmoothingEnergy energy(mesh, information, 1.0, potential);
+  EXPECT_EQ(energy.num_inactive_faces(), 2);
+  Eigen::VectorXd x = energy.Measurements();
+  Eigen::VectorXd gradient;
+  EXPECT_TRUE(std::isfinite(energy.Evaluate(x, &gradient).total()));
+  EXPECT_TRUE(gradient.allFinite());
+  // Collapse a valid face to a point during minimisation: still finite.
+  x.segment<3>(3 * 4) = x.segment<3>(3 * 0);
+  x.segment<3>(3 * 1) = x.segment<3>(3 * 0);
+  EXPECT_TRUE(std::isfinite(energy.Evaluate(x, &gradient).total()));
+  EXPECT_TRUE(gradient.allFinite());
+}
+
+TEST(SmoothingEnergy, RejectsBadInput) {
+  Mesh mesh = testing::Grid(1, 1);
+  const SqrtPotential potential;
+  std::vector<Eigen::Matrix3d> information(4, Eigen::Matrix3d::Identity());
+  EXPECT_THROW(SmoothingEnergy(mesh, std::vector<Eigen::Matrix3d>(3), 1.0, potential), Error);
+  Mesh bad = mesh;
+  bad.F(0, 0) = 17;
+  EXPECT_THROW(SmoothingEnergy(bad, information, 1.0, potential), Error);
+  bad = mesh;
+  bad.V(0, 0) = std::nan("");
+  EXPECT_THROW(SmoothingEnergy(bad, information, 1.0, potential), Error);
+}
+
+TEST(Potential, DerivativesMatchValues) {
+  for (const auto& potential : AllPotentials()) {
+    for (double d : {0.0, 1e-3, 0.1, 0.7, 1.4, 2.0}) {
+      double value = 0, derivative = 0, weight = 0, value2 = 0;
+      potential->Evaluate(d, &value, &derivative);
+      potential->EvaluateWeight(d, &value2, &weight);
+      EXPECT_DOUBLE_EQ(value, value2);
+      if (d > 0) {
+        EXPECT_NEAR(weight * d, derivative, 1e-12);
+      }
+      const double h = 1e-6;
+      if (d >= h) {
+        const double numeric = (potential->Value(d + h) - potential->Value(d - h)) / (2 * h);
+        EXPECT_NEAR(derivative, numeric, 1e-6) << potential->Name();
+      }
+    }
+  }
+  EXPECT_EQ(ParsePriorKind("cauchy"), PriorKind::kCauchy);
+  EXPECT_THROW(ParsePriorKind("gauss"), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
