@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/mesh.h"
@@ -44,11 +45,17 @@ Mesh ReadMesh(const std::string& path, MeshReadSummary* summary = nullptr);
 // covariance (and pixel_u pixel_v into NoisyMesh::pixel). Covariance stays empty when the file has none.
 NoisyMesh ReadNoisyMesh(const std::string& path, MeshReadSummary* summary = nullptr);
 
+// Parses a mesh file's bytes already in memory (what ReadNoisyMesh does after reading the file); `name` (a
+// path) names the source in error messages. Shared by the readers and the fuzz targets.
+NoisyMesh ParseNoisyMesh(std::string_view bytes, MeshFormat format, const std::string& name,
+                         MeshReadSummary* summary = nullptr);
+
 // Writes a mesh in the format of the extension. Vertex order and faces are kept exactly.
 void WriteMesh(const Mesh& mesh, const std::string& path, const MeshWriteOptions& options = {});
 
 // Writes covariance (and pixel positions when present) as the PLY vertex properties named above. Only PLY
-// can hold them: other formats throw Error.
+// can hold them: other formats throw Error when the mesh has either (a plain mesh is written as WriteMesh).
+// Throws Error when a face index is out of range or a per-vertex array has the wrong length.
 void WriteNoisyMesh(const NoisyMesh& mesh, const std::string& path, const MeshWriteOptions& options = {});
 
 // Writes a mesh whose faces are polygons (each row of `polygons` a list of vertex indices), OBJ or OFF or

@@ -1,0 +1,228 @@
+// Mesh file dispatch: whole-file reads and writes, format by extension. The format parsers live in
+// ply_io.cpp, obj_io.cpp and off_io.cpp.
+#include "core/mesh_io.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+
+#include "core/mesh_io_internal.h"
+
+namespace rangebayes {
+namespace mesh_io {
+
+bool TextCursor::ParseOutOfRange(const char* start, double* value) {
+  const char* stop = start;
+  while (stop < end_ && !IsSpace(*stop)) ++stop;
+  const std::string token(start, std::min<size_t>(static_cast<size_t>(stop - start), 512));
+  char* parsed_end = nullptr;
+  const double parsed = std::strtod(token.c_str(), &parsed_end);
+  if (parsed_end != token.c_str() + token.size()) return false;
+  *value = parsed;
+  p_ = stop;
+  return true;
+}
+
+void AppendDouble(std::string* out, double value, int precision) {
+  char buffer[64];
+  std::to_chars_result result{};
+  // Shortest form that reads back to the same double: exact round trips with fewer bytes than %.17g.
+  if (precision >= 17) {
+    result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  } else {
+    result = std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general,
+                           std::max(1, precision));
+  }
+  out->append(buffer, result.ptr);
+}
+
+void AppendInt(std::string* out, int64_t value) {
+  char buffer[24];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out->append(buffer, result.ptr);
+}
+
+void CheckFaceIndices(const Faces& F, int64_t num_vertices, const char* what) {
+  const int* data = F.data();
+  const int64_t n = F.size();
+  for (int64_t i = 0; i < n; ++i) {
+    if (data[i] < 0 || data[i] >= num_vertices) {
+      RB_FAIL(what, " ", i / 3, " uses vertex ", data[i], " but there are ", num_vertices, " vertices");
+    }
+  }
+}
+
+}  // namespace mesh_io
+
+namespace {
+
+std::string LowerExtension(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
+  std::string ext = path.substr(dot + 1);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+struct FileCloser {
+  void operator()(FILE* f) const { std::fclose(f); }
+};
+
+std::string ReadWholeFile(const std::string& path) {
+  std::unique_ptr<FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
+  RB_CHECK(file != nullptr, path, ": cannot open: ", std::strerror(errno));
+  struct stat info {};
+  RB_CHECK(fstat(fileno(file.get()), &info) == 0, path, ": cannot stat: ", std::strerror(errno));
+  RB_CHECK(!S_ISDIR(info.st_mode), path, ": is a directory");
+  std::string bytes;
+  if (S_ISREG(info.st_mode)) {
+    bytes.resize(static_cast<size_t>(info.st_size));
+    const size_t got = std::fread(bytes.data(), 1, bytes.size(), file.get());
+    RB_CHECK(got == bytes.size(), path, ": read ", got, " of ", bytes.size(), " bytes");
+  } else {
+    // Pipes and devices have no size: read in chunks.
+    char chunk[1 << 16];
+    size_t got = 0;
+    while ((got = std::fread(chunk, 1, sizeof(chunk), file.get())) > 0) bytes.append(chunk, got);
+    RB_CHECK(!std::ferror(file.get()), path, ": read error: ", std::strerror(errno));
+  }
+  return bytes;
+}
+
+void WriteWholeFile(const std::string& path, const std::string& bytes) {
+  std::unique_ptr<FILE, FileCloser> file(std::fopen(path.c_str(), "wb"));
+  RB_CHECK(file != nullptr, path, ": cannot create: ", std::strerror(errno));
+  const size_t put = std::fwrite(bytes.data(), 1, bytes.size(), file.get());
+  RB_CHECK(put == bytes.size(), path, ": write failed after ", put, " of ", bytes.size(),
+           " bytes: ", std::strerror(errno));
+  FILE* raw = file.release();
+  RB_CHECK(std::fclose(raw) == 0, path, ": write failed: ", std::strerror(errno));
+}
+
+// Writers refuse inconsistent meshes rather than produce a file no reader accepts.
+void CheckWritable(const NoisyMesh& noisy, const MeshWriteOptions& options, const std::string& path) {
+  const Mesh& mesh = noisy.mesh;
+  RB_CHECK(options.precision >= 1 && options.precision <= 17, path, ": precision must be in [1, 17], got ",
+           options.precision);
+  RB_CHECK(mesh.N.rows() == 0 || mesh.N.rows() == mesh.V.rows(), path, ": mesh has ", mesh.N.rows(),
+           " normals for ", mesh.V.rows(), " vertices");
+  RB_CHECK(noisy.covariance.empty() || noisy.covariance.size() == static_cast<size_t>(mesh.V.rows()), path,
+           ": mesh has ", noisy.covariance.size(), " covariances for ", mesh.V.rows(), " vertices");
+  RB_CHECK(noisy.pixel.rows() == 0 || noisy.pixel.rows() == mesh.V.rows(), path, ": mesh has ",
+           noisy.pixel.rows(), " pixel positions for ", mesh.V.rows(), " vertices");
+  try {
+    mesh_io::CheckFaceIndices(mesh.F, mesh.V.rows(), "face");
+  } catch (const Error& e) {
+    RB_FAIL(path, ": cannot write: ", e.what());
+  }
+  const CornerNormals& corner = options.corner_normals;
+  if (!corner.empty()) {
+    RB_CHECK(corner.normal_index.rows() == mesh.F.rows(), path, ": corner normals index ",
+             corner.normal_index.rows(), " faces but the mesh has ", mesh.F.rows());
+    try {
+      mesh_io::CheckFaceIndices(corner.normal_index, corner.normals.rows(), "corner normal of face");
+    } catch (const Error& e) {
+      RB_FAIL(path, ": cannot write: ", e.what());
+    }
+  }
+}
+
+}  // namespace
+
+MeshFormat MeshFormatFromPath(const std::string& path) {
+  const std::string ext = LowerExtension(path);
+  if (ext == "ply") return MeshFormat::kPly;
+  if (ext == "obj") return MeshFormat::kObj;
+  if (ext == "off") return MeshFormat::kOff;
+  RB_FAIL(path, ": unknown mesh format '.", ext, "' (expected .ply, .obj or .off)");
+}
+
+NoisyMesh ParseNoisyMesh(std::string_view bytes, MeshFormat format, const std::string& name,
+                         MeshReadSummary* summary) {
+  MeshReadSummary local;
+  MeshReadSummary* out = summary != nullptr ? summary : &local;
+  *out = MeshReadSummary{};
+  out->format = format;
+  switch (format) {
+    case MeshFormat::kPly:
+      return mesh_io::ParsePly(bytes, name, out);
+    case MeshFormat::kObj:
+      return mesh_io::ParseObj(bytes, name, out);
+    case MeshFormat::kOff:
+      return mesh_io::ParseOff(bytes, name, out);
+  }
+  RB_FAIL(name, ": unknown mesh format");
+}
+
+NoisyMesh ReadNoisyMesh(const std::string& path, MeshReadSummary* summary) {
+  const MeshFormat format = MeshFormatFromPath(path);
+  const std::string bytes = ReadWholeFile(path);
+  return ParseNoisyMesh(bytes, format, path, summary);
+}
+
+Mesh ReadMesh(const std::string& path, MeshReadSummary* summary) {
+  return std::move(ReadNoisyMesh(path, summary).mesh);
+}
+
+void WriteMesh(const Mesh& mesh, const std::string& path, const MeshWriteOptions& options) {
+  NoisyMesh noisy;
+  noisy.mesh = mesh;
+  WriteNoisyMesh(noisy, path, options);
+}
+
+void WriteNoisyMesh(const NoisyMesh& mesh, const std::string& path, const MeshWriteOptions& options) {
+  const MeshFormat format = MeshFormatFromPath(path);
+  CheckWritable(mesh, options, path);
+  std::string bytes;
+  switch (format) {
+    case MeshFormat::kPly:
+      bytes = mesh_io::FormatPly(mesh, options);
+      break;
+    case MeshFormat::kObj:
+    case MeshFormat::kOff:
+      RB_CHECK(mesh.covariance.empty() && mesh.pixel.rows() == 0, path,
+               ": only .ply can hold per-vertex covariance and pixel positions");
+      bytes = format == MeshFormat::kObj ? mesh_io::FormatObj(mesh.mesh, options)
+                                         : mesh_io::FormatOff(mesh.mesh, options);
+      break;
+  }
+  WriteWholeFile(path, bytes);
+}
+
+void WritePolygonMesh(const Vertices& V, const std::vector<std::vector<int>>& polygons, const std::string& path,
+                      const MeshWriteOptions& options) {
+  const MeshFormat format = MeshFormatFromPath(path);
+  RB_CHECK(options.precision >= 1 && options.precision <= 17, path, ": precision must be in [1, 17], got ",
+           options.precision);
+  for (size_t p = 0; p < polygons.size(); ++p) {
+    RB_CHECK(polygons[p].size() >= 3, path, ": polygon ", p, " has ", polygons[p].size(),
+             " vertices (at least 3 needed)");
+    for (const int v : polygons[p]) {
+      RB_CHECK(v >= 0 && v < V.rows(), path, ": polygon ", p, " uses vertex ", v, " but there are ", V.rows(),
+               " vertices");
+    }
+  }
+  std::string bytes;
+  switch (format) {
+    case MeshFormat::kPly:
+      bytes = mesh_io::FormatPolygonPly(V, polygons, options);
+      break;
+    case MeshFormat::kObj:
+      bytes = mesh_io::FormatPolygonObj(V, polygons, options);
+      break;
+    case MeshFormat::kOff:
+      bytes = mesh_io::FormatPolygonOff(V, polygons, options);
+      break;
+  }
+  WriteWholeFile(path, bytes);
+}
+
+}  // namespace rangebayes
