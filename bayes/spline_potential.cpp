@@ -109,16 +109,8 @@ void SplinePotential::Evaluate(double d, double* value, double* derivative) cons
   if (derivative != nullptr) *derivative = BaseDerivative(dc) + slope;
 }
 
-double SplinePotential::Value(double d) const {
-  double value = 0.0;
-  Evaluate(d, &value, nullptr);
-  return value;
-}
-
-double SplinePotential::Derivative(double d) const {
-  double derivative = 0.0;
-  Evaluate(d, nullptr, &derivative);
-  return derivative;
+std::string SplinePotential::Name() const {
+  return StrCat("spline(N=", options_.num_knots, ",eps2=", options_.epsilon_squared, ")");
 }
 
 void SplinePotential::Basis(int j, double d, double* value, double* derivative) const {

@@ -2,6 +2,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
+
+#include "bayes/potential.h"
 
 namespace rangebayes {
 
@@ -20,7 +23,7 @@ struct SplinePotentialOptions {
 // than a plain cubic), so θ_j = b(t_j) reproduces the square-root potential exactly, including its sharp
 // bend below the first knot that a plain cubic over a knot spacing of 2/(N−1) cannot represent.
 // φ is linear in θ; ∂φ/∂θ_j does not depend on θ.
-class SplinePotential {
+class SplinePotential final : public Potential {
  public:
   // The square-root potential (θ_j = b(t_j)).
   explicit SplinePotential(const SplinePotentialOptions& options = {});
@@ -38,11 +41,10 @@ class SplinePotential {
   double Base(double d) const;
   double BaseDerivative(double d) const;
 
-  // φ(d) and dφ/dd; d is clamped to [0, 2].
-  double Value(double d) const;
-  double Derivative(double d) const;
-  // Both at once (the smoother's inner loop).
-  void Evaluate(double d, double* value, double* derivative) const;
+  // φ(d) and dφ/dd (Potential::Value and Derivative give one of them); d is clamped to [0, 2].
+  void Evaluate(double d, double* value, double* derivative) const override;
+  // "spline(N=16,eps2=0.0001)"
+  std::string Name() const override;
 
   // ∂φ(d)/∂θ_j for all j (N entries; 0 for the fixed ends), and ∂²φ/∂d∂θ_j.
   void ParameterGradient(double d, Eigen::VectorXd* dvalue_dtheta, Eigen::VectorXd* dderivative_dtheta) const;

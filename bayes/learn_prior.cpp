@@ -1,0 +1,493 @@
+#include "bayes/learn_prior.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "bayes/smoothing_energy.h"
+#include "core/error.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+Eigen::VectorXd Flatten(const Vertices& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), v.size()); }
+
+// What the learner keeps per pair: the energy (bound to the shared, mutable spline), the truth flattened,
+// the data-term normalisation 1 / (#V l_e²) and the face pairs the prior runs over.
+struct PairProblem {
+  std::unique_ptr<SmoothingEnergy> energy;
+  Eigen::VectorXd truth;
+  double scale = 0;
+  IndexPairs face_pairs;
+};
+
+std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                                 const Potential& potential) {
+  std::vector<PairProblem> problems(pairs.size());
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const TrainingPair& pair = pairs[p];
+    RB_CHECK(pair.noisy.has_covariance(), "learn prior: pair '", pair.name, "' has no per-vertex covariance");
+    RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F,
+             "learn prior: pair '", pair.name, "': the ground truth and the noisy mesh differ in connectivity");
+    std::vector<Eigen::Matrix3d> information(pair.noisy.covariance.size());
+    for (size_t i = 0; i < information.size(); ++i) information[i] = InformationFromCovariance(pair.noisy.covariance[i]);
+    problems[p].energy =
+        std::make_unique<SmoothingEnergy>(pair.noisy.mesh, information, options.prior_weight, potential);
+    problems[p].truth = Flatten(pair.truth.V);
+    const double le = MeanEdgeLength(pair.truth);
+    RB_CHECK(le > 0 && pair.truth.num_vertices() > 0, "learn prior: pair '", pair.name, "' has no edges");
+    problems[p].scale = 1.0 / (pair.truth.num_vertices() * le * le);
+    problems[p].face_pairs = ComputeFacePairs(pair.truth);
+  }
+  return problems;
+}
+
+SmoothOptions SmoothOptionsFor(const LearnPriorOptions& options, const Potential& potential) {
+  SmoothOptions smooth;
+  smooth.potential = &potential;
+  smooth.prior_weight = options.prior_weight;
+  smooth.tolerance = options.tolerance;
+  smooth.num_threads = options.num_threads;
+  return smooth;
+}
+
+double PairDataLoss(const PairProblem& problem, const Eigen::VectorXd& x) {
+  return (x - problem.truth).squaredNorm() * problem.scale;
+}
+
+// Unit normals and 1/|c_t| of every face at x (zero for degenerate faces).
+void FaceFrames(const Faces& faces, const Eigen::VectorXd& x, std::vector<Eigen::Vector3d>* normal,
+                std::vector<double>* inverse_length) {
+  normal->resize(faces.rows());
+  inverse_length->resize(faces.rows());
+  for (int f = 0; f < faces.rows(); ++f) {
+    const Eigen::Vector3d a = x.segment<3>(3 * faces(f, 0));
+    const Eigen::Vector3d c = (x.segment<3>(3 * faces(f, 1)) - a).cross(x.segment<3>(3 * faces(f, 2)) - a);
+    const double length = c.norm();
+    if (length > 1e-300) {
+      (*normal)[f] = c / length;
+      (*inverse_length)[f] = 1.0 / length;
+    } else {
+      (*normal)[f].setZero();
+      (*inverse_length)[f] = 0;
+    }
+  }
+}
+
+// J_j = vᵀ ∇ₓ Σ_(s,t) c_j(d_st) at x for every knot j: the directional derivative of each basis energy.
+Eigen::VectorXd BasisDirectionalDerivatives(const PairProblem& problem, const Faces& faces, const Eigen::VectorXd& x,
+                                            const Eigen::VectorXd& v, const SplinePotential& spline) {
+  std::vector<Eigen::Vector3d> normal;
+  std::vector<double> inverse_length;
+  FaceFrames(faces, x, &normal, &inverse_length);
+  std::vector<Eigen::Vector3d> normal_rate(faces.rows());
+  for (int f = 0; f < faces.rows(); ++f) {
+    const int a = faces(f, 0), b = faces(f, 1), c = faces(f, 2);
+    const Eigen::Vector3d xa = x.segment<3>(3 * a);
+    const Eigen::Vector3d va = v.segment<3>(3 * a);
+    const Eigen::Vector3d c_rate = (v.segment<3>(3 * b) - va).cross(x.segment<3>(3 * c) - xa) +
+                                   (x.segment<3>(3 * b) - xa).cross(v.segment<3>(3 * c) - va);
+    const Eigen::Vector3d& n = normal[f];
+    normal_rate[f] = (c_rate - n * n.dot(c_rate)) * inverse_length[f];
+  }
+  const int num_knots = spline.num_knots();
+  Eigen::VectorXd result = Eigen::VectorXd::Zero(num_knots);
+  for (int k = 0; k < problem.face_pairs.rows(); ++k) {
+    const int s = problem.face_pairs(k, 0), t = problem.face_pairs(k, 1);
+    if (inverse_length[s] == 0 || inverse_length[t] == 0) continue;
+    const Eigen::Vector3d difference = normal[s] - normal[t];
+    const double d = difference.norm();
+    if (d < 1e-12) continue;  // every basis slope vanishes at d = 0 (clamped, symmetric in n_s − n_t)
+    const double d_rate = difference.dot(normal_rate[s] - normal_rate[t]) / d;
+    for (int j = 1; j + 1 < num_knots; ++j) {
+      double slope = 0;
+      spline.Basis(j, d, nullptr, &slope);
+      result[j] += slope * d_rate;
+    }
+  }
+  return result;
+}
+
+// Solves H v = b by CG, H v products by central differences of the energy gradient at x. Stops at the
+// tolerance, the iteration limit, or on non-positive curvature (x slightly off the minimum).
+Eigen::VectorXd SolveHessian(const SmoothingEnergy& energy, const Eigen::VectorXd& x, const Eigen::VectorXd& b,
+                             double length_scale, int max_iterations, double tolerance) {
+  Eigen::VectorXd gradient_plus(x.size()), gradient_minus(x.size());
+  auto hessian_times = [&](const Eigen::VectorXd& p) {
+    const double p_max = p.cwiseAbs().maxCoeff();
+    if (!(p_max > 0)) return Eigen::VectorXd::Zero(p.size()).eval();
+    // Small against the scale on which the square root bends (ε = 0.01 in d ~ displacement / l_e).
+    const double h = 1e-5 * length_scale / p_max;
+    energy.Evaluate(x + h * p, &gradient_plus);
+    energy.Evaluate(x - h * p, &gradient_minus);
+    return ((gradient_plus - gradient_minus) / (2 * h)).eval();
+  };
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(b.size());
+  Eigen::VectorXd r = b;
+  Eigen::VectorXd p = r;
+  double rr = r.squaredNorm();
+  const double stop = tolerance * tolerance * rr;
+  for (int it = 0; it < max_iterations && rr > stop; ++it) {
+    const Eigen::VectorXd hp = hessian_times(p);
+    const double curvature = p.dot(hp);
+    if (!(curvature > 0)) break;
+    const double alpha = rr / curvature;
+    v += alpha * p;
+    r -= alpha * hp;
+    const double rr_new = r.squaredNorm();
+    p = r + (rr_new / rr) * p;
+    rr = rr_new;
+  }
+  return v;
+}
+
+// One Polak–Ribière (PR+) CG step on E from x with the previous direction; line search by a secant on the
+// directional derivative with an Armijo backtracking fallback (the energy never rises). The state of the
+// interleaved scheme: the paper runs its learning inside the smoother's CG iterations.
+struct CgState {
+  Eigen::VectorXd x;
+  Eigen::VectorXd gradient;   // at x, under the θ of the last step
+  Eigen::VectorXd direction;
+  double step = 0;
+};
+
+CgState CgStep(const SmoothingEnergy& energy, const CgState& state) {
+  CgState next;
+  Eigen::VectorXd g(state.x.size());
+  const double e0 = energy.Evaluate(state.x, &g).total();
+  Eigen::VectorXd p = -g;
+  if (state.direction.size() == g.size() && state.gradient.size() == g.size()) {
+    const double denominator = state.gradient.squaredNorm();
+    const double beta = denominator > 0 ? std::max(0.0, g.dot(g - state.gradient) / denominator) : 0.0;
+    p += beta * state.direction;
+  }
+  double slope = g.dot(p);
+  if (!(slope < 0)) {
+    p = -g;
+    slope = -g.squaredNorm();
+  }
+  next.gradient = g;
+  next.direction = p;
+  next.x = state.x;
+  if (!(slope < 0)) return next;
+  double t = state.step > 0 ? state.step : -slope / std::max(energy.DataCurvature(p), 1e-300);
+  Eigen::VectorXd g1(state.x.size());
+  energy.Evaluate(state.x + t * p, &g1);
+  const double slope1 = g1.dot(p);
+  if (slope1 > slope) t = std::clamp(t * slope / (slope - slope1), 0.1 * t, 10.0 * t);
+  for (int k = 0; k < 30; ++k) {
+    const double e = energy.Evaluate(state.x + t * p, nullptr).total();
+    if (e <= e0 + 1e-4 * t * slope) {
+      next.x = state.x + t * p;
+      next.step = t;
+      return next;
+    }
+    t *= 0.5;
+  }
+  return next;
+}
+
+}  // namespace
+
+LearnMethod ParseLearnMethod(const std::string& name) {
+  if (name == "interleaved") return LearnMethod::kInterleaved;
+  if (name == "implicit") return LearnMethod::kImplicit;
+  RB_FAIL("unknown learning method '", name, "' (expected interleaved or implicit)");
+}
+
+std::string LearnMethodName(LearnMethod method) {
+  return method == LearnMethod::kInterleaved ? "interleaved" : "implicit";
+}
+
+void LearnPriorOptions::Check() const {
+  spline.Check();
+  RB_CHECK(regularizer_weight >= 0 && regularizer_weight <= 1e6, "learn prior: regularizer weight must be in [0, 1e6], got ",
+           regularizer_weight);
+  RB_CHECK(prior_weight > 0 && prior_weight <= 1e6, "learn prior: prior weight must be in (0, 1e6], got ", prior_weight);
+  RB_CHECK(max_iterations >= 0 && max_iterations <= 1000000, "learn prior: max_iterations must be in [0, 1e6], got ",
+           max_iterations);
+  RB_CHECK(time_limit_s >= 0, "learn prior: time limit must be ≥ 0, got ", time_limit_s);
+  RB_CHECK(initial_step > 0 && initial_step <= 1, "learn prior: initial step must be in (0, 1], got ", initial_step);
+  RB_CHECK(hessian_cg_iterations >= 1 && hessian_cg_iterations <= 100000,
+           "learn prior: hessian_cg_iterations must be in [1, 1e5], got ", hessian_cg_iterations);
+  RB_CHECK(hessian_cg_tolerance > 0 && hessian_cg_tolerance < 1, "learn prior: hessian_cg_tolerance must be in (0, 1), got ",
+           hessian_cg_tolerance);
+  RB_CHECK(interleaved_step > 0 && interleaved_step <= 1e6, "learn prior: interleaved step must be in (0, 1e6], got ",
+           interleaved_step);
+  RB_CHECK(interleaved_epsilon > 0 && interleaved_epsilon <= 1, "learn prior: interleaved epsilon must be in (0, 1], got ",
+           interleaved_epsilon);
+  RB_CHECK(num_threads >= 0 && num_threads <= 1024, "learn prior: num_threads must be in [0, 1024], got ", num_threads);
+}
+
+double CurvatureRegularizer(const Eigen::VectorXd& theta, double weight, Eigen::VectorXd* gradient) {
+  if (gradient != nullptr) gradient->setZero(theta.size());
+  double value = 0;
+  for (Eigen::Index j = 1; j + 1 < theta.size(); ++j) {
+    const double c = theta[j - 1] - 2 * theta[j] + theta[j + 1];
+    value += weight * c * c;
+    if (gradient != nullptr) {
+      (*gradient)[j - 1] += 2 * weight * c;
+      (*gradient)[j] -= 4 * weight * c;
+      (*gradient)[j + 1] += 2 * weight * c;
+    }
+  }
+  return value;
+}
+
+double MeanAngularErrorDeg(const Mesh& result, const Mesh& truth) {
+  RB_CHECK(result.F == truth.F, "mean angular error: the meshes differ in faces");
+  double sum = 0;
+  int count = 0;
+  for (int f = 0; f < truth.num_faces(); ++f) {
+    auto normal = [&](const Mesh& m) {
+      const Eigen::Vector3d a = m.V.row(m.F(f, 0));
+      const Eigen::Vector3d b = m.V.row(m.F(f, 1));
+      const Eigen::Vector3d c = m.V.row(m.F(f, 2));
+      return (b - a).cross(c - a).normalized().eval();
+    };
+    const Eigen::Vector3d n1 = normal(result);
+    const Eigen::Vector3d n2 = normal(truth);
+    if (!n1.allFinite() || !n2.allFinite()) continue;
+    sum += std::acos(std::clamp(n1.dot(n2), -1.0, 1.0));
+    ++count;
+  }
+  return count > 0 ? sum / count * 180.0 / M_PI : 0.0;
+}
+
+PriorEvaluation EvaluatePrior(const std::vector<TrainingPair>& pairs, const Potential& potential,
+                              const LearnPriorOptions& options, bool keep_meshes) {
+  options.Check();
+  PriorEvaluation evaluation;
+  const SmoothOptions smooth = SmoothOptionsFor(options, potential);
+  for (const TrainingPair& pair : pairs) {
+    const Mesh result = Smooth(pair.noisy, smooth);
+    const double le = MeanEdgeLength(pair.truth);
+    const double loss = (result.V - pair.truth.V).squaredNorm() / (pair.truth.num_vertices() * le * le);
+    evaluation.pair_data_loss.push_back(loss);
+    evaluation.pair_mae_deg.push_back(MeanAngularErrorDeg(result, pair.truth));
+    if (keep_meshes) evaluation.smoothed.push_back(result);
+  }
+  const double count = std::max<size_t>(1, pairs.size());
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    evaluation.data_loss += evaluation.pair_data_loss[p] / count;
+    evaluation.mean_angular_error_deg += evaluation.pair_mae_deg[p] / count;
+  }
+  return evaluation;
+}
+
+namespace {
+
+// Smooths every pair under the spline's current θ; returns D and keeps the minima.
+double SmoothAll(const std::vector<TrainingPair>& pairs, const std::vector<PairProblem>& problems,
+                 const SplinePotential& spline, const LearnPriorOptions& options, std::vector<Eigen::VectorXd>* minima) {
+  const SmoothOptions smooth = SmoothOptionsFor(options, spline);
+  minima->resize(pairs.size());
+  double loss = 0;
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    (*minima)[p] = Flatten(Smooth(pairs[p].noisy, smooth).V);
+    loss += PairDataLoss(problems[p], (*minima)[p]) / pairs.size();
+  }
+  return loss;
+}
+
+Eigen::VectorXd GradientAtMinima(const std::vector<TrainingPair>& pairs, const std::vector<PairProblem>& problems,
+                                 const SplinePotential& spline, const LearnPriorOptions& options,
+                                 const std::vector<Eigen::VectorXd>& minima) {
+  Eigen::VectorXd gradient = Eigen::VectorXd::Zero(spline.num_knots());
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const PairProblem& problem = problems[p];
+    const Eigen::VectorXd b = 2.0 * problem.scale / pairs.size() * (minima[p] - problem.truth);
+    const double le = 1.0 / std::sqrt(problem.scale * pairs[p].truth.num_vertices());
+    const Eigen::VectorXd v = SolveHessian(*problem.energy, minima[p], b, le, options.hessian_cg_iterations,
+                                           options.hessian_cg_tolerance);
+    gradient -= options.prior_weight *
+                BasisDirectionalDerivatives(problem, pairs[p].noisy.mesh.F, minima[p], v, spline);
+  }
+  return gradient;
+}
+
+struct Report {
+  const LearnPriorOptions& options;
+  LearnPriorSummary* summary;
+  std::chrono::steady_clock::time_point start;
+  int max_iterations;
+
+  void Record(double data_loss, double loss) {
+    summary->data_loss.push_back(data_loss);
+    summary->loss.push_back(loss);
+    summary->time_s.push_back(Seconds(start));
+  }
+  void Progress(int iteration, double data_loss, double loss) const {
+    if (options.progress) {
+      options.progress(std::min(1.0, static_cast<double>(iteration) / max_iterations),
+                       StrCat("iteration ", iteration, ": loss ", loss, " (data ", data_loss, ")"));
+    }
+  }
+  bool OutOfTime() const { return options.time_limit_s > 0 && Seconds(start) > options.time_limit_s; }
+};
+
+Eigen::VectorXd LearnImplicit(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                              SplinePotential* spline, const std::vector<PairProblem>& problems, Report* report) {
+  LearnPriorSummary* summary = report->summary;
+  std::vector<Eigen::VectorXd> minima;
+  Eigen::VectorXd theta = spline->theta();
+  double data_loss = SmoothAll(pairs, problems, *spline, options, &minima);
+  ++summary->smoothing_runs;
+  summary->initial_data_loss = data_loss;
+  Eigen::VectorXd regularizer_gradient;
+  double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight, &regularizer_gradient);
+  report->Record(data_loss, loss);
+  double step = options.initial_step;
+  summary->termination = "max iterations";
+  Eigen::VectorXd gradient;
+  bool need_gradient = true;
+  for (int iteration = 1; iteration <= report->max_iterations; ++iteration) {
+    if (report->OutOfTime()) {
+      summary->termination = "time limit";
+      break;
+    }
+    if (need_gradient) {
+      gradient = GradientAtMinima(pairs, problems, *spline, options, minima) + regularizer_gradient;
+      gradient[0] = 0;
+      gradient[gradient.size() - 1] = 0;
+      need_gradient = false;
+    }
+    const double largest = gradient.cwiseAbs().maxCoeff();
+    if (!(largest > 0)) {
+      summary->termination = "converged";
+      break;
+    }
+    const Eigen::VectorXd candidate = theta - step / largest * gradient;
+    spline->SetTheta(candidate);
+    std::vector<Eigen::VectorXd> candidate_minima;
+    const double candidate_data = SmoothAll(pairs, problems, *spline, options, &candidate_minima);
+    ++summary->smoothing_runs;
+    Eigen::VectorXd candidate_regularizer_gradient;
+    const double candidate_loss =
+        candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight, &candidate_regularizer_gradient);
+    summary->iterations = iteration;
+    if (candidate_loss < loss) {
+      theta = candidate;
+      minima = std::move(candidate_minima);
+      data_loss = candidate_data;
+      loss = candidate_loss;
+      regularizer_gradient = candidate_regularizer_gradient;
+      need_gradient = true;
+      step *= 1.5;
+    } else {
+      spline->SetTheta(theta);
+      step *= 0.5;
+    }
+    report->Record(data_loss, loss);
+    report->Progress(iteration, data_loss, loss);
+    if (step < 1e-4) {
+      summary->termination = "step too small";
+      break;
+    }
+  }
+  spline->SetTheta(theta);
+  summary->final_data_loss = data_loss;
+  return theta;
+}
+
+Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                                 SplinePotential* spline, const std::vector<PairProblem>& problems, Report* report) {
+  LearnPriorSummary* summary = report->summary;
+  const size_t count = pairs.size();
+  std::vector<CgState> states(count);
+  double data_loss = 0;
+  for (size_t p = 0; p < count; ++p) {
+    states[p].x = problems[p].energy->Measurements();
+    data_loss += PairDataLoss(problems[p], states[p].x) / count;
+  }
+  Eigen::VectorXd theta = spline->theta();
+  const int num_knots = spline->num_knots();
+  summary->termination = "max iterations";
+  for (int iteration = 1; iteration <= report->max_iterations; ++iteration) {
+    if (report->OutOfTime()) {
+      summary->termination = "time limit";
+      break;
+    }
+    // The unperturbed step (kept) and, from the same states, one step per perturbed θ_j (reverted).
+    std::vector<CgState> next(count);
+    double next_loss = 0;
+    for (size_t p = 0; p < count; ++p) {
+      next[p] = CgStep(*problems[p].energy, states[p]);
+      next_loss += PairDataLoss(problems[p], next[p].x) / count;
+    }
+    Eigen::VectorXd gradient = Eigen::VectorXd::Zero(num_knots);
+    for (int j = 1; j + 1 < num_knots; ++j) {
+      Eigen::VectorXd perturbed = theta;
+      perturbed[j] += options.interleaved_epsilon;
+      spline->SetTheta(perturbed);
+      double perturbed_loss = 0;
+      for (size_t p = 0; p < count; ++p) {
+        perturbed_loss += PairDataLoss(problems[p], CgStep(*problems[p].energy, states[p]).x) / count;
+      }
+      gradient[j] = (perturbed_loss - next_loss) / options.interleaved_epsilon;
+    }
+    Eigen::VectorXd regularizer_gradient;
+    CurvatureRegularizer(theta, options.regularizer_weight, &regularizer_gradient);
+    gradient += regularizer_gradient;
+    gradient[0] = 0;
+    gradient[num_knots - 1] = 0;
+    theta -= options.interleaved_step * gradient;
+    spline->SetTheta(theta);
+    states = std::move(next);
+    data_loss = next_loss;
+    const double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight);
+    summary->iterations = iteration;
+    report->Record(data_loss, loss);
+    report->Progress(iteration, data_loss, loss);
+  }
+  return theta;
+}
+
+}  // namespace
+
+double ImplicitDataGradient(const std::vector<TrainingPair>& pairs, const Eigen::VectorXd& theta,
+                            const LearnPriorOptions& options, Eigen::VectorXd* gradient) {
+  options.Check();
+  SplinePotential spline(options.spline, theta);
+  const std::vector<PairProblem> problems = Prepare(pairs, options, spline);
+  std::vector<Eigen::VectorXd> minima;
+  const double loss = SmoothAll(pairs, problems, spline, options, &minima);
+  if (gradient != nullptr) *gradient = GradientAtMinima(pairs, problems, spline, options, minima);
+  return loss;
+}
+
+Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                           const Eigen::VectorXd& initial_theta, LearnPriorSummary* summary_out) {
+  options.Check();
+  RB_CHECK(!pairs.empty(), "learn prior: no training pairs");
+  const auto start = std::chrono::steady_clock::now();
+  SplinePotential spline(options.spline, initial_theta.size() == 0 ? SplinePotential::SquareRootTheta(options.spline)
+                                                                    : initial_theta);
+  const std::vector<PairProblem> problems = Prepare(pairs, options, spline);
+  LearnPriorSummary summary;
+  const int max_iterations =
+      options.max_iterations > 0 ? options.max_iterations : (options.method == LearnMethod::kImplicit ? 40 : 300);
+  Report report{options, &summary, start, max_iterations};
+  Eigen::VectorXd theta;
+  if (options.method == LearnMethod::kImplicit) {
+    theta = LearnImplicit(pairs, options, &spline, problems, &report);
+  } else {
+    std::vector<Eigen::VectorXd> minima;
+    summary.initial_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
+    theta = LearnInterleaved(pairs, options, &spline, problems, &report);
+    summary.final_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
+    summary.smoothing_runs += 2;
+  }
+  summary.total_time_s = Seconds(start);
+  if (summary_out != nullptr) *summary_out = std::move(summary);
+  return theta;
+}
+
+}  // namespace rangebayes
