@@ -1,0 +1,604 @@
+#include "bayes/decimate.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+#include "bayes/decimate_geometry.h"
+#include "bayes/decimate_partition.h"
+#include "core/error.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+// The input made ready for the algorithm: faces that repeat a vertex dropped, non-manifold vertices and
+// edges cut apart (each fan of faces around a vertex gets its own copy), unreferenced vertices dropped.
+struct Prepared {
+  Faces F;                         // faces over split vertex ids
+  std::vector<int> kept_faces;     // per prepared face, its input face
+  std::vector<int> split_source;   // per split vertex, its input vertex
+  std::vector<char> locked;        // split vertices that share an input vertex with another copy
+  std::vector<Vertices> poses;     // per pose, positions of the split vertices
+  std::vector<std::string> notices;
+};
+
+int Find(std::vector<int>& parent, int i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+Prepared Prepare(const std::vector<Mesh>& poses) {
+  Prepared out;
+  const Mesh& base = poses[0];
+  const int nv = base.num_vertices();
+  for (size_t m = 0; m < poses.size(); ++m) {
+    RB_CHECK(poses[m].num_vertices() == nv && poses[m].num_faces() == base.num_faces() &&
+                 (poses[m].F.array() == base.F.array()).all(),
+             "decimate: pose ", m + 1, " does not have the connectivity of pose 1 (", poses[m].num_vertices(),
+             " vertices, ", poses[m].num_faces(), " faces vs ", nv, ", ", base.num_faces(), ")");
+    RB_CHECK(poses[m].V.allFinite(), "decimate: pose ", m + 1, " has non-finite vertex positions");
+  }
+  RB_CHECK(base.num_faces() > 0, "decimate: the mesh has no faces");
+  for (int f = 0; f < base.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      RB_CHECK(base.F(f, k) >= 0 && base.F(f, k) < nv, "decimate: face ", f, " refers to vertex ", base.F(f, k),
+               ", but the mesh has ", nv, " vertices");
+    }
+    if (base.F(f, 0) == base.F(f, 1) || base.F(f, 1) == base.F(f, 2) || base.F(f, 0) == base.F(f, 2)) continue;
+    out.kept_faces.push_back(f);
+  }
+  const int dropped = base.num_faces() - static_cast<int>(out.kept_faces.size());
+  if (dropped > 0) out.notices.push_back(StrCat(dropped, " faces repeat a vertex; they were dropped"));
+  RB_CHECK(!out.kept_faces.empty(), "decimate: every face repeats a vertex");
+  Mesh mesh;
+  mesh.V = base.V;
+  mesh.F.resize(static_cast<Eigen::Index>(out.kept_faces.size()), 3);
+  for (size_t i = 0; i < out.kept_faces.size(); ++i) mesh.F.row(static_cast<Eigen::Index>(i)) = base.F.row(out.kept_faces[i]);
+  const int nf = mesh.num_faces();
+
+  // Corners joined across manifold, consistently oriented edges; each class becomes one split vertex.
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  std::vector<int> parent(static_cast<size_t>(nf) * 3);
+  std::iota(parent.begin(), parent.end(), 0);
+  int nonmanifold_edges = 0, flipped_edges = 0;
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    const int count = topology.edge_faces.size(e);
+    if (count > 2) ++nonmanifold_edges;
+    if (count != 2) continue;
+    const int f = topology.edge_faces.begin(e)[0], g = topology.edge_faces.begin(e)[1];
+    int kf = -1, kg = -1;
+    for (int k = 0; k < 3; ++k) {
+      if (topology.face_edges(f, k) == e) kf = k;
+      if (topology.face_edges(g, k) == e) kg = k;
+    }
+    const int fa = mesh.F(f, kf), fb = mesh.F(f, (kf + 1) % 3);
+    const int ga = mesh.F(g, kg), gb = mesh.F(g, (kg + 1) % 3);
+    if (!(fa == gb && fb == ga)) {
+      ++flipped_edges;
+      continue;
+    }
+    // corner kf of f holds fa = gb (corner kg+1 of g); corner kf+1 of f holds fb = ga (corner kg of g).
+    auto unite = [&](int a, int b) {
+      a = Find(parent, a);
+      b = Find(parent, b);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    };
+    unite(3 * f + kf, 3 * g + (kg + 1) % 3);
+    unite(3 * f + (kf + 1) % 3, 3 * g + kg);
+  }
+  // Corners of one input vertex with no shared manifold edge can still be one fan only through a chain of
+  // corners; the union above already follows those chains.
+  std::vector<int> class_id(static_cast<size_t>(nf) * 3, -1);
+  out.F.resize(nf, 3);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int root = Find(parent, 3 * f + k);
+      int& id = class_id[static_cast<size_t>(root)];
+      if (id < 0) {
+        id = static_cast<int>(out.split_source.size());
+        out.split_source.push_back(mesh.F(f, k));
+      }
+      out.F(f, k) = id;
+    }
+  }
+  const int ns = static_cast<int>(out.split_source.size());
+  std::vector<int> copies(nv, 0);
+  for (int s : out.split_source) ++copies[s];
+  out.locked.assign(ns, 0);
+  int split_vertices = 0, unreferenced = 0;
+  for (int s = 0; s < ns; ++s) {
+    if (copies[out.split_source[s]] > 1) out.locked[s] = 1;
+  }
+  for (int v = 0; v < nv; ++v) {
+    if (copies[v] > 1) ++split_vertices;
+    if (copies[v] == 0) ++unreferenced;
+  }
+  if (nonmanifold_edges > 0 || flipped_edges > 0 || split_vertices > 0) {
+    out.notices.push_back(StrCat("non-manifold input (", nonmanifold_edges, " edges with more than two faces, ",
+                                 flipped_edges, " edges with inconsistent orientation, ", split_vertices,
+                                 " vertices shared by separate fans): cut apart there, those vertices kept and "
+                                 "welded back in the output"));
+  }
+  if (unreferenced > 0) out.notices.push_back(StrCat(unreferenced, " vertices are not used by any face; dropped"));
+  out.poses.resize(poses.size());
+  for (size_t m = 0; m < poses.size(); ++m) {
+    out.poses[m].resize(ns, 3);
+    for (int s = 0; s < ns; ++s) out.poses[m].row(s) = poses[m].V.row(out.split_source[s]);
+  }
+  return out;
+}
+
+// Per component of a manifold mesh: Euler characteristic and number of boundary loops, sorted.
+std::vector<std::pair<int, int>> TopologySignature(int num_vertices, const Faces& F) {
+  Mesh mesh;
+  mesh.V.setZero(num_vertices, 3);
+  mesh.F = F;
+  const Components comps = ComputeComponents(mesh);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  std::vector<int> chi(comps.count, 0), loops(comps.count, 0);
+  std::vector<int> vertex_comp(num_vertices, -1);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int c = comps.face_label[f];
+    ++chi[c];
+    for (int k = 0; k < 3; ++k) vertex_comp[F(f, k)] = c;
+  }
+  for (int v = 0; v < num_vertices; ++v) {
+    if (vertex_comp[v] >= 0) ++chi[vertex_comp[v]];
+  }
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    --chi[comps.face_label[topology.edge_faces.begin(e)[0]]];
+  }
+  for (const auto& loop : ComputeBoundaryLoops(mesh, topology)) ++loops[vertex_comp[loop[0]]];
+  std::vector<std::pair<int, int>> sig;
+  for (int c = 0; c < comps.count; ++c) sig.emplace_back(chi[c], loops[c]);
+  std::sort(sig.begin(), sig.end());
+  return sig;
+}
+
+bool IsManifold(const Faces& F, int num_vertices) {
+  Mesh mesh;
+  mesh.V.setZero(num_vertices, 3);
+  mesh.F = F;
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    if (topology.edge_faces.size(e) > 2) return false;
+  }
+  // A vertex whose faces fall into more than one fan: the fans around it are joined through edges that
+  // contain it; check by local union.
+  std::vector<std::vector<int>> faces_of(num_vertices);
+  for (int f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) faces_of[F(f, k)].push_back(f);
+  }
+  for (int v = 0; v < num_vertices; ++v) {
+    const auto& fs = faces_of[v];
+    if (fs.size() <= 1) continue;
+    std::vector<int> local(fs.size());
+    std::iota(local.begin(), local.end(), 0);
+    auto lfind = [&](int i) {
+      while (local[i] != i) i = local[i];
+      return i;
+    };
+    for (size_t i = 0; i < fs.size(); ++i) {
+      for (size_t j = i + 1; j < fs.size(); ++j) {
+        int shared = 0;
+        for (int a = 0; a < 3; ++a) {
+          for (int b = 0; b < 3; ++b) shared += F(fs[i], a) == F(fs[j], b) ? 1 : 0;
+        }
+        if (shared >= 2) {
+          const int ri = lfind(static_cast<int>(i)), rj = lfind(static_cast<int>(j));
+          if (ri != rj) local[ri] = rj;
+        }
+      }
+    }
+    int roots = 0;
+    for (size_t i = 0; i < fs.size(); ++i) roots += lfind(static_cast<int>(i)) == static_cast<int>(i) ? 1 : 0;
+    if (roots != 1) return false;
+  }
+  return true;
+}
+
+struct Problem {
+  DecimationProblem problem;
+  std::vector<double> weight;  // same as problem.weight, for the shading fit
+};
+
+Problem BuildProblem(const Prepared& prep, DecimateWeighting weighting, std::vector<std::string>* notices) {
+  Problem out;
+  DecimationProblem& p = out.problem;
+  const int nf = static_cast<int>(prep.F.rows());
+  const int M = static_cast<int>(prep.poses.size());
+  p.dim = 3 * M;
+  p.normals.assign(static_cast<size_t>(nf) * p.dim, 0.0);
+  std::vector<double> area(static_cast<size_t>(nf) * M, 0.0);
+  double diag2 = 0.0;
+  for (int m = 0; m < M; ++m) {
+    const Vertices& V = prep.poses[m];
+    diag2 = std::max(diag2, (V.colwise().maxCoeff() - V.colwise().minCoeff()).squaredNorm());
+  }
+  int zero_area = 0;
+  std::vector<char> degenerate(nf, 0);
+  for (int f = 0; f < nf; ++f) {
+    for (int m = 0; m < M; ++m) {
+      const Vertices& V = prep.poses[m];
+      const Eigen::Vector3d a = V.row(prep.F(f, 0)).transpose(), b = V.row(prep.F(f, 1)).transpose(),
+                            c = V.row(prep.F(f, 2)).transpose();
+      const Eigen::Vector3d cr = (b - a).cross(c - a);
+      const double len = cr.norm();
+      if (len <= 1e-14 * diag2) {
+        degenerate[f] = 1;
+        continue;
+      }
+      area[static_cast<size_t>(f) * M + m] = 0.5 * len;
+      for (int c2 = 0; c2 < 3; ++c2) p.normals[static_cast<size_t>(f) * p.dim + 3 * m + c2] = cr[c2] / len;
+    }
+    zero_area += degenerate[f];
+  }
+  if (zero_area > 0) {
+    notices->push_back(StrCat(zero_area, " faces have zero area (in some pose); they get weight 0 in the energy"));
+  }
+  p.weight.assign(nf, 0.0);
+  std::vector<double> mean_area(M, 0.0);
+  for (int f = 0; f < nf; ++f) {
+    for (int m = 0; m < M; ++m) mean_area[m] += area[static_cast<size_t>(f) * M + m] / nf;
+  }
+  for (int f = 0; f < nf; ++f) {
+    if (degenerate[f]) {
+      // Its normal is undefined in some pose: zero it in all so that it carries no information.
+      std::fill_n(p.normals.begin() + static_cast<std::ptrdiff_t>(f) * p.dim, p.dim, 0.0);
+      continue;
+    }
+    if (weighting == DecimateWeighting::kUniform) {
+      p.weight[f] = 1.0;
+    } else {
+      double w = 0.0;
+      for (int m = 0; m < M; ++m) w += mean_area[m] > 0.0 ? area[static_cast<size_t>(f) * M + m] / mean_area[m] : 0.0;
+      p.weight[f] = w / M;
+    }
+  }
+  // Normalise to mean 1 over faces (area weights already are, up to the degenerate ones).
+  const double total = std::accumulate(p.weight.begin(), p.weight.end(), 0.0);
+  if (total > 0.0) {
+    for (double& w : p.weight) w *= nf / total;
+  }
+  Mesh mesh;
+  mesh.V = prep.poses[0];
+  mesh.F = prep.F;
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  p.neighbours.assign(nf, {-1, -1, -1});
+  p.corners.resize(nf);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      p.corners[f][k] = prep.F(f, k);
+      const int e = topology.face_edges(f, k);
+      if (e < 0 || topology.edge_faces.size(e) != 2) continue;
+      const int a = topology.edge_faces.begin(e)[0], b = topology.edge_faces.begin(e)[1];
+      p.neighbours[f][k] = a == f ? b : a;
+    }
+  }
+  out.weight = p.weight;
+  return out;
+}
+
+struct Attempt {
+  std::vector<int> face_patch;  // per prepared face
+  int num_patches = 0;
+  PatchTriangulation triangulation;
+  PartitionStats stats;
+  bool fell_back = false;
+  double seconds_partition = 0.0, seconds_geometry = 0.0;
+};
+
+Attempt RunOnce(const Prepared& prep, const Problem& problem, double lambda, const DecimateOptions& options,
+                const std::vector<std::pair<int, int>>& signature, const ProgressCallback& progress) {
+  Attempt a;
+  const auto t0 = Clock::now();
+  PartitionOptions popts;
+  popts.max_rounds = options.max_rounds;
+  popts.progress = progress;
+  a.face_patch = HillClimbPartition(problem.problem, lambda, popts, &a.stats);
+  a.num_patches = a.stats.num_patches;
+  a.seconds_partition = Seconds(t0);
+  const auto t1 = Clock::now();
+  std::vector<const Vertices*> poses;
+  for (const Vertices& V : prep.poses) poses.push_back(&V);
+  PatchTriangulationOptions topts;
+  topts.min_cos_to_patch_normal = options.min_cos_to_patch_normal;
+  topts.chain_tolerance_rel = options.chain_tolerance_rel;
+  a.triangulation = TriangulatePatches(poses, prep.F, a.face_patch, a.num_patches, prep.locked, topts);
+  const int ns = static_cast<int>(prep.split_source.size());
+  if (TopologySignature(ns, a.triangulation.F) != signature || !IsManifold(a.triangulation.F, ns)) {
+    // Safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
+    a.fell_back = true;
+    a.triangulation.F = prep.F;
+    a.triangulation.face_patch = a.face_patch;
+  }
+  a.seconds_geometry = Seconds(t1);
+  return a;
+}
+
+std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<int>& face_patch, int num_patches) {
+  // Directed edges per patch whose reverse is not in the same patch form the patch's boundary.
+  std::vector<std::vector<int>> faces_of(num_patches);
+  for (int f = 0; f < F.rows(); ++f) faces_of[face_patch[f]].push_back(f);
+  std::vector<std::vector<int>> polygons;
+  for (int k = 0; k < num_patches; ++k) {
+    std::map<std::pair<int, int>, int> directed;
+    for (int f : faces_of[k]) {
+      for (int c = 0; c < 3; ++c) directed[{F(f, c), F(f, (c + 1) % 3)}] = f;
+    }
+    std::unordered_map<int, int> next;
+    bool simple = true;
+    for (const auto& [edge, f] : directed) {
+      if (directed.count({edge.second, edge.first})) continue;
+      if (next.count(edge.first)) simple = false;
+      next[edge.first] = edge.second;
+    }
+    std::vector<int> loop;
+    if (simple && !next.empty()) {
+      int v = next.begin()->first;
+      const int start = v;
+      do {
+        loop.push_back(v);
+        auto it = next.find(v);
+        if (it == next.end()) {
+          simple = false;
+          break;
+        }
+        v = it->second;
+      } while (v != start && loop.size() <= next.size());
+      if (loop.size() != next.size()) simple = false;
+    } else {
+      simple = false;
+    }
+    if (simple && loop.size() >= 3) {
+      polygons.push_back(std::move(loop));
+    } else {
+      for (int f : faces_of[k]) polygons.push_back({F(f, 0), F(f, 1), F(f, 2)});
+    }
+  }
+  return polygons;
+}
+
+}  // namespace
+
+void DecimateOptions::Check() const {
+  RB_CHECK(lambda > 0.0 && std::isfinite(lambda), "decimate: lambda must be positive, got ", lambda);
+  RB_CHECK(target_faces >= 0, "decimate: target_faces must be ≥ 0, got ", target_faces);
+  RB_CHECK(target_tolerance > 0.0 && target_tolerance < 1.0, "decimate: target_tolerance must be in (0, 1)");
+  RB_CHECK(max_bisection_steps >= 1, "decimate: max_bisection_steps must be ≥ 1");
+  RB_CHECK(max_rounds >= 1, "decimate: max_rounds must be ≥ 1");
+  RB_CHECK(min_cos_to_patch_normal >= 0.0 && min_cos_to_patch_normal < 1.0,
+           "decimate: min_cos_to_patch_normal must be in [0, 1)");
+  RB_CHECK(chain_tolerance_rel >= 0.0, "decimate: chain_tolerance_rel must be ≥ 0");
+  RB_CHECK(shading_regularisation >= 0.0, "decimate: shading_regularisation must be ≥ 0");
+}
+
+std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options,
+                                            DecimateSummary* summary) {
+  options.Check();
+  RB_CHECK(!poses.empty(), "decimate: no input meshes");
+  const auto t_start = Clock::now();
+  DecimateSummary local;
+  DecimateSummary& s = summary != nullptr ? *summary : local;
+  s = DecimateSummary{};
+  s.input_faces = poses[0].num_faces();
+  const Prepared prep = Prepare(poses);
+  s.notices = prep.notices;
+  const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
+  const int ns = static_cast<int>(prep.split_source.size());
+  const auto signature = TopologySignature(ns, prep.F);
+  {
+    int loops = 0;
+    for (const auto& c : signature) loops += c.second;
+    if (signature.size() > 1) {
+      s.notices.push_back(StrCat("the mesh has ", signature.size(), " components; patches never span two"));
+    }
+    if (loops > 0) s.notices.push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
+  }
+
+  Attempt best;
+  double lambda = options.lambda;
+  if (options.target_faces <= 0) {
+    best = RunOnce(prep, problem, lambda, options, signature, options.progress);
+  } else {
+    // Output faces fall as λ grows: bracket the target geometrically, then bisect in log λ.
+    const int target = options.target_faces;
+    auto faces_of = [](const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); };
+    double lo = 0.0, hi = 0.0;  // faces(lo) > target ≥ faces(hi)
+    bool have_best = false;
+    int steps = 0;
+    auto consider = [&](Attempt&& a, double l) {
+      const int n = faces_of(a);
+      if (!have_best || std::abs(n - target) < std::abs(faces_of(best) - target) ||
+          (std::abs(n - target) == std::abs(faces_of(best) - target) && n <= target)) {
+        best = std::move(a);
+        s.lambda = l;
+        have_best = true;
+      }
+      return n;
+    };
+    DecimateOptions run_options = options;
+    auto run = [&](double l) {
+      ++steps;
+      if (options.progress) {
+        options.progress(std::min(0.99, static_cast<double>(steps) / options.max_bisection_steps),
+                         "searching lambda");
+      }
+      return consider(RunOnce(prep, problem, l, run_options, signature, nullptr), l);
+    };
+    // The face count has a floor at a given chain tolerance (the chains' own vertices); when even a huge λ
+    // stays above the target, the chains are allowed to straighten further.
+    double l = lambda;
+    int n = 0;
+    while (true) {
+      n = run(l);
+      lo = hi = 0.0;
+      if (n > target) {
+        lo = l;
+        for (int grow = 0; grow < 8 && steps < options.max_bisection_steps; ++grow) {
+          l *= 4.0;
+          n = run(l);
+          if (n <= target) {
+            hi = l;
+            break;
+          }
+          lo = l;
+        }
+        if (hi == 0.0 && run_options.chain_tolerance_rel < 0.05 && steps < options.max_bisection_steps) {
+          run_options.chain_tolerance_rel = std::max(2.0 * run_options.chain_tolerance_rel, 1e-3);
+          s.notices.push_back(StrCat("target ", target, " faces not reached at lambda ", l,
+                                     "; chain tolerance raised to ", run_options.chain_tolerance_rel));
+          l = lambda;
+          continue;
+        }
+      } else {
+        hi = l;
+        while (steps < options.max_bisection_steps) {
+          l /= 4.0;
+          n = run(l);
+          if (n > target) {
+            lo = l;
+            break;
+          }
+          hi = l;
+          if (l < 1e-12) break;
+        }
+      }
+      break;
+    }
+    while (lo > 0.0 && hi > 0.0 && steps < options.max_bisection_steps) {
+      if (std::abs(faces_of(best) - target) <= options.target_tolerance * target) break;
+      const double mid = std::sqrt(lo * hi);
+      n = run(mid);
+      if (n > target) {
+        lo = mid;
+      } else {
+        hi = mid;
+      }
+      if (hi / lo < 1.0 + 1e-6) break;
+    }
+    s.bisection_steps = steps;
+    lambda = s.lambda;
+  }
+  s.lambda = lambda;
+
+  // Outputs: compact the kept split vertices, weld copies of one input vertex back together.
+  const PatchTriangulation& tri = best.triangulation;
+  std::vector<int> out_of_input(poses[0].num_vertices(), -1);
+  std::vector<int> vertex_source;
+  Faces F(tri.F.rows(), 3);
+  for (int f = 0; f < tri.F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int input = prep.split_source[tri.F(f, k)];
+      int& id = out_of_input[input];
+      if (id < 0) {
+        id = static_cast<int>(vertex_source.size());
+        vertex_source.push_back(input);
+      }
+      F(f, k) = id;
+    }
+  }
+  std::vector<int> dense_face_patch(poses[0].num_faces(), -1);
+  for (size_t i = 0; i < prep.kept_faces.size(); ++i) dense_face_patch[prep.kept_faces[i]] = best.face_patch[i];
+  const auto polygons = PatchPolygons(F, tri.face_patch, best.num_patches);
+
+  std::vector<DecimatedMesh> out(poses.size());
+  for (size_t m = 0; m < poses.size(); ++m) {
+    DecimatedMesh& d = out[m];
+    d.mesh.F = F;
+    d.mesh.V.resize(static_cast<Eigen::Index>(vertex_source.size()), 3);
+    for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
+    d.face_patch = tri.face_patch;
+    d.vertex_source = vertex_source;
+    d.dense_face_patch = dense_face_patch;
+    d.polygons = polygons;
+    d.num_patches = best.num_patches;
+    const auto fields = FitPatchNormalFields(prep.poses[m], prep.F, problem.weight, best.face_patch,
+                                             best.num_patches, options.shading_regularisation);
+    // One normal per (vertex, patch) pair.
+    std::unordered_map<long long, int> index;
+    std::vector<Eigen::Vector3d> normals;
+    d.corner_normals.normal_index.resize(F.rows(), 3);
+    for (int f = 0; f < F.rows(); ++f) {
+      const int k = tri.face_patch[f];
+      for (int c = 0; c < 3; ++c) {
+        const int v = F(f, c);
+        const long long key = static_cast<long long>(v) * best.num_patches + k;
+        auto [it, inserted] = index.emplace(key, static_cast<int>(normals.size()));
+        if (inserted) normals.push_back(fields[k].Evaluate(d.mesh.V.row(v).transpose()));
+        d.corner_normals.normal_index(f, c) = it->second;
+      }
+    }
+    d.corner_normals.normals.resize(static_cast<Eigen::Index>(normals.size()), 3);
+    for (size_t i = 0; i < normals.size(); ++i) d.corner_normals.normals.row(static_cast<Eigen::Index>(i)) = normals[i].transpose();
+  }
+
+  s.num_patches = best.num_patches;
+  s.output_faces = static_cast<int>(F.rows());
+  s.output_vertices = static_cast<int>(vertex_source.size());
+  s.energy = best.stats.energy;
+  s.data_energy = best.stats.data_energy;
+  s.fuses = best.stats.fuses;
+  s.splits = best.stats.splits;
+  s.swaps = best.stats.swaps;
+  s.rejected_disconnecting = best.stats.rejected_disconnecting;
+  s.rounds = best.stats.rounds;
+  s.converged = best.stats.converged;
+  s.kept_corner_vertices = tri.kept_corner_vertices;
+  s.blocked_vertices = tri.blocked_vertices;
+  s.fell_back_to_dense = best.fell_back;
+  if (best.fell_back) {
+    s.notices.push_back("the reduced mesh failed the topology check; the dense faces were kept (please report)");
+  }
+  s.seconds_partition = best.seconds_partition;
+  s.seconds_geometry = best.seconds_geometry;
+  s.seconds_total = Seconds(t_start);
+  if (options.progress) options.progress(1.0, "done");
+  return out;
+}
+
+DecimatedMesh Decimate(const Mesh& mesh, const DecimateOptions& options, DecimateSummary* summary) {
+  std::vector<Mesh> poses{mesh};
+  return std::move(DecimateAnimated(poses, options, summary)[0]);
+}
+
+double PatchShadingErrorDeg(const Mesh& pose, const std::vector<int>& dense_face_patch, double regularisation) {
+  const int nf = pose.num_faces();
+  RB_CHECK(static_cast<int>(dense_face_patch.size()) == nf, "decimate: patch map size does not match the pose");
+  int num = 0;
+  for (int k : dense_face_patch) num = std::max(num, k + 1);
+  std::vector<double> area(nf, 0.0);
+  std::vector<int> patch(nf, 0);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = pose.V.row(pose.F(f, 0)).transpose(), b = pose.V.row(pose.F(f, 1)).transpose(),
+                          c = pose.V.row(pose.F(f, 2)).transpose();
+    area[f] = 0.5 * (b - a).cross(c - a).norm();
+    patch[f] = dense_face_patch[f] < 0 ? 0 : dense_face_patch[f];
+    if (dense_face_patch[f] < 0) area[f] = 0.0;
+  }
+  const auto fields = FitPatchNormalFields(pose.V, pose.F, area, patch, std::max(num, 1), regularisation);
+  double sum = 0.0, total = 0.0;
+  for (int f = 0; f < nf; ++f) {
+    if (area[f] <= 0.0) continue;
+    const Eigen::Vector3d a = pose.V.row(pose.F(f, 0)).transpose(), b = pose.V.row(pose.F(f, 1)).transpose(),
+                          c = pose.V.row(pose.F(f, 2)).transpose();
+    const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+    const Eigen::Vector3d s = fields[patch[f]].Evaluate((a + b + c) / 3.0);
+    sum += area[f] * std::acos(std::clamp(n.dot(s), -1.0, 1.0));
+    total += area[f];
+  }
+  return total > 0.0 ? sum / total * 180.0 / M_PI : 0.0;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,100 @@
+// Bayesian decimation (paper §6, DESIGN.md §6): replace a dense mesh by planar patches that look like it when
+// rendered, static or shared across the poses of an animated mesh.
+//
+//   E(g) = λ·#patches + Σ_i w_i ‖u_i − n_g(i)‖²   (paper eqs. 28–31 with W = I; eq. 36 sums it over poses)
+//
+// u_i the unit normal of dense face i, n_k the weighted mean of its patch's normals (eq. 34, not
+// renormalised), g a map from faces to edge-connected patches found by hill climbing (fuse, split, swap;
+// bayes/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
+// each patch on its own (bayes/decimate_geometry.h), with per-corner normals from a linear normal field fitted
+// per patch (the smooth shading of the paper's figures).
+//
+// Face weights: area weighting is the default. The paper weights every face equally, which is the same thing
+// on the regular grids its scans come from; on meshes whose triangle sizes vary (CAD models such as fandisk,
+// where a flat side is a few large triangles and a fillet hundreds of slivers) equal weights let the small
+// triangles dominate the energy although they cover little of the rendered image. Area weights follow what a
+// rendering shows, and zero-area faces (undefined normals) drop out. The weights are normalised to mean 1 over
+// the faces, so λ keeps the paper's scale: one patch costs as much as λ faces' worth of squared normal
+// difference. Two patches of a and b faces whose normals differ by θ fuse when (ab/(a+b))·2(1 − cos θ) < λ
+// (two single faces: 1 − cos θ < λ). `target_faces` finds λ for a requested triangle count instead.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/mesh_io.h"
+#include "core/progress.h"
+
+namespace rangebayes {
+
+enum class DecimateWeighting { kArea, kUniform };
+
+struct DecimateOptions {
+  double lambda = 2.0;  // λ, the energy one patch costs (normal difference² × faces), > 0
+  int target_faces = 0;  // > 0: find λ by bisection so that the output has about this many triangles
+  double target_tolerance = 0.02;  // accepted relative miss of target_faces, (0, 1)
+  int max_bisection_steps = 30;     // decimations tried when searching λ, ≥ 1
+  DecimateWeighting weighting = DecimateWeighting::kArea;
+  int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
+  double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
+  // Patch-boundary chains are simplified while removed vertices stay within this share of the bounding-box
+  // diagonal of the simplified chain, [0, ∞) (see bayes/decimate_geometry.h).
+  double chain_tolerance_rel = 0.005;
+  double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
+  ProgressCallback progress;              // optional
+
+  // Throws Error naming the field that is out of range.
+  void Check() const;
+};
+
+struct DecimateSummary {
+  double lambda = 0.0;  // the λ used (found by bisection when target_faces > 0)
+  int input_faces = 0;
+  int num_patches = 0;
+  int output_faces = 0;
+  int output_vertices = 0;
+  double energy = 0.0;       // λ·#patches + data term, summed over poses
+  double data_energy = 0.0;  // Σ w ‖u − n‖² over faces and poses
+  long long fuses = 0, splits = 0, swaps = 0;  // moves applied
+  long long rejected_disconnecting = 0;        // split/swap moves refused because they would cut a patch
+  int rounds = 0;
+  bool converged = false;  // the last round found no improving move
+  int bisection_steps = 0;
+  int kept_corner_vertices = 0;  // vertices where ≥ 3 patch sides meet (and loop anchors, locked vertices)
+  int blocked_vertices = 0;      // further vertices kept because removing them would flip or break something
+  bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept
+  double seconds_partition = 0.0;
+  double seconds_geometry = 0.0;
+  double seconds_total = 0.0;
+  std::vector<std::string> notices;  // one line each: input problems found and how they were handled
+};
+
+// One decimated pose.
+struct DecimatedMesh {
+  Mesh mesh;                     // output triangles; vertices are a subset of the input's
+  CornerNormals corner_normals;  // per-corner shading normals from the patch normal fields
+  std::vector<int> face_patch;   // per output face, its patch in [0, num_patches)
+  std::vector<int> vertex_source;         // per output vertex, its index in the input
+  std::vector<int> dense_face_patch;      // per input face, its patch (−1 for a dropped degenerate face)
+  std::vector<std::vector<int>> polygons;  // one polygon per patch (a patch that is not a disk: its triangles)
+  int num_patches = 0;
+};
+
+// Decimates one mesh. Handles non-manifold input (cut apart, decimated with the cut vertices kept, welded
+// back), zero-area faces (weight 0), faces that repeat a vertex (dropped), several components and open
+// boundaries; each is reported in summary->notices. Throws Error for an empty mesh or NaN positions.
+DecimatedMesh Decimate(const Mesh& mesh, const DecimateOptions& options = {}, DecimateSummary* summary = nullptr);
+
+// Decimates M poses of one connectivity with one shared patch map (paper §6.3, eq. 36): the energy sums over
+// poses, so a patch that bends in any pose splits. Returns one DecimatedMesh per pose, all with the same
+// faces and patches. Throws Error when the poses differ in vertex count or faces.
+std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options = {},
+                                            DecimateSummary* summary = nullptr);
+
+// Shading error of a decimation that shares the dense mesh's patch map: the area-weighted mean angle
+// (degrees) between each dense face normal and the patch's shading normal at the face centroid, for `pose`
+// with patches `dense_face_patch` (fields fitted on that pose). Used to compare animated decimations.
+double PatchShadingErrorDeg(const Mesh& pose, const std::vector<int>& dense_face_patch, double regularisation = 0.01);
+
+}  // namespace rangebayes

@@ -1,0 +1,513 @@
+#include "bayes/decimate_geometry.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <queue>
+#include <unordered_map>
+
+#include "core/error.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+struct Neighbour {
+  int vertex;
+  int faces;
+  int patch;
+  bool patches_differ;
+  bool feature() const { return faces == 1 || patches_differ; }
+};
+
+class Reducer {
+ public:
+  Reducer(const std::vector<const Vertices*>& poses, const Faces& F, const std::vector<int>& face_patch,
+          int num_patches, const std::vector<char>& locked, const PatchTriangulationOptions& options)
+      : poses_(poses), patch_(face_patch), options_(options) {
+    const int nv = static_cast<int>(poses[0]->rows());
+    const int nf = static_cast<int>(F.rows());
+    T_.resize(nf);
+    alive_face_.assign(nf, 1);
+    vf_.resize(nv);
+    patch_count_.assign(num_patches, 0);
+    for (int f = 0; f < nf; ++f) {
+      for (int k = 0; k < 3; ++k) {
+        T_[f][k] = F(f, k);
+        vf_[F(f, k)].push_back(f);
+      }
+      ++patch_count_[face_patch[f]];
+    }
+    // Patch normals (area weighted) per pose, and a scale for "zero area".
+    patch_normal_.resize(poses.size());
+    double diag2 = 0.0;
+    for (size_t m = 0; m < poses.size(); ++m) {
+      const Vertices& V = *poses[m];
+      std::vector<Eigen::Vector3d> sum(num_patches, Eigen::Vector3d::Zero());
+      for (int f = 0; f < nf; ++f) sum[face_patch[f]] += FaceCross(V, T_[f]);
+      for (auto& n : sum) {
+        const double len = n.norm();
+        n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+      }
+      patch_normal_[m] = std::move(sum);
+      if (V.rows() > 0) {
+        const Eigen::Vector3d lo = V.colwise().minCoeff().transpose(), hi = V.colwise().maxCoeff().transpose();
+        diag2 = std::max(diag2, (hi - lo).squaredNorm());
+      }
+    }
+    area_eps_ = 1e-14 * diag2;
+    chain_tolerance_ = options.chain_tolerance_rel * std::sqrt(diag2);
+    // Mesh-boundary vertices.
+    Mesh mesh;
+    mesh.V = *poses[0];
+    mesh.F = F;
+    const EdgeTopology topology = ComputeEdgeTopology(mesh);
+    boundary_.assign(nv, 0);
+    for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+      if (topology.edge_faces.size(e) == 1) {
+        boundary_[topology.edges(e, 0)] = 1;
+        boundary_[topology.edges(e, 1)] = 1;
+      }
+    }
+    stamp_.assign(nv, 0);
+    version_.assign(nv, 0);
+    kept_.assign(nv, 0);
+    for (int v = 0; v < nv; ++v) {
+      if (!locked.empty() && locked[v]) kept_[v] = 1;
+    }
+    Classify();
+  }
+
+  PatchTriangulation Run() {
+    const int nv = static_cast<int>(vf_.size());
+    using Entry = std::tuple<double, int, int>;  // cost, vertex, version
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
+    std::vector<int> blocked_version(nv, -1);
+    for (int v = 0; v < nv; ++v) {
+      if (!kept_[v] && !vf_[v].empty()) queue.emplace(Cost(v), v, version_[v]);
+    }
+    std::vector<int> targets;
+    while (true) {
+      while (!queue.empty()) {
+        const auto [cost, v, version] = queue.top();
+        queue.pop();
+        if (vf_[v].empty() || kept_[v]) continue;
+        if (version != version_[v]) {
+          queue.emplace(Cost(v), v, version_[v]);
+          continue;
+        }
+        Targets(v, &targets);
+        bool done = false;
+        for (int u : targets) {
+          if (TryCollapse(v, u)) {
+            done = true;
+            break;
+          }
+        }
+        if (!done) blocked_version[v] = version_[v];
+      }
+      // Retry blocked vertices whose neighbourhood changed since they were refused.
+      for (int v = 0; v < nv; ++v) {
+        if (!vf_[v].empty() && !kept_[v] && blocked_version[v] >= 0 && blocked_version[v] != version_[v]) {
+          blocked_version[v] = -1;
+          queue.emplace(Cost(v), v, version_[v]);
+        }
+      }
+      if (queue.empty()) break;
+    }
+    PatchTriangulation out;
+    int count = 0;
+    for (char a : alive_face_) count += a;
+    out.F.resize(count, 3);
+    out.face_patch.reserve(count);
+    int row = 0;
+    for (size_t f = 0; f < T_.size(); ++f) {
+      if (!alive_face_[f]) continue;
+      out.F.row(row++) << T_[f][0], T_[f][1], T_[f][2];
+      out.face_patch.push_back(patch_[f]);
+    }
+    for (int v = 0; v < nv; ++v) {
+      if (vf_[v].empty()) continue;
+      if (kept_[v]) {
+        ++out.kept_corner_vertices;
+      } else {
+        ++out.blocked_vertices;
+      }
+    }
+    out.collapses = collapses_;
+    return out;
+  }
+
+ private:
+  static Eigen::Vector3d FaceCross(const Vertices& V, const std::array<int, 3>& t) {
+    const Eigen::Vector3d a = V.row(t[0]).transpose(), b = V.row(t[1]).transpose(), c = V.row(t[2]).transpose();
+    return (b - a).cross(c - a);
+  }
+
+  void Neighbourhood(int v, std::vector<Neighbour>* out) const {
+    out->clear();
+    for (int f : vf_[v]) {
+      for (int k = 0; k < 3; ++k) {
+        const int x = T_[f][k];
+        if (x == v) continue;
+        auto it = std::find_if(out->begin(), out->end(), [x](const Neighbour& n) { return n.vertex == x; });
+        if (it == out->end()) {
+          out->push_back({x, 1, patch_[f], false});
+        } else {
+          ++it->faces;
+          if (it->patch != patch_[f]) it->patches_differ = true;
+        }
+      }
+    }
+  }
+
+  int FeatureCount(int v) {
+    Neighbourhood(v, &scratch_);
+    int count = 0;
+    for (const Neighbour& n : scratch_) count += n.feature() ? 1 : 0;
+    return count;
+  }
+
+  // Collapse targets of v, shortest edge first: any neighbour for a vertex inside a patch, the two chain
+  // neighbours for a vertex on a chain, none otherwise.
+  void Targets(int v, std::vector<int>* targets) {
+    targets->clear();
+    Neighbourhood(v, &scratch_);
+    int features = 0;
+    for (const Neighbour& n : scratch_) features += n.feature() ? 1 : 0;
+    if (features != 0 && features != 2) return;
+    for (const Neighbour& n : scratch_) {
+      if (features == 0 || n.feature()) targets->push_back(n.vertex);
+    }
+    const Vertices& V = *poses_[0];
+    std::sort(targets->begin(), targets->end(), [&](int a, int b) {
+      const double da = (V.row(a) - V.row(v)).squaredNorm(), db = (V.row(b) - V.row(v)).squaredNorm();
+      return da != db ? da < db : a < b;
+    });
+  }
+
+  double Cost(int v) {
+    std::vector<int> targets;
+    Targets(v, &targets);
+    if (targets.empty()) return std::numeric_limits<double>::infinity();
+    return (poses_[0]->row(targets[0]) - poses_[0]->row(v)).squaredNorm();
+  }
+
+  void Classify() {
+    const int nv = static_cast<int>(vf_.size());
+    std::vector<int> features(nv, 0);
+    for (int v = 0; v < nv; ++v) {
+      if (vf_[v].empty()) continue;
+      features[v] = FeatureCount(v);
+      if (features[v] != 0 && features[v] != 2) kept_[v] = 1;
+    }
+    // Closed chains without a kept vertex keep three of their vertices.
+    std::vector<char> visited(nv, 0);
+    std::vector<int> chain;
+    for (int start = 0; start < nv; ++start) {
+      if (vf_[start].empty() || kept_[start] || features[start] != 2 || visited[start]) continue;
+      chain.clear();
+      int prev = -1, cur = start;
+      bool closed = false;
+      while (true) {
+        visited[cur] = 1;
+        chain.push_back(cur);
+        Neighbourhood(cur, &scratch_);
+        int next = -1;
+        for (const Neighbour& n : scratch_) {
+          if (n.feature() && n.vertex != prev) {
+            next = n.vertex;
+            break;
+          }
+        }
+        if (next < 0 || kept_[next] || features[next] != 2) break;
+        if (next == start) {
+          closed = true;
+          break;
+        }
+        if (visited[next]) break;
+        prev = cur;
+        cur = next;
+      }
+      if (closed) {
+        // Three anchors spread over the loop: the vertex farthest from the loop's centroid, the one farthest
+        // from it, and the one farthest from the line through both (a square keeps three of its corners).
+        const Vertices& V = *poses_[0];
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+        for (int x : chain) centre += V.row(x).transpose();
+        centre /= static_cast<double>(chain.size());
+        auto farthest = [&](auto&& dist) {
+          int best = chain[0];
+          double best_d = -1.0;
+          for (int x : chain) {
+            const double d = dist(Eigen::Vector3d(V.row(x).transpose()));
+            if (d > best_d) {
+              best_d = d;
+              best = x;
+            }
+          }
+          return best;
+        };
+        const int a = farthest([&](const Eigen::Vector3d& p) { return (p - centre).squaredNorm(); });
+        const Eigen::Vector3d pa = V.row(a).transpose();
+        const int b = farthest([&](const Eigen::Vector3d& p) { return (p - pa).squaredNorm(); });
+        const Eigen::Vector3d pb = V.row(b).transpose();
+        const int c = farthest([&](const Eigen::Vector3d& p) {
+          const Eigen::Vector3d ab = pb - pa;
+          return ab.squaredNorm() > 0.0 ? (p - pa).cross(ab).squaredNorm() / ab.squaredNorm() : (p - pa).squaredNorm();
+        });
+        kept_[a] = 1;
+        kept_[b] = 1;
+        kept_[c] = 1;
+        if (a == b || b == c || a == c) {
+          kept_[chain[0]] = kept_[chain[chain.size() / 3]] = kept_[chain[(2 * chain.size()) / 3]] = 1;
+        }
+      }
+    }
+  }
+
+  static long long EdgeKey(int a, int b) {
+    if (a > b) std::swap(a, b);
+    return (static_cast<long long>(a) << 32) | static_cast<unsigned>(b);
+  }
+
+  static double SegmentDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    const Eigen::Vector3d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - p).norm();
+  }
+
+  // For a chain vertex v collapsing onto chain neighbour u: the other chain neighbour w and whether every
+  // chain vertex removed so far between u and w (and v) stays within the tolerance of segment uw.
+  bool ChainKeepsShape(int v, int u, int* w_out) {
+    Neighbourhood(v, &scratch_);
+    int w = -1, features = 0;
+    for (const Neighbour& n : scratch_) {
+      if (!n.feature()) continue;
+      ++features;
+      if (n.vertex != u) w = n.vertex;
+    }
+    *w_out = w;
+    if (features == 0) return true;
+    if (features != 2 || w < 0) return false;
+    chain_points_.clear();
+    chain_points_.push_back(v);
+    for (long long key : {EdgeKey(u, v), EdgeKey(v, w)}) {
+      auto it = removed_on_edge_.find(key);
+      if (it != removed_on_edge_.end()) chain_points_.insert(chain_points_.end(), it->second.begin(), it->second.end());
+    }
+    for (const Vertices* V : poses_) {
+      const Eigen::Vector3d a = V->row(u).transpose(), b = V->row(w).transpose();
+      for (int x : chain_points_) {
+        if (SegmentDistance(V->row(x).transpose(), a, b) > chain_tolerance_) return false;
+      }
+    }
+    return true;
+  }
+
+  bool TryCollapse(int v, int u) {
+    if (vf_[u].empty()) return false;
+    int w = -1;
+    if (!ChainKeepsShape(v, u, &w)) return false;
+    if (boundary_[v] && !boundary_[u]) return false;
+    deleted_.clear();
+    moved_.clear();
+    for (int f : vf_[v]) {
+      const auto& t = T_[f];
+      if (t[0] == u || t[1] == u || t[2] == u) {
+        deleted_.push_back(f);
+      } else {
+        moved_.push_back(f);
+      }
+    }
+    if (deleted_.empty()) return false;
+    if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
+    // Link condition: common neighbours of u and v are exactly the apexes of the faces on edge uv.
+    ++current_stamp_;
+    int opposite = 0;
+    for (int f : deleted_) {
+      for (int x : T_[f]) {
+        if (x != u && x != v && stamp_[x] != current_stamp_) {
+          stamp_[x] = current_stamp_;
+          ++opposite;
+        }
+      }
+    }
+    const int apex_stamp = current_stamp_;
+    ++current_stamp_;
+    for (int f : vf_[v]) {
+      for (int x : T_[f]) {
+        if (x != u && x != v && stamp_[x] != apex_stamp) stamp_[x] = current_stamp_;
+      }
+    }
+    const int v_stamp = current_stamp_;
+    for (int f : vf_[u]) {
+      for (int x : T_[f]) {
+        if (x != u && x != v && stamp_[x] == v_stamp) return false;  // a common neighbour off the edge
+      }
+    }
+    (void)opposite;
+    // Every patch keeps at least one face.
+    for (int f : deleted_) {
+      int same = 0;
+      for (int g : deleted_) same += patch_[g] == patch_[f] ? 1 : 0;
+      if (patch_count_[patch_[f]] - same < 1) return false;
+    }
+    // No duplicate faces, no flips, no zero areas.
+    for (int f : moved_) {
+      std::array<int, 3> t = T_[f];
+      for (int& x : t) {
+        if (x == v) x = u;
+      }
+      for (int g : vf_[u]) {
+        const auto& s = T_[g];
+        int shared = 0;
+        for (int x : t) shared += (s[0] == x || s[1] == x || s[2] == x) ? 1 : 0;
+        if (shared == 3) return false;
+      }
+      const int k = patch_[f];
+      for (size_t m = 0; m < poses_.size(); ++m) {
+        const Eigen::Vector3d now = FaceCross(*poses_[m], t);
+        const Eigen::Vector3d before = FaceCross(*poses_[m], T_[f]);
+        const double len = now.norm();
+        if (len <= area_eps_) return false;
+        if (before.squaredNorm() > area_eps_ * area_eps_ && now.dot(before) <= 0.0) return false;
+        if (now.dot(patch_normal_[m][k]) < options_.min_cos_to_patch_normal * len) return false;
+      }
+    }
+    // Apply.
+    if (w >= 0) {
+      removed_on_edge_.erase(EdgeKey(u, v));
+      removed_on_edge_.erase(EdgeKey(v, w));
+      removed_on_edge_[EdgeKey(u, w)] = chain_points_;
+    }
+    for (int f : deleted_) {
+      alive_face_[f] = 0;
+      --patch_count_[patch_[f]];
+      for (int x : T_[f]) {
+        if (x == v) continue;
+        auto& list = vf_[x];
+        list.erase(std::find(list.begin(), list.end(), f));
+      }
+    }
+    for (int f : moved_) {
+      for (int& x : T_[f]) {
+        if (x == v) x = u;
+      }
+      vf_[u].push_back(f);
+    }
+    vf_[v].clear();
+    ++collapses_;
+    ++version_[u];
+    for (int f : vf_[u]) {
+      for (int x : T_[f]) ++version_[x];
+    }
+    return true;
+  }
+
+  const std::vector<const Vertices*>& poses_;
+  const std::vector<int>& patch_;
+  PatchTriangulationOptions options_;
+  std::vector<std::array<int, 3>> T_;
+  std::vector<char> alive_face_;
+  std::vector<std::vector<int>> vf_;
+  std::vector<int> patch_count_;
+  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;
+  std::vector<char> boundary_, kept_;
+  std::vector<int> stamp_, version_;
+  int current_stamp_ = 0;
+  double area_eps_ = 0.0;
+  int collapses_ = 0;
+  std::vector<Neighbour> scratch_;
+  std::vector<int> deleted_, moved_;
+  std::vector<int> chain_points_;
+  std::unordered_map<long long, std::vector<int>> removed_on_edge_;
+  double chain_tolerance_ = 0.0;
+};
+
+}  // namespace
+
+PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
+                                      const std::vector<int>& face_patch, int num_patches,
+                                      const std::vector<char>& locked, const PatchTriangulationOptions& options) {
+  RB_CHECK(!poses.empty(), "decimation: no poses");
+  RB_CHECK(static_cast<int>(face_patch.size()) == F.rows(), "decimation: face_patch has ", face_patch.size(),
+           " entries for ", F.rows(), " faces");
+  RB_CHECK(options.min_cos_to_patch_normal >= 0.0 && options.min_cos_to_patch_normal < 1.0,
+           "decimation: min_cos_to_patch_normal must be in [0, 1)");
+  for (const Vertices* V : poses) {
+    RB_CHECK(V != nullptr && V->rows() == poses[0]->rows(), "decimation: poses differ in vertex count");
+  }
+  Reducer reducer(poses, F, face_patch, num_patches, locked, options);
+  return reducer.Run();
+}
+
+Eigen::Vector3d PatchNormalField::Evaluate(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d n = mean + gradient * (basis * (p - center));
+  const double len = n.norm();
+  if (len > 1e-6) return n / len;
+  const double mlen = mean.norm();
+  return mlen > 0.0 ? Eigen::Vector3d(mean / mlen) : Eigen::Vector3d::UnitZ();
+}
+
+std::vector<PatchNormalField> FitPatchNormalFields(const Vertices& V, const Faces& F,
+                                                   const std::vector<double>& face_weight,
+                                                   const std::vector<int>& face_patch, int num_patches,
+                                                   double regularisation) {
+  const int nf = static_cast<int>(F.rows());
+  std::vector<Eigen::Vector3d> centroid(nf), normal(nf);
+  std::vector<double> wsum(num_patches, 0.0);
+  std::vector<Eigen::Vector3d> csum(num_patches, Eigen::Vector3d::Zero()), nsum(num_patches, Eigen::Vector3d::Zero());
+  std::vector<int> count(num_patches, 0);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(),
+                          c = V.row(F(f, 2)).transpose();
+    centroid[f] = (a + b + c) / 3.0;
+    const Eigen::Vector3d cr = (b - a).cross(c - a);
+    const double len = cr.norm();
+    normal[f] = len > 0.0 ? Eigen::Vector3d(cr / len) : Eigen::Vector3d::Zero();
+    const int k = face_patch[f];
+    // Centroid weights fall back to 1 so that all-zero-weight patches still get a centre.
+    const double w = face_weight[f];
+    wsum[k] += w;
+    csum[k] += (w > 0.0 ? w : 1e-12) * centroid[f];
+    nsum[k] += w * normal[f];
+    ++count[k];
+  }
+  std::vector<PatchNormalField> fields(num_patches);
+  std::vector<double> cw(num_patches, 0.0);
+  for (int f = 0; f < nf; ++f) cw[face_patch[f]] += face_weight[f] > 0.0 ? face_weight[f] : 1e-12;
+  for (int k = 0; k < num_patches; ++k) {
+    PatchNormalField& field = fields[k];
+    field.center = cw[k] > 0.0 ? Eigen::Vector3d(csum[k] / cw[k]) : Eigen::Vector3d::Zero();
+    field.mean = wsum[k] > 0.0 ? Eigen::Vector3d(nsum[k] / wsum[k]) : Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d n = field.mean.norm() > 1e-12 ? field.mean.normalized() : Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d e1 = n.unitOrthogonal();
+    Eigen::Vector3d e2 = n.cross(e1);
+    field.basis.row(0) = e1.transpose();
+    field.basis.row(1) = e2.transpose();
+  }
+  // Normal equations per patch: M = Σ w t tᵀ (2×2), R = Σ w (u − a) tᵀ (3×2).
+  std::vector<Eigen::Matrix2d> M(num_patches, Eigen::Matrix2d::Zero());
+  std::vector<Eigen::Matrix<double, 3, 2>> R(num_patches, Eigen::Matrix<double, 3, 2>::Zero());
+  for (int f = 0; f < nf; ++f) {
+    const int k = face_patch[f];
+    const double w = face_weight[f];
+    if (w <= 0.0) continue;
+    const Eigen::Vector2d t = fields[k].basis * (centroid[f] - fields[k].center);
+    M[k] += w * t * t.transpose();
+    R[k] += w * (normal[f] - fields[k].mean) * t.transpose();
+  }
+  for (int k = 0; k < num_patches; ++k) {
+    if (count[k] < 3 || wsum[k] <= 0.0) continue;
+    const double spread = M[k].trace();
+    if (!(spread > 0.0)) continue;
+    const Eigen::Matrix2d A = M[k] + (regularisation * spread + 1e-12 * spread) * Eigen::Matrix2d::Identity();
+    fields[k].gradient = R[k] * A.inverse();
+  }
+  return fields;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,75 @@
+// The geometric half of Bayesian decimation (paper §6.2, last paragraphs): from a dense manifold mesh and its
+// patch map g, the coarse triangle mesh that keeps only the vertices the patch structure needs, triangulated
+// patch by patch, plus the per-patch linear normal fields used for shading.
+//
+// How the patches are triangulated: instead of cutting each patch out and re-triangulating its boundary
+// polygon in a plane (which needs a simple projected polygon, hole bridging, and breaks on patches that wrap
+// around), the dense mesh is reduced in place by half-edge collapses that never cross a patch: a vertex inside
+// a patch collapses onto a neighbour, a vertex on a patch-boundary chain (exactly two feature edges: patch
+// boundaries or mesh boundary) collapses along its chain. Every face keeps its patch label, so each output
+// triangle lies in one patch and the patch boundaries survive as chains between the kept vertices. A collapse
+// is refused when it would
+//   - break the link condition (link(u) ∩ link(v) = link(uv), with the mesh boundary as a virtual vertex),
+//     which is what keeps the output a manifold of the input's topology (Dey et al. 1999);
+//   - create a duplicate face, or leave a patch without faces;
+//   - flip a triangle: every moved triangle must stay within 90° of its patch normal (cosine above
+//     `min_cos_to_patch_normal`) in every pose and keep a positive area.
+// Vertices whose collapses are all refused stay: the fallback for a patch that cannot be reduced to its
+// corners is to keep more of its vertices, never to emit a broken triangle. Kept without condition: vertices
+// with three or more feature edges (where three patches meet, or two patches meet the mesh boundary, or a
+// patch touches itself), vertices the caller locks, and three vertices of every closed chain that has no
+// corner (so an island patch keeps a triangle). A chain is simplified only while its removed vertices stay
+// within `chain_tolerance_rel` of it, so a curved crease or a square's outline keeps its shape (the paper keeps
+// only the vertices where three patches meet; that would turn an open square into a triangle).
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+struct PatchTriangulationOptions {
+  double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
+  // A chain vertex is removed only while every removed vertex of its chain stays within this distance of
+  // the simplified chain (share of the bounding-box diagonal), [0, ∞). 0 keeps straight chains only.
+  double chain_tolerance_rel = 0.005;
+};
+
+struct PatchTriangulation {
+  Faces F;                      // output faces, indices into the dense vertex array
+  std::vector<int> face_patch;  // per output face
+  int kept_corner_vertices = 0;     // vertices kept unconditionally (≥ 3 feature edges, locked, loop anchors)
+  int blocked_vertices = 0;         // removable vertices kept because every collapse was refused
+  int collapses = 0;
+};
+
+// poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite
+// orientation, each vertex a single fan). face_patch: per face in [0, num_patches). locked: per vertex,
+// vertices that must stay (may be empty).
+PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
+                                      const std::vector<int>& face_patch, int num_patches,
+                                      const std::vector<char>& locked, const PatchTriangulationOptions& options = {});
+
+// A linear normal field n(p) = a + G·(E·(p − c)) over one patch in one pose: c the weighted centroid of its
+// dense face centroids, E the 2×3 tangent basis of the patch plane, a the mean normal, G 3×2.
+struct PatchNormalField {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 2, 3> basis = Eigen::Matrix<double, 2, 3>::Zero();
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 3, 2> gradient = Eigen::Matrix<double, 3, 2>::Zero();
+
+  // The unit normal at p (the normalised mean when the field vanishes there).
+  Eigen::Vector3d Evaluate(const Eigen::Vector3d& p) const;
+};
+
+// Least-squares fit of one field per patch to the dense face normals placed at the face centroids, weighted
+// by `face_weight`. Ridge regularisation on G of `regularisation` × the patch's centroid spread keeps small
+// and nearly collinear patches well posed; patches with fewer than 3 faces get G = 0 (constant normal).
+std::vector<PatchNormalField> FitPatchNormalFields(const Vertices& V, const Faces& F,
+                                                   const std::vector<double>& face_weight,
+                                                   const std::vector<int>& face_patch, int num_patches,
+                                                   double regularisation);
+
+}  // namespace rangebayes

@@ -1,0 +1,516 @@
+#include "bayes/decimate.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <functional>
+#include <set>
+#include <tuple>
+
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+Mesh Grid(int n, double z_bump = 0.0) {
+  Mesh mesh;
+  mesh.V.resize((n + 1) * (n + 1), 3);
+  for (int y = 0; y <= n; ++y) {
+    for (int x = 0; x <= n; ++x) {
+      const double z = z_bump * std::sin(0.7 * x) * std::cos(0.5 * y);
+      mesh.V.row(y * (n + 1) + x) << x, y, z;
+    }
+  }
+  mesh.F.resize(2 * n * n, 3);
+  int f = 0;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const int a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+      mesh.F.row(f++) << a, b, d;
+      mesh.F.row(f++) << a, d, c;
+    }
+  }
+  return mesh;
+}
+
+// Adds triangle (a, b, c), flipped if needed so that its normal points along `outward`.
+void AddOriented(std::vector<std::array<int, 3>>* faces, const std::vector<Eigen::Vector3d>& V, int a, int b, int c,
+                 const Eigen::Vector3d& outward) {
+  const Eigen::Vector3d n = (V[b] - V[a]).cross(V[c] - V[a]);
+  if (n.dot(outward) < 0) std::swap(b, c);
+  faces->push_back({a, b, c});
+}
+
+Mesh FromLists(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& faces) {
+  Mesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) mesh.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+  mesh.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t i = 0; i < faces.size(); ++i) mesh.F.row(static_cast<Eigen::Index>(i)) << faces[i][0], faces[i][1], faces[i][2];
+  return mesh;
+}
+
+// Axis-aligned cube [0, n]³ with an n×n grid on each side.
+Mesh Cube(int n) {
+  std::vector<Eigen::Vector3d> V;
+  std::map<std::tuple<int, int, int>, int> index;
+  auto vertex = [&](int x, int y, int z) {
+    auto [it, inserted] = index.emplace(std::make_tuple(x, y, z), static_cast<int>(V.size()));
+    if (inserted) V.emplace_back(x, y, z);
+    return it->second;
+  };
+  std::vector<std::array<int, 3>> faces;
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int side = 0; side < 2; ++side) {
+      Eigen::Vector3d outward = Eigen::Vector3d::Zero();
+      outward[axis] = side == 0 ? -1 : 1;
+      for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+          auto at = [&](int ii, int jj) {
+            int p[3];
+            p[axis] = side * n;
+            p[(axis + 1) % 3] = ii;
+            p[(axis + 2) % 3] = jj;
+            return vertex(p[0], p[1], p[2]);
+          };
+          const int a = at(i, j), b = at(i + 1, j), c = at(i, j + 1), d = at(i + 1, j + 1);
+          AddOriented(&faces, V, a, b, d, outward);
+          AddOriented(&faces, V, a, d, c, outward);
+        }
+      }
+    }
+  }
+  return FromLists(V, faces);
+}
+
+// Unit sphere from a subdivided octahedron.
+Mesh Sphere(int levels) {
+  std::vector<Eigen::Vector3d> V = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  std::vector<std::array<int, 3>> faces = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
+                                           {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      V.push_back((V[a] + V[b]).normalized());
+      mid[key] = static_cast<int>(V.size()) - 1;
+      return static_cast<int>(V.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> next;
+    for (const auto& t : faces) {
+      const int ab = midpoint(t[0], t[1]), bc = midpoint(t[1], t[2]), ca = midpoint(t[2], t[0]);
+      next.push_back({t[0], ab, ca});
+      next.push_back({ab, t[1], bc});
+      next.push_back({ca, bc, t[2]});
+      next.push_back({ab, bc, ca});
+    }
+    faces = std::move(next);
+  }
+  return FromLists(V, faces);
+}
+
+Mesh Torus(int nu, int nv, double R = 3.0, double r = 1.0) {
+  std::vector<Eigen::Vector3d> V;
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const double u = 2 * M_PI * i / nu, v = 2 * M_PI * j / nv;
+      V.emplace_back((R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v));
+    }
+  }
+  std::vector<std::array<int, 3>> faces;
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const int a = i * nv + j, b = ((i + 1) % nu) * nv + j, c = i * nv + (j + 1) % nv,
+                d = ((i + 1) % nu) * nv + (j + 1) % nv;
+      faces.push_back({a, b, d});
+      faces.push_back({a, d, c});
+    }
+  }
+  return FromLists(V, faces);
+}
+
+// Per component (Euler characteristic, boundary loops), sorted; unreferenced vertices ignored.
+std::vector<std::pair<int, int>> Signature(const Mesh& mesh) {
+  const Components comps = ComputeComponents(mesh);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  std::vector<int> chi(comps.count, 0), loops(comps.count, 0);
+  std::vector<int> vcomp(mesh.num_vertices(), -1);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    ++chi[comps.face_label[f]];
+    for (int k = 0; k < 3; ++k) vcomp[mesh.F(f, k)] = comps.face_label[f];
+  }
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (vcomp[v] >= 0) ++chi[vcomp[v]];
+  }
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) --chi[comps.face_label[topology.edge_faces.begin(e)[0]]];
+  for (const auto& loop : ComputeBoundaryLoops(mesh, topology)) ++loops[vcomp[loop[0]]];
+  std::vector<std::pair<int, int>> sig;
+  for (int c = 0; c < comps.count; ++c) sig.emplace_back(chi[c], loops[c]);
+  std::sort(sig.begin(), sig.end());
+  return sig;
+}
+
+// Every edge in at most two faces, every directed edge at most once (consistent orientation), every vertex
+// one fan, no face repeating a vertex.
+void ExpectManifold(const Mesh& mesh) {
+  std::set<std::pair<int, int>> directed;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    ASSERT_NE(mesh.F(f, 0), mesh.F(f, 1));
+    ASSERT_NE(mesh.F(f, 1), mesh.F(f, 2));
+    ASSERT_NE(mesh.F(f, 0), mesh.F(f, 2));
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_TRUE(directed.insert({mesh.F(f, k), mesh.F(f, (k + 1) % 3)}).second) << "directed edge twice, face " << f;
+    }
+  }
+  // Vertex fans: the outgoing boundary edges of each vertex's star number at most one.
+  const Adjacency vf = ComputeVertexFaces(mesh);
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    int open = 0;
+    for (const int* f = vf.begin(v); f != vf.end(v); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        if (mesh.F(*f, k) != v) continue;
+        const int next = mesh.F(*f, (k + 1) % 3);
+        if (!directed.count({next, v})) ++open;
+      }
+    }
+    EXPECT_LE(open, 1) << "vertex " << v << " is not a single fan";
+  }
+}
+
+// No output triangle flipped against its patch's mean dense normal.
+void ExpectNoFlips(const Mesh& dense, const DecimatedMesh& out) {
+  std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
+  for (int f = 0; f < dense.num_faces(); ++f) {
+    if (out.dense_face_patch[f] < 0) continue;
+    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)), c = dense.V.row(dense.F(f, 2));
+    patch_normal[out.dense_face_patch[f]] += (b - a).cross(c - a);
+  }
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.mesh.V.row(out.mesh.F(f, 0)), b = out.mesh.V.row(out.mesh.F(f, 1)),
+                          c = out.mesh.V.row(out.mesh.F(f, 2));
+    EXPECT_GT((b - a).cross(c - a).dot(patch_normal[out.face_patch[f]]), 0.0) << "face " << f;
+  }
+}
+
+void ExpectPatchesContiguous(const Mesh& dense, const std::vector<int>& g) {
+  const EdgeTopology topology = ComputeEdgeTopology(dense);
+  const int nf = dense.num_faces();
+  std::vector<int> parent(nf);
+  for (int f = 0; f < nf; ++f) parent[f] = f;
+  std::function<int(int)> find = [&](int x) { return parent[x] == x ? x : parent[x] = find(parent[x]); };
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    if (topology.edge_faces.size(e) != 2) continue;
+    const int a = topology.edge_faces.begin(e)[0], b = topology.edge_faces.begin(e)[1];
+    if (g[a] == g[b] && g[a] >= 0) parent[find(a)] = find(b);
+  }
+  std::map<int, int> root_of_patch;
+  for (int f = 0; f < nf; ++f) {
+    if (g[f] < 0) continue;
+    auto [it, inserted] = root_of_patch.emplace(g[f], find(f));
+    EXPECT_EQ(it->second, find(f)) << "patch " << g[f] << " is not connected";
+  }
+}
+
+void ExpectValidDecimation(const Mesh& dense, const DecimatedMesh& out) {
+  ExpectManifold(out.mesh);
+  EXPECT_EQ(Signature(out.mesh), Signature(dense));
+  ExpectNoFlips(dense, out);
+  ExpectPatchesContiguous(dense, out.dense_face_patch);
+  EXPECT_EQ(out.corner_normals.normal_index.rows(), out.mesh.num_faces());
+  for (int i = 0; i < out.corner_normals.normals.rows(); ++i) {
+    EXPECT_NEAR(out.corner_normals.normals.row(i).norm(), 1.0, 1e-9);
+  }
+}
+
+TEST(Decimate, PlanarGridBecomesOnePatchOfTwoTriangles) {
+  const Mesh grid = Grid(10);
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(grid, {}, &summary);
+  EXPECT_EQ(out.num_patches, 1);
+  EXPECT_EQ(out.mesh.num_faces(), 2);
+  EXPECT_EQ(out.mesh.num_vertices(), 4);
+  ExpectValidDecimation(grid, out);
+  ASSERT_EQ(out.polygons.size(), 1u);
+  EXPECT_EQ(out.polygons[0].size(), 4u);
+  EXPECT_TRUE(summary.converged);
+}
+
+TEST(Decimate, CubeBecomesSixPatchesAndTwelveTriangles) {
+  const Mesh cube = Cube(6);
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(cube, {}, &summary);
+  EXPECT_EQ(out.num_patches, 6);
+  EXPECT_EQ(out.mesh.num_faces(), 12);
+  EXPECT_EQ(out.mesh.num_vertices(), 8);
+  ExpectValidDecimation(cube, out);
+  EXPECT_EQ(out.polygons.size(), 6u);
+  // The corner normals of a flat side are its normal.
+  for (int i = 0; i < out.corner_normals.normals.rows(); ++i) {
+    EXPECT_NEAR(out.corner_normals.normals.row(i).cwiseAbs().maxCoeff(), 1.0, 1e-9);
+  }
+}
+
+TEST(Decimate, ClosedSphereKeepsTopologyAtSeveralLambdas) {
+  const Mesh sphere = Sphere(4);  // 2048 faces
+  int previous = 1 << 30;
+  for (double lambda : {0.5, 2.0, 8.0, 32.0}) {
+    DecimateOptions options;
+    options.lambda = lambda;
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(sphere, options, &summary);
+    SCOPED_TRACE(lambda);
+    ExpectValidDecimation(sphere, out);
+    EXPECT_LT(out.mesh.num_faces(), sphere.num_faces());
+    EXPECT_LE(out.num_patches, previous);
+    previous = out.num_patches;
+    EXPECT_FALSE(summary.fell_back_to_dense);
+  }
+}
+
+TEST(Decimate, TorusKeepsGenus) {
+  const Mesh torus = Torus(48, 24);
+  for (double lambda : {1.0, 10.0}) {
+    DecimateOptions options;
+    options.lambda = lambda;
+    const DecimatedMesh out = Decimate(torus, options);
+    ExpectValidDecimation(torus, out);
+    EXPECT_EQ(Signature(out.mesh), (std::vector<std::pair<int, int>>{{0, 0}}));
+  }
+}
+
+TEST(Decimate, OpenBumpyGridWithHoleKeepsBoundaries) {
+  Mesh grid = Grid(30, 1.5);
+  // Cut a hole: drop the faces of the centre quads.
+  std::vector<int> keep;
+  for (int f = 0; f < grid.num_faces(); ++f) {
+    const int quad = f / 2, x = quad % 30, y = quad / 30;
+    if (!(x >= 12 && x < 17 && y >= 12 && y < 17)) keep.push_back(f);
+  }
+  Mesh holed;
+  holed.V = grid.V;
+  holed.F.resize(static_cast<Eigen::Index>(keep.size()), 3);
+  for (size_t i = 0; i < keep.size(); ++i) holed.F.row(static_cast<Eigen::Index>(i)) = grid.F.row(keep[i]);
+  for (double lambda : {0.3, 3.0, 30.0}) {
+    DecimateOptions options;
+    options.lambda = lambda;
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(holed, options, &summary);
+    SCOPED_TRACE(lambda);
+    ExpectValidDecimation(holed, out);
+    EXPECT_EQ(Signature(out.mesh), (std::vector<std::pair<int, int>>{{0, 2}}));
+  }
+}
+
+TEST(Decimate, TwoComponentsAreDecimatedSeparately) {
+  Mesh a = Cube(4), b = Sphere(3);
+  Mesh both;
+  both.V.resize(a.num_vertices() + b.num_vertices(), 3);
+  both.V << a.V, (b.V.rowwise() + Eigen::RowVector3d(10, 0, 0));
+  both.F.resize(a.num_faces() + b.num_faces(), 3);
+  both.F << a.F, (b.F.array() + a.num_vertices()).matrix();
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(both, {}, &summary);
+  ExpectValidDecimation(both, out);
+  EXPECT_EQ(Signature(out.mesh).size(), 2u);
+  bool noticed = false;
+  for (const auto& n : summary.notices) noticed |= n.find("components") != std::string::npos;
+  EXPECT_TRUE(noticed);
+}
+
+TEST(Decimate, NonManifoldInputIsCutAndWeldedWithANotice) {
+  // Three sheets on one edge (a "book"), plus a bowtie vertex: two grids touching at one corner.
+  Mesh g1 = Grid(4), g2 = Grid(4);
+  Mesh m;
+  const int n1 = g1.num_vertices();
+  m.V.resize(n1 * 2 + 1, 3);
+  m.V.topRows(n1) = g1.V;
+  m.V.middleRows(n1, n1) = (g2.V.rowwise() + Eigen::RowVector3d(4, 4, 0));
+  m.V.row(2 * n1) << 2, -1, 1;
+  // Grid 2's first vertex sits at (4,4,0), grid 1's last vertex too: merge them (bowtie).
+  Faces F2 = (g2.F.array() + n1).matrix();
+  for (int f = 0; f < F2.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (F2(f, k) == n1) F2(f, k) = n1 - 1;
+    }
+  }
+  // A fin on edge (0, 1) of grid 1, which already has one face there, and a second fin: 3 faces on the edge.
+  m.F.resize(g1.num_faces() + F2.rows() + 2, 3);
+  m.F << g1.F, F2, Eigen::RowVector3i(1, 0, 2 * n1), Eigen::RowVector3i(0, 1, 2 * n1);
+  DecimateSummary summary;
+  DecimatedMesh out;
+  ASSERT_NO_THROW(out = Decimate(m, {}, &summary));
+  bool noticed = false;
+  for (const auto& n : summary.notices) noticed |= n.find("non-manifold") != std::string::npos;
+  EXPECT_TRUE(noticed);
+  EXPECT_GT(out.mesh.num_faces(), 0);
+  EXPECT_LT(out.mesh.num_faces(), m.num_faces());
+  // Every output vertex is an input vertex and the bowtie vertex is still shared.
+  bool bowtie_kept = false;
+  for (int s : out.vertex_source) bowtie_kept |= s == n1 - 1;
+  EXPECT_TRUE(bowtie_kept);
+}
+
+TEST(Decimate, ZeroAreaAndRepeatedVertexFacesAreHandled) {
+  Mesh grid = Grid(8);
+  // Collapse one vertex onto its neighbour's position (two faces become slivers of zero area) and add a
+  // face that repeats a vertex.
+  grid.V.row(40) = grid.V.row(41);
+  grid.F.conservativeResize(grid.num_faces() + 1, 3);
+  grid.F.row(grid.num_faces() - 1) << 3, 3, 4;
+  DecimateSummary summary;
+  DecimatedMesh out;
+  ASSERT_NO_THROW(out = Decimate(grid, {}, &summary));
+  int notices = 0;
+  for (const auto& n : summary.notices) {
+    notices += n.find("zero area") != std::string::npos || n.find("repeat a vertex") != std::string::npos;
+  }
+  EXPECT_EQ(notices, 2);
+  ExpectManifold(out.mesh);
+  EXPECT_EQ(out.dense_face_patch.back(), -1);
+}
+
+TEST(Decimate, BadInputThrowsOneLine) {
+  Mesh empty;
+  EXPECT_THROW(Decimate(empty), Error);
+  Mesh grid = Grid(3);
+  grid.V(0, 0) = std::nan("");
+  EXPECT_THROW(Decimate(grid), Error);
+  DecimateOptions options;
+  options.lambda = 0;
+  EXPECT_THROW(Decimate(Grid(3), options), Error);
+}
+
+// A thin bridge: two flat squares joined by one strip of faces that is tilted. With a large λ the two squares
+// and the strip want to be one patch; the tilted strip faces want out, which would cut the patch.
+TEST(Decimate, BridgeBetweenTwoHalvesStaysContiguous) {
+  Mesh grid = Grid(21);
+  // Keep the left third, the right third, and one row of quads in the middle (the bridge).
+  std::vector<int> keep;
+  for (int f = 0; f < grid.num_faces(); ++f) {
+    const int quad = f / 2, x = quad % 21, y = quad / 21;
+    if (x < 7 || x >= 14 || y == 10) keep.push_back(f);
+  }
+  for (int v = 0; v < grid.num_vertices(); ++v) {
+    const double x = grid.V(v, 0), y = grid.V(v, 1);
+    if (x > 7 && x < 14 && y > 10) grid.V(v, 2) = 0.6 * std::sin(x);  // tilt the bridge's far side
+  }
+  Mesh bridged;
+  bridged.V = grid.V;
+  bridged.F.resize(static_cast<Eigen::Index>(keep.size()), 3);
+  for (size_t i = 0; i < keep.size(); ++i) bridged.F.row(static_cast<Eigen::Index>(i)) = grid.F.row(keep[i]);
+  for (double lambda : {1.0, 5.0, 50.0}) {
+    DecimateOptions options;
+    options.lambda = lambda;
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(bridged, options, &summary);
+    SCOPED_TRACE(lambda);
+    ExpectValidDecimation(bridged, out);
+  }
+}
+
+TEST(Decimate, TargetFacesFindsLambda) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.target_faces = 200;
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(sphere, options, &summary);
+  ExpectValidDecimation(sphere, out);
+  // Face counts move in steps of a few triangles per patch; 10% is what the bisection reaches on this sphere.
+  EXPECT_NEAR(out.mesh.num_faces(), 200, 20);
+  EXPECT_GT(summary.bisection_steps, 1);
+}
+
+// The linear normal field reproduces a cylinder's smoothly varying normal far better than a constant.
+TEST(Decimate, NormalFieldFollowsCurvature) {
+  // Open cylinder strip: angle 0..60° in 30 steps, height 10.
+  std::vector<Eigen::Vector3d> V;
+  const int na = 30, nh = 10;
+  for (int i = 0; i <= na; ++i) {
+    for (int j = 0; j <= nh; ++j) {
+      const double a = (M_PI / 3) * i / na;
+      V.emplace_back(5 * std::cos(a), 5 * std::sin(a), j);
+    }
+  }
+  std::vector<std::array<int, 3>> faces;
+  for (int i = 0; i < na; ++i) {
+    for (int j = 0; j < nh; ++j) {
+      const int a = i * (nh + 1) + j, b = (i + 1) * (nh + 1) + j, c = a + 1, d = b + 1;
+      const Eigen::Vector3d out(std::cos(M_PI / 3 * (i + 0.5) / na), std::sin(M_PI / 3 * (i + 0.5) / na), 0);
+      AddOriented(&faces, V, a, b, d, out);
+      AddOriented(&faces, V, a, d, c, out);
+    }
+  }
+  const Mesh cyl = FromLists(V, faces);
+  DecimateOptions options;
+  options.lambda = 1000.0;  // one patch
+  options.chain_tolerance_rel = 1.0;
+  const DecimatedMesh out = Decimate(cyl, options);
+  ASSERT_EQ(out.num_patches, 1);
+  double field_err = 0.0, const_err = 0.0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int i = 0; i < out.corner_normals.normals.rows(); ++i) mean += out.corner_normals.normals.row(i).transpose();
+  mean.normalize();
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Vector3d p = out.mesh.V.row(out.mesh.F(f, c));
+      const Eigen::Vector3d truth = Eigen::Vector3d(p.x(), p.y(), 0).normalized();
+      const Eigen::Vector3d n = out.corner_normals.normals.row(out.corner_normals.normal_index(f, c));
+      field_err += std::acos(std::clamp(n.dot(truth), -1.0, 1.0));
+      const_err += std::acos(std::clamp(mean.dot(truth), -1.0, 1.0));
+    }
+  }
+  // Corners sit at ±30° from the mean normal; the linear field gets them to within a few degrees.
+  EXPECT_LT(field_err, 0.25 * const_err);
+}
+
+// Two poses of a strip: flat, and folded along its middle. Decimated alone, the flat pose is one patch; shared
+// across both poses the fold must split it.
+TEST(Decimate, AnimatedPosesShareOnePatchMap) {
+  const Mesh flat = Grid(12);
+  Mesh folded = flat;
+  for (int v = 0; v < folded.num_vertices(); ++v) {
+    const double x = folded.V(v, 0);
+    if (x > 6) {
+      folded.V(v, 0) = 6 + (x - 6) * std::cos(1.0);
+      folded.V(v, 2) = (x - 6) * std::sin(1.0);
+    }
+  }
+  const DecimatedMesh alone = Decimate(flat);
+  EXPECT_EQ(alone.num_patches, 1);
+  DecimateSummary summary;
+  const std::vector<DecimatedMesh> both = DecimateAnimated({flat, folded}, {}, &summary);
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[0].num_patches, 2);
+  EXPECT_EQ(both[0].mesh.F, both[1].mesh.F);
+  ExpectValidDecimation(flat, both[0]);
+  ExpectValidDecimation(folded, both[1]);
+  // Carrying the one-patch map of the flat pose over to the folded pose is much worse there.
+  EXPECT_GT(PatchShadingErrorDeg(folded, alone.dense_face_patch), 5 * PatchShadingErrorDeg(folded, both[1].dense_face_patch));
+  // Poses of different connectivity are refused.
+  EXPECT_THROW(DecimateAnimated({flat, Grid(5)}), Error);
+}
+
+// The repository's fandisk (CAD, creases) at 2% and 10% of its faces: valid output and no fallback.
+TEST(Decimate, FandiskAtTwoAndTenPercent) {
+  const Mesh fandisk = ReadMesh("tests/data/meshes/fandisk_gt.obj");
+  for (double share : {0.02, 0.10}) {
+    DecimateOptions options;
+    options.target_faces = static_cast<int>(share * fandisk.num_faces());
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(fandisk, options, &summary);
+    SCOPED_TRACE(share);
+    ExpectValidDecimation(fandisk, out);
+    EXPECT_FALSE(summary.fell_back_to_dense);
+    EXPECT_NEAR(out.mesh.num_faces(), options.target_faces, 0.1 * options.target_faces);
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes
