@@ -90,6 +90,9 @@ StereoRig ReadStereoRig(const std::string& path) {
     if (!fs["rms_left_px"].empty()) rig.rms_left_px = static_cast<double>(fs["rms_left_px"]);
     if (!fs["rms_right_px"].empty()) rig.rms_right_px = static_cast<double>(fs["rms_right_px"]);
     if (!fs["rms_stereo_px"].empty()) rig.rms_stereo_px = static_cast<double>(fs["rms_stereo_px"]);
+    if (!fs["epipolar_error_px"].empty()) rig.epipolar_error_px = static_cast<double>(fs["epipolar_error_px"]);
+    if (!fs["view_names"].empty()) fs["view_names"] >> rig.view_names;
+    if (!fs["view_rms_stereo_px"].empty()) fs["view_rms_stereo_px"] >> rig.view_rms_stereo_px;
   } catch (const cv::Exception& e) {
     RB_FAIL(path, ": malformed rig file (", e.err, ")");
   }
@@ -112,6 +115,9 @@ void WriteStereoRig(const StereoRig& rig, const std::string& path) {
   fs << "doffs_px" << rig.doffs_px;
   fs << "rms_left_px" << rig.rms_left_px << "rms_right_px" << rig.rms_right_px << "rms_stereo_px"
      << rig.rms_stereo_px;
+  fs << "epipolar_error_px" << rig.epipolar_error_px;
+  if (!rig.view_names.empty()) fs << "view_names" << rig.view_names;
+  if (!rig.view_rms_stereo_px.empty()) fs << "view_rms_stereo_px" << rig.view_rms_stereo_px;
 }
 
 }  // namespace rangebayes

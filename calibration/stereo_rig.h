@@ -37,6 +37,9 @@ struct StereoRig {
   double rms_left_px = -1.0;
   double rms_right_px = -1.0;
   double rms_stereo_px = -1.0;
+  double epipolar_error_px = -1.0;         // mean |y_left − y_right| of rectified board corners
+  std::vector<std::string> view_names;     // the views that entered the calibration (left file names)
+  std::vector<double> view_rms_stereo_px;  // their per-view stereo RMS, same order
 
   // The rectified left camera (from P1) and the baseline |t| in metres.
   CameraIntrinsics RectifiedLeft() const;

@@ -1,0 +1,346 @@
+#include "calibration/disparity_noise_model.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <numeric>
+#include <opencv2/core.hpp>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+constexpr double kLogTwoPi = 1.8378770664093453;
+// Log-parameters are kept in a range where exp() neither under- nor overflows the likelihood.
+constexpr double kMinLog = -14.0;
+constexpr double kMaxLog = 8.0;
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(m), v.end());
+  return v[m];
+}
+
+template <size_t N>
+using Vec = std::array<double, N>;
+
+// Plain Nelder–Mead (reflection 1, expansion 2, contraction ½, shrink ½); enough for 2–3 smooth parameters.
+template <size_t N>
+Vec<N> NelderMead(const std::function<double(const Vec<N>&)>& f, Vec<N> start, double step, int max_iterations,
+                  int* iterations, double* best_value) {
+  std::array<Vec<N>, N + 1> x;
+  std::array<double, N + 1> fx;
+  x[0] = start;
+  for (size_t i = 0; i < N; ++i) {
+    x[i + 1] = start;
+    x[i + 1][i] += step;
+  }
+  for (size_t i = 0; i <= N; ++i) fx[i] = f(x[i]);
+  int it = 0;
+  for (; it < max_iterations; ++it) {
+    std::array<size_t, N + 1> order;
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return fx[a] < fx[b]; });
+    auto xs = x;
+    auto fs = fx;
+    for (size_t i = 0; i <= N; ++i) {
+      x[i] = xs[order[i]];
+      fx[i] = fs[order[i]];
+    }
+    if (std::abs(fx[N] - fx[0]) <= 1e-10 * (1.0 + std::abs(fx[0]))) {
+      double spread = 0;
+      for (size_t i = 1; i <= N; ++i)
+        for (size_t j = 0; j < N; ++j) spread = std::max(spread, std::abs(x[i][j] - x[0][j]));
+      if (spread < 1e-7) break;
+    }
+    Vec<N> centroid{};
+    for (size_t i = 0; i < N; ++i)
+      for (size_t j = 0; j < N; ++j) centroid[j] += x[i][j] / static_cast<double>(N);
+    auto along = [&](double t) {
+      Vec<N> p;
+      for (size_t j = 0; j < N; ++j) p[j] = centroid[j] + t * (x[N][j] - centroid[j]);
+      return p;
+    };
+    const Vec<N> xr = along(-1.0);
+    const double fr = f(xr);
+    if (fr < fx[0]) {
+      const Vec<N> xe = along(-2.0);
+      const double fe = f(xe);
+      if (fe < fr) {
+        x[N] = xe;
+        fx[N] = fe;
+      } else {
+        x[N] = xr;
+        fx[N] = fr;
+      }
+    } else if (fr < fx[N - 1]) {
+      x[N] = xr;
+      fx[N] = fr;
+    } else {
+      const Vec<N> xc = fr < fx[N] ? along(-0.5) : along(0.5);
+      const double fc = f(xc);
+      if (fc < std::min(fr, fx[N])) {
+        x[N] = xc;
+        fx[N] = fc;
+      } else {
+        for (size_t i = 1; i <= N; ++i) {
+          for (size_t j = 0; j < N; ++j) x[i][j] = x[0][j] + 0.5 * (x[i][j] - x[0][j]);
+          fx[i] = f(x[i]);
+        }
+      }
+    }
+  }
+  const size_t best = static_cast<size_t>(std::min_element(fx.begin(), fx.end()) - fx.begin());
+  if (iterations) *iterations = it;
+  if (best_value) *best_value = fx[best];
+  return x[best];
+}
+
+double Clamp(double v) { return std::clamp(v, kMinLog, kMaxLog); }
+double Logistic(double v) { return 1.0 / (1.0 + std::exp(-v)); }
+
+// −log-likelihood of residuals r_i under (1 − ε)·N(0, s_i²) + ε/(2R).
+double MixtureNll(const std::vector<double>& r, const std::function<double(size_t)>& sigma, double eps,
+                  double range) {
+  const double uniform = eps / (2.0 * range);
+  double nll = 0;
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double s = std::max(sigma(i), 1e-9);
+    const double z = r[i] / s;
+    const double g = std::exp(-0.5 * z * z - std::log(s) - 0.5 * kLogTwoPi);
+    nll -= std::log((1.0 - eps) * g + uniform + 1e-300);
+  }
+  return nll;
+}
+
+struct ConstantFit {
+  double sigma = 0, eps = 0, nll = 0;
+  int iterations = 0;
+};
+
+ConstantFit FitConstant(const std::vector<double>& r, double range) {
+  double s0 = 1.4826 * Median([&] {
+                std::vector<double> a;
+                for (double v : r) a.push_back(std::abs(v));
+                return a;
+              }());
+  s0 = std::max(s0, 1e-4);
+  const auto f = [&](const Vec<2>& p) {
+    const double s = std::exp(Clamp(p[0]));
+    return MixtureNll(r, [s](size_t) { return s; }, Logistic(p[1]), range);
+  };
+  ConstantFit fit;
+  const Vec<2> best = NelderMead<2>(f, {std::log(s0), std::log(0.05 / 0.95)}, 0.3, 500, &fit.iterations, &fit.nll);
+  fit.sigma = std::exp(Clamp(best[0]));
+  fit.eps = Logistic(best[1]);
+  return fit;
+}
+
+}  // namespace
+
+double DisparityNoiseModel::Apply(double sigma_pred_px) const {
+  if (form == NoiseForm::kConstant) return sigma_px;
+  if (!std::isfinite(sigma_pred_px)) return std::numeric_limits<double>::quiet_NaN();
+  const double k = scale * sigma_pred_px;
+  return std::sqrt(floor_px * floor_px + k * k);
+}
+
+void DisparityNoiseModel::Check() const {
+  if (form == NoiseForm::kConstant) {
+    RB_CHECK(sigma_px > 0 && std::isfinite(sigma_px), "noise model: sigma_px ", sigma_px, " must be positive");
+  } else {
+    RB_CHECK(floor_px >= 0 && std::isfinite(floor_px), "noise model: floor_px ", floor_px, " must be ≥ 0");
+    RB_CHECK(scale >= 0 && std::isfinite(scale), "noise model: scale ", scale, " must be ≥ 0");
+    RB_CHECK(floor_px > 0 || scale > 0, "noise model: floor_px and scale are both 0");
+  }
+}
+
+const char* NoiseFormName(NoiseForm form) {
+  return form == NoiseForm::kConstant ? "constant" : "floor-plus-scale";
+}
+
+NoiseForm ParseNoiseForm(const std::string& name) {
+  if (name == "constant") return NoiseForm::kConstant;
+  if (name == "floor-plus-scale") return NoiseForm::kFloorPlusScale;
+  RB_FAIL("noise model form '", name, "' is not 'constant' or 'floor-plus-scale'");
+}
+
+void NoiseFitOptions::Check() const {
+  RB_CHECK(outlier_range_px >= 0 && std::isfinite(outlier_range_px), "outlier_range_px ", outlier_range_px,
+           " must be ≥ 0");
+  RB_CHECK(depth_bins >= 1 && depth_bins <= 50, "depth_bins ", depth_bins, " not in [1, 50]");
+  RB_CHECK(min_samples >= 10, "min_samples ", min_samples, " must be at least 10");
+  RB_CHECK(max_samples >= min_samples, "max_samples ", max_samples, " must be at least min_samples ", min_samples);
+}
+
+DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
+  RB_CHECK(std::filesystem::is_regular_file(path), path, ": noise model file not found");
+  cv::FileStorage fs;
+  try {
+    fs.open(path, cv::FileStorage::READ);
+  } catch (const cv::Exception& e) {
+    RB_FAIL(path, ": not a readable OpenCV YAML noise model (", e.err, ")");
+  }
+  RB_CHECK(fs.isOpened(), path, ": not a readable OpenCV YAML noise model");
+  DisparityNoiseModel m;
+  try {
+    RB_CHECK(!fs["form"].empty(), path, ": field 'form' is missing");
+    m.form = ParseNoiseForm(static_cast<std::string>(fs["form"]));
+    const auto read = [&](const char* name, double* out, bool required) {
+      const cv::FileNode n = fs[name];
+      if (n.empty()) {
+        RB_CHECK(!required, path, ": field '", name, "' is missing");
+        return;
+      }
+      RB_CHECK(n.isReal() || n.isInt(), path, ": field '", name, "' is not a number");
+      *out = static_cast<double>(n);
+    };
+    const bool constant = m.form == NoiseForm::kConstant;
+    read("sigma_px", &m.sigma_px, constant);
+    read("floor_px", &m.floor_px, !constant);
+    read("scale", &m.scale, !constant);
+    read("outlier_fraction", &m.outlier_fraction, false);
+    read("depth_slope_px_per_m", &m.depth_slope_px_per_m, false);
+    if (!fs["matcher"].empty()) m.matcher = static_cast<std::string>(fs["matcher"]);
+    if (!fs["samples"].empty()) m.samples = static_cast<int>(fs["samples"]);
+  } catch (const cv::Exception& e) {
+    RB_FAIL(path, ": malformed noise model (", e.err, ")");
+  }
+  try {
+    m.Check();
+  } catch (const Error& e) {
+    RB_FAIL(path, ": ", e.what());
+  }
+  return m;
+}
+
+void WriteDisparityNoiseModel(const DisparityNoiseModel& model, const std::string& path) {
+  model.Check();
+  cv::FileStorage fs(path, cv::FileStorage::WRITE);
+  RB_CHECK(fs.isOpened(), path, ": cannot open for writing");
+  fs << "form" << NoiseFormName(model.form);
+  fs << "sigma_px" << model.sigma_px << "floor_px" << model.floor_px << "scale" << model.scale;
+  fs << "matcher" << model.matcher << "samples" << model.samples;
+  fs << "outlier_fraction" << model.outlier_fraction << "depth_slope_px_per_m" << model.depth_slope_px_per_m;
+}
+
+DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options,
+                                           NoiseFitSummary* summary) {
+  options.Check();
+  NoiseFitSummary local;
+  NoiseFitSummary& sum = summary ? *summary : local;
+  sum = NoiseFitSummary{};
+  std::vector<NoiseSample> valid;
+  for (const NoiseSample& s : samples) {
+    if (!std::isfinite(s.residual_px)) continue;
+    if (options.form == NoiseForm::kFloorPlusScale && !(std::isfinite(s.sigma_pred_px) && s.sigma_pred_px >= 0))
+      continue;
+    valid.push_back(s);
+  }
+  RB_CHECK(static_cast<int>(valid.size()) >= options.min_samples, "noise fit: only ", valid.size(),
+           " usable residual samples", options.form == NoiseForm::kFloorPlusScale ? " with a predicted sigma" : "",
+           " (at least ", options.min_samples, " needed)");
+  if (static_cast<int>(valid.size()) > options.max_samples) {
+    std::vector<NoiseSample> thinned;
+    const double step = static_cast<double>(valid.size()) / options.max_samples;
+    for (int i = 0; i < options.max_samples; ++i) thinned.push_back(valid[static_cast<size_t>(i * step)]);
+    valid.swap(thinned);
+  }
+  std::vector<double> r, pred, absr;
+  for (const NoiseSample& s : valid) {
+    r.push_back(s.residual_px);
+    pred.push_back(s.sigma_pred_px);
+    absr.push_back(std::abs(s.residual_px));
+  }
+  double range = options.outlier_range_px;
+  if (range <= 0) range = *std::max_element(absr.begin(), absr.end());
+  range = std::max(range, 1e-6);
+  sum.robust_sigma_px = 1.4826 * Median(absr);
+
+  const ConstantFit constant = FitConstant(r, range);
+  sum.constant_sigma_px = constant.sigma;
+
+  DisparityNoiseModel model;
+  model.form = options.form;
+  model.samples = static_cast<int>(valid.size());
+  if (options.form == NoiseForm::kConstant) {
+    model.sigma_px = constant.sigma;
+    model.outlier_fraction = constant.eps;
+    sum.log_likelihood = -constant.nll;
+    sum.iterations = constant.iterations;
+  } else {
+    const double med_pred = std::max(Median(pred), 1e-6);
+    const auto f = [&](const Vec<3>& p) {
+      const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1]));
+      return MixtureNll(
+          r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range);
+    };
+    const double s0 = constant.sigma;
+    const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
+    // Three starts: mostly floor, balanced, mostly scale; the likelihood can have a shallow second basin.
+    const std::array<Vec<3>, 3> starts = {Vec<3>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), e0},
+                                          Vec<3>{std::log(0.7 * s0), std::log(0.7 * s0 / med_pred), e0},
+                                          Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
+    double best_nll = std::numeric_limits<double>::infinity();
+    Vec<3> best{};
+    for (const Vec<3>& start : starts) {
+      int it = 0;
+      double nll = 0;
+      const Vec<3> p = NelderMead<3>(f, start, 0.4, 1500, &it, &nll);
+      sum.iterations += it;
+      if (nll < best_nll) {
+        best_nll = nll;
+        best = p;
+      }
+    }
+    model.floor_px = std::exp(Clamp(best[0]));
+    model.scale = std::exp(Clamp(best[1]));
+    model.outlier_fraction = Logistic(best[2]);
+    model.sigma_px = constant.sigma;
+    sum.log_likelihood = -best_nll;
+  }
+  sum.outlier_fraction = model.outlier_fraction;
+
+  // Depth check: constant σ per equal-count depth bin, then a least-squares line through the bins.
+  std::vector<size_t> order;
+  for (size_t i = 0; i < valid.size(); ++i)
+    if (std::isfinite(valid[i].depth_m)) order.push_back(i);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return valid[a].depth_m < valid[b].depth_m; });
+  const int bins = std::min<int>(options.depth_bins, static_cast<int>(order.size()) / std::max(1, options.min_samples / 2));
+  for (int b = 0; b < bins; ++b) {
+    const size_t lo = order.size() * static_cast<size_t>(b) / static_cast<size_t>(bins);
+    const size_t hi = order.size() * static_cast<size_t>(b + 1) / static_cast<size_t>(bins);
+    std::vector<double> rb, db;
+    for (size_t i = lo; i < hi; ++i) {
+      rb.push_back(valid[order[i]].residual_px);
+      db.push_back(valid[order[i]].depth_m);
+    }
+    NoiseDepthBin bin;
+    bin.depth_m = Median(db);
+    bin.sigma_px = FitConstant(rb, range).sigma;
+    bin.count = static_cast<int>(rb.size());
+    sum.depth_bins.push_back(bin);
+  }
+  if (sum.depth_bins.size() >= 2) {
+    double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+    for (const NoiseDepthBin& b : sum.depth_bins) {
+      const double w = b.count;
+      sw += w;
+      sx += w * b.depth_m;
+      sy += w * b.sigma_px;
+      sxx += w * b.depth_m * b.depth_m;
+      sxy += w * b.depth_m * b.sigma_px;
+    }
+    const double den = sw * sxx - sx * sx;
+    sum.depth_slope_px_per_m = den > 1e-12 * sw * sw ? (sw * sxy - sx * sy) / den : 0.0;
+  }
+  model.depth_slope_px_per_m = sum.depth_slope_px_per_m;
+  return model;
+}
+
+}  // namespace rangebayes

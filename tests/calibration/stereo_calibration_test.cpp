@@ -1,0 +1,190 @@
+#include "calibration/stereo_calibration.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "calibration/stereo_rig.h"
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* kLeft = "tests/data/calibration/opencv_stereo/left*.jpg";
+const char* kRight = "tests/data/calibration/opencv_stereo/right*.jpg";
+
+// The plain two-stage OpenCV calibration (classic detector + cornerSubPix, calibrateCamera per camera,
+// stereoCalibrate with the intrinsics fixed) measured 0.448 px on these 13 pairs (issue 8); a joint one-stage
+// call measured 0.634 px.
+constexpr double kTwoStageBarPx = 0.448;
+
+StereoCalibrationOptions SampleOptions() {
+  StereoCalibrationOptions o;
+  o.board.cols = 9;
+  o.board.rows = 6;
+  o.board.square_m = 0.025;
+  return o;
+}
+
+const CalibrationView& Worst(const StereoCalibrationSummary& s) {
+  return *std::max_element(s.views.begin(), s.views.end(),
+                           [](const auto& a, const auto& b) { return a.rms_stereo_px < b.rms_stereo_px; });
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() / ("rb_calib_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+                                         "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+TEST(PairCalibrationImages, PairsOpenCvSamplesByNumber) {
+  std::vector<std::string> unpaired;
+  const auto pairs = PairCalibrationImages({kLeft}, {kRight}, &unpaired);
+  ASSERT_EQ(pairs.size(), 13u);
+  EXPECT_TRUE(unpaired.empty());
+  EXPECT_NE(pairs[1].left.find("left02.jpg"), std::string::npos);
+  EXPECT_NE(pairs[1].right.find("right02.jpg"), std::string::npos);
+  EXPECT_NE(pairs[9].left.find("left11.jpg"), std::string::npos);
+  EXPECT_NE(pairs[9].right.find("right11.jpg"), std::string::npos);
+}
+
+TEST(PairCalibrationImages, PatternWithoutMatchNamesIt) {
+  try {
+    PairCalibrationImages({"tests/data/calibration/nothing*.jpg"}, {kRight});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing*.jpg"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CalibrateStereoRig, OpenCvSamplesBeatTwoStageBar) {
+  // One test for everything that reads the default calibration: CTest runs each test in its own process.
+  const auto pairs = PairCalibrationImages({kLeft}, {kRight});
+  StereoCalibrationSummary s;
+  const StereoRig rig = CalibrateStereoRig(pairs, SampleOptions(), &s);
+  std::printf("stereo RMS %.4f px (left %.4f, right %.4f), epipolar mean %.4f max %.4f px, worst view %.4f px\n",
+              s.rms_stereo_px, s.rms_left_px, s.rms_right_px, s.epipolar_error_mean_px, s.epipolar_error_max_px,
+              Worst(s).rms_stereo_px);
+  EXPECT_EQ(s.pairs_found, 13);
+  EXPECT_EQ(s.pairs_used, 13);
+  // Sector-based corners measured 0.273 px stereo RMS here (left 0.256, right 0.250).
+  EXPECT_LE(s.rms_stereo_px, kTwoStageBarPx);
+  EXPECT_LE(s.rms_stereo_px, 0.30);
+  EXPECT_NEAR(rig.rms_stereo_px, s.rms_stereo_px, 1e-12);
+  // Measured mean |Δy| 0.114 px after rectification.
+  EXPECT_LT(s.epipolar_error_mean_px, 0.2);
+  // Board in the 640x480 samples: measured fx 531.9 px, baseline 3.32 squares (OpenCV's sample reports ≈ 3.34).
+  EXPECT_NEAR(rig.K_left(0, 0), 532.0, 10.0);
+  EXPECT_NEAR(rig.baseline_m() / 0.025, 3.33, 0.1);
+  EXPECT_GT(rig.P1(0, 0), 0.0);
+  EXPECT_GT(s.coverage_left, 0.3);
+  EXPECT_GT(s.grid_coverage_left, 0.5);
+  // With good corners no view is far above the rest.
+  for (const auto& v : s.views) EXPECT_FALSE(v.flagged) << v.left << " " << v.rms_stereo_px;
+
+  // rig.yaml round trip.
+  {
+    TempDir dir;
+    const std::string path = (dir.path() / "rig.yaml").string();
+    WriteStereoRig(rig, path);
+    const StereoRig back = ReadStereoRig(path);
+    EXPECT_TRUE(back.K_left.isApprox(rig.K_left));
+    EXPECT_TRUE(back.P2.isApprox(rig.P2));
+    EXPECT_EQ(back.distortion_left.size(), 5);
+    EXPECT_NEAR(back.epipolar_error_px, rig.epipolar_error_px, 1e-9);
+    ASSERT_EQ(back.view_rms_stereo_px.size(), 13u);
+    EXPECT_EQ(back.view_names[1], "left02.jpg");
+    // Readable by plain OpenCV code as well.
+    cv::FileStorage fsr(path, cv::FileStorage::READ);
+    cv::Mat K;
+    fsr["K_left"] >> K;
+    EXPECT_NEAR(K.at<double>(0, 0), rig.K_left(0, 0), 1e-9);
+  }
+
+  const RgbImage img = RenderRectifiedPair(rig, pairs[0]);
+  EXPECT_EQ(img.width, 1280);
+  EXPECT_EQ(img.height, 480);
+}
+
+TEST(CalibrateStereoRig, ClassicCornersFlagPair02AndDroppingItHelps) {
+  const auto pairs = PairCalibrationImages({kLeft}, {kRight});
+  StereoCalibrationOptions o = SampleOptions();
+  o.board.detector = ChessboardDetector::kClassic;
+  StereoCalibrationSummary s;
+  CalibrateStereoRig(pairs, o, &s);
+  // This is exactly the two-stage method behind the bar: measured 0.4469 px.
+  EXPECT_LE(s.rms_stereo_px, kTwoStageBarPx + 0.002);
+  const CalibrationView& worst = Worst(s);
+  EXPECT_NE(worst.left.find("left02.jpg"), std::string::npos);
+  EXPECT_TRUE(worst.flagged);
+  int flagged = 0;
+  for (const auto& v : s.views) flagged += v.flagged;
+  EXPECT_EQ(flagged, 1);  // measured: pair 02 at 1.22 px, the next 0.51 px, threshold 0.55 px
+
+  o.drop_outliers = true;
+  StereoCalibrationSummary dropped;
+  CalibrateStereoRig(pairs, o, &dropped);
+  std::printf("classic corners: stereo RMS %.4f px, after dropping %d flagged: %.4f px\n", s.rms_stereo_px,
+              13 - dropped.pairs_used, dropped.rms_stereo_px);
+  EXPECT_EQ(dropped.pairs_used, 12);
+  EXPECT_NEAR(dropped.rms_stereo_all_px, s.rms_stereo_px, 1e-9);
+  EXPECT_LT(dropped.rms_stereo_px, s.rms_stereo_px - 0.05);
+  EXPECT_TRUE(dropped.views[1].dropped);
+  EXPECT_FALSE(dropped.views[1].used);
+}
+
+TEST(CalibrateStereoRig, SkipsPairsWithoutBoardAndNeedsMinimum) {
+  TempDir dir;
+  const fs::path src = "tests/data/calibration/opencv_stereo";
+  for (const char* n : {"01", "03", "04", "06"}) {
+    fs::copy_file(src / (std::string("left") + n + ".jpg"), dir.path() / (std::string("left") + n + ".jpg"));
+    fs::copy_file(src / (std::string("right") + n + ".jpg"), dir.path() / (std::string("right") + n + ".jpg"));
+  }
+  cv::imwrite((dir.path() / "left20.jpg").string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
+  fs::copy_file(src / "right11.jpg", dir.path() / "right20.jpg");
+  const auto pairs =
+      PairCalibrationImages({(dir.path() / "left*.jpg").string()}, {(dir.path() / "right*.jpg").string()});
+  ASSERT_EQ(pairs.size(), 5u);
+  StereoCalibrationOptions o = SampleOptions();
+  o.board.detector = ChessboardDetector::kClassic;  // fast on the blank image
+  StereoCalibrationSummary s;
+  try {
+    CalibrateStereoRig(pairs, o, &s);
+    FAIL() << "expected an error: 4 usable pairs, minimum 5";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("at least 5"), std::string::npos) << e.what();
+  }
+  o.min_pairs = 4;
+  CalibrateStereoRig(pairs, o, &s);
+  EXPECT_EQ(s.pairs_used, 4);
+  ASSERT_EQ(s.views.size(), 5u);
+  EXPECT_FALSE(s.views[4].used);
+  EXPECT_EQ(s.views[4].skip_reason, "board not found in the left image");
+}
+
+TEST(BoardSpec, CharucoAvailabilityIsReportedCleanly) {
+  StereoCalibrationOptions o = SampleOptions();
+  o.board.type = BoardType::kCharuco;
+  o.board.cols = 5;
+  o.board.rows = 7;
+  o.board.dictionary = "DICT_NOPE";
+  EXPECT_THROW(CalibrateStereoRig(PairCalibrationImages({kLeft}, {kRight}), o), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
