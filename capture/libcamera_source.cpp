@@ -3,6 +3,7 @@
 #include <sys/mman.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <condition_variable>
 #include <deque>
 #include <libcamera/libcamera.h>
@@ -21,7 +22,13 @@ void LibcameraStereoOptions::Check() const {
   pairing.Check();
 }
 
+namespace {
+// libcamera logs INFO/WARN lines (missing IPA modules on a PC) to stderr; keep a user's own setting.
+void QuietLibcameraLogs() { setenv("LIBCAMERA_LOG_LEVELS", "*:ERROR", 0); }
+}  // namespace
+
 LibcameraList ListLibcameraCameras() {
+  QuietLibcameraLogs();
   LibcameraList list;
   auto manager = std::make_unique<libcamera::CameraManager>();
   const int r = manager->start();
@@ -179,6 +186,7 @@ struct LibcameraStereoSource::Impl {
 LibcameraStereoSource::LibcameraStereoSource(const LibcameraStereoOptions& options)
     : impl_(std::make_unique<Impl>(options)) {
   options.Check();
+  QuietLibcameraLogs();
   impl_->manager = std::make_unique<libcamera::CameraManager>();
   RB_CHECK(impl_->manager->start() == 0, "libcamera: the camera manager did not start");
   const auto cameras = impl_->manager->cameras();

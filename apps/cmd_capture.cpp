@@ -1,0 +1,396 @@
+// Subcommands cameras, record, live and replay: from cameras or recordings through the stereo-to-mesh pipeline.
+#include <algorithm>
+#include <cstdio>
+#include <optional>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/command.h"
+#include "apps/progress.h"
+#include "capture/device_list.h"
+#include "capture/libcamera_source.h"
+#include "capture/playback_source.h"
+#include "capture/recorder.h"
+#include "capture/recording.h"
+#include "capture/stop_signal.h"
+#include "capture/v4l2_source.h"
+#include "core/error.h"
+#include "pipeline/file_sink.h"
+#include "pipeline/pipeline.h"
+
+namespace rangebayes::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Pipeline settings shared by replay and live.
+struct PipelineCli {
+  std::string matcher = "sgbm";
+  int window_frames = 1;
+  int window_step_frames = 0;
+  int num_disparities = 64;
+  int min_disparity_px = 0;
+  int block_px = 5;
+  int downsample = 1;
+  bool no_smooth = false;
+  std::string tolerance = "default";
+  double prior_weight = SmoothOptions{}.prior_weight;
+  bool no_decimate = false;
+  double lambda = DecimateOptions{}.lambda;
+  int queue_capacity = 4;
+  bool live_path = false;
+  int preview_width_px = 0;
+  bool no_previews = false;
+  bool quiet = false;
+};
+
+void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
+  sub->add_option("--matcher", o->matcher, "Stereo matcher: sgbm (OpenCV semi-global) or spacetime (ours, with sigma)")
+      ->check(CLI::IsMember({"sgbm", "spacetime"}));
+  sub->add_option("--window-frames", o->window_frames,
+                  "Frames per space-time window (1: single-frame stereo; >1 needs --matcher spacetime)")
+      ->check(CLI::Range(1, 256));
+  sub->add_option("--window-step", o->window_step_frames, "Frames between window starts (0: = window, no overlap)")
+      ->check(CLI::Range(0, 256));
+  sub->add_option("--num-disparities", o->num_disparities, "Disparities searched (px)")->check(CLI::Range(3, 1024));
+  sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
+  sub->add_option("--block", o->block_px, "Matching window side (px, odd)")->check(CLI::Range(1, 31));
+  sub->add_option("--downsample", o->downsample, "Triangulate every n-th pixel (1-64)")->check(CLI::Range(1, 64));
+  sub->add_flag("--no-smooth", o->no_smooth, "Skip Bayesian smoothing");
+  sub->add_option("--tolerance", o->tolerance, "Smoothing stopping preset: fast, default or tight")
+      ->check(CLI::IsMember({"fast", "default", "tight"}));
+  sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)");
+  sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
+  sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
+  sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
+  sub->add_flag("--live-path", o->live_path,
+                "Live preview settings: drop the oldest frame when a stage is busy, triangulate every 4th pixel, "
+                "fast smoothing tolerance (overrides --downsample and --tolerance)");
+  sub->add_option("--preview-width", o->preview_width_px, "Width of each rendered preview panel (px; 0: frame width)");
+  sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+}
+
+PipelineOptions MakePipelineOptions(const PipelineCli& o) {
+  PipelineOptions p;
+  p.queue_capacity = o.queue_capacity;
+  p.matcher = o.matcher == "spacetime" ? PipelineMatcher::kSpaceTime : PipelineMatcher::kSgbm;
+  if (o.window_frames > 1 && p.matcher != PipelineMatcher::kSpaceTime) {
+    UsageError("--window-frames > 1 needs --matcher spacetime");
+  }
+  if (o.window_step_frames > o.window_frames) UsageError("--window-step must not exceed --window-frames");
+  p.window_frames = o.window_frames;
+  p.window_step_frames = o.window_step_frames;
+  p.sgbm.num_disparities = o.num_disparities;
+  p.sgbm.min_disparity_px = o.min_disparity_px;
+  p.sgbm.block_size_px = o.block_px;
+  p.spacetime.num_disparities = o.num_disparities;
+  p.spacetime.min_disparity_px = o.min_disparity_px;
+  p.spacetime.window_px = o.block_px;
+  p.triangulate.downsample = o.downsample;
+  p.smooth = !o.no_smooth;
+  p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
+  p.smoothing.prior_weight = o.prior_weight;
+  p.decimate = !o.no_decimate;
+  p.decimation.lambda = o.lambda;
+  if (o.live_path) {
+    p.queue_policy = QueueFullPolicy::kDropOldest;
+    p.queue_capacity = 1;
+    p.triangulate.downsample = 4;
+    p.smoothing.tolerance = SmoothTolerance::kFast;
+  }
+  return p;
+}
+
+void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool quiet) {
+  if (quiet) return;
+  std::fprintf(stderr, "rangebayes: %s\n", s.source.c_str());
+  std::fprintf(stderr,
+               "rangebayes: %lld frames in, %lld results, %lld failed, %lld skipped, %lld dropped, %.1f s, "
+               "%.2f frames/s end to end, latency %.0f ms\n",
+               static_cast<long long>(s.frames_captured), static_cast<long long>(s.results),
+               static_cast<long long>(s.failed), static_cast<long long>(s.frames_skipped),
+               static_cast<long long>(s.dropped), s.wall_s, s.frames_per_s, s.latency_mean_ms);
+  std::fprintf(stderr, "  %-12s %7s %7s %10s %10s %9s\n", "stage", "items", "errors", "mean ms", "max ms", "items/s");
+  for (const StageTiming& t : s.stages) {
+    std::fprintf(stderr, "  %-12s %7lld %7lld %10.1f %10.1f %9.2f\n", t.name.c_str(), static_cast<long long>(t.items),
+                 static_cast<long long>(t.errors), t.mean_ms(), t.max_ms,
+                 t.total_ms > 0 ? 1000.0 * static_cast<double>(t.items) / t.total_ms : 0.0);
+  }
+  for (const std::string& n : s.notices) std::fprintf(stderr, "rangebayes: note: %s\n", n.c_str());
+  for (const std::string& e : s.errors) std::fprintf(stderr, "rangebayes: %s\n", e.c_str());
+  if (s.stopped) std::fprintf(stderr, "rangebayes: stopped by request; finished results are complete\n");
+  if (!out_dir.empty()) {
+    std::fprintf(stderr,
+                 "rangebayes: results in %s: shaded/ (raw | smoothed | decimated renderings), depth/, raw/ and "
+                 "smoothed/ (PLY), decimated/ (OBJ), results.csv, summary.json\n",
+                 out_dir.c_str());
+  }
+}
+
+// Runs the pipeline with a file sink into out_dir, prints the summary, writes summary.json, sets the exit code.
+void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions options, const PipelineCli& cli,
+                 const std::string& out_dir) {
+  FileSinkOptions sink_options;
+  sink_options.preview_width_px = cli.preview_width_px;
+  if (cli.no_previews) sink_options.depth_png = sink_options.shaded_png = false;
+  FileSink sink(out_dir, sink_options);
+  ProgressPrinter progress(cli.quiet);
+  options.progress = progress.callback();
+  InstallStopSignalHandlers();
+  options.stop = &StopFlag();
+  const PipelineSummary summary = RunPipeline(source, rig, options, {&sink});
+  progress.Finish();
+  WritePipelineSummaryJson(summary, (fs::path(out_dir) / "summary.json").string());
+  PrintSummary(summary, out_dir, cli.quiet);
+  if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
+  if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
+    RB_FAIL("no frame went through the pipeline (see the errors above)");
+  }
+  if (summary.failed > 0 || summary.frames_skipped > 0) SetExitCode(3);
+}
+
+// Camera options shared by record and live.
+struct CameraCli {
+  std::string left = "/dev/video0";
+  std::string right = "/dev/video2";
+  bool side_by_side = false;
+  bool libcamera = false;
+  int width = 640;
+  int height = 480;
+  double fps = 30.0;
+  std::string format = "auto";
+  double tolerance_ms = 10.0;
+  int timeout_ms = 2000;
+  std::string rig;
+};
+
+void AddCameraOptions(CLI::App* sub, CameraCli* o) {
+  sub->add_option("--left", o->left, "Left camera: V4L2 device (/dev/videoN) or, with --libcamera, a camera id");
+  sub->add_option("--right", o->right, "Right camera: V4L2 device or libcamera id (ignored with --side-by-side)");
+  sub->add_flag("--side-by-side", o->side_by_side, "One V4L2 device (--left) delivering both views side by side");
+  sub->add_flag("--libcamera", o->libcamera, "Use libcamera cameras instead of V4L2 devices");
+  sub->add_option("--width", o->width, "Requested image width (px; the closest offered is used)");
+  sub->add_option("--height", o->height, "Requested image height (px)");
+  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s)")->check(CLI::Range(0.1, 1000.0));
+  sub->add_option("--format", o->format, "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg")
+      ->check(CLI::IsMember({"auto", "grey", "yuyv", "mjpeg"}));
+  sub->add_option("--pair-tolerance", o->tolerance_ms, "Largest left/right timestamp difference of a pair (ms)")
+      ->check(CLI::Range(0.001, 1000.0));
+  sub->add_option("--timeout", o->timeout_ms, "Camera timeout (ms) before a frame counts as late")
+      ->check(CLI::Range(1, 60000));
+  sub->add_option("--rig", o->rig, "Calibrated rig (rig.yaml, see rangebayes calibrate)");
+}
+
+std::unique_ptr<FrameSource> OpenCameras(const CameraCli& o) {
+  FramePairerOptions pairing;
+  pairing.tolerance_ns = static_cast<std::int64_t>(o.tolerance_ms * 1e6);
+  if (o.libcamera) {
+    LibcameraStereoOptions l;
+    l.left_camera = o.left.rfind("/dev/", 0) == 0 ? "" : o.left;
+    l.right_camera = o.right.rfind("/dev/", 0) == 0 ? "" : o.right;
+    l.width = o.width;
+    l.height = o.height;
+    l.pairing = pairing;
+    l.timeout_ms = o.timeout_ms;
+    return std::make_unique<LibcameraStereoSource>(l);
+  }
+  V4l2StereoOptions v;
+  v.left_device = o.left;
+  v.right_device = o.right;
+  v.side_by_side = o.side_by_side;
+  v.camera.width = o.width;
+  v.camera.height = o.height;
+  v.camera.fps = o.fps;
+  if (o.format == "grey") v.camera.formats = {FourccGrey()};
+  if (o.format == "yuyv") v.camera.formats = {FourccYuyv()};
+  if (o.format == "mjpeg") v.camera.formats = {FourccMjpeg()};
+  v.pairing = pairing;
+  v.timeout_ms = o.timeout_ms;
+  return std::make_unique<V4l2StereoSource>(RealV4l2SysCalls(), v);
+}
+
+void AddCameras(CLI::App& app) {
+  auto* sub = app.add_subcommand("cameras", "List V4L2 video devices and libcamera cameras");
+  sub->callback([] {
+    auto sys = RealV4l2SysCalls();
+    const std::vector<V4l2DeviceInfo> devices = ListV4l2Devices(*sys);
+    if (devices.empty()) {
+      std::printf("V4L2: no video devices (/dev/video*) on this machine\n");
+    } else {
+      std::printf("V4L2 devices:\n");
+      for (const V4l2DeviceInfo& d : devices) {
+        if (!d.error.empty()) {
+          std::printf("  %s: cannot open (%s)\n", d.path.c_str(), d.error.c_str());
+          continue;
+        }
+        std::string formats;
+        for (const std::string& f : d.formats) formats += (formats.empty() ? "" : " ") + f;
+        std::printf("  %s: %s (%s, %s)%s%s\n", d.path.c_str(), d.card.c_str(), d.driver.c_str(), d.bus.c_str(),
+                    d.can_capture ? " formats: " : " (not a capture device)", formats.c_str());
+      }
+    }
+    const LibcameraList cams = ListLibcameraCameras();
+    if (!cams.manager_started) {
+      std::printf("libcamera: %s\n", cams.error.c_str());
+    } else if (cams.cameras.empty()) {
+      std::printf("libcamera: no cameras\n");
+    } else {
+      std::printf("libcamera cameras:\n");
+      for (const LibcameraCameraInfo& c : cams.cameras) {
+        std::printf("  %s%s%s\n", c.id.c_str(), c.model.empty() ? "" : ": ", c.model.c_str());
+      }
+    }
+    const bool none = std::none_of(devices.begin(), devices.end(), [](const V4l2DeviceInfo& d) { return d.can_capture; }) &&
+                      cams.cameras.empty();
+    if (none) std::printf("No cameras found: record and live need cameras; replay works on recordings.\n");
+  });
+}
+
+std::optional<StereoRig> ReadOptionalRig(const std::string& path) {
+  if (path.empty()) return std::nullopt;
+  return ReadStereoRig(path);
+}
+
+void AddRecord(CLI::App& app) {
+  struct Options {
+    CameraCli camera;
+    std::string out;
+    std::int64_t max_frames = 0;
+    double duration_s = 0.0;
+    bool quiet = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto* sub = app.add_subcommand("record", "Record stereo frames from two cameras into a recording folder (Ctrl-C stops)");
+  AddCameraOptions(sub, &o->camera);
+  sub->add_option("--out,-o", o->out, "Recording folder to create")->required();
+  sub->add_option("--frames", o->max_frames, "Stop after this many frames (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  sub->add_flag("--quiet,-q", o->quiet, "No progress on stderr");
+  sub->callback([o] {
+    const std::optional<StereoRig> rig = ReadOptionalRig(o->camera.rig);
+    InstallStopSignalHandlers();
+    std::unique_ptr<FrameSource> source = OpenCameras(o->camera);
+    Notice(o->quiet, source->Describe());
+    RecordingWriter writer(o->out, rig, source->Meta());
+    RecorderOptions options;
+    options.max_frames = o->max_frames;
+    options.max_duration_s = o->duration_s;
+    options.stop = &StopFlag();
+    ProgressPrinter progress(o->quiet);
+    const RecorderSummary s = Record(*source, writer, options, progress.callback());
+    progress.Finish();
+    Notice(o->quiet, StrCat("recorded ", s.frames_written, " frames into ", o->out, " in ", s.elapsed_s, " s (",
+                            ToString(s.stop), "); dropped by the drivers: left ", s.source.dropped_left, ", right ",
+                            s.source.dropped_right, "; unpaired: left ", s.source.unpaired_left, ", right ",
+                            s.source.unpaired_right, "; timeouts ", s.timeouts));
+    if (!s.error.empty()) {
+      RB_FAIL(s.error, " (the recording is kept up to frame ", s.frames_written, ")");
+    }
+  });
+}
+
+void AddLive(CLI::App& app) {
+  struct Options {
+    CameraCli camera;
+    std::string out;
+    std::string record;
+    PipelineCli pipeline;
+  };
+  auto o = std::make_shared<Options>();
+  auto* sub = app.add_subcommand(
+      "live", "Live from two cameras through the pipeline with live settings (drops frames when behind)");
+  AddCameraOptions(sub, &o->camera);
+  sub->add_option("--out,-o", o->out, "Output folder for the results")->required();
+  sub->add_option("--record", o->record, "Also record the raw frames into this recording folder");
+  AddPipelineOptions(sub, &o->pipeline);
+  sub->callback([o] {
+    RB_CHECK(!o->camera.rig.empty(), "live needs a calibrated rig: give --rig rig.yaml (see rangebayes calibrate)");
+    const StereoRig rig = ReadStereoRig(o->camera.rig);
+    std::unique_ptr<FrameSource> camera = OpenCameras(o->camera);
+    PipelineCli cli = o->pipeline;
+    cli.live_path = true;
+    std::unique_ptr<RecordingWriter> writer;
+    if (!o->record.empty()) writer = std::make_unique<RecordingWriter>(o->record, rig, camera->Meta());
+    // Recording happens in the capture thread, before any frame can be dropped downstream.
+    class Tee : public FrameSource {
+     public:
+      Tee(FrameSource& inner, RecordingWriter* w) : inner_(inner), writer_(w) {}
+      FrameResult Next() override {
+        FrameResult r = inner_.Next();
+        if (writer_ != nullptr && r.status == FrameStatus::kFrame) writer_->Write(r.frame);
+        return r;
+      }
+      std::string Describe() const override { return inner_.Describe(); }
+      FrameSourceStats stats() const override { return inner_.stats(); }
+     private:
+      FrameSource& inner_;
+      RecordingWriter* writer_;
+    } tee(*camera, writer.get());
+    RunToFolder(tee, rig, MakePipelineOptions(cli), cli, o->out);
+    if (writer) writer->Finish();
+  });
+}
+
+void AddReplay(CLI::App& app) {
+  struct Options {
+    std::string recording;
+    std::string out;
+    std::string rig;
+    std::string speed = "fastest";
+    double speed_factor = 1.0;
+    int first = 0;
+    int count = -1;
+    PipelineCli pipeline;
+  };
+  auto o = std::make_shared<Options>();
+  auto* sub = app.add_subcommand(
+      "replay", "Run a recording through rectify, stereo, triangulation, smoothing and decimation into a folder");
+  sub->add_option("recording", o->recording, "Recording folder (rig.yaml, frames.csv, left/, right/)")->required();
+  sub->add_option("--out,-o", o->out, "Output folder (created)")->required();
+  sub->add_option("--rig", o->rig, "Rig file to use instead of the recording's rig.yaml");
+  sub->add_option("--speed", o->speed, "fastest, recorded (at the recorded frame times) or step (Enter per frame)")
+      ->check(CLI::IsMember({"fastest", "recorded", "step"}));
+  sub->add_option("--speed-factor", o->speed_factor, "With --speed recorded: play this many times faster")
+      ->check(CLI::Range(0.001, 1000.0));
+  sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--count", o->count, "Entries to play (-1: all)");
+  AddPipelineOptions(sub, &o->pipeline);
+  sub->callback([o] {
+    RecordingReadSummary read_summary;
+    Recording recording = OpenRecording(o->recording, &read_summary);
+    for (const std::string& n : read_summary.notices) Notice(o->pipeline.quiet, n);
+    if (!o->rig.empty()) recording.rig = ReadStereoRig(o->rig);
+    RB_CHECK(recording.rig.has_value(), o->recording,
+             ": has no rig.yaml (uncalibrated); give one with --rig (see rangebayes calibrate)");
+    RB_CHECK(recording.num_frames() > 0, o->recording, ": frames.csv lists no frame");
+    const StereoRig rig = *recording.rig;
+    PlaybackOptions playback;
+    playback.speed = o->speed == "recorded" ? PlaybackSpeed::kRecorded
+                     : o->speed == "step"   ? PlaybackSpeed::kStep
+                                            : PlaybackSpeed::kFastest;
+    playback.speed_factor = o->speed_factor;
+    playback.first_position = o->first;
+    playback.count = o->count;
+    if (playback.speed == PlaybackSpeed::kStep) {
+      playback.step_gate = [] {
+        std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
+        const int c = std::getchar();
+        return c != EOF && c != 'q';
+      };
+    }
+    PlaybackSource source(std::move(recording), playback);
+    RunToFolder(source, rig, MakePipelineOptions(o->pipeline), o->pipeline, o->out);
+  });
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(50, AddCameras);
+RB_REGISTER_COMMANDS(51, AddRecord);
+RB_REGISTER_COMMANDS(52, AddLive);
+RB_REGISTER_COMMANDS(53, AddReplay);
+
+}  // namespace rangebayes::apps

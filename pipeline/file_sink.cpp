@@ -1,0 +1,140 @@
+#include "pipeline/file_sink.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/render.h"
+#include "pipeline/png.h"
+#include "stereo/colormap.h"
+
+namespace rangebayes {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Name(std::int64_t index, const char* extension) {
+  char buffer[40];
+  std::snprintf(buffer, sizeof(buffer), "%06lld.%s", static_cast<long long>(index), extension);
+  return buffer;
+}
+
+void AppendLine(int fd, const std::string& line) {
+  const char* p = line.data();
+  size_t left = line.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    RB_CHECK(n > 0, "results.csv: write failed (", std::strerror(errno), ")");
+    p += n;
+    left -= static_cast<size_t>(n);
+  }
+}
+
+RenderOptions PreviewView(int width, int height) {
+  RenderOptions r;
+  r.width_px = width;
+  r.height_px = height;
+  // Meshes are in the rectified left camera frame (x right, y down, z forward): look along +z, image up −y.
+  r.view_direction = Eigen::Vector3d(0, 0, 1);
+  r.up = Eigen::Vector3d(0, -1, 0);
+  r.margin_fraction = 0.02;
+  return r;
+}
+
+}  // namespace
+
+void FileSinkOptions::Check() const {
+  RB_CHECK(preview_width_px == 0 || (preview_width_px >= 16 && preview_width_px <= 4096),
+           "preview width must be 0 or 16..4096 px, got ", preview_width_px);
+}
+
+FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
+  options_.Check();
+  std::error_code ec;
+  fs::create_directories(folder_, ec);
+  RB_CHECK(!ec, folder_, ": cannot create output folder (", ec.message(), ")");
+  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"}) {
+    fs::create_directories(fs::path(folder_) / sub, ec);
+    RB_CHECK(!ec, folder_, "/", sub, ": cannot create (", ec.message(), ")");
+  }
+  const std::string index = (fs::path(folder_) / "results.csv").string();
+  index_fd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+  RB_CHECK(index_fd_ >= 0, index, ": cannot create (", std::strerror(errno), ")");
+  AppendLine(index_fd_,
+             "index,last_index,timestamp_ns,frames,raw_vertices,raw_faces,decimated_faces,raw,smoothed,decimated,"
+             "depth,shaded\n");
+}
+
+void FileSink::Finish() {
+  if (index_fd_ >= 0) {
+    ::close(index_fd_);
+    index_fd_ = -1;
+  }
+}
+
+void FileSink::Consume(const PipelineResult& result) {
+  const fs::path root(folder_);
+  std::string raw, smoothed, decimated, depth, shaded;
+  if (options_.raw_ply) {
+    raw = "raw/" + Name(result.index, "ply");
+    WriteNoisyMesh(result.raw_mesh, (root / raw).string());
+    ++files_written_;
+  }
+  if (options_.smoothed_ply && result.smoothed.has_value()) {
+    smoothed = "smoothed/" + Name(result.index, "ply");
+    WriteMesh(*result.smoothed, (root / smoothed).string());
+    ++files_written_;
+  }
+  if (options_.decimated_obj && result.decimated.has_value()) {
+    decimated = "decimated/" + Name(result.index, "obj");
+    MeshWriteOptions w;
+    w.corner_normals = result.decimated->corner_normals;
+    WriteMesh(result.decimated->mesh, (root / decimated).string(), w);
+    ++files_written_;
+  }
+  if (options_.depth_png && !result.depth.empty()) {
+    depth = "depth/" + Name(result.index, "png");
+    ColorMapOptions c;
+    c.reverse = true;
+    WritePng(ColorMap(result.depth.depth_m, c), (root / depth).string());
+    ++files_written_;
+  }
+  if (options_.shaded_png) {
+    const int width = options_.preview_width_px > 0 ? options_.preview_width_px : std::max(16, result.depth.width());
+    const int height =
+        std::max(16, result.depth.width() > 0 ? width * result.depth.height() / result.depth.width() : width * 3 / 4);
+    std::vector<RgbImage> panels;
+    RenderOptions view = PreviewView(width, height);
+    panels.push_back(RenderMesh(result.raw_mesh.mesh, view));
+    if (result.smoothed.has_value()) panels.push_back(RenderMesh(*result.smoothed, view));
+    if (result.decimated.has_value()) {
+      const DecimatedMesh& d = *result.decimated;
+      RenderOptions smooth_view = view;
+      if (!d.corner_normals.empty()) {
+        smooth_view.shading = Shading::kSmooth;
+        smooth_view.corner_normals.resize(3 * d.mesh.num_faces(), 3);
+        for (int f = 0; f < d.mesh.num_faces(); ++f) {
+          for (int k = 0; k < 3; ++k) {
+            smooth_view.corner_normals.row(3 * f + k) = d.corner_normals.normals.row(d.corner_normals.normal_index(f, k));
+          }
+        }
+      }
+      panels.push_back(RenderMesh(d.mesh, smooth_view));
+    }
+    shaded = "shaded/" + Name(result.index, "png");
+    WritePng(SideBySide(panels), (root / shaded).string());
+    ++files_written_;
+  }
+  AppendLine(index_fd_, StrCat(result.index, ',', result.last_index, ',', result.timestamp_ns, ',', result.frames, ',',
+                               result.raw_mesh.mesh.num_vertices(), ',', result.raw_mesh.mesh.num_faces(), ',',
+                               result.decimated.has_value() ? result.decimated->mesh.num_faces() : 0, ',', raw, ',',
+                               smoothed, ',', decimated, ',', depth, ',', shaded, '\n'));
+}
+
+}  // namespace rangebayes

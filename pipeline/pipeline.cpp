@@ -1,0 +1,443 @@
+#include "pipeline/pipeline.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <deque>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+struct Item {
+  std::vector<StereoFrame> frames;
+  std::vector<cv::Mat> left_rect, right_rect;
+  PipelineResult result;
+  Clock::time_point captured;
+};
+using ItemPtr = std::unique_ptr<Item>;
+using ItemQueue = BoundedQueue<ItemPtr>;
+
+// State shared by the stage threads of one run.
+class Run {
+ public:
+  Run(const PipelineOptions& options, const std::vector<PipelineSink*>& sinks) : options_(options), sinks_(sinks) {}
+
+  bool Stopping() const {
+    return halt_.load(std::memory_order_relaxed) ||
+           (options_.stop != nullptr && options_.stop->load(std::memory_order_relaxed));
+  }
+  void Halt() { halt_.store(true); }
+
+  void AddError(const std::string& line) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (summary_.errors.size() < 100) summary_.errors.push_back(line);
+  }
+  void AddAbandoned() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++summary_.abandoned;
+  }
+
+  // Runs `work` on an item with timing and error capture: no exception leaves it.
+  template <typename Work>
+  void Process(Item& item, StageTiming* timing, const Work& work) {
+    if (!item.result.error.empty()) return;
+    const auto start = Clock::now();
+    try {
+      work(item);
+    } catch (const std::exception& e) {
+      item.result.error = StrCat(timing->name, ": ", e.what());
+      item.result.error_stage = timing->name;
+      ++timing->errors;
+    } catch (...) {
+      item.result.error = StrCat(timing->name, ": unknown error");
+      item.result.error_stage = timing->name;
+      ++timing->errors;
+    }
+    const double ms = MsSince(start);
+    ++timing->items;
+    timing->total_ms += ms;
+    timing->max_ms = std::max(timing->max_ms, ms);
+  }
+
+  // A plain one-in-one-out stage.
+  template <typename Work>
+  void Stage(ItemQueue& in, ItemQueue& out, StageTiming* timing, const Work& work) {
+    while (auto item = in.Pop()) {
+      if (Stopping()) {
+        AddAbandoned();
+        continue;
+      }
+      Process(**item, timing, work);
+      out.Push(std::move(*item));
+    }
+    out.Close();
+  }
+
+  PipelineSummary& summary() { return summary_; }
+  std::mutex& mutex() { return mutex_; }
+  const PipelineOptions& options() const { return options_; }
+  const std::vector<PipelineSink*>& sinks() const { return sinks_; }
+
+ private:
+  const PipelineOptions& options_;
+  const std::vector<PipelineSink*>& sinks_;
+  std::atomic<bool> halt_{false};
+  std::mutex mutex_;
+  PipelineSummary summary_;
+};
+
+ItemPtr MakeItem(StereoFrame frame) {
+  auto item = std::make_unique<Item>();
+  item->captured = Clock::now();
+  item->result.index = frame.index;
+  item->result.last_index = frame.index;
+  item->result.timestamp_ns = frame.timestamp_ns();
+  item->result.frames = 1;
+  item->frames.push_back(std::move(frame));
+  return item;
+}
+
+cv::Mat ToMatcherInput(const cv::Mat& image) {
+  // Our matchers take 8/16-bit grey or colour; keep it, but drop an alpha channel if a camera gave one.
+  if (image.channels() == 4) {
+    cv::Mat bgr;
+    cv::Mat channels[4];
+    cv::split(image, channels);
+    cv::merge(channels, 3, bgr);
+    return bgr;
+  }
+  return image;
+}
+
+}  // namespace
+
+void PipelineOptions::Check() const {
+  RB_CHECK(queue_capacity >= 1 && queue_capacity <= 64, "pipeline queue capacity must be in 1..64, got ",
+           queue_capacity);
+  RB_CHECK(window_frames >= 1 && window_frames <= 256, "space-time window must be 1..256 frames, got ",
+           window_frames);
+  RB_CHECK(window_step_frames >= 0 && window_step_frames <= window_frames,
+           "space-time window step must be in 0..window_frames, got ", window_step_frames);
+  RB_CHECK(max_consecutive_timeouts >= 1, "max_consecutive_timeouts must be >= 1");
+  rectify.Check();
+  sgbm.Check();
+  spacetime.Check();
+  depth.Check();
+  triangulate.Check();
+  if (smooth) smoothing.Check();
+  if (decimate) decimation.Check();
+}
+
+PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
+                            const std::vector<PipelineSink*>& sinks) {
+  options.Check();
+  const Rectifier rectifier(rig, options.rectify);
+  const int window = options.window_frames;
+  const int step = options.window_step_frames > 0 ? options.window_step_frames : window;
+  const std::optional<std::int64_t> frames_total = source.frames_total();
+
+  Run run(options, sinks);
+  PipelineSummary& summary = run.summary();
+  summary.source = source.Describe();
+  const std::vector<std::string> names = {"capture", "rectify", "stereo", "triangulate", "smooth", "decimate",
+                                          "sinks"};
+  summary.stages.resize(names.size());
+  for (size_t i = 0; i < names.size(); ++i) summary.stages[i].name = names[i];
+  StageTiming* t_capture = &summary.stages[0];
+  StageTiming* t_rectify = &summary.stages[1];
+  StageTiming* t_stereo = &summary.stages[2];
+  StageTiming* t_triangulate = &summary.stages[3];
+  StageTiming* t_smooth = &summary.stages[4];
+  StageTiming* t_decimate = &summary.stages[5];
+  StageTiming* t_sinks = &summary.stages[6];
+  if (!options.smooth) summary.notices.push_back("smoothing switched off: smoothed meshes are not written");
+  if (!options.decimate) summary.notices.push_back("decimation switched off: decimated meshes are not written");
+
+  // The first frame is read before the threads start so that a rig that does not fit the recording is one
+  // clear error instead of a failure per frame.
+  const auto run_start = Clock::now();
+  std::optional<FrameResult> first;
+  {
+    const auto start = Clock::now();
+    FrameResult r = source.Next();
+    t_capture->total_ms += MsSince(start);
+    if (r.status == FrameStatus::kFrame) {
+      RB_CHECK(r.frame.left.cols == rig.width && r.frame.left.rows == rig.height, "the rig is for ", rig.width, "x",
+               rig.height, " images but frame ", r.frame.index, " is ", r.frame.left.cols, "x", r.frame.left.rows,
+               " (wrong rig.yaml?)");
+    }
+    first = std::move(r);
+  }
+
+  std::vector<std::unique_ptr<ItemQueue>> queues;
+  for (int i = 0; i < 6; ++i) queues.push_back(std::make_unique<ItemQueue>(options.queue_capacity, options.queue_policy));
+  ItemQueue& q_captured = *queues[0];
+  ItemQueue& q_rectified = *queues[1];
+  ItemQueue& q_matched = *queues[2];
+  ItemQueue& q_triangulated = *queues[3];
+  ItemQueue& q_smoothed = *queues[4];
+  ItemQueue& q_decimated = *queues[5];
+
+  std::array<std::thread, 7> threads;
+  int next_thread = 0;
+  threads[next_thread++] = std::thread([&] {
+    int consecutive_timeouts = 0;
+    while (!run.Stopping()) {
+      FrameResult r;
+      const auto start = Clock::now();
+      try {
+        if (first.has_value()) {
+          r = std::move(*first);
+          first.reset();
+        } else {
+          r = source.Next();
+        }
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(run.mutex());
+        summary.fatal_error = e.what();
+        break;
+      }
+      if (r.status == FrameStatus::kEndOfStream) break;
+      if (r.status == FrameStatus::kTimeout) {
+        std::lock_guard<std::mutex> lock(run.mutex());
+        ++summary.timeouts;
+        if (++consecutive_timeouts >= options.max_consecutive_timeouts) {
+          summary.fatal_error = StrCat(source.Describe(), ": no frame after ", consecutive_timeouts, " timeouts",
+                                       r.reason.empty() ? "" : " (" + r.reason + ")");
+          break;
+        }
+        continue;
+      }
+      consecutive_timeouts = 0;
+      if (r.status == FrameStatus::kSkipped) {
+        {
+          std::lock_guard<std::mutex> lock(run.mutex());
+          ++summary.frames_skipped;
+        }
+        run.AddError(StrCat("frame ", r.frame.index, " skipped: ", r.reason));
+        continue;
+      }
+      const double ms = MsSince(start);
+      ++t_capture->items;
+      t_capture->total_ms += ms;
+      t_capture->max_ms = std::max(t_capture->max_ms, ms);
+      {
+        std::lock_guard<std::mutex> lock(run.mutex());
+        ++summary.frames_captured;
+      }
+      q_captured.Push(MakeItem(std::move(r.frame)));
+    }
+    q_captured.Close();
+  });
+
+  threads[next_thread++] = std::thread([&] {
+    run.Stage(q_captured, q_rectified, t_rectify, [&](Item& item) {
+      const StereoFrame& f = item.frames.front();
+      RB_CHECK(f.left.size() == f.right.size(), "frame ", f.index, ": left is ", f.left.cols, "x", f.left.rows,
+               " but right is ", f.right.cols, "x", f.right.rows);
+      cv::Mat l, r;
+      rectifier.Rectify(ToMatcherInput(f.left), ToMatcherInput(f.right), &l, &r);
+      item.left_rect.push_back(l);
+      item.right_rect.push_back(r);
+      item.frames.clear();  // the raw images are not needed downstream
+    });
+  });
+
+  threads[next_thread++] = std::thread([&] {
+    std::unique_ptr<StereoMatcher> matcher;
+    if (options.matcher == PipelineMatcher::kSgbm) {
+      matcher = std::make_unique<SgbmMatcher>(options.sgbm);
+    } else {
+      matcher = std::make_unique<SpaceTimeMatcher>(options.spacetime);
+    }
+    const CameraIntrinsics intrinsics = rectifier.intrinsics();
+    auto match = [&](Item& item) {
+      const DisparityResult d = matcher->Match(item.left_rect, item.right_rect);
+      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, intrinsics,
+                                             rectifier.baseline_m(), rectifier.doffs_px(), options.depth);
+      item.result.depth.frame_id = item.result.index;
+      item.result.depth.timestamp_ns = item.result.timestamp_ns;
+      item.result.left_rectified = item.left_rect.back();
+      item.left_rect.clear();
+      item.right_rect.clear();
+    };
+    // Frames wait here until a window is full; a window's result takes the first frame's index.
+    std::deque<ItemPtr> buffer;
+    while (auto popped = q_rectified.Pop()) {
+      ItemPtr item = std::move(*popped);
+      if (run.Stopping()) {
+        run.AddAbandoned();
+        continue;
+      }
+      if (!item->result.error.empty() || window == 1) {
+        run.Process(*item, t_stereo, match);
+        q_matched.Push(std::move(item));
+        continue;
+      }
+      buffer.push_back(std::move(item));
+      if (static_cast<int>(buffer.size()) < window) continue;
+      auto merged = std::make_unique<Item>();
+      merged->captured = buffer.back()->captured;
+      merged->result.index = buffer.front()->result.index;
+      merged->result.last_index = buffer.back()->result.index;
+      merged->result.timestamp_ns = buffer.back()->result.timestamp_ns;
+      merged->result.frames = window;
+      for (const ItemPtr& b : buffer) {
+        merged->left_rect.push_back(b->left_rect.front());
+        merged->right_rect.push_back(b->right_rect.front());
+      }
+      for (int i = 0; i < step && !buffer.empty(); ++i) buffer.pop_front();
+      run.Process(*merged, t_stereo, match);
+      q_matched.Push(std::move(merged));
+    }
+    if (!buffer.empty() && !run.Stopping()) {
+      std::lock_guard<std::mutex> lock(run.mutex());
+      summary.notices.push_back(StrCat("the last ", buffer.size(), " frame(s) did not fill a ", window,
+                                       "-frame space-time window and were not matched"));
+    }
+    q_matched.Close();
+  });
+
+  threads[next_thread++] = std::thread([&] {
+    run.Stage(q_matched, q_triangulated, t_triangulate, [&](Item& item) {
+      TriangulateSummary ts;
+      item.result.raw_mesh = TriangulateDepth(item.result.depth, options.triangulate, &ts);
+      RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index,
+               ": no surface (", ts.vertices, " valid depth pixels, no triangle)");
+    });
+  });
+
+  threads[next_thread++] = std::thread([&] {
+    run.Stage(q_triangulated, q_smoothed, t_smooth, [&](Item& item) {
+      if (!options.smooth) return;
+      item.result.smoothed = Smooth(item.result.raw_mesh, options.smoothing);
+    });
+  });
+
+  threads[next_thread++] = std::thread([&] {
+    run.Stage(q_smoothed, q_decimated, t_decimate, [&](Item& item) {
+      if (!options.decimate) return;
+      const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
+      item.result.decimated = Decimate(input, options.decimation);
+    });
+  });
+
+  double latency_sum_ms = 0.0;
+  std::int64_t frames_done = 0;
+  threads[next_thread++] = std::thread([&] {
+    // The sink finishes the result it is writing even after a stop, so every file it wrote is complete.
+    while (auto popped = q_decimated.Pop()) {
+      Item& item = **popped;
+      if (run.Stopping()) {
+        run.AddAbandoned();
+        continue;
+      }
+      if (item.result.error.empty()) {
+        run.Process(item, t_sinks, [&](Item& it) {
+          for (PipelineSink* sink : sinks) sink->Consume(it.result);
+        });
+      }
+      const bool ok = item.result.error.empty();
+      {
+        std::lock_guard<std::mutex> lock(run.mutex());
+        ++(ok ? summary.results : summary.failed);
+      }
+      if (!ok) {
+        run.AddError(item.result.frames > 1 ? StrCat("frames ", item.result.index, "-", item.result.last_index, ": ",
+                                                     item.result.error)
+                                            : StrCat("frame ", item.result.index, ": ", item.result.error));
+      }
+      latency_sum_ms += MsSince(item.captured);
+      frames_done += item.result.frames > 1 ? step : 1;
+      if (options.progress) {
+        const double elapsed_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+        const double fps = elapsed_s > 0 ? static_cast<double>(frames_done) / elapsed_s : 0.0;
+        const double fraction =
+            frames_total.has_value() && *frames_total > 0
+                ? std::min(1.0, static_cast<double>(frames_done) / static_cast<double>(*frames_total))
+                : 0.0;
+        const std::string total = frames_total.has_value() ? StrCat("/", *frames_total) : std::string();
+        char rate[32];
+        std::snprintf(rate, sizeof(rate), "%.2f", fps);
+        options.progress(fraction, StrCat("frame ", item.result.last_index + 1, total, ", ", rate, " frames/s"));
+      }
+    }
+    for (PipelineSink* sink : sinks) {
+      try {
+        sink->Finish();
+      } catch (const std::exception& e) {
+        run.AddError(StrCat("sink finish: ", e.what()));
+      }
+    }
+  });
+
+  for (std::thread& t : threads) t.join();
+
+  summary.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+  summary.stopped = options.stop != nullptr && options.stop->load();
+  summary.source_stats = source.stats();
+  for (const auto& q : queues) {
+    summary.dropped_per_queue.push_back(q->dropped());
+    summary.dropped += q->dropped();
+  }
+  const std::int64_t finished = summary.results + summary.failed;
+  summary.latency_mean_ms = finished > 0 ? latency_sum_ms / static_cast<double>(finished) : 0.0;
+  summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
+  return summary;
+}
+
+void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path) {
+  nlohmann::json j;
+  j["source"] = summary.source;
+  j["frames_captured"] = summary.frames_captured;
+  j["frames_skipped"] = summary.frames_skipped;
+  j["timeouts"] = summary.timeouts;
+  j["results"] = summary.results;
+  j["failed"] = summary.failed;
+  j["dropped"] = summary.dropped;
+  j["dropped_per_queue"] = summary.dropped_per_queue;
+  j["abandoned"] = summary.abandoned;
+  j["stopped"] = summary.stopped;
+  j["fatal_error"] = summary.fatal_error;
+  j["errors"] = summary.errors;
+  j["notices"] = summary.notices;
+  j["wall_s"] = summary.wall_s;
+  j["frames_per_s"] = summary.frames_per_s;
+  j["latency_mean_ms"] = summary.latency_mean_ms;
+  j["source_stats"] = {{"frames_delivered", summary.source_stats.frames_delivered},
+                       {"frames_skipped", summary.source_stats.frames_skipped},
+                       {"timeouts", summary.source_stats.timeouts},
+                       {"dropped_left", summary.source_stats.dropped_left},
+                       {"dropped_right", summary.source_stats.dropped_right},
+                       {"unpaired_left", summary.source_stats.unpaired_left},
+                       {"unpaired_right", summary.source_stats.unpaired_right}};
+  nlohmann::json stages = nlohmann::json::array();
+  for (const StageTiming& s : summary.stages) {
+    stages.push_back({{"name", s.name},
+                      {"items", s.items},
+                      {"errors", s.errors},
+                      {"total_ms", s.total_ms},
+                      {"mean_ms", s.mean_ms()},
+                      {"max_ms", s.max_ms},
+                      {"items_per_s", s.total_ms > 0 ? 1000.0 * static_cast<double>(s.items) / s.total_ms : 0.0}});
+  }
+  j["stages"] = stages;
+  std::ofstream out(path);
+  RB_CHECK(out.good(), path, ": cannot write the pipeline summary");
+  out << j.dump(2) << "\n";
+  RB_CHECK(out.good(), path, ": write failed");
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,123 @@
+// The stereo-to-mesh pipeline (DESIGN.md §1): capture → rectify → stereo (one frame, or space-time over a
+// window of frames) → triangulate → smooth → decimate → sinks, each stage in its own thread, connected by
+// bounded queues. Replay (QueueFullPolicy::kBlock) never drops a frame; live (kDropOldest) drops the oldest
+// waiting frame when a stage falls behind and counts it. Every result carries its frame index and timestamp.
+//
+// Errors: a frame that fails in a stage (a corrupt image, a matcher or solver error) is counted, its reason
+// kept, and the run goes on; no exception leaves a stage thread. A lost device ends the run early with
+// PipelineSummary::fatal_error set, everything finished before it complete. The stop flag (Ctrl-C) ends the
+// capture; work already in flight is abandoned except the result the sink is writing, which is completed.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bayes/decimate.h"
+#include "bayes/smooth.h"
+#include "calibration/stereo_rig.h"
+#include "capture/frame_source.h"
+#include "core/mesh.h"
+#include "core/progress.h"
+#include "pipeline/bounded_queue.h"
+#include "reconstruction/triangulate.h"
+#include "stereo/depth_frame.h"
+#include "stereo/rectify.h"
+#include "stereo/sgbm_matcher.h"
+#include "stereo/spacetime_matcher.h"
+
+namespace rangebayes {
+
+enum class PipelineMatcher { kSgbm, kSpaceTime };
+
+// What one pass through the stages produced for a frame (or a space-time window of frames). Stages that
+// are switched off leave their part empty; `error` is set when a stage failed (later parts are empty).
+struct PipelineResult {
+  std::int64_t index = 0;          // frame index of the first frame of the window
+  std::int64_t last_index = 0;     // frame index of the last frame of the window (== index for one frame)
+  std::int64_t timestamp_ns = 0;   // the last frame's capture time
+  int frames = 0;                  // frames in the window
+  cv::Mat left_rectified;          // last frame of the window, for previews
+  DepthFrame depth;
+  NoisyMesh raw_mesh;
+  std::optional<Mesh> smoothed;
+  std::optional<DecimatedMesh> decimated;
+  std::string error;               // "<stage>: <reason>" when the frame failed
+  std::string error_stage;
+};
+
+// Receives finished results in frame order (from the sink thread; one call at a time).
+class PipelineSink {
+ public:
+  virtual ~PipelineSink() = default;
+  // May throw; the error is counted against the frame and the run goes on.
+  virtual void Consume(const PipelineResult& result) = 0;
+  // Called once after the last result (also after a stop or a fatal error).
+  virtual void Finish() {}
+};
+
+struct PipelineOptions {
+  QueueFullPolicy queue_policy = QueueFullPolicy::kBlock;  // kBlock: replay; kDropOldest: live
+  int queue_capacity = 4;            // 1–64 items between two stages
+  PipelineMatcher matcher = PipelineMatcher::kSgbm;
+  int window_frames = 1;             // 1–256: frames per space-time window (1: single-frame stereo)
+  int window_step_frames = 0;        // 0: = window_frames (windows do not overlap); else 1–window_frames
+  RectifierOptions rectify;
+  SgbmMatcherOptions sgbm;
+  SpaceTimeMatcherOptions spacetime;
+  DepthFromDisparityOptions depth;
+  TriangulateOptions triangulate;
+  bool smooth = true;                // run Bayesian smoothing (bayes/smooth.h)
+  SmoothOptions smoothing;
+  bool decimate = true;              // run Bayesian decimation (bayes/decimate.h) on the smoothed mesh
+  DecimateOptions decimation;
+  int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
+  const std::atomic<bool>* stop = nullptr;  // polled by the stages (e.g. &StopFlag()); null: never
+  ProgressCallback progress;         // from the sink thread; fraction of frames_total() when known
+  void Check() const;
+};
+
+struct StageTiming {
+  std::string name;
+  std::int64_t items = 0;            // items that went through the stage (successfully or not)
+  std::int64_t errors = 0;
+  double total_ms = 0.0;
+  double max_ms = 0.0;
+  double mean_ms() const { return items > 0 ? total_ms / static_cast<double>(items) : 0.0; }
+};
+
+struct PipelineSummary {
+  std::string source;                // FrameSource::Describe()
+  std::int64_t frames_captured = 0;  // frames that entered the pipeline
+  std::int64_t frames_skipped = 0;   // frames the source could not deliver (reason in errors)
+  std::int64_t timeouts = 0;
+  std::int64_t results = 0;          // results delivered to the sinks without error
+  std::int64_t failed = 0;           // results that failed in a stage
+  std::int64_t dropped = 0;          // live: items dropped from full queues (all queues)
+  std::vector<std::int64_t> dropped_per_queue;
+  std::int64_t abandoned = 0;        // items discarded after a stop request
+  bool stopped = false;              // the stop flag ended the run
+  std::string fatal_error;           // the source failed for good (device lost)
+  std::vector<std::string> errors;   // one line per failed or skipped frame (first 100)
+  std::vector<StageTiming> stages;
+  std::vector<std::string> notices;  // stages switched off, settings chosen
+  FrameSourceStats source_stats;
+  double wall_s = 0.0;
+  double frames_per_s = 0.0;         // frames captured and fully processed per wall second
+  double latency_mean_ms = 0.0;      // capture-to-sink time per result
+};
+
+// Runs the pipeline until the source ends, the stop flag is set, or the source fails. Throws Error only
+// before starting (invalid options, a rig whose size does not match the first frame); everything after
+// that is reported in the summary.
+PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
+                            const std::vector<PipelineSink*>& sinks);
+
+// Writes the summary as JSON (stages, counts, errors); throws Error naming the path on failure.
+void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path);
+
+}  // namespace rangebayes
