@@ -1,0 +1,351 @@
+// Subcommands stereo, spacetime, synth and eval-depth: from image pairs and sequences to disparity, depth,
+// σ and meshes, and scoring disparities against ground truth.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "apps/command.h"
+#include "apps/progress.h"
+#include "calibration/stereo_rig.h"
+#include "capture/recording.h"
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "pipeline/png.h"
+#include "reconstruction/triangulate.h"
+#include "stereo/colormap.h"
+#include "stereo/depth_frame.h"
+#include "stereo/disparity_io.h"
+#include "stereo/evaluate.h"
+#include "stereo/pfm.h"
+#include "stereo/rectify.h"
+#include "stereo/sgbm_matcher.h"
+#include "stereo/spacetime_matcher.h"
+#include "stereo/synth.h"
+
+namespace rangebayes::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct MatchCliOptions {
+  int min_disparity_px = 0;
+  int num_disparities = 64;
+  int window_px = 5;
+  std::string cost = "auto";
+  double image_noise_gray = 2.0;
+  double sigma_floor_px = SpaceTimeMatcherOptions{}.sigma_floor_px;
+  double sigma_scale = SpaceTimeMatcherOptions{}.sigma_scale;
+  double max_sigma_px = 0.0;
+  int downsample = 1;
+  double max_jump_sigma = TriangulateOptions{}.max_jump_sigma;
+  bool no_mesh = false;
+  bool quiet = false;
+};
+
+void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
+  sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
+  sub->add_option("--num-disparities", o->num_disparities, "Number of disparities searched (px, 3-1024)")
+      ->check(CLI::Range(3, 1024));
+  sub->add_option("--window", o->window_px, "Spatial window side w (px, odd, 1-31)")->check(CLI::Range(1, 31));
+  sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
+  sub->add_option("--sigma-floor", o->sigma_floor_px, "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2)");
+  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless)");
+  sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
+  sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--max-jump-sigma", o->max_jump_sigma,
+                  "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance)");
+  sub->add_flag("--no-mesh", o->no_mesh, "Do not write mesh.ply");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress or notices on stderr");
+}
+
+SpaceTimeCost ParseCost(const std::string& name) {
+  if (name == "auto") return SpaceTimeCost::kAuto;
+  if (name == "ssd") return SpaceTimeCost::kSsd;
+  if (name == "zncc") return SpaceTimeCost::kZnccTime;
+  UsageError("--cost must be auto, ssd or zncc, not '" + name + "'");
+}
+
+SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o) {
+  SpaceTimeMatcherOptions m;
+  m.min_disparity_px = o.min_disparity_px;
+  m.num_disparities = o.num_disparities;
+  m.window_px = o.window_px;
+  m.cost = ParseCost(o.cost);
+  m.image_noise_gray = o.image_noise_gray;
+  m.sigma_floor_px = o.sigma_floor_px;
+  m.sigma_scale = o.sigma_scale;
+  m.max_sigma_disparity_px = o.max_sigma_px;
+  return m;
+}
+
+void WritePicture(const cv::Mat& image, const fs::path& path, bool reverse) {
+  ColorMapOptions c;
+  c.reverse = reverse;
+  WritePng(ColorMap(image, c), path.string());
+}
+
+// Writes the data files, the pictures and (with a rig) depth and the mesh. Prints one summary line.
+void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>& rectifier, std::int64_t frame_id,
+                  std::int64_t timestamp_ns, const fs::path& out, const MatchCliOptions& o) {
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  RB_CHECK(!ec && fs::is_directory(out), out.string(), ": cannot create output folder");
+  WritePfm(result.disparity_px, (out / "disparity.pfm").string());
+  WritePicture(result.disparity_px, out / "disparity.png", false);
+  if (!result.sigma_disparity_px.empty()) {
+    WritePfm(result.sigma_disparity_px, (out / "sigma_disparity.pfm").string());
+    WritePicture(result.sigma_disparity_px, out / "sigma_disparity.png", false);
+  }
+  std::printf("disparity: %dx%d, %.1f%% valid, matched in %.0f ms over %d frame(s)\n", result.disparity_px.cols,
+              result.disparity_px.rows, 100.0 * result.valid_fraction, result.match_ms, result.frames_used);
+  if (!rectifier) {
+    Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");
+    return;
+  }
+  DepthFrame frame = DepthFromDisparity(result.disparity_px, result.sigma_disparity_px, rectifier->intrinsics(),
+                                        rectifier->baseline_m(), rectifier->doffs_px());
+  frame.frame_id = frame_id;
+  frame.timestamp_ns = timestamp_ns;
+  WritePfm(frame.depth_m, (out / "depth.pfm").string());
+  WritePfm(frame.sigma_depth_m, (out / "sigma_depth.pfm").string());
+  WritePicture(frame.depth_m, out / "depth.png", true);
+  WritePicture(frame.sigma_depth_m, out / "sigma_depth.png", false);
+  if (o.no_mesh) return;
+  TriangulateOptions t;
+  t.downsample = o.downsample;
+  t.max_jump_sigma = o.max_jump_sigma;
+  TriangulateSummary ts;
+  const auto start = std::chrono::steady_clock::now();
+  const NoisyMesh mesh = TriangulateDepth(frame, t, &ts);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  WriteNoisyMesh(mesh, (out / "mesh.ply").string());
+  std::printf("mesh: %d vertices, %d faces, %d edges cut at discontinuities, triangulated in %.1f ms\n", ts.vertices,
+              ts.faces, ts.cut_edges, ms);
+}
+
+cv::Mat ReadImageOrThrow(const std::string& path) {
+  RB_CHECK(fs::is_regular_file(path), path, ": image not found");
+  cv::Mat image;
+  try {
+    image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    RB_FAIL(path, ": unreadable image (", e.err, ")");
+  }
+  RB_CHECK(!image.empty(), path, ": unreadable image");
+  if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
+  return image;
+}
+
+void AddStereo(CLI::App& app) {
+  struct Opts {
+    std::string left, right, rig, out, matcher = "sgbm";
+    MatchCliOptions m;
+    int sgbm_block = 5;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = app.add_subcommand("stereo", "Match one stereo pair: disparity, depth, sigma, pictures and mesh");
+  sub->add_option("LEFT", o->left, "Left image")->required();
+  sub->add_option("RIGHT", o->right, "Right image")->required();
+  sub->add_option("--rig", o->rig, "Rig YAML (rangebayes calibrate); without it only the disparity is written");
+  sub->add_option("--out", o->out, "Output folder")->required();
+  sub->add_option("--matcher", o->matcher, "sgbm (OpenCV SGBM 3-way) or block (our block matcher with sigma)")
+      ->check(CLI::IsMember({"sgbm", "block"}));
+  sub->add_option("--sgbm-block", o->sgbm_block, "SGBM block size (px, odd, 1-11)");
+  AddMatchOptions(sub, &o->m);
+  sub->add_option("--cost", o->m.cost, "Block matcher cost: auto, ssd or zncc (zncc needs several frames)");
+  sub->callback([o] {
+    cv::Mat left = ReadImageOrThrow(o->left), right = ReadImageOrThrow(o->right);
+    RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
+             right.cols, "x", right.rows);
+    RB_CHECK(left.type() == right.type(), o->left, " and ", o->right, " differ in type (channels or bit depth)");
+    std::optional<Rectifier> rectifier;
+    if (!o->rig.empty()) {
+      const StereoRig rig = ReadStereoRig(o->rig);
+      rectifier.emplace(rig);
+      cv::Mat l, r;
+      rectifier->Rectify(left, right, &l, &r);
+      left = l;
+      right = r;
+    }
+    std::unique_ptr<StereoMatcher> matcher;
+    if (o->matcher == "sgbm") {
+      SgbmMatcherOptions s;
+      s.min_disparity_px = o->m.min_disparity_px;
+      s.num_disparities = o->m.num_disparities;
+      s.block_size_px = o->sgbm_block;
+      matcher = std::make_unique<SgbmMatcher>(s);
+    } else {
+      matcher = std::make_unique<SpaceTimeMatcher>(BlockOptions(o->m));
+    }
+    const DisparityResult result = matcher->Match({left}, {right});
+    WriteOutputs(result, rectifier, 0, 0, o->out, o->m);
+  });
+}
+
+void AddSpaceTime(CLI::App& app) {
+  struct Opts {
+    std::string recording, out;
+    int frames = 0;
+    int first = 0;
+    MatchCliOptions m;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = app.add_subcommand(
+      "spacetime", "Space-time stereo of a recording of a static scene: disparity, depth, sigma, pictures and mesh");
+  sub->add_option("RECORDING", o->recording, "Recording folder (frames.csv, rig.yaml, left/, right/)")->required();
+  sub->add_option("--out", o->out, "Output folder")->required();
+  sub->add_option("--frames", o->frames, "Temporal window T (frames; 0: all from --first)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--first", o->first, "First frame of the window (index into frames.csv)")
+      ->check(CLI::NonNegativeNumber);
+  AddMatchOptions(sub, &o->m);
+  sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc for T >= 3), ssd or zncc");
+  sub->callback([o] {
+    RecordingReadSummary rs;
+    const Recording rec = OpenRecording(o->recording, &rs);
+    RB_CHECK(rec.rig.has_value(), o->recording, ": recording has no rig.yaml (needed for rectification and depth)");
+    RB_CHECK(rec.num_frames() > o->first, o->recording, ": --first ", o->first, " but the recording has ",
+             rec.num_frames(), " frames");
+    const int T = o->frames > 0 ? o->frames : rec.num_frames() - o->first;
+    RB_CHECK(o->first + T <= rec.num_frames(), o->recording, ": frames ", o->first, "..", o->first + T - 1,
+             " requested but the recording has ", rec.num_frames());
+    std::optional<Rectifier> rectifier;
+    rectifier.emplace(*rec.rig);
+    std::vector<cv::Mat> left, right;
+    std::int64_t timestamp = 0, id = 0;
+    for (int i = o->first; i < o->first + T; ++i) {
+      const StereoFrame f = LoadRecordingFrame(rec, i);
+      cv::Mat l, r;
+      rectifier->Rectify(f.left, f.right, &l, &r);
+      left.push_back(l);
+      right.push_back(r);
+      timestamp = f.timestamp_ns();
+      id = f.index;
+    }
+    SpaceTimeMatcher matcher(BlockOptions(o->m));
+    const DisparityResult result = matcher.Match(left, right);
+    WriteOutputs(result, rectifier, id, timestamp, o->out, o->m);
+  });
+}
+
+void AddSynth(CLI::App& app) {
+  struct Opts {
+    std::string scene = "planes", pattern = "random", out;
+    SynthOptions s;
+    bool overwrite = false;
+    bool quiet = false;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = app.add_subcommand(
+      "synth", "Render a synthetic rectified stereo recording of a known scene under projected patterns");
+  sub->add_option("--scene", o->scene, "plane, planes, box, sphere, cylinder or stairs")
+      ->check(CLI::IsMember({"plane", "planes", "box", "sphere", "cylinder", "stairs"}));
+  sub->add_option("--pattern", o->pattern, "random or graycode")->check(CLI::IsMember({"random", "graycode"}));
+  sub->add_option("--frames", o->s.frames, "Number of stereo pairs T (1-256)")->check(CLI::Range(1, 256));
+  sub->add_option("--noise", o->s.image_noise_gray, "Image noise sigma (8-bit grey levels)")->check(CLI::Range(0.0, 100.0));
+  sub->add_option("--seed", o->s.seed, "Random seed (patterns and noise)");
+  sub->add_option("--width", o->s.width, "Image width (px)")->check(CLI::Range(16, 4096));
+  sub->add_option("--height", o->s.height, "Image height (px)")->check(CLI::Range(16, 4096));
+  sub->add_option("--focal", o->s.focal_px, "Focal length (px; 0: the image width)");
+  sub->add_option("--baseline", o->s.baseline_m, "Baseline (m)");
+  sub->add_option("--cell", o->s.pattern_cell_px, "Projector pixel size at the image centre (camera px)");
+  sub->add_option("--supersample", o->s.supersample, "Samples per pixel side (1-8)")->check(CLI::Range(1, 8));
+  sub->add_option("--out", o->out, "Output recording folder")->required();
+  sub->add_flag("--overwrite", o->overwrite, "Replace a recording already in the folder");
+  sub->add_flag("--quiet,-q", o->quiet, "No notices on stderr");
+  sub->callback([o] {
+    o->s.scene = ParseSynthScene(o->scene);
+    o->s.pattern = ParseSynthPattern(o->pattern);
+    const SynthRecording rec = RenderSynthetic(o->s);
+    SynthWriteOptions w;
+    w.overwrite = o->overwrite;
+    WriteSyntheticRecording(rec, o->s, o->out, w);
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(rec.disparity_px, &lo, &hi, nullptr, nullptr, rec.disparity_px == rec.disparity_px);
+    std::printf("synth: %s under %s pattern, %d frames of %dx%d, disparity %.1f-%.1f px, written to %s\n",
+                o->scene.c_str(), o->pattern.c_str(), o->s.frames, o->s.width, o->s.height, lo, hi, o->out.c_str());
+  });
+}
+
+void AddEvalDepth(CLI::App& app) {
+  struct Opts {
+    std::string estimate, ground_truth, scene, mask;
+    double scale = 1.0, gt_scale = 0.0, estimate_scale = 1.0;
+    int mask_value = 255;
+    bool json = false;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = app.add_subcommand(
+      "eval-depth", "Score a disparity map against ground truth: bad-0.5/1/2/4 and RMS, holes counted both ways");
+  sub->add_option("DISPARITY", o->estimate, "Estimated disparity (PFM, or PNG/PGM with --scale)")->required();
+  sub->add_option("GROUND_TRUTH", o->ground_truth,
+                  "Ground-truth disparity (PFM, or PNG/PGM with --gt-scale), or a Middlebury scene folder");
+  sub->add_option("--scene", o->scene, "Middlebury scene folder: ground truth, scale and non-occluded mask from it");
+  sub->add_option("--scale", o->scale, "Estimate PNG: disparity = value / scale");
+  sub->add_option("--gt-scale", o->gt_scale, "Ground-truth PNG: disparity = value / scale (0: 1 for PFM)");
+  sub->add_option("--estimate-scale", o->estimate_scale,
+                  "Multiply the estimate by this before scoring (e.g. 0.25 for full-size vs quarter-size)");
+  sub->add_option("--mask", o->mask, "Mask image: only pixels equal to --mask-value are scored");
+  sub->add_option("--mask-value", o->mask_value, "Mask value of the pixels to score");
+  sub->add_flag("--json", o->json, "Print JSON instead of text");
+  sub->callback([o] {
+    std::string scene_folder = o->scene;
+    if (scene_folder.empty() && !o->ground_truth.empty() && fs::is_directory(o->ground_truth)) {
+      scene_folder = o->ground_truth;
+    }
+    RB_CHECK(!scene_folder.empty() || !o->ground_truth.empty(), "give GROUND_TRUTH or --scene");
+    const cv::Mat estimate = ReadDisparityMap(o->estimate, o->scale);
+    cv::Mat gt, mask;
+    if (!scene_folder.empty()) {
+      const MiddleburyScene scene = ReadMiddleburyScene(scene_folder);
+      RB_CHECK(!scene.gt_disparity_px.empty(), scene_folder, ": scene has no ground truth");
+      gt = scene.gt_disparity_px;
+      mask = scene.mask_nonocc;
+    } else {
+      gt = ReadDisparityMap(o->ground_truth, o->gt_scale > 0 ? o->gt_scale : 1.0);
+    }
+    if (!o->mask.empty()) mask = ReadMask(o->mask, o->mask_value);
+    RB_CHECK(estimate.size() == gt.size(), o->estimate, " is ", estimate.cols, "x", estimate.rows,
+             " but the ground truth is ", gt.cols, "x", gt.rows);
+    DisparityEvaluationOptions eo;
+    eo.estimate_scale = o->estimate_scale;
+    const DisparityEvaluation ev = EvaluateDisparity(estimate, gt, mask, eo);
+    if (o->json) {
+      nlohmann::json j;
+      j["evaluated_pixels"] = ev.evaluated_pixels;
+      j["coverage"] = ev.coverage;
+      j["rms_px"] = ev.rms_px;
+      j["mean_abs_px"] = ev.mean_abs_px;
+      for (size_t i = 0; i < ev.thresholds_px.size(); ++i) {
+        char key[32];
+        std::snprintf(key, sizeof key, "bad_%g", ev.thresholds_px[i]);
+        j[key] = {{"holes_as_errors", ev.bad_with_holes[i]}, {"holes_excluded", ev.bad_valid_only[i]}};
+      }
+      std::printf("%s\n", j.dump(2).c_str());
+      return;
+    }
+    std::printf("evaluated %ld pixels, coverage %.2f%%, RMS %.3f px, mean |error| %.3f px\n", ev.evaluated_pixels,
+                100.0 * ev.coverage, ev.rms_px, ev.mean_abs_px);
+    std::printf("%-10s %18s %18s\n", "threshold", "holes as errors", "holes excluded");
+    for (size_t i = 0; i < ev.thresholds_px.size(); ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "bad-%g", ev.thresholds_px[i]);
+      std::printf("%-10s %17.2f%% %17.2f%%\n", name, 100.0 * ev.bad_with_holes[i], 100.0 * ev.bad_valid_only[i]);
+    }
+  });
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(30, AddStereo);
+RB_REGISTER_COMMANDS(31, AddSpaceTime);
+RB_REGISTER_COMMANDS(32, AddSynth);
+RB_REGISTER_COMMANDS(33, AddEvalDepth);
+
+}  // namespace rangebayes::apps

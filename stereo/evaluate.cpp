@@ -1,0 +1,66 @@
+#include "stereo/evaluate.h"
+
+#include <cmath>
+
+#include "core/error.h"
+
+namespace rangebayes {
+
+void DisparityEvaluationOptions::Check() const {
+  RB_CHECK(!bad_thresholds_px.empty(), "no bad-N thresholds given");
+  for (double t : bad_thresholds_px) RB_CHECK(t > 0.0, "bad-N threshold ", t, " must be positive");
+  RB_CHECK(estimate_scale > 0.0, "estimate_scale ", estimate_scale, " must be positive");
+}
+
+DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& ground_truth, const cv::Mat& mask,
+                                      const DisparityEvaluationOptions& options) {
+  options.Check();
+  RB_CHECK(estimate.type() == CV_32F && ground_truth.type() == CV_32F, "disparities must be float images");
+  RB_CHECK(estimate.size() == ground_truth.size(), "estimate is ", estimate.cols, "x", estimate.rows,
+           " but the ground truth is ", ground_truth.cols, "x", ground_truth.rows);
+  RB_CHECK(mask.empty() || (mask.type() == CV_8U && mask.size() == estimate.size()), "mask is ", mask.cols, "x",
+           mask.rows, " (must be 8-bit and the size of the ground truth, ", ground_truth.cols, "x",
+           ground_truth.rows, ")");
+  const size_t n = options.bad_thresholds_px.size();
+  std::vector<long> bad(n, 0), bad_valid(n, 0);
+  DisparityEvaluation ev;
+  double sum2 = 0.0, sum1 = 0.0;
+  for (int y = 0; y < estimate.rows; ++y) {
+    const float* e = estimate.ptr<float>(y);
+    const float* g = ground_truth.ptr<float>(y);
+    const unsigned char* m = mask.empty() ? nullptr : mask.ptr<unsigned char>(y);
+    for (int x = 0; x < estimate.cols; ++x) {
+      if (!std::isfinite(g[x]) || (m && m[x] == 0)) continue;
+      ++ev.evaluated_pixels;
+      if (!std::isfinite(e[x])) {
+        for (size_t i = 0; i < n; ++i) ++bad[i];
+        continue;
+      }
+      ++ev.estimated_pixels;
+      const double err = std::abs(e[x] * options.estimate_scale - g[x]);
+      sum2 += err * err;
+      sum1 += err;
+      for (size_t i = 0; i < n; ++i) {
+        if (err > options.bad_thresholds_px[i]) {
+          ++bad[i];
+          ++bad_valid[i];
+        }
+      }
+    }
+  }
+  ev.thresholds_px = options.bad_thresholds_px;
+  ev.bad_with_holes.resize(n);
+  ev.bad_valid_only.resize(n);
+  const double ne = static_cast<double>(std::max(1L, ev.evaluated_pixels));
+  const double nv = static_cast<double>(std::max(1L, ev.estimated_pixels));
+  for (size_t i = 0; i < n; ++i) {
+    ev.bad_with_holes[i] = static_cast<double>(bad[i]) / ne;
+    ev.bad_valid_only[i] = static_cast<double>(bad_valid[i]) / nv;
+  }
+  ev.coverage = static_cast<double>(ev.estimated_pixels) / ne;
+  ev.rms_px = std::sqrt(sum2 / nv);
+  ev.mean_abs_px = sum1 / nv;
+  return ev;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,35 @@
+// The stereo matcher interface: rectified image sequence of a static scene in, float disparity out.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace rangebayes {
+
+// Output of a matcher, in the left view. disparity_px: CV_32F, left x minus right x, NaN where the matcher
+// gives no answer (occluded, failed left-right check, no texture). sigma_disparity_px: CV_32F standard
+// deviation of the disparity, or empty when the matcher cannot estimate it (OpenCV SGBM exposes no cost
+// volume).
+struct DisparityResult {
+  cv::Mat disparity_px;
+  cv::Mat sigma_disparity_px;
+  double match_ms = 0.0;      // wall time of the matching itself
+  int frames_used = 0;
+  double valid_fraction = 0.0;
+};
+
+class StereoMatcher {
+ public:
+  virtual ~StereoMatcher() = default;
+  // left[i], right[i]: frame i of a rectified sequence (T ≥ 1 frames, static scene), all the same size and
+  // type (8- or 16-bit, 1 or 3 channels). Single-frame matchers use frame 0. Throws Error on empty input,
+  // mismatched sizes/types or differing frame counts.
+  virtual DisparityResult Match(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right) = 0;
+  virtual std::string name() const = 0;
+};
+
+// Throws Error unless left and right hold the same number (≥ 1) of non-empty images of one size and type.
+void CheckStereoSequence(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right);
+
+}  // namespace rangebayes

@@ -1,0 +1,471 @@
+#include "stereo/spacetime_matcher.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.h"
+
+namespace rangebayes {
+
+void SpaceTimeMatcherOptions::Check() const {
+  RB_CHECK(num_disparities >= 3 && num_disparities <= 1024, "num_disparities ", num_disparities,
+           " is outside 3–1024");
+  RB_CHECK(window_px >= 1 && window_px <= 31 && window_px % 2 == 1, "window_px ", window_px,
+           " must be odd and in 1–31");
+  RB_CHECK(image_noise_gray > 0.0, "image_noise_gray ", image_noise_gray, " must be positive");
+  RB_CHECK(sigma_floor_px >= 0.0 && sigma_scale > 0.0, "sigma model floor ", sigma_floor_px, " px / scale ",
+           sigma_scale, " must be ≥ 0 / > 0");
+  RB_CHECK(max_sigma_disparity_px >= 0.0, "max_sigma_disparity_px must be ≥ 0");
+  RB_CHECK(subpixel_iterations >= 0 && subpixel_iterations <= 5, "subpixel_iterations ", subpixel_iterations,
+           " is outside 0–5");
+  RB_CHECK(rows_per_task >= 1 && rows_per_task <= 1024, "rows_per_task ", rows_per_task, " is outside 1–1024");
+}
+
+SpaceTimeMatcher::SpaceTimeMatcher(const SpaceTimeMatcherOptions& options) : options_(options) {
+  options_.Check();
+}
+
+namespace {
+
+// Images as float grey levels, interleaved per row as [y][t][x] so that the T rows one cost row needs are
+// contiguous.
+struct Sequence {
+  int width = 0, height = 0, frames = 0;
+  std::vector<float> data;
+  const float* row(int y) const { return data.data() + static_cast<size_t>(y) * frames * width; }
+  float* row(int y) { return data.data() + static_cast<size_t>(y) * frames * width; }
+};
+
+cv::Mat ToGreyFloat(const cv::Mat& image) {
+  cv::Mat grey = image;
+  if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  cv::Mat f;
+  grey.convertTo(f, CV_32F);
+  return f;
+}
+
+Sequence Interleave(const std::vector<cv::Mat>& frames) {
+  Sequence s;
+  s.width = frames[0].cols;
+  s.height = frames[0].rows;
+  s.frames = static_cast<int>(frames.size());
+  s.data.resize(static_cast<size_t>(s.width) * s.height * s.frames);
+  for (int t = 0; t < s.frames; ++t) {
+    const cv::Mat f = ToGreyFloat(frames[t]);
+    for (int y = 0; y < s.height; ++y) std::copy_n(f.ptr<float>(y), s.width, s.row(y) + t * s.width);
+  }
+  return s;
+}
+
+// Replaces each pixel's temporal signal by (I − mean) / sqrt(var + σ_n²): the SSD of two such signals is
+// 2T(1 − ZNCC) up to the regulariser, which makes the cost blind to the per-pixel gain and offset that differ
+// between the two cameras (albedo seen at different angles, vignetting, exposure). The regulariser σ_n² keeps
+// pixels whose signal is below the noise near zero, so they match nothing sharply and get a large σ_d.
+// noise_scale (optional) receives 1/sqrt(var + σ_n²): the factor the image noise is scaled by.
+void NormaliseTemporally(Sequence* s, double noise_gray, std::vector<float>* noise_scale) {
+  const int T = s->frames, W = s->width;
+  if (noise_scale) noise_scale->assign(static_cast<size_t>(W) * s->height, 1.0f);
+  const float n2 = static_cast<float>(noise_gray * noise_gray);
+  tbb::parallel_for(0, s->height, [&](int y) {
+    float* r = s->row(y);
+    for (int x = 0; x < W; ++x) {
+      float mean = 0.0f;
+      for (int t = 0; t < T; ++t) mean += r[t * W + x];
+      mean /= static_cast<float>(T);
+      float var = 0.0f;
+      for (int t = 0; t < T; ++t) var += (r[t * W + x] - mean) * (r[t * W + x] - mean);
+      var /= static_cast<float>(T);
+      const float inv = 1.0f / std::sqrt(var + n2);
+      for (int t = 0; t < T; ++t) r[t * W + x] = (r[t * W + x] - mean) * inv;
+      if (noise_scale) (*noise_scale)[static_cast<size_t>(y) * W + x] = inv;
+    }
+  });
+}
+
+// Keys cubic convolution weights (a = −½) for samples i−1 … i+2 at fraction f ∈ [0, 1), and the weights of
+// the derivative with respect to position.
+inline void CubicWeights(float f, float w[4], float g[4]) {
+  const float f2 = f * f, f3 = f2 * f;
+  w[0] = -0.5f * f3 + f2 - 0.5f * f;
+  w[1] = 1.5f * f3 - 2.5f * f2 + 1.0f;
+  w[2] = -1.5f * f3 + 2.0f * f2 + 0.5f * f;
+  w[3] = 0.5f * f3 - 0.5f * f2;
+  g[0] = -1.5f * f2 + 2.0f * f - 0.5f;
+  g[1] = 4.5f * f2 - 5.0f * f;
+  g[2] = -4.5f * f2 + 4.0f * f + 0.5f;
+  g[3] = 1.5f * f2 - f;
+}
+
+// Sub-pixel refinement by Gauss–Newton on the window's SSD, starting at *disparity: the parabola through
+// three integer costs is biased for any cost curve that is not a parabola (with a w-wide window the
+// difference C(d+1) − C(d−1) telescopes to the texture at the window's two edges, ≈ 1/w of the curvature,
+// which no temporal averaging removes: 0.07 px on noise-free synthetic planes). Each iteration samples the
+// right image at x − d (cubic convolution, with its gradient g) and solves the linearised problem Δ = −Σ g·e / Σ g². The same sums give the error propagation
+// σ_pred² = Σ g²·(σ_L² + σ_R²) / (Σ g²)² (= 2σ_n²/Σg² = 4σ_n²/C″ for uniform noise, C″ the analytic cost
+// curvature). Returns false when the window has no gradient.
+bool RefineGaussNewton(const Sequence& L, const Sequence& R, const std::vector<float>& noise_left,
+                       const std::vector<float>& noise_right, int x, int y, int r, int iterations, double noise,
+                       double slope_x, double slope_y, double* disparity, double* sigma_pred) {
+  const int W = L.width, H = L.height, T = L.frames;
+  double dsub = *disparity;
+  double sum_gg = 0.0, sum_var = 0.0;
+  int samples = 0;
+  for (int iter = 0; iter < iterations; ++iter) {
+    double sum_ge = 0.0;
+    sum_gg = 0.0;
+    sum_var = 0.0;
+    samples = 0;
+    for (int wy = -r; wy <= r; ++wy) {
+      const int yy = std::clamp(y + wy, 0, H - 1);
+      const float* lrow = L.row(yy);
+      const float* rrow = R.row(yy);
+      for (int wx = -r; wx <= r; ++wx) {
+        const int xp = x + wx;
+        if (xp < 0 || xp >= W) continue;
+        // Planar window: the disparity of the sample follows the local slope, so slanted surfaces are not
+        // biased by the window's texture distribution. The left sample stays on its pixel and the right
+        // image is interpolated by cubic convolution (Keys, a = −½). Measured on noise-free synthetic planes
+        // at fractional disparities: linear interpolation biases the estimate towards half-integers by up to
+        // 0.04 px, and interpolating both images half way (symmetric) does not remove it (the interpolation
+        // error correlates with the gradient); one-sided cubic leaves 0.01–0.02 px.
+        const double pr = xp - (dsub + slope_x * wx + slope_y * wy);
+        const int ir = static_cast<int>(std::floor(pr));
+        if (ir < 1 || ir + 2 >= W) continue;
+        float wr[4], gr[4];
+        CubicWeights(static_cast<float>(pr - ir), wr, gr);
+        float ge = 0.0f, gg = 0.0f;
+        for (int t = 0; t < T; ++t) {
+          const float* rt = rrow + t * W + ir - 1;
+          const float rv = wr[0] * rt[0] + wr[1] * rt[1] + wr[2] * rt[2] + wr[3] * rt[3];
+          const float g = gr[0] * rt[0] + gr[1] * rt[1] + gr[2] * rt[2] + gr[3] * rt[3];
+          const float e = lrow[t * W + xp] - rv;
+          ge += g * e;
+          gg += g * g;
+        }
+        sum_ge += ge;
+        sum_gg += gg;
+        ++samples;
+        if (!noise_left.empty()) {
+          const double sl = noise_left[static_cast<size_t>(yy) * W + xp];
+          const double sr = noise_right[static_cast<size_t>(yy) * W + ir];
+          sum_var += sl * sl + sr * sr;
+        }
+      }
+    }
+    if (!(sum_gg > 0.0)) return false;
+    // e(d) = L(x') − R(x' − d) grows with d at rate g = R′, so the Gauss–Newton step is −Σ g·e / Σ g².
+    dsub -= sum_ge / sum_gg;
+    if (!(std::abs(dsub - *disparity) <= 2.0)) return false;
+  }
+  *disparity = dsub;
+  if (noise_left.empty()) {
+    *sigma_pred = std::sqrt(2.0 * noise * noise / sum_gg);
+  } else {
+    // Temporal normalisation scales each pixel's noise by its own factor; the window's mean of
+    // σ_L² + σ_R² stands in for the per-sample weights (Σ over t of g² is not kept per sample).
+    const double mean_var = noise * noise * sum_var / std::max(1, samples);
+    *sigma_pred = std::sqrt(mean_var / sum_gg);
+  }
+  return true;
+}
+
+// Least-squares slopes ∂d/∂x, ∂d/∂y of the coarse disparity over the window around (x, y), using only
+// pixels within 2 px of the centre's disparity (so the fit does not reach across a depth edge).
+void WindowSlopes(const cv::Mat& coarse, int x, int y, int r, double* sx, double* sy) {
+  const float dc = coarse.at<float>(y, x);
+  double sxx = 0, syy = 0, sxd = 0, syd = 0, sxy = 0, sd = 0, sx1 = 0, sy1 = 0;
+  int n = 0;
+  for (int wy = -r; wy <= r; ++wy) {
+    const int yy = y + wy;
+    if (yy < 0 || yy >= coarse.rows) continue;
+    const float* row = coarse.ptr<float>(yy);
+    for (int wx = -r; wx <= r; ++wx) {
+      const int xx = x + wx;
+      if (xx < 0 || xx >= coarse.cols) continue;
+      const float d = row[xx];
+      if (!(std::abs(d - dc) < 2.0f)) continue;
+      sxx += wx * wx;
+      syy += wy * wy;
+      sxy += wx * wy;
+      sxd += wx * (d - dc);
+      syd += wy * (d - dc);
+      sd += d - dc;
+      sx1 += wx;
+      sy1 += wy;
+      ++n;
+    }
+  }
+  *sx = *sy = 0.0;
+  if (n < 6) return;
+  // Plane d = c + a·wx + b·wy through the samples (3×3 normal equations).
+  Eigen::Matrix3d A;
+  A << n, sx1, sy1, sx1, sxx, sxy, sy1, sxy, syy;
+  const Eigen::Vector3d rhs(sd, sxd, syd);
+  const Eigen::Vector3d p = A.ldlt().solve(rhs);
+  if (!p.allFinite()) return;
+  *sx = std::clamp(p(1), -1.0, 1.0);
+  *sy = std::clamp(p(2), -1.0, 1.0);
+}
+
+struct BandBuffers {
+  std::vector<float> volume;   // [row][di][x]
+  std::vector<float> e;        // one row of per-pixel temporal costs, padded by r on both sides
+  std::vector<float> ring;     // w rows of horizontally summed costs
+  std::vector<float> colsum;
+  std::vector<float> best_left, best_right;
+  std::vector<int> arg_left, arg_right;
+};
+
+}  // namespace
+
+DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right) {
+  CheckStereoSequence(left, right);
+  const auto start = std::chrono::steady_clock::now();
+  summary_ = {};
+  const int T = static_cast<int>(left.size());
+  SpaceTimeCost cost = options_.cost;
+  if (cost == SpaceTimeCost::kAuto) cost = T >= 3 ? SpaceTimeCost::kZnccTime : SpaceTimeCost::kSsd;
+  RB_CHECK(!(cost == SpaceTimeCost::kZnccTime && T < 2), "ZNCC over time needs at least 2 frames, got ", T);
+  summary_.cost_used = cost;
+  summary_.frames = T;
+
+  Sequence L = Interleave(left);
+  Sequence R = Interleave(right);
+  const int W = L.width, H = L.height;
+  std::vector<float> noise_left, noise_right;
+  if (cost == SpaceTimeCost::kZnccTime) {
+    NormaliseTemporally(&L, options_.image_noise_gray, &noise_left);
+    NormaliseTemporally(&R, options_.image_noise_gray, &noise_right);
+  }
+
+  const int D = options_.num_disparities;
+  const int dmin = options_.min_disparity_px;
+  const int w = options_.window_px;
+  const int r = w / 2;
+  const int band = options_.rows_per_task;
+  const int num_bands = (H + band - 1) / band;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+
+  DisparityResult result;
+  result.disparity_px.create(H, W, CV_32F);
+  result.sigma_disparity_px.create(H, W, CV_32F);
+  result.frames_used = T;
+  std::atomic<int> valid{0}, rej_lr{0}, rej_flat{0}, rej_sigma{0};
+
+  tbb::enumerable_thread_specific<BandBuffers> buffers;
+  tbb::parallel_for(tbb::blocked_range<int>(0, num_bands, 1), [&](const tbb::blocked_range<int>& range) {
+    BandBuffers& b = buffers.local();
+    for (int band_index = range.begin(); band_index < range.end(); ++band_index) {
+      const int y0 = band_index * band;
+      const int y1 = std::min(H, y0 + band);
+      const int rows = y1 - y0;
+      b.volume.resize(static_cast<size_t>(rows) * D * W);
+      b.e.resize(static_cast<size_t>(W + 2 * r));
+      b.ring.resize(static_cast<size_t>(w) * W);
+      b.colsum.resize(W);
+
+      // Cost volume of the band, one disparity at a time: per-pixel cost summed over time, then w-tap sums
+      // along x (vectorise well for small w) and a running sum down the columns (each input row enters once
+      // and leaves once, so the window costs O(1) per pixel and disparity in the vertical direction).
+      for (int di = 0; di < D; ++di) {
+        const int d = dmin + di;
+        // Columns x where the right pixel x − d exists; outside them the cost of the nearest such column
+        // is repeated so that border windows are not biased towards disparities that leave the image.
+        const int xa = std::clamp(d, 0, W);
+        const int xb = std::clamp(W + d, 0, W);
+        std::fill(b.colsum.begin(), b.colsum.end(), 0.0f);
+        for (int k = 0; k < rows + 2 * r; ++k) {
+          const int yc = std::clamp(y0 - r + k, 0, H - 1);
+          const float* lrow = L.row(yc);
+          const float* rrow = R.row(yc);
+          float* e = b.e.data() + r;
+          std::fill(e, e + W, 0.0f);
+          for (int t = 0; t < T; ++t) {
+            const float* lt = lrow + t * W;
+            const float* rt = rrow + t * W - d;
+            for (int x = xa; x < xb; ++x) {
+              const float diff = lt[x] - rt[x];
+              e[x] += diff * diff;
+            }
+          }
+          if (xa >= xb) {
+            std::fill(e, e + W, 0.0f);
+          } else {
+            std::fill(e, e + xa, e[xa]);
+            std::fill(e + xb, e + W, e[xb - 1]);
+          }
+          std::fill(b.e.begin(), b.e.begin() + r, e[0]);
+          std::fill(b.e.begin() + r + W, b.e.end(), e[W - 1]);
+          float* slot = b.ring.data() + static_cast<size_t>(k % w) * W;
+          float* col = b.colsum.data();
+          if (k >= w) {
+            for (int x = 0; x < W; ++x) col[x] -= slot[x];
+          }
+          const float* ep = b.e.data();
+          for (int x = 0; x < W; ++x) {
+            float s = 0.0f;
+            for (int j = 0; j < w; ++j) s += ep[x + j];
+            slot[x] = s;
+            col[x] += s;
+          }
+          if (k >= 2 * r) {
+            float* out = b.volume.data() + (static_cast<size_t>(k - 2 * r) * D + di) * W;
+            std::copy_n(col, W, out);
+          }
+        }
+      }
+
+      b.best_left.resize(W);
+      b.best_right.resize(W);
+      b.arg_left.resize(W);
+      b.arg_right.resize(W);
+      int band_valid = 0, band_lr = 0, band_flat = 0, band_sigma = 0;
+      for (int j = 0; j < rows; ++j) {
+        const int y = y0 + j;
+        const float* vol = b.volume.data() + static_cast<size_t>(j) * D * W;
+        std::fill(b.best_left.begin(), b.best_left.end(), inf);
+        std::fill(b.best_right.begin(), b.best_right.end(), inf);
+        std::fill(b.arg_left.begin(), b.arg_left.end(), -1);
+        std::fill(b.arg_right.begin(), b.arg_right.end(), -1);
+        for (int di = 0; di < D; ++di) {
+          const int d = dmin + di;
+          const float* c = vol + static_cast<size_t>(di) * W;
+          // Left view: pixel x, right pixel x − d must exist.
+          const int xa = std::clamp(d, 0, W), xb = std::clamp(W + d, 0, W);
+          float* bl = b.best_left.data();
+          int* al = b.arg_left.data();
+          for (int x = xa; x < xb; ++x) {
+            const bool better = c[x] < bl[x];
+            bl[x] = better ? c[x] : bl[x];
+            al[x] = better ? di : al[x];
+          }
+          // Right view: right pixel xr sees left pixel xr + d.
+          const int ra = std::clamp(-d, 0, W), rb = std::clamp(W - d, 0, W);
+          float* br = b.best_right.data();
+          int* ar = b.arg_right.data();
+          const float* cr = c + d;
+          for (int xr = ra; xr < rb; ++xr) {
+            const bool better = cr[xr] < br[xr];
+            br[xr] = better ? cr[xr] : br[xr];
+            ar[xr] = better ? di : ar[xr];
+          }
+        }
+        float* out_d = result.disparity_px.ptr<float>(y);
+        float* out_s = result.sigma_disparity_px.ptr<float>(y);
+        for (int x = 0; x < W; ++x) {
+          out_d[x] = nan;
+          out_s[x] = nan;
+          const int di = b.arg_left[x];
+          if (di < 0) continue;
+          const int d = dmin + di;
+          // The parabola needs both neighbours inside the search range and inside the right image.
+          if (di == 0 || di == D - 1 || x - (d + 1) < 0 || x - (d - 1) >= W) {
+            ++band_flat;
+            continue;
+          }
+          const float cm = vol[static_cast<size_t>(di - 1) * W + x];
+          const float c0 = vol[static_cast<size_t>(di) * W + x];
+          const float cp = vol[static_cast<size_t>(di + 1) * W + x];
+          const double curvature = static_cast<double>(cm) - 2.0 * c0 + cp;
+          if (!(curvature > 1e-6 * (std::abs(c0) + 1e-3))) {
+            ++band_flat;
+            continue;
+          }
+          if (options_.left_right_max_diff_px >= 0.0) {
+            const int xr = x - d;
+            const int dr = b.arg_right[xr] < 0 ? std::numeric_limits<int>::min() / 2 : dmin + b.arg_right[xr];
+            if (std::abs(d - dr) > options_.left_right_max_diff_px) {
+              ++band_lr;
+              continue;
+            }
+          }
+          double disparity = d + std::clamp(0.5 * (cm - cp) / curvature, -0.5, 0.5);
+          // Linearising the right image about the minimum gives var(d̂) = 2σ_n²/Σg² with noise σ_n in both
+          // images, and the cost curvature is C″ = 2Σg², so σ_pred² = 4σ_n²/C″ (DESIGN.md §2 writes the
+          // same relation for a cost scaled by ½).
+          double sigma_pred = 0.0;
+          if (options_.subpixel_iterations > 0) {
+            out_d[x] = static_cast<float>(disparity);  // coarse: refined in the second pass
+            continue;
+          }
+          {
+            const double noise = options_.image_noise_gray *
+                                 (noise_left.empty() ? 1.0 : noise_left[static_cast<size_t>(y) * W + x]);
+            sigma_pred = std::sqrt(4.0 * noise * noise / curvature);
+          }
+          const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
+                                         options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
+          if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
+            ++band_sigma;
+            continue;
+          }
+          out_d[x] = static_cast<float>(disparity);
+          out_s[x] = static_cast<float>(sigma);
+          ++band_valid;
+        }
+      }
+      valid += band_valid;
+      rej_lr += band_lr;
+      rej_flat += band_flat;
+      rej_sigma += band_sigma;
+    }
+  });
+  if (options_.subpixel_iterations > 0) {
+    const cv::Mat coarse = result.disparity_px.clone();
+    std::atomic<int> refined{0}, failed{0}, too_uncertain{0};
+    tbb::parallel_for(0, H, [&](int y) {
+      float* out_d = result.disparity_px.ptr<float>(y);
+      float* out_s = result.sigma_disparity_px.ptr<float>(y);
+      const float* c = coarse.ptr<float>(y);
+      int row_ok = 0, row_failed = 0, row_sigma = 0;
+      for (int x = 0; x < W; ++x) {
+        if (!std::isfinite(c[x])) continue;
+        double slope_x = 0.0, slope_y = 0.0;
+        WindowSlopes(coarse, x, y, r, &slope_x, &slope_y);
+        double disparity = c[x], sigma_pred = 0.0;
+        if (!RefineGaussNewton(L, R, noise_left, noise_right, x, y, r, options_.subpixel_iterations,
+                               options_.image_noise_gray, slope_x, slope_y, &disparity, &sigma_pred) ||
+            std::abs(disparity - c[x]) > 1.0) {
+          out_d[x] = nan;
+          ++row_failed;
+          continue;
+        }
+        const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
+                                       options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
+        if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
+          out_d[x] = nan;
+          ++row_sigma;
+          continue;
+        }
+        out_d[x] = static_cast<float>(disparity);
+        out_s[x] = static_cast<float>(sigma);
+        ++row_ok;
+      }
+      refined += row_ok;
+      failed += row_failed;
+      too_uncertain += row_sigma;
+    });
+    valid = refined.load();
+    rej_flat += failed.load();
+    rej_sigma += too_uncertain.load();
+  }
+  summary_.valid_pixels = valid;
+  summary_.rejected_left_right = rej_lr;
+  summary_.rejected_flat = rej_flat;
+  summary_.rejected_sigma = rej_sigma;
+  result.valid_fraction = static_cast<double>(valid) / (static_cast<double>(W) * H);
+  result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,78 @@
+// Synthetic stereo recordings of known scenes under projected light, with exact ground truth: the test and
+// demo input of the stereo and space-time matchers.
+#pragma once
+
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "calibration/stereo_rig.h"
+#include "core/camera.h"
+
+namespace rangebayes {
+
+enum class SynthScene {
+  kPlane,     // one fronto-parallel plane at 1.0 m
+  kPlanes,    // tilted back wall, floor, a fronto-parallel panel in front
+  kBox,       // a box turned 30° about the vertical on the floor before the wall
+  kSphere,    // a sphere before the wall
+  kCylinder,  // a vertical capped cylinder before the wall
+  kStairs,    // four steps rising towards the wall
+};
+enum class SynthPattern {
+  kRandom,    // band-limited random texture, a new one every frame
+  kGrayCode,  // vertical Gray-code stripes (projector columns), each bit then its inverse, finest bits last
+};
+
+// Parses "plane", "planes", "box", "sphere", "cylinder", "stairs" / "random", "graycode"; throws Error otherwise.
+SynthScene ParseSynthScene(const std::string& name);
+SynthPattern ParseSynthPattern(const std::string& name);
+std::string ToString(SynthScene scene);
+std::string ToString(SynthPattern pattern);
+
+struct SynthOptions {
+  SynthScene scene = SynthScene::kPlanes;
+  SynthPattern pattern = SynthPattern::kRandom;
+  int frames = 8;                  // 1–256: stereo pairs, one projected pattern each
+  double image_noise_gray = 2.0;   // ≥ 0: σ of the Gaussian noise added to each 8-bit grey level
+  std::uint64_t seed = 1;          // patterns and noise; same seed, same images (on one platform)
+  int width = 320;                 // 16–4096 pixels
+  int height = 240;                // 16–4096 pixels
+  double focal_px = 0.0;           // > 0, or 0: equal to the width (53° horizontal field of view)
+  double baseline_m = 0.1;         // > 0: right camera at (B, 0, 0) in the left camera frame
+  double pattern_cell_px = 2.3;    // 0.5–64: size of one projector pixel (random cell, finest Gray stripe),
+                                   // in camera pixels at the image centre
+  double projector_roll_deg = 8.0; // ±45: rotation of the projected image about the projector's axis
+  double optics_blur_px = 0.5;     // 0–5: σ of the lens blur (Gaussian), camera pixels
+  double ambient = 0.08;           // 0–1: light not from the projector (share of full scale)
+  int supersample = 3;             // 1–8: samples per pixel side (anti-aliased stripes and edges)
+  void Check() const;
+};
+
+// Rectified by construction: both cameras share K (f, principal point at the image centre) and look along
+// +z; the projector sits half way between them.
+struct SynthRecording {
+  std::vector<cv::Mat> left, right;  // CV_8U, height × width, one per frame
+  std::vector<int> pattern_ids;
+  cv::Mat depth_m;                   // CV_32F ground truth in the left view (Z at the pixel centre), NaN none
+  cv::Mat disparity_px;              // CV_32F f·B/Z, NaN none
+  StereoRig rig;                     // is_rectified, P1/P2 filled
+  CameraIntrinsics intrinsics;
+};
+
+// Renders by analytic ray casting (planes, oriented boxes, spheres, capped cylinders), Lambertian shading
+// by the projector with cast shadows, supersampled, then noise and 8-bit quantisation.
+SynthRecording RenderSynthetic(const SynthOptions& options);
+
+// Writes the recording format of capture/recording.h into FOLDER (rig.yaml, meta.yaml, frames.csv,
+// left/ right/ PNGs) plus ground_truth/depth_left_m.pfm and ground_truth/disparity_left_px.pfm. Throws Error
+// when FOLDER already holds a recording and `overwrite` is false, or on a write failure.
+struct SynthWriteOptions {
+  bool overwrite = false;
+  void Check() const {}
+};
+void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions& options, const std::string& folder,
+                             const SynthWriteOptions& write_options = {});
+
+}  // namespace rangebayes

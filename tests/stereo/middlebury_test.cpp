@@ -1,0 +1,87 @@
+// Middlebury readers: calib.txt import (doffs kept), scene layouts, disparity maps with scale, masks, errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "calibration/middlebury.h"
+#include "core/error.h"
+#include "stereo/disparity_io.h"
+#include "stereo/evaluate.h"
+
+namespace rangebayes {
+namespace {
+
+TEST(Middlebury, CalibTxtBecomesARectifiedRigWithDoffs) {
+  const MiddleburyCalib c = ReadMiddleburyCalib("tests/data/stereo/motorcycle_calib/calib.txt");
+  EXPECT_DOUBLE_EQ(c.cam0(0, 0), 999.421);
+  EXPECT_DOUBLE_EQ(c.cam1(0, 2), 326.96);
+  EXPECT_DOUBLE_EQ(c.doffs_px, 32.778);
+  EXPECT_EQ(c.width, 741);
+  EXPECT_EQ(c.ndisp, 70);
+  const StereoRig rig = StereoRigFromMiddlebury(c);
+  EXPECT_TRUE(rig.is_rectified);
+  EXPECT_NEAR(rig.baseline_m(), 0.193001, 1e-12);
+  EXPECT_DOUBLE_EQ(rig.doffs_px, 32.778);
+  // Z = f·B/(d + doffs), and Q must say the same: W = d/B + doffs/B, Z = f/W.
+  const double d = 40.0;
+  const double z = c.cam0(0, 0) * 0.193001 / (d + 32.778);
+  EXPECT_NEAR(rig.Q(2, 3) / (rig.Q(3, 2) * d + rig.Q(3, 3)), z, 1e-9);
+  const std::string out = (std::filesystem::temp_directory_path() / "rb_motorcycle_rig.yaml").string();
+  WriteStereoRig(rig, out);
+  const StereoRig back = ReadStereoRig(out);
+  EXPECT_DOUBLE_EQ(back.doffs_px, 32.778);
+  EXPECT_TRUE(back.is_rectified);
+  EXPECT_NEAR(back.RectifiedLeft().fx_px, 999.421, 1e-9);
+}
+
+TEST(Middlebury, CalibErrorsNameTheKey) {
+  const std::string path = (std::filesystem::temp_directory_path() / "rb_bad_calib.txt").string();
+  {
+    std::ofstream out(path);
+    out << "cam0=[1 0 0; 0 1 0; 0 0 1]\nbaseline=10\nwidth=5\nheight=5\n";
+  }
+  try {
+    ReadMiddleburyCalib(path);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cam1"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ReadMiddleburyCalib("tests/data/stereo/none/calib.txt"), Error);
+}
+
+TEST(Middlebury, V2SceneReadsWithScaleAndMask) {
+  const MiddleburyScene s = ReadMiddleburyScene("tests/data/stereo/tsukuba");
+  EXPECT_EQ(s.layout, "v2");
+  EXPECT_EQ(s.left.cols, 384);
+  EXPECT_EQ(s.left.rows, 288);
+  EXPECT_EQ(s.num_disparities, 15);
+  ASSERT_FALSE(s.gt_disparity_px.empty());
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(s.gt_disparity_px, &lo, &hi, nullptr, nullptr, s.gt_disparity_px == s.gt_disparity_px);
+  EXPECT_GE(lo, 1.0);   // tsukuba's ground truth spans 5–14 px (value/16)
+  EXPECT_LE(hi, 15.0);
+  ASSERT_FALSE(s.mask_nonocc.empty());
+  EXPECT_GT(cv::countNonZero(s.mask_nonocc), 80000);  // 85,438 of 110,592 pixels are marked
+  EXPECT_THROW(ReadMiddleburyScene("tests/data/stereo"), Error);
+  EXPECT_THROW(ReadDisparityMap("tests/data/stereo/tsukuba/groundtruth.png", 0.0), Error);
+}
+
+TEST(Evaluate, CountsHolesBothWays) {
+  cv::Mat gt(1, 4, CV_32F, cv::Scalar(10.0f)), est(1, 4, CV_32F);
+  est.at<float>(0, 0) = 10.2f;  // good
+  est.at<float>(0, 1) = 11.5f;  // bad at 1
+  est.at<float>(0, 2) = NAN;    // hole
+  est.at<float>(0, 3) = 10.0f;  // good
+  const DisparityEvaluation ev = EvaluateDisparity(est, gt, {});
+  EXPECT_EQ(ev.evaluated_pixels, 4);
+  EXPECT_DOUBLE_EQ(ev.coverage, 0.75);
+  EXPECT_DOUBLE_EQ(ev.bad_with_holes[1], 0.5);        // bad-1: one wrong plus one hole of four
+  EXPECT_DOUBLE_EQ(ev.bad_valid_only[1], 1.0 / 3.0);  // one wrong of three estimated
+  EXPECT_DOUBLE_EQ(ev.bad_with_holes[3], 0.25);       // bad-4: only the hole
+  EXPECT_THROW(EvaluateDisparity(est, cv::Mat(2, 4, CV_32F), {}), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes

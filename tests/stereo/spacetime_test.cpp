@@ -1,0 +1,157 @@
+// Our space-time / block matcher on synthetic scenes with exact ground truth.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "core/error.h"
+#include "stereo/depth_frame.h"
+#include "stereo/sgbm_matcher.h"
+#include "stereo/spacetime_matcher.h"
+#include "stereo/synth.h"
+
+namespace rangebayes {
+namespace {
+
+struct Errors {
+  double rms = 0, median_abs = 0, coverage = 0, mean_z2 = 0;
+  int n = 0;
+};
+
+// Disparity errors against ground truth over pixels at least `margin` px from a ground-truth depth edge
+// (windows straddling an edge are biased by design, not by noise).
+Errors Score(const cv::Mat& d, const cv::Mat& sigma, const cv::Mat& gt, int margin = 3) {
+  std::vector<double> abs_err;
+  double sum2 = 0, z2 = 0;
+  int total = 0, nz = 0;
+  for (int y = margin; y < gt.rows - margin; ++y) {
+    for (int x = margin + 60; x < gt.cols - margin; ++x) {
+      bool smooth = true;
+      for (int k = -margin; k <= margin && smooth; ++k) {
+        smooth = std::abs(gt.at<float>(y, x + k) - gt.at<float>(y, x)) < 0.5 * margin &&
+                 std::abs(gt.at<float>(y + k, x) - gt.at<float>(y, x)) < 0.5 * margin;
+      }
+      if (!smooth) continue;
+      ++total;
+      const float v = d.at<float>(y, x);
+      if (!std::isfinite(v)) continue;
+      const double e = v - gt.at<float>(y, x);
+      abs_err.push_back(std::abs(e));
+      sum2 += e * e;
+      if (!sigma.empty()) {
+        const double s = sigma.at<float>(y, x);
+        z2 += e * e / (s * s);
+        ++nz;
+      }
+    }
+  }
+  Errors out;
+  out.n = static_cast<int>(abs_err.size());
+  if (abs_err.empty()) return out;
+  std::nth_element(abs_err.begin(), abs_err.begin() + abs_err.size() / 2, abs_err.end());
+  out.median_abs = abs_err[abs_err.size() / 2];
+  out.rms = std::sqrt(sum2 / out.n);
+  out.coverage = static_cast<double>(out.n) / total;
+  out.mean_z2 = nz ? z2 / nz : 0.0;
+  return out;
+}
+
+SynthOptions Scene(SynthScene scene, int frames, double noise, std::uint64_t seed = 1) {
+  SynthOptions o;
+  o.scene = scene;
+  o.frames = frames;
+  o.image_noise_gray = noise;
+  o.seed = seed;
+  return o;
+}
+
+SpaceTimeMatcherOptions MatcherFor(int window = 5) {
+  SpaceTimeMatcherOptions m;
+  m.min_disparity_px = 8;
+  m.num_disparities = 48;
+  m.window_px = window;
+  m.image_noise_gray = 2.0;
+  return m;
+}
+
+TEST(SpaceTime, FrontoParallelPlaneGivesItsDepth) {
+  const SynthRecording rec = RenderSynthetic(Scene(SynthScene::kPlane, 8, 2.0));
+  SpaceTimeMatcher matcher(MatcherFor());
+  const DisparityResult r = matcher.Match(rec.left, rec.right);
+  const DepthFrame frame =
+      DepthFromDisparity(r.disparity_px, r.sigma_disparity_px, rec.intrinsics, rec.rig.baseline_m(), 0.0);
+  std::vector<float> z;
+  for (int y = 0; y < frame.height(); ++y)
+    for (int x = 0; x < frame.width(); ++x)
+      if (std::isfinite(frame.depth_m.at<float>(y, x))) z.push_back(frame.depth_m.at<float>(y, x));
+  // Pixels left of the smallest visible disparity have no partner in the right image.
+  EXPECT_GT(z.size(), 0.85 * frame.width() * frame.height());
+  std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
+  EXPECT_NEAR(z[z.size() / 2], 1.0, 1e-3);  // the plane is at 1.000 m
+  const Errors e = Score(r.disparity_px, r.sigma_disparity_px, rec.disparity_px);
+  std::printf("plane T=8: rms %.4f px, median %.4f px, coverage %.3f, mean z2 %.3f\n", e.rms, e.median_abs,
+              e.coverage, e.mean_z2);
+  EXPECT_LT(e.rms, 0.1);
+}
+
+TEST(SpaceTime, TemporalWindowBeatsSingleFrame) {
+  for (const auto scene : {SynthScene::kPlanes, SynthScene::kSphere, SynthScene::kStairs}) {
+    const SynthRecording rec = RenderSynthetic(Scene(scene, 8, 3.0));
+    SpaceTimeMatcher single(MatcherFor());
+    const std::vector<cv::Mat> l1 = {rec.left[0]}, r1 = {rec.right[0]};
+    const Errors e1 = Score(single.Match(l1, r1).disparity_px, {}, rec.disparity_px);
+    SpaceTimeMatcher multi(MatcherFor());
+    const DisparityResult rm = multi.Match(rec.left, rec.right);
+    const Errors e8 = Score(rm.disparity_px, rm.sigma_disparity_px, rec.disparity_px);
+    SgbmMatcherOptions so;
+    so.min_disparity_px = 8;
+    so.num_disparities = 48;
+    SgbmMatcher sgbm(so);
+    const Errors es = Score(sgbm.Match(l1, r1).disparity_px, {}, rec.disparity_px);
+    std::printf("%s: T=1 rms %.3f cov %.3f | T=8 rms %.3f cov %.3f z2 %.2f | sgbm rms %.3f cov %.3f\n",
+                ToString(scene).c_str(), e1.rms, e1.coverage, e8.rms, e8.coverage, e8.mean_z2, es.rms, es.coverage);
+    EXPECT_LT(e8.rms, 0.5 * e1.rms) << ToString(scene);
+    EXPECT_GE(e8.coverage, e1.coverage - 0.02) << ToString(scene);
+  }
+}
+
+TEST(SpaceTime, SigmaMatchesTheErrors) {
+  for (const auto scene : {SynthScene::kSphere, SynthScene::kBox}) {
+    for (int frames : {1, 8}) {
+      const SynthRecording rec = RenderSynthetic(Scene(scene, frames, 2.0, 7));
+      SpaceTimeMatcher m(MatcherFor());
+      const DisparityResult r = m.Match(rec.left, rec.right);
+      const Errors e = Score(r.disparity_px, r.sigma_disparity_px, rec.disparity_px);
+      std::printf("%s T=%d: rms %.4f, mean z2 %.3f, coverage %.3f\n", ToString(scene).c_str(), frames, e.rms,
+                  e.mean_z2, e.coverage);
+    }
+  }
+}
+
+TEST(SpaceTime, BadInputThrows) {
+  SpaceTimeMatcher m(MatcherFor());
+  const cv::Mat a(40, 60, CV_8U, cv::Scalar(10)), b(40, 61, CV_8U, cv::Scalar(10));
+  EXPECT_THROW(m.Match({a}, {b}), Error);
+  EXPECT_THROW(m.Match({a, a}, {a}), Error);
+  EXPECT_THROW(m.Match({}, {}), Error);
+  EXPECT_THROW(m.Match({cv::Mat()}, {cv::Mat()}), Error);
+  EXPECT_THROW(m.Match({cv::Mat(40, 60, CV_32F, cv::Scalar(0))}, {cv::Mat(40, 60, CV_32F, cv::Scalar(0))}), Error);
+  SpaceTimeMatcherOptions o;
+  o.window_px = 4;
+  EXPECT_THROW(SpaceTimeMatcher{o}, Error);
+  SpaceTimeMatcherOptions z;
+  z.cost = SpaceTimeCost::kZnccTime;
+  SpaceTimeMatcher zncc(z);
+  EXPECT_THROW(zncc.Match({a}, {a}), Error);
+}
+
+TEST(SpaceTime, FlatImagesGiveNoDisparity) {
+  SpaceTimeMatcher m(MatcherFor());
+  const cv::Mat a(40, 80, CV_8U, cv::Scalar(100));
+  const DisparityResult r = m.Match({a, a, a}, {a, a, a});
+  EXPECT_EQ(cv::countNonZero(r.disparity_px == r.disparity_px), 0);
+}
+
+}  // namespace
+}  // namespace rangebayes
