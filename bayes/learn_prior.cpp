@@ -20,7 +20,7 @@ double Seconds(std::chrono::steady_clock::time_point start) {
 Eigen::VectorXd Flatten(const Vertices& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), v.size()); }
 
 // What the learner keeps per pair: the energy (bound to the shared, mutable spline), the truth flattened,
-// the data-term normalisation 1 / (#V l_e²) and the face pairs the prior runs over.
+// the data-term normalisation 1 / l_e² and the face pairs the prior runs over.
 struct PairProblem {
   std::unique_ptr<SmoothingEnergy> energy;
   Eigen::VectorXd truth;
@@ -43,7 +43,7 @@ std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const L
     problems[p].truth = Flatten(pair.truth.V);
     const double le = MeanEdgeLength(pair.truth);
     RB_CHECK(le > 0 && pair.truth.num_vertices() > 0, "learn prior: pair '", pair.name, "' has no edges");
-    problems[p].scale = 1.0 / (pair.truth.num_vertices() * le * le);
+    problems[p].scale = 1.0 / (le * le);
     problems[p].face_pairs = ComputeFacePairs(pair.truth);
   }
   return problems;
@@ -270,13 +270,13 @@ PriorEvaluation EvaluatePrior(const std::vector<TrainingPair>& pairs, const Pote
     const Mesh result = Smooth(pair.noisy, smooth);
     const double le = MeanEdgeLength(pair.truth);
     const double loss = (result.V - pair.truth.V).squaredNorm() / (pair.truth.num_vertices() * le * le);
-    evaluation.pair_data_loss.push_back(loss);
+    evaluation.pair_mse_le2.push_back(loss);
     evaluation.pair_mae_deg.push_back(MeanAngularErrorDeg(result, pair.truth));
     if (keep_meshes) evaluation.smoothed.push_back(result);
   }
   const double count = std::max<size_t>(1, pairs.size());
   for (size_t p = 0; p < pairs.size(); ++p) {
-    evaluation.data_loss += evaluation.pair_data_loss[p] / count;
+    evaluation.mean_squared_error_le2 += evaluation.pair_mse_le2[p] / count;
     evaluation.mean_angular_error_deg += evaluation.pair_mae_deg[p] / count;
   }
   return evaluation;
@@ -292,7 +292,7 @@ double SmoothAll(const std::vector<TrainingPair>& pairs, const std::vector<PairP
   double loss = 0;
   for (size_t p = 0; p < pairs.size(); ++p) {
     (*minima)[p] = Flatten(Smooth(pairs[p].noisy, smooth).V);
-    loss += PairDataLoss(problems[p], (*minima)[p]) / pairs.size();
+    loss += PairDataLoss(problems[p], (*minima)[p]);
   }
   return loss;
 }
@@ -303,8 +303,8 @@ Eigen::VectorXd GradientAtMinima(const std::vector<TrainingPair>& pairs, const s
   Eigen::VectorXd gradient = Eigen::VectorXd::Zero(spline.num_knots());
   for (size_t p = 0; p < pairs.size(); ++p) {
     const PairProblem& problem = problems[p];
-    const Eigen::VectorXd b = 2.0 * problem.scale / pairs.size() * (minima[p] - problem.truth);
-    const double le = 1.0 / std::sqrt(problem.scale * pairs[p].truth.num_vertices());
+    const Eigen::VectorXd b = 2.0 * problem.scale * (minima[p] - problem.truth);
+    const double le = 1.0 / std::sqrt(problem.scale);
     const Eigen::VectorXd v = SolveHessian(*problem.energy, minima[p], b, le, options.hessian_cg_iterations,
                                            options.hessian_cg_tolerance);
     gradient -= options.prior_weight *
@@ -338,59 +338,108 @@ Eigen::VectorXd LearnImplicit(const std::vector<TrainingPair>& pairs, const Lear
   LearnPriorSummary* summary = report->summary;
   std::vector<Eigen::VectorXd> minima;
   Eigen::VectorXd theta = spline->theta();
+  const Eigen::Index n = theta.size();
   double data_loss = SmoothAll(pairs, problems, *spline, options, &minima);
   ++summary->smoothing_runs;
   summary->initial_data_loss = data_loss;
   Eigen::VectorXd regularizer_gradient;
   double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight, &regularizer_gradient);
   report->Record(data_loss, loss);
-  double step = options.initial_step;
+  auto full_gradient = [&]() {
+    Eigen::VectorXd g = GradientAtMinima(pairs, problems, *spline, options, minima) + regularizer_gradient;
+    g[0] = 0;
+    g[n - 1] = 0;
+    return g;
+  };
+  Eigen::VectorXd gradient = full_gradient();
+  // L-BFGS over θ (the knots differ in how many normal pairs they see by orders of magnitude, so plain
+  // gradient steps are badly scaled); the first step moves the largest knot by initial_step.
+  std::vector<Eigen::VectorXd> s_history, y_history;
   summary->termination = "max iterations";
-  Eigen::VectorXd gradient;
-  bool need_gradient = true;
+  int failures = 0;
   for (int iteration = 1; iteration <= report->max_iterations; ++iteration) {
     if (report->OutOfTime()) {
       summary->termination = "time limit";
       break;
     }
-    if (need_gradient) {
-      gradient = GradientAtMinima(pairs, problems, *spline, options, minima) + regularizer_gradient;
-      gradient[0] = 0;
-      gradient[gradient.size() - 1] = 0;
-      need_gradient = false;
+    Eigen::VectorXd q = gradient;
+    const size_t m = s_history.size();
+    std::vector<double> alpha(m);
+    for (size_t k = m; k-- > 0;) {
+      alpha[k] = s_history[k].dot(q) / y_history[k].dot(s_history[k]);
+      q -= alpha[k] * y_history[k];
     }
-    const double largest = gradient.cwiseAbs().maxCoeff();
-    if (!(largest > 0)) {
-      summary->termination = "converged";
-      break;
-    }
-    const Eigen::VectorXd candidate = theta - step / largest * gradient;
-    spline->SetTheta(candidate);
-    std::vector<Eigen::VectorXd> candidate_minima;
-    const double candidate_data = SmoothAll(pairs, problems, *spline, options, &candidate_minima);
-    ++summary->smoothing_runs;
-    Eigen::VectorXd candidate_regularizer_gradient;
-    const double candidate_loss =
-        candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight, &candidate_regularizer_gradient);
-    summary->iterations = iteration;
-    if (candidate_loss < loss) {
-      theta = candidate;
-      minima = std::move(candidate_minima);
-      data_loss = candidate_data;
-      loss = candidate_loss;
-      regularizer_gradient = candidate_regularizer_gradient;
-      need_gradient = true;
-      step *= 1.5;
+    if (m > 0) {
+      q *= s_history.back().dot(y_history.back()) / y_history.back().squaredNorm();
     } else {
+      const double largest = q.cwiseAbs().maxCoeff();
+      if (!(largest > 0)) {
+        summary->termination = "converged";
+        break;
+      }
+      q *= options.initial_step / largest;
+    }
+    for (size_t k = 0; k < m; ++k) q += s_history[k] * (alpha[k] - y_history[k].dot(q) / y_history[k].dot(s_history[k]));
+    Eigen::VectorXd direction = -q;
+    direction[0] = 0;
+    direction[n - 1] = 0;
+    double slope = gradient.dot(direction);
+    if (!(slope < 0)) {
+      s_history.clear();
+      y_history.clear();
+      direction = -gradient * (options.initial_step / std::max(gradient.cwiseAbs().maxCoeff(), 1e-300));
+      slope = gradient.dot(direction);
+    }
+    // Backtracking on the true loss (every trial smooths every pair).
+    bool accepted = false;
+    double t = 1.0;
+    for (int trial = 0; trial < 6 && !accepted; ++trial, t *= 0.3) {
+      const Eigen::VectorXd candidate = theta + t * direction;
+      spline->SetTheta(candidate);
+      std::vector<Eigen::VectorXd> candidate_minima;
+      const double candidate_data = SmoothAll(pairs, problems, *spline, options, &candidate_minima);
+      ++summary->smoothing_runs;
+      Eigen::VectorXd candidate_regularizer_gradient;
+      const double candidate_loss = candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight,
+                                                                          &candidate_regularizer_gradient);
+      if (candidate_loss <= loss + 1e-4 * t * slope) {
+        accepted = true;
+        minima = std::move(candidate_minima);
+        regularizer_gradient = candidate_regularizer_gradient;
+        const Eigen::VectorXd new_gradient = full_gradient();
+        const Eigen::VectorXd s_step = candidate - theta;
+        const Eigen::VectorXd y_step = new_gradient - gradient;
+        if (s_step.dot(y_step) > 1e-12 * s_step.norm() * y_step.norm()) {
+          s_history.push_back(s_step);
+          y_history.push_back(y_step);
+          if (s_history.size() > 6) {
+            s_history.erase(s_history.begin());
+            y_history.erase(y_history.begin());
+          }
+        }
+        theta = candidate;
+        gradient = new_gradient;
+        data_loss = candidate_data;
+        loss = candidate_loss;
+      }
+    }
+    summary->iterations = iteration;
+    if (!accepted) {
       spline->SetTheta(theta);
-      step *= 0.5;
+      s_history.clear();
+      y_history.clear();
+      // Twice in a row without progress even along the plain gradient: the loss is flat to the smoother's
+      // tolerance here.
+      if (++failures >= 2) {
+        summary->termination = "no progress";
+        report->Record(data_loss, loss);
+        break;
+      }
+    } else {
+      failures = 0;
     }
     report->Record(data_loss, loss);
     report->Progress(iteration, data_loss, loss);
-    if (step < 1e-4) {
-      summary->termination = "step too small";
-      break;
-    }
   }
   spline->SetTheta(theta);
   summary->final_data_loss = data_loss;
@@ -405,7 +454,7 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
   double data_loss = 0;
   for (size_t p = 0; p < count; ++p) {
     states[p].x = problems[p].energy->Measurements();
-    data_loss += PairDataLoss(problems[p], states[p].x) / count;
+    data_loss += PairDataLoss(problems[p], states[p].x);
   }
   Eigen::VectorXd theta = spline->theta();
   const int num_knots = spline->num_knots();
@@ -420,7 +469,7 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
     double next_loss = 0;
     for (size_t p = 0; p < count; ++p) {
       next[p] = CgStep(*problems[p].energy, states[p]);
-      next_loss += PairDataLoss(problems[p], next[p].x) / count;
+      next_loss += PairDataLoss(problems[p], next[p].x);
     }
     Eigen::VectorXd gradient = Eigen::VectorXd::Zero(num_knots);
     for (int j = 1; j + 1 < num_knots; ++j) {
@@ -429,7 +478,7 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
       spline->SetTheta(perturbed);
       double perturbed_loss = 0;
       for (size_t p = 0; p < count; ++p) {
-        perturbed_loss += PairDataLoss(problems[p], CgStep(*problems[p].energy, states[p]).x) / count;
+        perturbed_loss += PairDataLoss(problems[p], CgStep(*problems[p].energy, states[p]).x);
       }
       gradient[j] = (perturbed_loss - next_loss) / options.interleaved_epsilon;
     }
@@ -472,6 +521,7 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
                                                                     : initial_theta);
   const std::vector<PairProblem> problems = Prepare(pairs, options, spline);
   LearnPriorSummary summary;
+  for (const TrainingPair& pair : pairs) summary.num_vertices += pair.truth.num_vertices();
   const int max_iterations =
       options.max_iterations > 0 ? options.max_iterations : (options.method == LearnMethod::kImplicit ? 40 : 300);
   Report report{options, &summary, start, max_iterations};

@@ -1,12 +1,14 @@
 // Supervised learning of the spline potential φ_θ from pairs (noisy z, ground truth y) (paper §5.2, DESIGN §5):
 //
 //   θ* = argmin_θ  L(θ) = D(θ) + w Σ_j (θ_{j−1} − 2θ_j + θ_{j+1})²        (paper eqs. 18–20)
-//   D(θ) = mean over pairs of  Σ_i ‖x̂_i(z; θ) − y_i‖² / (#V · l_e²)
+//   D(θ) = Σ_pairs Σ_i ‖x̂_i(z; θ) − y_i‖² / l_e²
 //
 // x̂(z; θ) is the smoothing result (bayes/smooth.h) under φ_θ. The data term is the paper's squared vertex
-// error, normalised per pair by the vertex count and the squared mean edge length l_e of the ground truth so
-// that meshes of any size and scale weigh the same (D is the mean squared vertex error in units of l_e²; the
-// noisy input of noise level k has D ≈ k²). The sum in the regulariser runs over the knots with two neighbours.
+// error G (eq. 18) summed over all training vertices as the paper does, made unit-free by the squared mean
+// edge length l_e of each ground truth so that meshes of any scale weigh alike. Being a sum (a log-likelihood),
+// it grows with the training set while the regulariser (a log-prior on θ) does not: more data, less smoothing
+// of θ. For reading, summaries also give D per vertex (the mean squared vertex error in units of l_e²; a noisy
+// input of noise level k has about k²). The regulariser's sum runs over the knots with two neighbours.
 //
 // Two optimisers:
 // - kInterleaved, the paper's scheme: one nonlinear-CG step on every pair per iteration, and beside it a
@@ -17,8 +19,8 @@
 // - kImplicit: the exact gradient of D at the minimum x̂ by implicit differentiation. At x̂, ∇ₓE(x̂, θ) = 0, so
 //   dD/dθ_j = −vᵀ ∂²E/∂x∂θ_j with H v = ∂D/∂x (H the Hessian of E at x̂, solved by CG with Hessian-vector
 //   products from central differences of the smoother's gradient); ∂²E/∂x∂θ_j = β ∇ₓ Σ_(s,t) c_j(d_st) with c_j
-//   the spline's basis function for knot j (φ is linear in θ). θ then moves by gradient descent with an
-//   adaptive step (grown after an accepted step, halved and retried after a rejected one).
+//   the spline's basis function for knot j (φ is linear in θ). θ then moves by L-BFGS with a backtracking
+//   line search on the true loss (each trial smooths every pair).
 #pragma once
 
 #include <Eigen/Core>
@@ -45,19 +47,19 @@ LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "impli
 std::string LearnMethodName(LearnMethod method);
 
 struct LearnPriorOptions {
-  LearnMethod method = LearnMethod::kImplicit;
+  LearnMethod method = LearnMethod::kInterleaved;  // measured faster and better (BENCHMARKS.md)
   SplinePotentialOptions spline;     // N knots, ε² of the square-root base
   double regularizer_weight = 1.0;   // w of eq. 19; [0, 1e6]
-  double prior_weight = 1.7;         // β the smoother multiplies φ by (bayes/smooth.h's default rule); (0, 1e6]
+  double prior_weight = SmoothOptions{}.prior_weight;  // β the smoother multiplies φ by (its default rule); (0, 1e6]
   SmoothTolerance tolerance = SmoothTolerance::kDefault;  // inner smoothing (implicit method)
   int max_iterations = 0;            // outer iterations; 0: 40 implicit, 300 interleaved; else [1, 1e6]
   double time_limit_s = 0;           // stop after this much wall time (checked per iteration); 0: none; ≥ 0
-  // Implicit: first step, in knot-value units, of the largest θ_j change; (0, 1].
+  // Implicit: the first step's largest θ_j change, in knot-value units; (0, 1].
   double initial_step = 0.02;
   int hessian_cg_iterations = 200;   // implicit: CG iterations for H v = ∂D/∂x per pair; [1, 1e5]
   double hessian_cg_tolerance = 1e-3;  // implicit: relative residual; (0, 1)
   // Interleaved: fixed step α of eq. 22 and finite-difference increment ε of eq. 21.
-  double interleaved_step = 0.5;     // (0, 1e6]
+  double interleaved_step = 0.01;    // (0, 1e6]; measured on the synthetic set (BENCHMARKS.md)
   double interleaved_epsilon = 1e-3; // (0, 1]
   int num_threads = 0;               // smoother threads; 0: all cores
   ProgressCallback progress;         // stage names the iteration and the current loss
@@ -67,13 +69,14 @@ struct LearnPriorOptions {
 struct LearnPriorSummary {
   std::vector<double> loss;          // L after each outer iteration (on the training pairs)
   std::vector<double> data_loss;     // D after each outer iteration
+  int num_vertices = 0;              // training vertices (D / num_vertices: mean squared error in l_e²)
   std::vector<double> time_s;        // wall time at each entry
   double initial_data_loss = 0;      // D of the square-root potential (θ at the start)
   double final_data_loss = 0;        // D of the returned θ with full smoothing
   int iterations = 0;
   int smoothing_runs = 0;
   double total_time_s = 0;
-  std::string termination;           // "max iterations", "time limit", "step too small", "converged"
+  std::string termination;           // "max iterations", "time limit", "no progress", "converged"
 };
 
 // Learns θ from `pairs`, starting at `initial_theta` (empty: the square root). Returns N knot values.
@@ -86,9 +89,9 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
 double CurvatureRegularizer(const Eigen::VectorXd& theta, double weight, Eigen::VectorXd* gradient = nullptr);
 
 struct PriorEvaluation {
-  double data_loss = 0;                 // D
+  double mean_squared_error_le2 = 0;    // mean over pairs of Σ_i ‖x̂_i − y_i‖² / (#V l_e²)
   double mean_angular_error_deg = 0;    // mean over pairs of the mean face-normal angle to the truth
-  std::vector<double> pair_data_loss;
+  std::vector<double> pair_mse_le2;
   std::vector<double> pair_mae_deg;
   std::vector<Mesh> smoothed;           // only when requested
 };

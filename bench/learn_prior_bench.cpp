@@ -40,7 +40,7 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
   const PriorEvaluation mine = EvaluatePrior(pairs, learned, options);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("%-10s sqrt: MAE %.3f deg D %.5f | learned: MAE %.3f deg D %.5f | MAE change %+.1f%% (%.1f s)\n", label,
-              base.mean_angular_error_deg, base.data_loss, mine.mean_angular_error_deg, mine.data_loss,
+              base.mean_angular_error_deg, base.mean_squared_error_le2, mine.mean_angular_error_deg, mine.mean_squared_error_le2,
               100.0 * (mine.mean_angular_error_deg / base.mean_angular_error_deg - 1.0), seconds);
   for (size_t p = 0; p < pairs.size(); ++p) {
     std::printf("    %-28s sqrt %.3f  learned %.3f\n", pairs[p].name.c_str(), base.pair_mae_deg[p], mine.pair_mae_deg[p]);
@@ -104,8 +104,8 @@ int main(int argc, char** argv) {
   LearnPriorSummary summary;
   const Eigen::VectorXd theta = LearnPrior(train, options, {}, &summary);
   options.progress = nullptr;
-  std::printf("training: D %.5f -> %.5f, %d iterations, %d smoothing runs, %.1f s, %s\n", summary.initial_data_loss,
-              summary.final_data_loss, summary.iterations, summary.smoothing_runs, summary.total_time_s,
+  std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs, %.1f s, %s\n", summary.initial_data_loss / summary.num_vertices,
+              summary.final_data_loss / summary.num_vertices, summary.iterations, summary.smoothing_runs, summary.total_time_s,
               summary.termination.c_str());
   std::printf("theta:");
   for (int j = 0; j < theta.size(); ++j) std::printf(" %.4f", theta[j]);

@@ -1,0 +1,52 @@
+// prior.yaml: a learned spline potential and where it came from (what `rangebayes learn-prior` writes and
+// `rangebayes smooth --prior` reads). A small YAML subset (one `key: value` per line, flow lists, quoted
+// strings, # comments), written and read here so that bayes/ needs no YAML library.
+#pragma once
+
+#include <Eigen/Core>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "bayes/spline_potential.h"
+
+namespace rangebayes {
+
+struct LearnedPrior {
+  SplinePotentialOptions spline;   // N and ε² of the square-root base
+  Eigen::VectorXd theta;           // N knot values φ(t_j), t_j = 2j/(N−1)
+  double prior_weight = 0;         // β the potential was trained with (use the same β when smoothing); 0: not recorded
+  std::string noise_kind;          // "normal", "scanner", or what the pairs list said; may be empty
+  double noise_k = std::numeric_limits<double>::quiet_NaN();  // σ / l_e of the training noise; NaN: unknown
+  std::string training_set;        // the pairs list it was trained on
+  int training_pairs = 0;
+  std::string method;              // "implicit" or "interleaved"
+  double regularizer_weight = 1.0; // w
+  double training_mse_le2 = std::numeric_limits<double>::quiet_NaN();  // D per vertex at the end
+  std::string date;                // UTC, ISO 8601
+};
+
+// Throws Error naming the file on I/O failure.
+void WriteLearnedPrior(const LearnedPrior& prior, const std::string& path);
+// Throws Error naming the file and line on a malformed file, a missing key, or θ that does not fit N
+// (or whose ends are not the square root's).
+LearnedPrior ReadLearnedPrior(const std::string& path);
+
+// A list of training pairs: one `NOISY GROUND_TRUTH` per line (paths without spaces, relative ones taken from
+// the list's folder), blank lines and `#` comments skipped. A comment `# noise: KIND k=K` (what synth-meshes
+// writes) records the noise the pairs carry.
+struct PairsList {
+  std::vector<std::string> noisy;
+  std::vector<std::string> truth;
+  std::string noise_kind;                                      // empty when the list does not say
+  double noise_k = std::numeric_limits<double>::quiet_NaN();   // NaN when the list does not say
+};
+// Throws Error naming the file and line on a malformed line or an empty list.
+PairsList ReadPairsList(const std::string& path);
+// Paths are written as given; a noise line is written when noise_kind is not empty.
+void WritePairsList(const PairsList& list, const std::string& path);
+
+// The current UTC time as 2026-11-22T03:04:05Z.
+std::string UtcNowIso8601();
+
+}  // namespace rangebayes

@@ -1,0 +1,44 @@
+// End to end: synth-meshes writes a tiny training set, learn-prior learns from it and writes prior.yaml + PNG.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "bayes/learn_prior_io.h"
+#include "tests/apps/run_binary.h"
+
+namespace rangebayes {
+namespace {
+
+TEST(LearnCli, SynthThenLearn) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rb_learn_cli_test";
+  std::filesystem::remove_all(dir);
+  const RunResult synth = RunRangebayes("synth-meshes --out '" + dir.string() +
+                                        "' --train 2 --test 1 --min-cells 4 --max-cells 5 --noise 0.3 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  ASSERT_TRUE(std::filesystem::exists(dir / "train_pairs.txt"));
+  ASSERT_TRUE(std::filesystem::exists(dir / "test_pairs.txt"));
+  const PairsList list = ReadPairsList((dir / "train_pairs.txt").string());
+  EXPECT_EQ(list.noisy.size(), 2u);
+  EXPECT_EQ(list.noise_kind, "normal");
+
+  const std::string prior = (dir / "prior.yaml").string();
+  const RunResult learn = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" +
+                                        prior + "' --knots 8 --iterations 3 --threads 1 --quiet");
+  ASSERT_EQ(learn.exit_code, 0) << learn.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "prior.png"));
+  const LearnedPrior read = ReadLearnedPrior(prior);
+  EXPECT_EQ(read.spline.num_knots, 8);
+  EXPECT_EQ(read.noise_kind, "normal");
+  EXPECT_DOUBLE_EQ(read.noise_k, 0.3);
+  EXPECT_EQ(read.training_pairs, 2);
+  EXPECT_FALSE(read.date.empty());
+
+  const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
+  EXPECT_EQ(usage.exit_code, 2) << usage.output;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rangebayes

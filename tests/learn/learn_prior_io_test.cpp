@@ -1,0 +1,89 @@
+#include "bayes/learn_prior_io.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("rb_learn_io_" + name)).string();
+}
+
+TEST(LearnPriorIo, RoundTrip) {
+  LearnedPrior prior;
+  prior.spline.num_knots = 6;
+  prior.theta = SplinePotential::SquareRootTheta(prior.spline);
+  prior.theta[2] += 0.125;
+  prior.noise_kind = "normal";
+  prior.noise_k = 0.3;
+  prior.training_set = "/data/with \"quotes\"/train_pairs.txt";
+  prior.training_pairs = 8;
+  prior.method = "interleaved";
+  prior.date = UtcNowIso8601();
+  const std::string path = TempPath("prior.yaml");
+  WriteLearnedPrior(prior, path);
+  const LearnedPrior read = ReadLearnedPrior(path);
+  EXPECT_EQ(read.spline.num_knots, 6);
+  EXPECT_EQ(read.theta, prior.theta);  // %.17g round-trips doubles exactly
+  EXPECT_EQ(read.noise_kind, "normal");
+  EXPECT_EQ(read.noise_k, 0.3);
+  EXPECT_EQ(read.training_set, prior.training_set);
+  EXPECT_EQ(read.training_pairs, 8);
+  EXPECT_EQ(read.date, prior.date);
+  EXPECT_TRUE(std::isnan(read.training_mse_le2));
+  std::remove(path.c_str());
+}
+
+TEST(LearnPriorIo, RejectsBrokenFiles) {
+  const std::string path = TempPath("broken.yaml");
+  {
+    std::ofstream out(path);
+    out << "format: rangebayes-learned-prior-1\nnum_knots: 4\nepsilon_squared: 0.0001\ntheta: [0.01, 0.5, 1.0]\n";
+  }
+  EXPECT_THROW(ReadLearnedPrior(path), Error);  // 3 values for 4 knots
+  {
+    std::ofstream out(path);
+    out << "format: rangebayes-learned-prior-1\nnum_knots: 3\nepsilon_squared: 0.0001\ntheta: [0.5, 1.0, 2.0]\n";
+  }
+  EXPECT_THROW(ReadLearnedPrior(path), Error);  // ends not the square root's
+  {
+    std::ofstream out(path);
+    out << "something else\n";
+  }
+  EXPECT_THROW(ReadLearnedPrior(path), Error);
+  EXPECT_THROW(ReadLearnedPrior(TempPath("does_not_exist.yaml")), Error);
+  std::remove(path.c_str());
+}
+
+TEST(LearnPriorIo, PairsListResolvesRelativePaths) {
+  const std::string path = TempPath("pairs.txt");
+  PairsList list;
+  list.noisy = {"a_noisy.ply", "/abs/b_noisy.ply"};
+  list.truth = {"a_gt.ply", "/abs/b_gt.ply"};
+  list.noise_kind = "scanner";
+  list.noise_k = 0.5;
+  WritePairsList(list, path);
+  const PairsList read = ReadPairsList(path);
+  const std::string folder = std::filesystem::path(path).parent_path().string() + "/";
+  ASSERT_EQ(read.noisy.size(), 2u);
+  EXPECT_EQ(read.noisy[0], folder + "a_noisy.ply");
+  EXPECT_EQ(read.truth[1], "/abs/b_gt.ply");
+  EXPECT_EQ(read.noise_kind, "scanner");
+  EXPECT_EQ(read.noise_k, 0.5);
+  {
+    std::ofstream out(path);
+    out << "only_one_path.ply\n";
+  }
+  EXPECT_THROW(ReadPairsList(path), Error);
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace rangebayes
