@@ -1,0 +1,129 @@
+#include "core/validate.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+Mesh MakeMesh(const std::vector<Eigen::RowVector3d>& points, const std::vector<Eigen::RowVector3i>& faces) {
+  Mesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (size_t i = 0; i < points.size(); ++i) mesh.V.row(static_cast<Eigen::Index>(i)) = points[i];
+  mesh.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) mesh.F.row(static_cast<Eigen::Index>(f)) = faces[f];
+  return mesh;
+}
+
+Mesh Tetrahedron() {
+  return MakeMesh({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}});
+}
+
+Mesh Grid(int n) {
+  std::vector<Eigen::RowVector3d> points;
+  std::vector<Eigen::RowVector3i> faces;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) points.emplace_back(x, y, 0);
+  }
+  for (int y = 0; y + 1 < n; ++y) {
+    for (int x = 0; x + 1 < n; ++x) {
+      const int a = y * n + x, b = a + 1, c = a + n, d = c + 1;
+      faces.emplace_back(a, b, d);
+      faces.emplace_back(a, d, c);
+    }
+  }
+  return MakeMesh(points, faces);
+}
+
+void ExpectClean(const MeshValidation& v) {
+  EXPECT_TRUE(v.clean());
+  EXPECT_TRUE(DescribeFindings(v).empty());
+}
+
+TEST(ValidateMesh, TetrahedronIsCleanAndClosed) {
+  const MeshValidation v = ValidateMesh(Tetrahedron());
+  ExpectClean(v);
+  EXPECT_EQ(v.boundary_edges, 0);
+}
+
+TEST(ValidateMesh, OpenGridIsCleanWithBoundary) {
+  const MeshValidation v = ValidateMesh(Grid(4));
+  ExpectClean(v);
+  EXPECT_EQ(v.boundary_edges, 4 * 3);
+}
+
+TEST(ValidateMesh, EmptyMeshIsClean) { ExpectClean(ValidateMesh(Mesh{})); }
+
+TEST(ValidateMesh, FlippedFaceGivesThreeInconsistentEdges) {
+  Mesh mesh = Tetrahedron();
+  std::swap(mesh.F(3, 0), mesh.F(3, 1));
+  const MeshValidation v = ValidateMesh(mesh);
+  EXPECT_EQ(v.inconsistent_edges, 3);
+  EXPECT_EQ(v.non_manifold_edges, 0);
+  EXPECT_FALSE(v.clean());
+}
+
+TEST(ValidateMesh, FanOfThreeFacesOnOneEdgeIsNonManifold) {
+  const Mesh mesh = MakeMesh({{0, 0, 0}, {1, 0, 0}, {0.5, 1, 0}, {0.5, -1, 0}, {0.5, 0, 1}},
+                             {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}});
+  const MeshValidation v = ValidateMesh(mesh);
+  EXPECT_EQ(v.non_manifold_edges, 1);
+  EXPECT_EQ(v.non_manifold_vertices, 0);  // each end vertex still has one fan
+  EXPECT_EQ(v.boundary_edges, 6);
+  EXPECT_EQ(v.duplicate_faces, 0);
+}
+
+TEST(ValidateMesh, TwoComponentsAreClean) {
+  Mesh a = Tetrahedron();
+  Mesh mesh;
+  mesh.V.resize(8, 3);
+  mesh.V << a.V, a.V.array() + 5.0;
+  mesh.F.resize(8, 3);
+  mesh.F << a.F, a.F.array() + 4;
+  ExpectClean(ValidateMesh(mesh));
+}
+
+TEST(ValidateMesh, BowTieVertexIsNonManifold) {
+  // Two triangles that touch only at vertex 0.
+  const Mesh mesh = MakeMesh({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {-1, 0, 0}, {-1, -1, 0}}, {{0, 1, 2}, {0, 3, 4}});
+  const MeshValidation v = ValidateMesh(mesh);
+  EXPECT_EQ(v.non_manifold_vertices, 1);
+  EXPECT_EQ(v.non_manifold_edges, 0);
+}
+
+TEST(ValidateMesh, CountsFaceAndVertexDefects) {
+  Mesh mesh = MakeMesh({{0, 0, 0},
+                        {1, 0, 0},
+                        {0, 1, 0},
+                        {2, 0, 0},  // collinear with 0 and 1
+                        {std::numeric_limits<double>::quiet_NaN(), 0, 0},
+                        {9, 9, 9}},  // unreferenced
+                       {{0, 1, 2},
+                        {2, 1, 0},    // duplicate of face 0 (reversed)
+                        {0, 1, 3},    // zero area
+                        {0, 0, 2},    // degenerate
+                        {3, 1, 4},    // uses the NaN vertex
+                        {0, 7, -1}}); // two indices out of range
+  const MeshValidation v = ValidateMesh(mesh);
+  EXPECT_EQ(v.out_of_range_indices, 2);
+  EXPECT_EQ(v.degenerate_faces, 1);
+  EXPECT_EQ(v.zero_area_faces, 1);
+  EXPECT_EQ(v.duplicate_faces, 1);
+  EXPECT_EQ(v.non_finite_vertices, 1);
+  EXPECT_EQ(v.unreferenced_vertices, 1);
+  EXPECT_FALSE(v.clean());
+  EXPECT_EQ(DescribeFindings(v).size(), 7u);  // plus the non-manifold edge 0-1 (faces 0, 1, 2)
+  EXPECT_EQ(v.non_manifold_edges, 1);
+}
+
+TEST(ValidateMesh, RejectsBadOptions) {
+  ValidateMeshOptions options;
+  options.zero_area_relative = -1;
+  EXPECT_THROW(ValidateMesh(Tetrahedron(), options), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
