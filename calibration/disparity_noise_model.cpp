@@ -326,7 +326,12 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     bin.count = static_cast<int>(rb.size());
     sum.depth_bins.push_back(bin);
   }
-  if (sum.depth_bins.size() >= 2) {
+  // A slope needs depths that differ: bins spanning under 2% of the median depth leave it NaN.
+  sum.depth_slope_px_per_m = std::numeric_limits<double>::quiet_NaN();
+  const bool spread = sum.depth_bins.size() >= 2 &&
+                      sum.depth_bins.back().depth_m - sum.depth_bins.front().depth_m >
+                          0.02 * sum.depth_bins[sum.depth_bins.size() / 2].depth_m;
+  if (spread) {
     double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
     for (const NoiseDepthBin& b : sum.depth_bins) {
       const double w = b.count;

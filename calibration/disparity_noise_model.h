@@ -22,7 +22,7 @@ struct DisparityNoiseModel {
   std::string matcher;                    // e.g. "sgbm", "block", "spacetime"
   int samples = 0;                        // residuals the fit used
   double outlier_fraction = 0.0;          // mixture weight of the uniform outlier component
-  double depth_slope_px_per_m = 0.0;      // slope of σ_d (constant form, fitted per depth bin) against depth
+  double depth_slope_px_per_m = 0.0;      // slope of σ_d (constant form, per depth bin) against depth; NaN: n/a
 
   // σ_d in pixels for a pixel whose matcher predicted σ_pred (pixels). The constant form ignores σ_pred;
   // the floor-plus-scale form returns NaN for a non-finite σ_pred (no prediction: the caller decides).
@@ -67,7 +67,8 @@ struct NoiseFitSummary {
   double log_likelihood = 0.0;      // of the returned model, summed over samples
   double outlier_fraction = 0.0;
   std::vector<NoiseDepthBin> depth_bins;
-  double depth_slope_px_per_m = 0.0;  // least-squares slope of the bins' σ against depth
+  double depth_slope_px_per_m = 0.0;  // least-squares slope of the bins' σ against depth; NaN when the bins
+                                      // span under 2% of the median depth (nothing to measure)
   int iterations = 0;                 // Nelder–Mead iterations of the main fit
 };
 
