@@ -66,6 +66,8 @@ class Problem {
   const SmoothingEnergy& energy_;
 };
 
+// Trials are evaluated straight into *x_out / *g_out (no extra state vectors: memory matters at 1M faces); if
+// the last trial is not the best accepted one, the best is evaluated again (rare).
 LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Eigen::VectorXd& p, double energy0,
                             double slope0, double alpha_init, double c2, Eigen::VectorXd* x_out,
                             Eigen::VectorXd* g_out) {
@@ -73,18 +75,19 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
   constexpr int kMaxEvaluations = 20;
   LineSearchResult best;
   best.energy = energy0;
-  Eigen::VectorXd x_trial(x.size()), g_trial(x.size());
   double lo = 0, slope_lo = slope0;  // largest accepted α with negative slope
   double hi = std::numeric_limits<double>::infinity();
   double alpha = alpha_init;
+  double last_alpha = -1;
   const int start_evaluations = problem.evaluations;
   for (int it = 0; it < kMaxEvaluations; ++it) {
     if (!(alpha > 0) || !std::isfinite(alpha)) break;
-    x_trial = x + alpha * p;
-    const EnergyParts parts = problem.Evaluate(x_trial, &g_trial);
+    *x_out = x + alpha * p;
+    const EnergyParts parts = problem.Evaluate(*x_out, g_out);
+    last_alpha = alpha;
     const double e = parts.total();
     if (!std::isfinite(e) || e > energy0 + kArmijo * alpha * slope0) {
-      // Too far: interpolate a parabola through φ(0), φ'(0), φ(α), kept inside [0.1α, 0.5α] (and above lo).
+      // Too far: a parabola through φ(0), φ'(0), φ(α), kept inside [0.1α, 0.5α] and above lo.
       hi = alpha;
       double next = 0.5 * alpha;
       if (std::isfinite(e)) {
@@ -96,33 +99,26 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
       if (hi - lo <= 1e-14 * hi) break;
       continue;
     }
-    const double slope = g_trial.dot(p);
-    if (e < best.energy || !best.success) {
-      if (!best.success || e <= best.energy) {
-        best.success = true;
-        best.alpha = alpha;
-        best.energy = e;
-        best.parts = parts;
-        x_out->swap(x_trial);
-        g_out->swap(g_trial);
-        x_trial.resize(x.size());
-        g_trial.resize(x.size());
-      }
+    const double slope = g_out->dot(p);
+    if (!best.success || e <= best.energy) {
+      best.success = true;
+      best.alpha = alpha;
+      best.energy = e;
+      best.parts = parts;
     }
     if (std::abs(slope) <= c2 * std::abs(slope0)) break;
     double next;
     if (slope < 0) {
-      // Still descending: secant through (lo, slope_lo) and (α, slope), else expand.
+      // Still descending: Newton step with the secant curvature through (lo, slope_lo) and (α, slope).
       const double denom = slope - slope_lo;
       next = denom > 0 ? alpha - slope * (alpha - lo) / denom : 4 * alpha;
       lo = alpha;
       slope_lo = slope;
       next = std::min(next, 4 * alpha);
-      if (std::isfinite(hi)) next = (next > lo && next < hi) ? next : 0.5 * (lo + hi);
       next = std::max(next, 1.1 * alpha);
-      if (std::isfinite(hi) && next >= hi) next = 0.5 * (lo + hi);
+      if (std::isfinite(hi) && !(next < hi)) next = 0.5 * (lo + hi);
     } else {
-      // Passed the minimum: secant between lo and α lies inside (lo, α).
+      // Passed the minimum: the secant root between lo and α.
       hi = alpha;
       const double denom = slope - slope_lo;
       next = denom > 0 ? lo - slope_lo * (alpha - lo) / denom : 0.5 * (lo + alpha);
@@ -131,6 +127,11 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
     }
     if (std::isfinite(hi) && hi - lo <= 1e-14 * hi) break;
     alpha = next;
+  }
+  if (best.success && last_alpha != best.alpha) {
+    *x_out = x + best.alpha * p;
+    best.parts = problem.Evaluate(*x_out, g_out);
+    best.energy = best.parts.total();
   }
   best.evaluations = problem.evaluations - start_evaluations;
   return best;
@@ -305,7 +306,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       p = -g + std::max(0.0, beta_pr) * p;
     }
   }
-  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 6);
+  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 5);
   return {x, parts};
 }
 
@@ -431,11 +432,8 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
     summary.evaluations = problem.evaluations;
     summary.data_energy = minimum.parts.data;
     summary.prior_energy = minimum.parts.prior;
-    const Normals before = energy.FaceNormals(energy.Measurements());
-    const Normals after = energy.FaceNormals(minimum.x);
-    for (int f = 0; f < mesh.num_faces(); ++f) {
-      if (before.row(f).dot(after.row(f)) < 0) ++summary.flipped_faces;
-    }
+    summary.flipped_faces = energy.CountFoldedFaces(minimum.x);
+    summary.input_flipped_faces = energy.CountFoldedFaces(energy.Measurements());
     result.V = Eigen::Map<const Vertices>(minimum.x.data(), mesh.num_vertices(), 3);
   });
   summary.time_s = Seconds(start);

@@ -7,8 +7,11 @@
 // covariances with MakeGenericNoisyMesh (bayes/noise_model.h) first.
 //
 // The default rule (DESIGN §3.2, measured in BENCHMARKS.md "Bayesian smoothing"): the data term carries all
-// units (W ∝ 1/σ², σ in model units, so σ = k·l_e scales with the mesh), the prior is unitless, and a single
-// constant β = 1.7 (square-root prior, ε² = 1e-4) balances them on every mesh. No per-mesh tuning.
+// units (W = ½ Σ⁻¹; for a generic mesh Σ = σ² I with σ = k·l_e, so W scales with the mesh and its noise), the
+// prior is unitless, and one constant β = 2.4 (square-root prior, ε² = 1e-4, each face pair counted once)
+// balances them on every mesh. Why a constant works: at the MAP, a vertex moved by about σ costs O(1) in the
+// data term whatever the scale, and the prior's cost of a normal deviation is scale-free too. β was chosen
+// from a coarse scan (1.2, 1.7, 2.4, 3.4) over all benchmark meshes at once, not per mesh.
 #pragma once
 
 #include <string>
@@ -36,7 +39,7 @@ struct SmoothOptions {
   double cauchy_scale = 0.3;           // c of log(1 + d²/c²), (0, 2]
   // A potential to use instead of `prior` (e.g. a learned spline); not owned, must outlive the call.
   const Potential* potential = nullptr;
-  double prior_weight = 1.7;  // β, multiplies the prior sum; [0, 1e6]; 1.7 is the measured default rule
+  double prior_weight = 2.4;  // β, multiplies the prior sum; [0, 1e6]; 2.4 is the measured default rule
   SmoothTolerance tolerance = SmoothTolerance::kDefault;
   SmoothMinimiser minimiser = SmoothMinimiser::kConjugateGradient;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
@@ -69,7 +72,8 @@ struct SmoothSummary {
   double time_s = 0;               // whole call
   double setup_time_s = 0;         // topology and buffers
   int restarts = 0;
-  int flipped_faces = 0;           // faces whose normal turned by more than 90° from the input's
+  int flipped_faces = 0;           // result faces folded over their neighbours (normal against theirs)
+  int input_flipped_faces = 0;     // the same count in the input (noise folds some faces; smoothing unfolds)
   int inactive_faces = 0;          // degenerate faces left out of the prior
   int num_threads = 0;
   std::string potential_name;

@@ -35,6 +35,7 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
                                  double prior_weight, const Potential& potential)
     : num_vertices_(measured.num_vertices()),
       faces_(measured.F),
+      z_(measured.V.data(), 3 * static_cast<Eigen::Index>(measured.num_vertices())),
       prior_weight_(prior_weight),
       potential_(&potential) {
   const int nv = num_vertices_, nf = measured.num_faces();
@@ -43,10 +44,8 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   RB_CHECK(prior_weight >= 0 && std::isfinite(prior_weight), "smoothing: prior weight ", prior_weight,
            " must be finite and non-negative");
   RB_CHECK(measured.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
-  z_.resize(3 * static_cast<Eigen::Index>(nv));
   information_.resize(6 * static_cast<size_t>(nv));
   for (int i = 0; i < nv; ++i) {
-    z_.segment<3>(3 * i) = measured.V.row(i).transpose();
     const Eigen::Matrix3d& W = information[static_cast<size_t>(i)];
     RB_CHECK(W.allFinite(), "smoothing: information matrix of vertex ", i, " is not finite");
     double* w = &information_[6 * static_cast<size_t>(i)];
@@ -132,9 +131,9 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
 Eigen::VectorXd SmoothingEnergy::Measurements() const { return z_; }
 
 size_t SmoothingEnergy::MemoryBytes() const {
-  return sizeof(int) * (faces_.size() + neighbour_offsets_.size() + neighbours_.size() + corner_offsets_.size() +
+  return sizeof(int) * (neighbour_offsets_.size() + neighbours_.size() + corner_offsets_.size() +
                         corners_.size()) +
-         sizeof(double) * (static_cast<size_t>(z_.size()) + information_.size() + normals_.size() +
+         sizeof(double) * (information_.size() + normals_.size() +
                            inverse_length_.size() + h_.size()) +
          active_.size();
 }
@@ -245,6 +244,18 @@ Normals SmoothingEnergy::FaceNormals(const Eigen::VectorXd& x) const {
     if (length > 0 && std::isfinite(length)) normals.row(f) = c.transpose() / length;
   }
   return normals;
+}
+
+int SmoothingEnergy::CountFoldedFaces(const Eigen::VectorXd& x) const {
+  const Normals normals = FaceNormals(x);
+  int folded = 0;
+  for (int t = 0; t < num_faces(); ++t) {
+    if (neighbour_offsets_[t] == neighbour_offsets_[t + 1]) continue;
+    Eigen::RowVector3d sum = Eigen::RowVector3d::Zero();
+    for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) sum += normals.row(neighbours_[static_cast<size_t>(q)]);
+    if (normals.row(t).dot(sum) < 0) ++folded;
+  }
+  return folded;
 }
 
 }  // namespace rangebayes

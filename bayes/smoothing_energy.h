@@ -31,8 +31,9 @@ struct EnergyParts {
 
 class SmoothingEnergy {
  public:
-  // measured: z and faces (indices checked; throws Error). information: one W_i per vertex (symmetric).
-  // `potential` is not owned and must outlive this object. prior_weight = β ≥ 0.
+  // measured: z and faces (indices checked; throws Error); referenced, not copied: it must outlive this
+  // object and stay unchanged. information: one W_i per vertex (symmetric). `potential` is not owned and
+  // must outlive this object. prior_weight = β ≥ 0.
   SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::Matrix3d>& information, double prior_weight,
                   const Potential& potential);
 
@@ -49,6 +50,10 @@ class SmoothingEnergy {
   // Unit face normals of x (#F×3; zero rows for degenerate faces).
   Normals FaceNormals(const Eigen::VectorXd& x) const;
 
+  // Faces of x folded over their neighbours: the face normal points against the sum of its edge-neighbours'
+  // normals (a fold or flip in the result). Faces without active neighbours are not counted.
+  int CountFoldedFaces(const Eigen::VectorXd& x) const;
+
   int num_vertices() const { return num_vertices_; }
   int num_faces() const { return static_cast<int>(faces_.rows()); }
   int num_pairs() const { return static_cast<int>(neighbours_.size() / 2); }
@@ -58,8 +63,8 @@ class SmoothingEnergy {
 
  private:
   int num_vertices_ = 0;
-  Faces faces_;
-  Eigen::VectorXd z_;
+  const Faces& faces_;
+  Eigen::Map<const Eigen::VectorXd> z_;  // the measured V, row-major: vertex i at [3i, 3i+3)
   std::vector<double> information_;  // 6 per vertex: xx xy xz yy yz zz
   double prior_weight_ = 0;
   const Potential* potential_ = nullptr;

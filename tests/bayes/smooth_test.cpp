@@ -122,7 +122,7 @@ TEST(Smooth, EmptyMeshAndBadCovariance) {
 TEST(NoiseModel, CovarianceIsAlongTheNormal) {
   const Mesh plane = testing::Grid(3, 3);
   GenericNoiseSummary summary;
-  const NoisyMesh noisy = MakeGenericNoisyMesh(plane, GenericNoiseOptions{.noise_edge_multiple = 0.5}, &summary);
+  const NoisyMesh noisy = MakeGenericNoisyMesh(plane, GenericNoiseOptions{.noise_edge_multiple = 0.5, .across_ratio = 2.0}, &summary);
   EXPECT_FALSE(summary.estimated);
   EXPECT_NEAR(summary.sigma, 0.5 * summary.mean_edge_length, 1e-12);
   const Eigen::Matrix3d& c = noisy.covariance[5];

@@ -1,0 +1,200 @@
+// `rangebayes smooth IN OUT` (Bayesian smoothing, bayes/smooth.h) and `rangebayes eval GT RESULT` (DESIGN §7).
+#include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "apps/command.h"
+#include "apps/progress.h"
+#include "bayes/noise_model.h"
+#include "bayes/smooth.h"
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/render.h"
+#include "pipeline/mesh_metrics.h"
+#include "pipeline/png.h"
+
+namespace rangebayes::apps {
+namespace {
+
+struct SmoothArgs {
+  std::string input;
+  std::string output;
+  double noise = std::nan("");
+  double sigma = std::nan("");
+  std::string prior = "sqrt";
+  std::string tolerance = "default";
+  std::string minimiser = "cg";
+  double beta = SmoothOptions{}.prior_weight;
+  double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
+  double across_ratio = GenericNoiseOptions{}.across_ratio;
+  int threads = 0;
+  std::string png;
+  std::vector<double> view{0.0, 0.0, -1.0};
+  bool ignore_covariance = false;
+  bool quiet = false;
+};
+
+Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
+  if (v.size() != 3) UsageError("--view needs three numbers x y z");
+  const Eigen::Vector3d d(v[0], v[1], v[2]);
+  if (!(d.norm() > 0) || !d.allFinite()) UsageError("--view must be a nonzero direction");
+  return d;
+}
+
+void RunSmooth(const SmoothArgs& args) {
+  if (!std::isnan(args.noise) && !std::isnan(args.sigma)) UsageError("give --noise or --sigma, not both");
+  const Eigen::Vector3d view = ViewDirection(args.view);
+  SmoothOptions options;
+  options.prior = ParsePriorKind(args.prior);
+  options.tolerance = ParseSmoothTolerance(args.tolerance);
+  options.minimiser = ParseSmoothMinimiser(args.minimiser);
+  options.prior_weight = args.beta;
+  options.sqrt_epsilon_squared = args.epsilon_squared;
+  options.num_threads = args.threads;
+  options.Check();
+
+  MeshReadSummary read_summary;
+  NoisyMesh noisy = ReadNoisyMesh(args.input, &read_summary);
+  for (const std::string& notice : read_summary.notices) Notice(args.quiet, args.input + ": " + notice);
+  std::printf("input:      %s (%d vertices, %d faces)\n", args.input.c_str(), noisy.mesh.num_vertices(),
+              noisy.mesh.num_faces());
+  const bool given = !std::isnan(args.noise) || !std::isnan(args.sigma);
+  if (noisy.has_covariance() && !given && !args.ignore_covariance) {
+    std::printf("noise:      per-vertex covariances from the file\n");
+  } else {
+    if (noisy.has_covariance()) {
+      Notice(args.quiet, "the file's per-vertex covariances are replaced by the generic noise model");
+    }
+    GenericNoiseOptions noise;
+    noise.noise_edge_multiple = args.noise;
+    noise.sigma = args.sigma;
+    noise.across_ratio = args.across_ratio;
+    GenericNoiseSummary noise_summary;
+    noisy = MakeGenericNoisyMesh(noisy.mesh, noise, &noise_summary);
+    std::printf("noise:      k = %.4g x mean edge %.6g = sigma %.6g model units (%s), across ratio %.3g\n",
+                noise_summary.noise_edge_multiple, noise_summary.mean_edge_length, noise_summary.sigma,
+                noise_summary.estimated ? "estimated from the mesh" : "given", args.across_ratio);
+    if (noise_summary.estimated && !(noise_summary.noise_edge_multiple > 0)) {
+      Notice(false, "warning: no noise measurable in this mesh; give --noise or --sigma");
+    }
+  }
+  std::printf("prior:      %s, beta %.4g%s\n", args.prior.c_str(), options.prior_weight,
+              options.prior == PriorKind::kSqrt ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
+                                                 : "");
+  std::printf("minimiser:  %s, tolerance %s, threads %s\n", args.minimiser.c_str(), args.tolerance.c_str(),
+              args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
+  std::fflush(stdout);
+
+  ProgressPrinter progress(args.quiet);
+  options.progress = progress.callback();
+  SmoothSummary summary;
+  const Mesh result = Smooth(noisy, options, &summary);
+  progress.Finish();
+  WriteMesh(result, args.output);
+  std::printf("result:     %s\n", args.output.c_str());
+  std::printf("summary:    %d iterations, %d evaluations, %.3f s (setup %.3f s), %s\n", summary.iterations,
+              summary.evaluations, summary.time_s, summary.setup_time_s,
+              SmoothTerminationName(summary.termination).c_str());
+  if (!summary.energy.empty()) {
+    std::printf("energy:     %.6g -> %.6g (data %.6g, prior %.6g)\n", summary.energy.front(), summary.energy.back(),
+                summary.data_energy, summary.prior_energy);
+  }
+  if (summary.inactive_faces > 0) {
+    std::printf("degenerate: %d zero-area faces left out of the prior\n", summary.inactive_faces);
+  }
+  if (summary.flipped_faces > 0) {
+    Notice(false, "warning: " + std::to_string(summary.flipped_faces) +
+                      " faces flipped in the result (folded against their neighbours; the input had " +
+                      std::to_string(summary.input_flipped_faces) + "); try a lower --noise or --beta");
+  }
+  if (!args.png.empty()) {
+    RenderOptions render;
+    render.view_direction = view;
+    render.width_px = 640;
+    render.height_px = 640;
+    WritePng(SideBySide({RenderMesh(noisy.mesh, render), RenderMesh(result, render)}), args.png);
+    std::printf("picture:    %s (before | after)\n", args.png.c_str());
+  }
+}
+
+struct EvalArgs {
+  std::string ground_truth;
+  std::string result;
+  bool surface_only = false;
+};
+
+nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+void RunEval(const EvalArgs& args) {
+  const Mesh gt = ReadMesh(args.ground_truth);
+  const Mesh result = ReadMesh(args.result);
+  nlohmann::json out;
+  if (!args.surface_only) {
+    if (gt.F.rows() != result.F.rows() || gt.F != result.F || gt.num_vertices() != result.num_vertices()) {
+      RB_FAIL(args.result, " and ", args.ground_truth,
+              " do not share connectivity (needed for mae_deg); use --surface-only for surface distances alone");
+    }
+    int skipped = 0;
+    out["mae_deg"] = Number(MeanAngularErrorDeg(result, gt, &skipped));
+    out["mae_skipped_faces"] = skipped;
+  }
+  const SurfaceErrors errors = ComputeSurfaceErrors(result, gt);
+  out["ev"] = Number(errors.ev);
+  out["ev_rel_bbox"] = Number(errors.ev_rel_bbox());
+  out["hausdorff"] = Number(errors.hausdorff);
+  out["hausdorff_rel_bbox"] = Number(errors.hausdorff_rel_bbox());
+  out["mean_distance"] = Number(errors.mean_distance);
+  out["bbox_diagonal"] = Number(errors.bbox_diagonal);
+  out["faces"] = result.num_faces();
+  out["vertices"] = result.num_vertices();
+  std::printf("%s\n", out.dump().c_str());
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
+  auto args = std::make_shared<SmoothArgs>();
+  auto* sub = app.add_subcommand(
+      "smooth", "Bayesian smoothing of a noisy mesh (MAP of paper §3-4): keeps vertex order and faces");
+  sub->add_option("IN", args->input, "noisy mesh (.ply/.obj/.off); PLY cov_xx..cov_zz vertex properties are used")
+      ->required();
+  sub->add_option("OUT", args->output, "smoothed mesh (.ply/.obj/.off)")->required();
+  sub->add_option("--noise", args->noise,
+                  "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
+                  "else estimated from the mesh");
+  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise");
+  sub->add_option("--prior", args->prior, "pairwise potential: sqrt (paper), quadratic, cauchy")
+      ->check(CLI::IsMember({"sqrt", "quadratic", "cauchy"}));
+  sub->add_option("--tolerance", args->tolerance, "stopping preset: fast, default, tight")
+      ->check(CLI::IsMember({"fast", "default", "tight"}));
+  sub->add_option("--minimiser", args->minimiser, "cg (Polak-Ribiere+, the paper's) or lbfgs")
+      ->check(CLI::IsMember({"cg", "lbfgs"}));
+  sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
+  sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
+  sub->add_option("--across-ratio", args->across_ratio,
+                  "generic noise model: sigma along the normal / sigma across it, [1, 100]");
+  sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")
+      ->check(CLI::Range(0, 1024));
+  sub->add_option("--png", args->png, "write a before|after shaded picture (PNG) to this file");
+  sub->add_option("--view", args->view, "view direction x y z for --png (model coordinates)")->expected(3);
+  sub->add_flag("--ignore-covariance", args->ignore_covariance,
+                "use the generic noise model even when the file has covariances");
+  sub->add_flag("--quiet,-q", args->quiet, "no progress or notices on stderr");
+  sub->callback([args] { RunSmooth(*args); });
+
+  auto eval_args = std::make_shared<EvalArgs>();
+  auto* eval = app.add_subcommand(
+      "eval", "Compare a result mesh with ground truth: one JSON line {mae_deg, ev, hausdorff_rel_bbox, ...}");
+  eval->add_option("GT", eval_args->ground_truth, "ground-truth mesh")->required();
+  eval->add_option("RESULT", eval_args->result, "result mesh (same connectivity for mae_deg)")->required();
+  eval->add_flag("--surface-only", eval_args->surface_only,
+                 "skip mae_deg (for results with other connectivity, e.g. decimated meshes)");
+  eval->callback([eval_args] { RunEval(*eval_args); });
+});
+
+}  // namespace rangebayes::apps

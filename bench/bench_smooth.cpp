@@ -1,0 +1,225 @@
+// Bayesian smoothing benchmarks (BENCHMARKS.md "Bayesian smoothing").
+//
+//   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight] [--minimiser cg|lbfgs]
+//                        [--beta B] [--ratio R] [--eps2 E] [--prior sqrt|quadratic|cauchy] [--cases a,b,...]
+//       runs every denoising case of DIR (default ../shared/data/meshes) and prints a Markdown table of the
+//       mean angular error (degrees) beside DESIGN.md §4's reference points.
+//   bench_smooth speed MESH [--threads N] [--tolerance T] [--noise K] [--minimiser M] [--repeat R]
+//       times one smoothing run (setup, iterations, per-iteration and per-face times, memory).
+//   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
+#include <sys/resource.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bayes/noise_model.h"
+#include "bayes/smooth.h"
+#include "core/mesh_io.h"
+#include "core/topology.h"
+
+using namespace rangebayes;
+
+namespace {
+
+struct Case {
+  std::string name;
+  std::string gt;
+  std::string noisy;
+  double k;
+  double reference;  // DESIGN §4 reference minimiser (NaN: none)
+  double target;     // issue 3's quality target (NaN: none)
+  std::string anchor;
+};
+
+std::vector<Case> Cases() {
+  const double none = std::nan("");
+  return {
+      {"fandisk 0.3", "guideddenoising/fandisk_gt.obj", "guideddenoising/fandisk_noisy_gauss0.3.obj", 0.3, 2.2, 2.4,
+       "L0 2.24, guided 2.93"},
+      {"fandisk 0.6 (GCN)", "gcn-denoiser/fandisk_gt.obj", "gcn-denoiser/fandisk_noisy_gauss_n6.obj", 0.6, 4.05, none,
+       "guided 6.71, GCN 3.95"},
+      {"fandisk 0.7", "guideddenoising/fandisk_gt.obj", "guideddenoising/fandisk_noisy_gauss0.7.obj", 0.7, 4.9, 5.5,
+       "guided 8.41"},
+      {"block 0.4", "guideddenoising/block_gt.obj", "guideddenoising/block_noisy_gauss0.4.obj", 0.4, 3.7, 4.0,
+       "guided 4.09"},
+      {"trim-star 0.3 (GCN)", "gcn-denoiser/trim-star_gt.obj", "gcn-denoiser/trim-star_noisy_gauss_n3.obj", 0.3, 5.3,
+       5.3, "L0 6.19, GCN 5.32"},
+      {"nicolo 0.2", "guideddenoising/nicolo_gt.obj", "guideddenoising/nicolo_noisy_gauss0.2.obj", 0.2, 6.1, 6.5,
+       "bilateral normal 7.22"},
+      {"bunny 0.2", "guideddenoising/bunny_gt.obj", "guideddenoising/bunny_noisy_gauss0.2.obj", 0.2, 5.7, 6.6,
+       "bilateral normal 6.64"},
+      {"julius 0.2", "guideddenoising/julius_gt.obj", "guideddenoising/julius_noisy_gauss0.2.obj", 0.2, none, none,
+       ""},
+      {"igea 0.3", "nllr/igea_gt.off", "nllr/igea_noisy_n3.off", 0.3, 10.2, 10.0, "Taubin 10.18, NLLR 9.40"},
+      {"child 0.3", "nllr/child_gt.off", "nllr/child_noisy_n3.off", 0.3, 8.3, 7.5, "bilateral normal 7.80, NLLR 6.70"},
+  };
+}
+
+double MeanAngularErrorDeg(const Mesh& result, const Mesh& gt) {
+  double sum = 0;
+  int count = 0;
+  for (int f = 0; f < gt.num_faces(); ++f) {
+    auto normal = [&](const Mesh& m) {
+      const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+      return Eigen::Vector3d((b - a).cross(c - a).normalized());
+    };
+    const double dot = normal(result).dot(normal(gt));
+    if (!std::isfinite(dot)) continue;
+    sum += std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / M_PI;
+    ++count;
+  }
+  return count > 0 ? sum / count : std::nan("");
+}
+
+std::map<std::string, std::string> ParseFlags(int argc, char** argv, int first, std::vector<std::string>* positional) {
+  std::map<std::string, std::string> flags;
+  for (int i = first; i < argc; ++i) {
+    const std::string a(argv[i]);
+    if (a.size() >= 2 && a[0] == '-' && a[1] == '-') {
+      if (i + 1 < argc && !(argv[i + 1][0] == '-' && argv[i + 1][1] == '-')) {
+        flags[a] = argv[++i];
+      } else {
+        flags[a] = "1";
+      }
+    } else {
+      positional->push_back(a);
+    }
+  }
+  return flags;
+}
+
+std::string Join(const std::string& folder, const std::string& file) {
+  std::string path = folder;
+  path.push_back('/');
+  path.append(file);
+  return path;
+}
+
+double PeakRssMiB() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
+  SmoothOptions options;
+  if (flags.count("--tolerance")) options.tolerance = ParseSmoothTolerance(flags["--tolerance"]);
+  if (flags.count("--minimiser")) options.minimiser = ParseSmoothMinimiser(flags["--minimiser"]);
+  if (flags.count("--beta")) options.prior_weight = std::stod(flags["--beta"]);
+  if (flags.count("--eps2")) options.sqrt_epsilon_squared = std::stod(flags["--eps2"]);
+  if (flags.count("--prior")) options.prior = ParsePriorKind(flags["--prior"]);
+  if (flags.count("--cauchy")) options.cauchy_scale = std::stod(flags["--cauchy"]);
+  if (flags.count("--threads")) options.num_threads = std::stoi(flags["--threads"]);
+  if (flags.count("--max-iterations")) options.max_iterations = std::stoi(flags["--max-iterations"]);
+  if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
+  return options;
+}
+
+int Quality(std::map<std::string, std::string>& flags) {
+  const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
+  const bool estimate = flags.count("--estimate") > 0;
+  SmoothOptions options = OptionsFromFlags(flags);
+  GenericNoiseOptions noise;
+  if (flags.count("--ratio")) noise.across_ratio = std::stod(flags["--ratio"]);
+  std::string selected = flags.count("--cases") ? flags["--cases"] : "";
+  std::printf("| case | k given | k used | ours MAE (deg) | DESIGN §4 reference | target | best classical / published | iterations | time (s) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|\n");
+  for (const Case& c : Cases()) {
+    if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
+    const Mesh gt = ReadMesh(Join(data, c.gt));
+    const Mesh noisy = ReadMesh(Join(data, c.noisy));
+    GenericNoiseOptions n = noise;
+    if (!estimate) n.noise_edge_multiple = c.k;
+    GenericNoiseSummary noise_summary;
+    const NoisyMesh input = MakeGenericNoisyMesh(noisy, n, &noise_summary);
+    SmoothSummary summary;
+    const Mesh result = Smooth(input, options, &summary);
+    const double mae = MeanAngularErrorDeg(result, gt);
+    auto fmt = [](double v) {
+      char b[32];
+      std::snprintf(b, sizeof b, std::isnan(v) ? "–" : "%.2f", v);
+      return std::string(b);
+    };
+    std::printf("| %s | %.2f | %.3f | %.2f | %s | %s | %s | %d | %.2f |\n", c.name.c_str(), c.k,
+                noise_summary.noise_edge_multiple, mae, fmt(c.reference).c_str(), fmt(c.target).c_str(),
+                c.anchor.c_str(), summary.iterations, summary.time_s);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+int Estimate(std::map<std::string, std::string>& flags) {
+  const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
+  std::printf("| noisy file | true k (measured RMS / l_e) | estimate | error |\n|---|---|---|---|\n");
+  for (const Case& c : Cases()) {
+    const Mesh gt = ReadMesh(Join(data, c.gt));
+    const Mesh noisy = ReadMesh(Join(data, c.noisy));
+    const double rms = std::sqrt((noisy.V - gt.V).rowwise().squaredNorm().mean());
+    const double k_true = rms / MeanEdgeLength(gt);
+    const double k = EstimateNoiseLevel(noisy);
+    std::printf("| %s | %.3f | %.3f | %+.0f%% |\n", c.noisy.c_str(), k_true, k, 100 * (k / k_true - 1));
+  }
+  return 0;
+}
+
+int Speed(std::map<std::string, std::string>& flags, const std::vector<std::string>& positional) {
+  if (positional.empty()) {
+    std::fprintf(stderr, "usage: bench_smooth speed MESH [--threads N] ...\n");
+    return 2;
+  }
+  const Mesh mesh = ReadMesh(positional[0]);
+  const double rss_mesh = PeakRssMiB();
+  SmoothOptions options = OptionsFromFlags(flags);
+  GenericNoiseOptions noise;
+  noise.noise_edge_multiple = flags.count("--noise") ? std::stod(flags["--noise"]) : 0.3;
+  const int repeat = flags.count("--repeat") ? std::stoi(flags["--repeat"]) : 1;
+  const NoisyMesh input = MakeGenericNoisyMesh(mesh, noise);
+  const double rss_input = PeakRssMiB();
+  for (int r = 0; r < repeat; ++r) {
+    SmoothSummary summary;
+    const Mesh result = Smooth(input, options, &summary);
+    const double iteration_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.iterations);
+    const double evaluation_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.evaluations);
+    std::printf(
+        "%s: V=%d F=%d threads=%d minimiser=%s tolerance=%s | total %.3f s, setup %.3f s, %d iterations, %d "
+        "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/evaluation | termination: %s | "
+        "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
+        positional[0].c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
+        SmoothMinimiserName(options.minimiser).c_str(), SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
+        summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
+        1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
+        static_cast<double>(summary.memory_bytes) / std::max(1, mesh.num_vertices()), PeakRssMiB(), rss_mesh,
+        rss_input);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: bench_smooth quality|speed|estimate ...\n");
+    return 2;
+  }
+  std::vector<std::string> positional;
+  auto flags = ParseFlags(argc, argv, 2, &positional);
+  const std::string mode = argv[1];
+  try {
+    if (mode == "quality") return Quality(flags);
+    if (mode == "estimate") return Estimate(flags);
+    if (mode == "speed") return Speed(flags, positional);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_smooth: %s\n", e.what());
+    return 1;
+  }
+  std::fprintf(stderr, "unknown mode %s\n", mode.c_str());
+  return 2;
+}

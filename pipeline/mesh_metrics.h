@@ -1,0 +1,34 @@
+// Quality metrics of a smoothed (or decimated) mesh against a ground-truth mesh (DESIGN §7).
+#pragma once
+
+#include <Eigen/Core>
+
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+// Mean angular error (degrees) between the face normals of `result` and `ground_truth`: mean over faces, not
+// area weighted (what the denoising literature reports). Requires the same faces (same F); throws Error
+// otherwise. Faces degenerate in either mesh are left out (and counted in *skipped when given).
+double MeanAngularErrorDeg(const Mesh& result, const Mesh& ground_truth, int* skipped = nullptr);
+
+// Unsigned distance from each query point to the triangle surface `surface` (exact point–triangle distances;
+// FLANN over face centroids only picks the candidates, with a search radius that provably contains the
+// nearest triangle). Faces with a repeated index count as segments/points. Throws Error for a surface
+// without faces.
+Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface);
+
+struct SurfaceErrors {
+  double ev = 0;                   // Ev of Sun et al. 2007, model units: sqrt(Σ_i Σ_(f∋i) A_f d_i² / (3 Σ_f A_f)),
+                                   // A_f the result's face areas, d_i the distance of result vertex i to the GT
+  double hausdorff = 0;            // symmetric Hausdorff distance over vertices (result→GT, GT→result), model units
+  double bbox_diagonal = 0;        // of the ground truth
+  double mean_distance = 0;        // mean result-vertex distance to the GT surface
+  double ev_rel_bbox() const { return bbox_diagonal > 0 ? ev / bbox_diagonal : 0; }
+  double hausdorff_rel_bbox() const { return bbox_diagonal > 0 ? hausdorff / bbox_diagonal : 0; }
+};
+
+// Connectivity-independent surface errors (works for decimated results too).
+SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth);
+
+}  // namespace rangebayes
