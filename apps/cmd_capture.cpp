@@ -37,6 +37,7 @@ struct PipelineCli {
   bool no_smooth = false;
   std::string tolerance = "default";
   double prior_weight = SmoothOptions{}.prior_weight;
+  int max_iterations = 0;
   bool no_decimate = false;
   double lambda = DecimateOptions{}.lambda;
   int queue_capacity = 4;
@@ -62,12 +63,15 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--tolerance", o->tolerance, "Smoothing stopping preset: fast, default or tight")
       ->check(CLI::IsMember({"fast", "default", "tight"}));
   sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)");
+  sub->add_option("--max-iterations", o->max_iterations,
+                  "Smoothing iteration cap (0: the tolerance preset's; --live-path: 25 unless given)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
   sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
   sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
   sub->add_flag("--live-path", o->live_path,
                 "Live preview settings: drop the oldest frame when a stage is busy, triangulate every 4th pixel, "
-                "fast smoothing tolerance (overrides --downsample and --tolerance)");
+                "fast smoothing tolerance capped at 25 iterations (overrides --downsample and --tolerance)");
   sub->add_option("--preview-width", o->preview_width_px, "Width of each rendered preview panel (px; 0: frame width)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
   sub->add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
@@ -93,6 +97,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.smooth = !o.no_smooth;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
   p.smoothing.prior_weight = o.prior_weight;
+  p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;
   p.decimation.lambda = o.lambda;
   if (o.live_path) {
@@ -100,6 +105,8 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
     p.queue_capacity = 1;
     p.triangulate.downsample = 4;
     p.smoothing.tolerance = SmoothTolerance::kFast;
+    // A preview needs a usable surface per frame, not a converged one: cap the CG iterations.
+    if (o.max_iterations == 0) p.smoothing.max_iterations = 25;
   }
   return p;
 }

@@ -364,9 +364,15 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       if (options.progress) {
         const double elapsed_s = std::chrono::duration<double>(Clock::now() - run_start).count();
         const double fps = elapsed_s > 0 ? static_cast<double>(frames_done) / elapsed_s : 0.0;
+        // Live drops frames: progress through the source is what was captured, not what came out.
+        std::int64_t consumed = frames_done;
+        if (options.queue_policy == QueueFullPolicy::kDropOldest) {
+          std::lock_guard<std::mutex> lock(run.mutex());
+          consumed = summary.frames_captured + summary.frames_skipped;
+        }
         const double fraction =
             frames_total.has_value() && *frames_total > 0
-                ? std::min(1.0, static_cast<double>(frames_done) / static_cast<double>(*frames_total))
+                ? std::min(1.0, static_cast<double>(consumed) / static_cast<double>(*frames_total))
                 : 0.0;
         const std::string total = frames_total.has_value() ? StrCat("/", *frames_total) : std::string();
         char rate[32];

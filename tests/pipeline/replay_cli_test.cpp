@@ -1,0 +1,91 @@
+// `rangebayes replay` as a user runs it: the bundled recording end to end, and bad input.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "tests/apps/run_binary.h"
+#include "tests/capture/test_util.h"
+
+namespace rangebayes {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr const char* kBundled = "recordings/synth_planes_320x240";
+
+// Copies the first `frames` entries of the bundled recording into `folder` (index lines and images).
+void CopyBundled(const std::string& folder, int frames) {
+  fs::create_directories(folder + "/left");
+  fs::create_directories(folder + "/right");
+  const std::string src = std::string(RB_SOURCE_DIR) + "/" + kBundled;
+  fs::copy_file(src + "/rig.yaml", folder + "/rig.yaml");
+  std::ifstream in(src + "/frames.csv");
+  std::ofstream out(folder + "/frames.csv");
+  std::string line;
+  for (int i = 0; i <= frames && std::getline(in, line); ++i) out << line << "\n";
+  for (int i = 0; i < frames; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    fs::copy_file(src + "/left/" + name, folder + "/left/" + name);
+    fs::copy_file(src + "/right/" + name, folder + "/right/" + name);
+  }
+}
+
+TEST(ReplayCli, BundledRecordingEndToEnd) {
+  const TempDir dir("cli_replay");
+  const RunResult r = RunRangebayes(std::string("replay ") + kBundled + " --count 2 --downsample 4 --tolerance fast --out " +
+                                    dir.path() + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"raw/000000.ply", "smoothed/000001.ply", "decimated/000001.obj", "depth/000000.png",
+                        "shaded/000001.png", "results.csv", "summary.json"}) {
+    EXPECT_TRUE(fs::exists(dir.path() + "/out/" + f)) << f;
+  }
+  EXPECT_NE(r.output.find("frames/s end to end"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("triangulate"), std::string::npos);
+}
+
+TEST(ReplayCli, MissingRecordingIsOneLineExitOne) {
+  const RunResult r = RunRangebayes("replay /nonexistent/rec --out /tmp/never");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("rangebayes replay: error: /nonexistent/rec: recording folder not found"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+}
+
+TEST(ReplayCli, MissingFileAndTruncatedIndexAreReportedPerFrame) {
+  const TempDir dir("cli_bad");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 3);
+  fs::remove(rec + "/right/000001.png");
+  { std::ofstream(rec + "/frames.csv", std::ios::app) << "3,5,5,left/000003.png,right/00"; }
+  const RunResult r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --out " + dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 3) << r.output;  // partial success
+  EXPECT_NE(r.output.find("frame 1: right/000001.png is missing"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("line 5 is truncated"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path() + "/out/raw/000002.ply"));
+}
+
+TEST(ReplayCli, WrongRigAndMismatchedSizesAreClear) {
+  const TempDir dir("cli_rig");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  { std::ofstream(rec + "/rig.yaml") << "%YAML:1.0\nimage_width: 320\n"; }
+  RunResult r = RunRangebayes("replay " + rec + " --out " + dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("rig.yaml"), std::string::npos) << r.output;
+
+  fs::copy_file(std::string(RB_SOURCE_DIR) + "/" + kBundled + "/rig.yaml", rec + "/rig.yaml",
+                fs::copy_options::overwrite_existing);
+  cv::Mat small(10, 10, CV_8UC1, cv::Scalar(0));
+  std::vector<uchar> png;
+  cv::imencode(".png", small, png);
+  std::ofstream(rec + "/right/000001.png", std::ios::binary).write(reinterpret_cast<char*>(png.data()),
+                                                                    static_cast<std::streamsize>(png.size()));
+  r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --out " + dir.path() + "/out2");
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_NE(r.output.find("frame 1: left is 320x240 but right is 10x10"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace rangebayes
