@@ -10,6 +10,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
+#include "bayes/learn_prior_io.h"
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
 #include "core/error.h"
@@ -30,6 +31,7 @@ struct SmoothArgs {
   std::string tolerance = "default";
   std::string minimiser = "cg";
   double beta = SmoothOptions{}.prior_weight;
+  bool beta_given = false;  // --beta on the command line (else a learned prior's own beta is used)
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
@@ -38,6 +40,14 @@ struct SmoothArgs {
   bool ignore_covariance = false;
   bool quiet = false;
 };
+
+// --prior FILE.yaml: a spline potential written by `rangebayes learn-prior`.
+bool IsPriorFile(const std::string& prior) {
+  auto ends = [&](const std::string& suffix) {
+    return prior.size() > suffix.size() && prior.compare(prior.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  return ends(".yaml") || ends(".yml");
+}
 
 Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
   if (v.size() != 3) UsageError("--view needs three numbers x y z");
@@ -50,10 +60,20 @@ void RunSmooth(const SmoothArgs& args) {
   if (!std::isnan(args.noise) && !std::isnan(args.sigma)) UsageError("give --noise or --sigma, not both");
   const Eigen::Vector3d view = ViewDirection(args.view);
   SmoothOptions options;
-  options.prior = ParsePriorKind(args.prior);
+  std::unique_ptr<SplinePotential> learned;
+  double learned_beta = 0;
+  if (IsPriorFile(args.prior)) {
+    const LearnedPrior prior = ReadLearnedPrior(args.prior);
+    learned = std::make_unique<SplinePotential>(prior.spline, prior.theta);
+    learned_beta = prior.prior_weight;
+    options.potential = learned.get();
+  } else {
+    options.prior = ParsePriorKind(args.prior);
+  }
   options.tolerance = ParseSmoothTolerance(args.tolerance);
   options.minimiser = ParseSmoothMinimiser(args.minimiser);
   options.prior_weight = args.beta;
+  if (learned && !args.beta_given && learned_beta > 0) options.prior_weight = learned_beta;
   options.sqrt_epsilon_squared = args.epsilon_squared;
   options.num_threads = args.threads;
   options.Check();
@@ -84,7 +104,7 @@ void RunSmooth(const SmoothArgs& args) {
     }
   }
   std::printf("prior:      %s, beta %.4g%s\n", args.prior.c_str(), options.prior_weight,
-              options.prior == PriorKind::kSqrt ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
+              !learned && options.prior == PriorKind::kSqrt ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
                                                  : "");
   std::printf("minimiser:  %s, tolerance %s, threads %s\n", args.minimiser.c_str(), args.tolerance.c_str(),
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
@@ -168,8 +188,14 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
                   "else estimated from the mesh");
   sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise");
-  sub->add_option("--prior", args->prior, "pairwise potential: sqrt (paper), quadratic, cauchy")
-      ->check(CLI::IsMember({"sqrt", "quadratic", "cauchy"}));
+  sub->add_option("--prior", args->prior,
+                  "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
+                  "'rangebayes learn-prior' (its beta is used unless --beta is given)")
+      ->check([](const std::string& v) {
+        return (v == "sqrt" || v == "quadratic" || v == "cauchy" || IsPriorFile(v))
+                   ? std::string()
+                   : std::string("expected sqrt, quadratic, cauchy or a .yaml learned prior");
+      });
   sub->add_option("--tolerance", args->tolerance, "stopping preset: fast, default, tight")
       ->check(CLI::IsMember({"fast", "default", "tight"}));
   sub->add_option("--minimiser", args->minimiser, "cg (Polak-Ribiere+, the paper's) or lbfgs")
@@ -185,7 +211,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_flag("--ignore-covariance", args->ignore_covariance,
                 "use the generic noise model even when the file has covariances");
   sub->add_flag("--quiet,-q", args->quiet, "no progress or notices on stderr");
-  sub->callback([args] { RunSmooth(*args); });
+  sub->callback([args, sub] {
+    args->beta_given = sub->count("--beta") > 0;
+    RunSmooth(*args);
+  });
 
   auto eval_args = std::make_shared<EvalArgs>();
   auto* eval = app.add_subcommand(

@@ -3,6 +3,7 @@
 //
 //   learn_prior_bench [--method implicit|interleaved] [--k 0.3] [--train 8] [--test 4] [--seed 1]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
+//                     [--tolerance fast|default|tight]
 //                     [--mesh NOISY GT K]...
 //
 // Prints the training curve (time, loss) and a table of MAE (degrees) and D (mean squared vertex error / l_e²).
@@ -78,6 +79,7 @@ int main(int argc, char** argv) {
     else if (a == "--w") options.regularizer_weight = std::stod(next());
     else if (a == "--step") options.interleaved_step = options.initial_step = std::stod(next());
     else if (a == "--theta-out") theta_out = next();
+    else if (a == "--tolerance") options.tolerance = ParseSmoothTolerance(next());
     else if (a == "--mesh") {
       External e;
       e.noisy = next();

@@ -33,6 +33,16 @@ TEST(LearnCli, SynthThenLearn) {
   EXPECT_EQ(read.training_pairs, 2);
   EXPECT_FALSE(read.date.empty());
 
+  // The learned prior plugs into the smoother.
+  const RunResult smooth = RunRangebayes("smooth '" + list.noisy[0] + "' '" + (dir / "smoothed.ply").string() +
+                                         "' --noise 0.3 --prior '" + prior + "' --threads 1 --quiet");
+  ASSERT_EQ(smooth.exit_code, 0) << smooth.output;
+  EXPECT_NE(smooth.output.find("prior.yaml"), std::string::npos) << smooth.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "smoothed.ply"));
+  const RunResult not_a_prior = RunRangebayes("smooth '" + list.noisy[0] + "' x.ply --prior '" +
+                                              (dir / "train_pairs.txt").string() + "'");
+  EXPECT_EQ(not_a_prior.exit_code, 2) << not_a_prior.output;
+
   const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
