@@ -12,11 +12,12 @@
 namespace rangebayes {
 namespace {
 
-// median(|r|) of N(0, s²) is 0.6745 s; the one-ring plane also absorbs part of the vertex's own noise and
-// adds its neighbours'. The factor below maps the median absolute plane distance to σ; it was calibrated on
-// fandisk 0.3 and bunny 0.2 (BENCHMARKS.md "Noise estimate") and is checked on every other mesh there.
+// median(|r|) of N(0, s²) is 0.6745 s; the distance to the one-ring plane also carries the neighbours' noise
+// (variance σ²(1 + 1/valence)). kCalibration maps the result to σ; it was fitted on fandisk 0.3 and bunny 0.2
+// only (raw estimate / true σ = 1.12 and 1.13 there) and checked on every other benchmark mesh
+// (BENCHMARKS.md "Noise estimate": within −13% … +0% of the true level).
 constexpr double kMedianToSigma = 1.0 / 0.6745;
-constexpr double kCalibration = 1.0;
+constexpr double kCalibration = 1.0 / 1.125;
 
 Normals VertexNormals(const Mesh& mesh) {
   Normals normals = Normals::Zero(mesh.num_vertices(), 3);
@@ -48,15 +49,30 @@ double EstimateNoiseLevel(const Mesh& mesh) {
   const Adjacency neighbours = ComputeVertexNeighbours(mesh, topology);
   std::vector<double> distances;
   distances.reserve(static_cast<size_t>(mesh.num_vertices()));
+  std::vector<int> ring2;
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     const int count = neighbours.size(v);
     if (count < 3) continue;
+    // The plane's offset from the one-ring (little curvature bias), its normal from the two-ring: at high
+    // noise (σ ≈ l_e) a one-ring is too small for its principal axes to find the normal.
+    ring2.clear();
+    for (const int* u = neighbours.begin(v); u != neighbours.end(v); ++u) {
+      ring2.push_back(*u);
+      for (const int* w = neighbours.begin(*u); w != neighbours.end(*u); ++w) {
+        if (*w != v) ring2.push_back(*w);
+      }
+    }
+    std::sort(ring2.begin(), ring2.end());
+    ring2.erase(std::unique(ring2.begin(), ring2.end()), ring2.end());
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const int* u = neighbours.begin(v); u != neighbours.end(v); ++u) mean += mesh.V.row(*u).transpose();
     mean /= count;
+    Eigen::Vector3d mean2 = Eigen::Vector3d::Zero();
+    for (int u : ring2) mean2 += mesh.V.row(u).transpose();
+    mean2 /= static_cast<double>(ring2.size());
     Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-    for (const int* u = neighbours.begin(v); u != neighbours.end(v); ++u) {
-      const Eigen::Vector3d d = mesh.V.row(*u).transpose() - mean;
+    for (int u : ring2) {
+      const Eigen::Vector3d d = mesh.V.row(u).transpose() - mean2;
       scatter += d * d.transpose();
     }
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);

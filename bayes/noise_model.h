@@ -29,10 +29,10 @@ struct GenericNoiseSummary {
   bool estimated = false;            // k came from EstimateNoiseLevel
 };
 
-// Estimate of k = σ / l_e for Gaussian noise along the normals: per vertex, the distance of the vertex from
-// the least-squares plane of its one-ring neighbours; a robust scale (median absolute value) of those
-// distances, divided by a constant calibrated on meshes with known noise (see BENCHMARKS.md). Returns 0 for a
-// mesh without interior vertices.
+// Estimate of k = σ / l_e (l_e of this, noisy, mesh) for Gaussian noise along the normals: per vertex, the
+// distance of the vertex from the plane through its one-ring centroid whose normal is the least-squares normal
+// of its two-ring; a robust scale (median absolute value) of those distances, times a constant calibrated on
+// two meshes with known noise (see BENCHMARKS.md). Returns 0 for a mesh without vertices of valence ≥ 3.
 double EstimateNoiseLevel(const Mesh& mesh);
 
 // The mesh with the generic covariance per vertex (isolated vertices get the isotropic σ²·I).

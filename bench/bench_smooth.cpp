@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -102,6 +103,12 @@ std::string Join(const std::string& folder, const std::string& file) {
   return path;
 }
 
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + 1e-6 * usage.ru_utime.tv_usec + usage.ru_stime.tv_sec + 1e-6 * usage.ru_stime.tv_usec;
+}
+
 double PeakRssMiB() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -157,24 +164,51 @@ int Quality(std::map<std::string, std::string>& flags) {
 
 int Estimate(std::map<std::string, std::string>& flags) {
   const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
-  std::printf("| noisy file | true k (measured RMS / l_e) | estimate | error |\n|---|---|---|---|\n");
+  std::printf("| noisy file | true k (RMS / GT l_e) | true k (RMS / noisy l_e) | estimate (of the latter) | error |\n|---|---|---|---|---|\n");
   for (const Case& c : Cases()) {
     const Mesh gt = ReadMesh(Join(data, c.gt));
     const Mesh noisy = ReadMesh(Join(data, c.noisy));
     const double rms = std::sqrt((noisy.V - gt.V).rowwise().squaredNorm().mean());
     const double k_true = rms / MeanEdgeLength(gt);
+    const double k_noisy = rms / MeanEdgeLength(noisy);
     const double k = EstimateNoiseLevel(noisy);
-    std::printf("| %s | %.3f | %.3f | %+.0f%% |\n", c.noisy.c_str(), k_true, k, 100 * (k / k_true - 1));
+    std::printf("| %s | %.3f | %.3f | %.3f | %+.0f%% |\n", c.noisy.c_str(), k_true, k_noisy, k, 100 * (k / k_noisy - 1));
   }
   return 0;
 }
 
+// A closed torus of about `faces` triangles (2·nu·nv, nu = 2·nv) with seeded Gaussian noise of 0.3 l_e.
+Mesh NoisyTorus(int faces) {
+  const int nv = std::max(3, static_cast<int>(std::sqrt(faces / 4.0)));
+  const int nu = 2 * nv;
+  Mesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(nu) * nv, 3);
+  mesh.F.resize(2 * static_cast<Eigen::Index>(nu) * nv, 3);
+  const double R = 1.0, r = 0.4;
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const double u = 2 * M_PI * i / nu, v = 2 * M_PI * j / nv;
+      mesh.V.row(i * nv + j) << (R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v);
+      const int a = i * nv + j, b = ((i + 1) % nu) * nv + j, c = ((i + 1) % nu) * nv + (j + 1) % nv,
+                d = i * nv + (j + 1) % nv;
+      mesh.F.row(2 * a) << a, b, c;
+      mesh.F.row(2 * a + 1) << a, c, d;
+    }
+  }
+  const double edge = MeanEdgeLength(mesh);
+  std::mt19937 rng(1);
+  std::normal_distribution<double> gauss(0.0, 0.3 * edge / std::sqrt(3.0));
+  for (Eigen::Index i = 0; i < mesh.V.size(); ++i) mesh.V.data()[i] += gauss(rng);
+  return mesh;
+}
+
 int Speed(std::map<std::string, std::string>& flags, const std::vector<std::string>& positional) {
-  if (positional.empty()) {
-    std::fprintf(stderr, "usage: bench_smooth speed MESH [--threads N] ...\n");
+  if (positional.empty() && !flags.count("--synthetic-faces")) {
+    std::fprintf(stderr, "usage: bench_smooth speed MESH|--synthetic-faces N [--threads N] ...\n");
     return 2;
   }
-  const Mesh mesh = ReadMesh(positional[0]);
+  const std::string name = positional.empty() ? "torus " + flags["--synthetic-faces"] : positional[0];
+  const Mesh mesh = positional.empty() ? NoisyTorus(std::stoi(flags["--synthetic-faces"])) : ReadMesh(positional[0]);
   const double rss_mesh = PeakRssMiB();
   SmoothOptions options = OptionsFromFlags(flags);
   GenericNoiseOptions noise;
@@ -184,16 +218,18 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
   const double rss_input = PeakRssMiB();
   for (int r = 0; r < repeat; ++r) {
     SmoothSummary summary;
+    const double cpu_start = CpuSeconds();
     const Mesh result = Smooth(input, options, &summary);
+    const double cpu = CpuSeconds() - cpu_start;
     const double iteration_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.iterations);
     const double evaluation_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.evaluations);
     std::printf(
-        "%s: V=%d F=%d threads=%d minimiser=%s tolerance=%s | total %.3f s, setup %.3f s, %d iterations, %d "
+        "%s: V=%d F=%d threads=%d minimiser=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
         "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/evaluation | termination: %s | "
         "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
-        positional[0].c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
+        name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
         SmoothMinimiserName(options.minimiser).c_str(), SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
-        summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
+        cpu, summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
         1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
         static_cast<double>(summary.memory_bytes) / std::max(1, mesh.num_vertices()), PeakRssMiB(), rss_mesh,
         rss_input);
