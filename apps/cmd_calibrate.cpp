@@ -377,9 +377,12 @@ void RunNoise(const NoiseArgs& a) {
                  a.matcher);
     }
   }
+  // SGBM reports disparities in 1/16 px steps: its error cannot be resolved below the step's own σ.
+  if (a.matcher == "sgbm") fit_options.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
   NoiseFitSummary fit;
   DisparityNoiseModel model = FitDisparityNoiseModel(samples, fit_options, &fit);
   model.matcher = a.matcher;
+  if (a.matcher != "sgbm") model.image_noise_gray = a.image_noise_gray;
   WriteDisparityNoiseModel(model, a.out);
 
   std::printf("matcher %s over %d frame(s): %d valid disparities (%.1f%%)\n", a.matcher.c_str(), count,

@@ -175,6 +175,7 @@ void NoiseFitOptions::Check() const {
            " must be ≥ 0");
   RB_CHECK(depth_bins >= 1 && depth_bins <= 50, "depth_bins ", depth_bins, " not in [1, 50]");
   RB_CHECK(min_samples >= 10, "min_samples ", min_samples, " must be at least 10");
+  RB_CHECK(min_sigma_px >= 0 && std::isfinite(min_sigma_px), "min_sigma_px ", min_sigma_px, " must be ≥ 0");
   RB_CHECK(max_samples >= min_samples, "max_samples ", max_samples, " must be at least min_samples ", min_samples);
 }
 
@@ -206,6 +207,7 @@ DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
     read("scale", &m.scale, !constant);
     read("outlier_fraction", &m.outlier_fraction, false);
     read("depth_slope_px_per_m", &m.depth_slope_px_per_m, false);
+    read("image_noise_gray", &m.image_noise_gray, false);
     if (!fs["matcher"].empty()) m.matcher = static_cast<std::string>(fs["matcher"]);
     if (!fs["samples"].empty()) m.samples = static_cast<int>(fs["samples"]);
   } catch (const cv::Exception& e) {
@@ -227,6 +229,7 @@ void WriteDisparityNoiseModel(const DisparityNoiseModel& model, const std::strin
   fs << "sigma_px" << model.sigma_px << "floor_px" << model.floor_px << "scale" << model.scale;
   fs << "matcher" << model.matcher << "samples" << model.samples;
   fs << "outlier_fraction" << model.outlier_fraction << "depth_slope_px_per_m" << model.depth_slope_px_per_m;
+  fs << "image_noise_gray" << model.image_noise_gray;
 }
 
 DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options,
@@ -304,6 +307,8 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     model.sigma_px = constant.sigma;
     sum.log_likelihood = -best_nll;
   }
+  model.sigma_px = std::max(model.sigma_px, options.min_sigma_px);
+  model.floor_px = std::max(model.floor_px, options.min_sigma_px);
   sum.outlier_fraction = model.outlier_fraction;
 
   // Depth check: constant σ per equal-count depth bin, then a least-squares line through the bins.

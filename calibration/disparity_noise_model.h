@@ -23,6 +23,9 @@ struct DisparityNoiseModel {
   int samples = 0;                        // residuals the fit used
   double outlier_fraction = 0.0;          // mixture weight of the uniform outlier component
   double depth_slope_px_per_m = 0.0;      // slope of σ_d (constant form, per depth bin) against depth; NaN: n/a
+  // σ_pred scales with the image noise σ_n the matcher assumed; the fit's σ_n (0: unknown) lets a user of the
+  // model with another σ_n rescale: scale' = scale · fit σ_n / own σ_n.
+  double image_noise_gray = 0.0;
 
   // σ_d in pixels for a pixel whose matcher predicted σ_pred (pixels). The constant form ignores σ_pred;
   // the floor-plus-scale form returns NaN for a non-finite σ_pred (no prediction: the caller decides).
@@ -52,6 +55,9 @@ struct NoiseFitOptions {
   int depth_bins = 6;             // depth bins (equal counts) for the depth check; [1, 50]
   int min_samples = 50;           // fewer samples is an error; ≥ 10
   int max_samples = 60000;        // larger sets are thinned by a regular stride (speed); ≥ min_samples
+  // Lower bound on the fitted σ (constant) and floor (floor-plus-scale), e.g. the quantisation of a matcher's
+  // output (1/16 px steps: 0.018 px); ≥ 0.
+  double min_sigma_px = 0.0;
   void Check() const;
 };
 
