@@ -1,0 +1,91 @@
+// `rangebayes info` and `rangebayes convert` as a user runs them.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "core/mesh_io.h"
+#include "tests/apps/run_binary.h"
+
+namespace rangebayes {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char kAngel[] = "tests/data/meshes/real_angel_scan.obj";
+
+class MeshCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / (std::string("rb_mesh_cli_") + info->name() + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+TEST_F(MeshCliTest, InfoPrintsCountsAndValidation) {
+  const RunResult r = RunRangebayes(std::string("info ") + kAngel);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("vertices:         24566"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("faces:            48090"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("mean edge length"), std::string::npos);
+  EXPECT_NE(r.output.find("validation"), std::string::npos);
+}
+
+TEST_F(MeshCliTest, InfoJson) {
+  const RunResult r = RunRangebayes("info tests/data/meshes/block_gt.obj --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["vertices"], 8771);
+  EXPECT_EQ(j["faces"], 17550);
+  EXPECT_EQ(j["components"], 1);
+  EXPECT_EQ(j["boundary_loops"], 0);
+  EXPECT_EQ(j["has_normals"], true);
+  EXPECT_EQ(j["validation"]["clean"], true);
+  EXPECT_GT(j["mean_edge_length"].get<double>(), 0.0);
+}
+
+TEST_F(MeshCliTest, InfoOnBadFilesIsOneErrorLine) {
+  RunResult r = RunRangebayes("info " + Path("missing.ply"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("missing.ply"), std::string::npos);
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  std::ofstream(Path("bad.off")) << "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n";
+  r = RunRangebayes("info " + Path("bad.off"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("bad.off: line 6: face 0 uses vertex 9"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+}
+
+TEST_F(MeshCliTest, ConvertRoundTripIsExact) {
+  const Mesh original = ReadMesh(kAngel);
+  ASSERT_EQ(RunRangebayes(std::string("convert -q ") + kAngel + " " + Path("a.ply")).exit_code, 0);
+  ASSERT_EQ(RunRangebayes("convert -q --big-endian " + Path("a.ply") + " " + Path("b.ply")).exit_code, 0);
+  ASSERT_EQ(RunRangebayes("convert -q --ascii " + Path("b.ply") + " " + Path("c.ply")).exit_code, 0);
+  ASSERT_EQ(RunRangebayes("convert -q " + Path("c.ply") + " " + Path("d.off")).exit_code, 0);
+  ASSERT_EQ(RunRangebayes("convert -q " + Path("d.off") + " " + Path("e.obj")).exit_code, 0);
+  const Mesh back = ReadMesh(Path("e.obj"));
+  ASSERT_EQ(back.V.rows(), original.V.rows());
+  ASSERT_EQ(back.F.rows(), original.F.rows());
+  EXPECT_TRUE(back.V == original.V);
+  EXPECT_TRUE(back.F == original.F);
+}
+
+TEST_F(MeshCliTest, ConvertUsageErrors) {
+  EXPECT_EQ(RunRangebayes(std::string("convert --ascii ") + kAngel + " " + Path("x.obj")).exit_code, 2);
+  EXPECT_EQ(RunRangebayes(std::string("convert --ascii --big-endian ") + kAngel + " " + Path("x.ply")).exit_code, 2);
+  EXPECT_EQ(RunRangebayes(std::string("convert ") + kAngel).exit_code, 2);
+  const RunResult r = RunRangebayes(std::string("convert ") + kAngel + " " + Path("x.stl"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("unknown mesh format"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace rangebayes
