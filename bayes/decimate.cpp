@@ -27,6 +27,8 @@ struct Prepared {
   std::vector<int> split_source;   // per split vertex, its input vertex
   std::vector<char> locked;        // split vertices that share an input vertex with another copy
   std::vector<Vertices> poses;     // per pose, positions of the split vertices
+  EdgeTopology topology;           // of F
+  std::vector<char> boundary_vertex;
   std::vector<std::string> notices;
 };
 
@@ -136,34 +138,64 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     out.poses[m].resize(ns, 3);
     for (int s = 0; s < ns; ++s) out.poses[m].row(s) = poses[m].V.row(out.split_source[s]);
   }
+  Mesh split;
+  split.V = out.poses[0];
+  split.F = out.F;
+  out.topology = ComputeEdgeTopology(split);
+  out.boundary_vertex.assign(ns, 0);
+  for (int e = 0; e < out.topology.edge_faces.rows(); ++e) {
+    if (out.topology.edge_faces.size(e) == 1) {
+      out.boundary_vertex[out.topology.edges(e, 0)] = 1;
+      out.boundary_vertex[out.topology.edges(e, 1)] = 1;
+    }
+  }
   return out;
 }
 
 // Per component of a manifold mesh: Euler characteristic and number of boundary loops, sorted.
-std::vector<std::pair<int, int>> TopologySignature(int num_vertices, const Faces& F) {
-  Mesh mesh;
-  mesh.V.setZero(num_vertices, 3);
-  mesh.F = F;
-  const Components comps = ComputeComponents(mesh);
-  const EdgeTopology topology = ComputeEdgeTopology(mesh);
-  std::vector<int> chi(comps.count, 0), loops(comps.count, 0);
+std::vector<std::pair<int, int>> TopologySignature(int num_vertices, const Faces& F, const EdgeTopology& topology) {
+  const int nf = static_cast<int>(F.rows());
+  std::vector<int> parent(nf);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    const int* first = topology.edge_faces.begin(e);
+    for (const int* f = first + 1; f != topology.edge_faces.end(e); ++f) {
+      const int a = Find(parent, *first), b = Find(parent, *f);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  }
+  std::vector<int> label(nf, -1), root_label(nf, -1);
+  int count = 0;
+  for (int f = 0; f < nf; ++f) {
+    const int r = Find(parent, f);
+    if (root_label[r] < 0) root_label[r] = count++;
+    label[f] = root_label[r];
+  }
+  std::vector<int> chi(count, 0), loops(count, 0);
   std::vector<int> vertex_comp(num_vertices, -1);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const int c = comps.face_label[f];
-    ++chi[c];
-    for (int k = 0; k < 3; ++k) vertex_comp[F(f, k)] = c;
+  for (int f = 0; f < nf; ++f) {
+    ++chi[label[f]];
+    for (int k = 0; k < 3; ++k) vertex_comp[F(f, k)] = label[f];
   }
   for (int v = 0; v < num_vertices; ++v) {
     if (vertex_comp[v] >= 0) ++chi[vertex_comp[v]];
   }
-  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
-    --chi[comps.face_label[topology.edge_faces.begin(e)[0]]];
-  }
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) --chi[label[topology.edge_faces.begin(e)[0]]];
+  Mesh mesh;
+  mesh.F = F;
+  mesh.V.setZero(num_vertices, 3);
   for (const auto& loop : ComputeBoundaryLoops(mesh, topology)) ++loops[vertex_comp[loop[0]]];
   std::vector<std::pair<int, int>> sig;
-  for (int c = 0; c < comps.count; ++c) sig.emplace_back(chi[c], loops[c]);
+  for (int c = 0; c < count; ++c) sig.emplace_back(chi[c], loops[c]);
   std::sort(sig.begin(), sig.end());
   return sig;
+}
+
+std::vector<std::pair<int, int>> TopologySignature(int num_vertices, const Faces& F) {
+  Mesh mesh;
+  mesh.V.setZero(num_vertices, 3);
+  mesh.F = F;
+  return TopologySignature(num_vertices, F, ComputeEdgeTopology(mesh));
 }
 
 bool IsManifold(const Faces& F, int num_vertices) {
@@ -271,10 +303,7 @@ Problem BuildProblem(const Prepared& prep, DecimateWeighting weighting, std::vec
   if (total > 0.0) {
     for (double& w : p.weight) w *= nf / total;
   }
-  Mesh mesh;
-  mesh.V = prep.poses[0];
-  mesh.F = prep.F;
-  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  const EdgeTopology& topology = prep.topology;
   p.neighbours.assign(nf, {-1, -1, -1});
   p.corners.resize(nf);
   for (int f = 0; f < nf; ++f) {
@@ -315,7 +344,8 @@ Attempt RunOnce(const Prepared& prep, const Problem& problem, double lambda, con
   PatchTriangulationOptions topts;
   topts.min_cos_to_patch_normal = options.min_cos_to_patch_normal;
   topts.chain_tolerance_rel = options.chain_tolerance_rel;
-  a.triangulation = TriangulatePatches(poses, prep.F, a.face_patch, a.num_patches, prep.locked, topts);
+  a.triangulation =
+      TriangulatePatches(poses, prep.F, a.face_patch, a.num_patches, prep.locked, topts, prep.boundary_vertex);
   const int ns = static_cast<int>(prep.split_source.size());
   if (TopologySignature(ns, a.triangulation.F) != signature || !IsManifold(a.triangulation.F, ns)) {
     // Safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
@@ -397,7 +427,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   s.notices = prep.notices;
   const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
   const int ns = static_cast<int>(prep.split_source.size());
-  const auto signature = TopologySignature(ns, prep.F);
+  const auto signature = TopologySignature(ns, prep.F, prep.topology);
   {
     int loops = 0;
     for (const auto& c : signature) loops += c.second;

@@ -24,7 +24,8 @@ struct Neighbour {
 class Reducer {
  public:
   Reducer(const std::vector<const Vertices*>& poses, const Faces& F, const std::vector<int>& face_patch,
-          int num_patches, const std::vector<char>& locked, const PatchTriangulationOptions& options)
+          int num_patches, const std::vector<char>& locked, const PatchTriangulationOptions& options,
+          const std::vector<char>& boundary_vertex)
       : poses_(poses), patch_(face_patch), options_(options) {
     const int nv = static_cast<int>(poses[0]->rows());
     const int nf = static_cast<int>(F.rows());
@@ -58,19 +59,24 @@ class Reducer {
     }
     area_eps_ = 1e-14 * diag2;
     chain_tolerance_ = options.chain_tolerance_rel * std::sqrt(diag2);
-    // Mesh-boundary vertices.
-    Mesh mesh;
-    mesh.V = *poses[0];
-    mesh.F = F;
-    const EdgeTopology topology = ComputeEdgeTopology(mesh);
-    boundary_.assign(nv, 0);
-    for (int e = 0; e < topology.edge_faces.rows(); ++e) {
-      if (topology.edge_faces.size(e) == 1) {
-        boundary_[topology.edges(e, 0)] = 1;
-        boundary_[topology.edges(e, 1)] = 1;
+    if (static_cast<int>(boundary_vertex.size()) == nv) {
+      boundary_ = boundary_vertex;
+    } else {
+      Mesh mesh;
+      mesh.V = *poses[0];
+      mesh.F = F;
+      const EdgeTopology topology = ComputeEdgeTopology(mesh);
+      boundary_.assign(nv, 0);
+      for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+        if (topology.edge_faces.size(e) == 1) {
+          boundary_[topology.edges(e, 0)] = 1;
+          boundary_[topology.edges(e, 1)] = 1;
+        }
       }
     }
     stamp_.assign(nv, 0);
+    nb_mark_.assign(nv, 0);
+    nb_slot_.assign(nv, 0);
     version_.assign(nv, 0);
     kept_.assign(nv, 0);
     for (int v = 0; v < nv; ++v) {
@@ -92,12 +98,18 @@ class Reducer {
       while (!queue.empty()) {
         const auto [cost, v, version] = queue.top();
         queue.pop();
+        ++pops_;
         if (vf_[v].empty() || kept_[v]) continue;
-        if (version != version_[v]) {
-          queue.emplace(Cost(v), v, version_[v]);
-          continue;
-        }
         Targets(v, &targets);
+        if (version != version_[v] && !targets.empty() && !queue.empty()) {
+          // Shortest edge first, lazily: a vertex whose neighbourhood changed is re-queued only when its
+          // shortest edge grew well past the next candidate's.
+          const double now = (poses_[0]->row(targets[0]) - poses_[0]->row(v)).squaredNorm();
+          if (now > 2.0 * std::get<0>(queue.top())) {
+            queue.emplace(now, v, version_[v]);
+            continue;
+          }
+        }
         bool done = false;
         for (int u : targets) {
           if (TryCollapse(v, u)) {
@@ -136,6 +148,8 @@ class Reducer {
       }
     }
     out.collapses = collapses_;
+    out.collapse_attempts = attempts_;
+    out.pops = pops_;
     return out;
   }
 
@@ -145,18 +159,21 @@ class Reducer {
     return (b - a).cross(c - a);
   }
 
-  void Neighbourhood(int v, std::vector<Neighbour>* out) const {
+  void Neighbourhood(int v, std::vector<Neighbour>* out) {
     out->clear();
+    ++nb_stamp_;
     for (int f : vf_[v]) {
       for (int k = 0; k < 3; ++k) {
         const int x = T_[f][k];
         if (x == v) continue;
-        auto it = std::find_if(out->begin(), out->end(), [x](const Neighbour& n) { return n.vertex == x; });
-        if (it == out->end()) {
+        if (nb_mark_[x] != nb_stamp_) {
+          nb_mark_[x] = nb_stamp_;
+          nb_slot_[x] = static_cast<int>(out->size());
           out->push_back({x, 1, patch_[f], false});
         } else {
-          ++it->faces;
-          if (it->patch != patch_[f]) it->patches_differ = true;
+          Neighbour& n = (*out)[nb_slot_[x]];
+          ++n.faces;
+          if (n.patch != patch_[f]) n.patches_differ = true;
         }
       }
     }
@@ -308,6 +325,7 @@ class Reducer {
   }
 
   bool TryCollapse(int v, int u) {
+    ++attempts_;
     if (vf_[u].empty()) return false;
     int w = -1;
     if (!ChainKeepsShape(v, u, &w)) return false;
@@ -343,9 +361,25 @@ class Reducer {
       }
     }
     const int v_stamp = current_stamp_;
-    for (int f : vf_[u]) {
-      for (int x : T_[f]) {
-        if (x != u && x != v && stamp_[x] == v_stamp) return false;  // a common neighbour off the edge
+    // A common neighbour off the edge breaks the link condition. Scan whichever side is cheaper: u's star, or
+    // the stars of v's (few) neighbours looking for u; u is often a hub that has absorbed many collapses.
+    size_t cost_v_side = 0;
+    for (int f : moved_) cost_v_side += vf_[T_[f][0]].size() + vf_[T_[f][1]].size() + vf_[T_[f][2]].size();
+    if (vf_[u].size() <= cost_v_side) {
+      for (int f : vf_[u]) {
+        for (int x : T_[f]) {
+          if (x != u && x != v && stamp_[x] == v_stamp) return false;
+        }
+      }
+    } else {
+      for (int f : moved_) {
+        for (int x : T_[f]) {
+          if (x == v || stamp_[x] != v_stamp) continue;
+          for (int g : vf_[x]) {
+            const auto& t = T_[g];
+            if (t[0] == u || t[1] == u || t[2] == u) return false;
+          }
+        }
       }
     }
     (void)opposite;
@@ -361,11 +395,17 @@ class Reducer {
       for (int& x : t) {
         if (x == v) x = u;
       }
-      for (int g : vf_[u]) {
-        const auto& s = T_[g];
-        int shared = 0;
-        for (int x : t) shared += (s[0] == x || s[1] == x || s[2] == x) ? 1 : 0;
-        if (shared == 3) return false;
+      // With the link condition holding, a duplicate of (u, x, y) can only exist when x and y are both apexes
+      // of edge uv (the last collapse of a tetrahedron); refuse that case.
+      int apexes = 0;
+      for (int x : t) apexes += (x != u && stamp_[x] == apex_stamp) ? 1 : 0;
+      if (apexes == 2) {
+        for (int g : vf_[u]) {
+          const auto& s = T_[g];
+          int shared = 0;
+          for (int x : t) shared += (s[0] == x || s[1] == x || s[2] == x) ? 1 : 0;
+          if (shared == 3) return false;
+        }
       }
       const int k = patch_[f];
       for (size_t m = 0; m < poses_.size(); ++m) {
@@ -400,8 +440,12 @@ class Reducer {
     }
     vf_[v].clear();
     ++collapses_;
+    // Only u and v's former neighbours see their stars change.
     ++version_[u];
-    for (int f : vf_[u]) {
+    for (int f : moved_) {
+      for (int x : T_[f]) ++version_[x];
+    }
+    for (int f : deleted_) {
       for (int x : T_[f]) ++version_[x];
     }
     return true;
@@ -417,9 +461,12 @@ class Reducer {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;
   std::vector<char> boundary_, kept_;
   std::vector<int> stamp_, version_;
+  std::vector<int> nb_mark_, nb_slot_;
+  int nb_stamp_ = 0;
   int current_stamp_ = 0;
   double area_eps_ = 0.0;
   int collapses_ = 0;
+  long long attempts_ = 0, pops_ = 0;
   std::vector<Neighbour> scratch_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
@@ -431,7 +478,8 @@ class Reducer {
 
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,
-                                      const std::vector<char>& locked, const PatchTriangulationOptions& options) {
+                                      const std::vector<char>& locked, const PatchTriangulationOptions& options,
+                                      const std::vector<char>& boundary_vertex) {
   RB_CHECK(!poses.empty(), "decimation: no poses");
   RB_CHECK(static_cast<int>(face_patch.size()) == F.rows(), "decimation: face_patch has ", face_patch.size(),
            " entries for ", F.rows(), " faces");
@@ -440,7 +488,7 @@ PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses,
   for (const Vertices* V : poses) {
     RB_CHECK(V != nullptr && V->rows() == poses[0]->rows(), "decimation: poses differ in vertex count");
   }
-  Reducer reducer(poses, F, face_patch, num_patches, locked, options);
+  Reducer reducer(poses, F, face_patch, num_patches, locked, options, boundary_vertex);
   return reducer.Run();
 }
 

@@ -43,14 +43,18 @@ struct PatchTriangulation {
   int kept_corner_vertices = 0;     // vertices kept unconditionally (≥ 3 feature edges, locked, loop anchors)
   int blocked_vertices = 0;         // removable vertices kept because every collapse was refused
   int collapses = 0;
+  long long collapse_attempts = 0;  // collapses tested (refused ones included)
+  long long pops = 0;
 };
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite
 // orientation, each vertex a single fan). face_patch: per face in [0, num_patches). locked: per vertex,
-// vertices that must stay (may be empty).
+// vertices that must stay (may be empty). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
+// here; callers that have the edge topology already pass it to save a sort).
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,
-                                      const std::vector<char>& locked, const PatchTriangulationOptions& options = {});
+                                      const std::vector<char>& locked, const PatchTriangulationOptions& options = {},
+                                      const std::vector<char>& boundary_vertex = {});
 
 // A linear normal field n(p) = a + G·(E·(p − c)) over one patch in one pose: c the weighted centroid of its
 // dense face centroids, E the 2×3 tangent basis of the patch plane, a the mean normal, G 3×2.

@@ -57,8 +57,12 @@ class Climber {
     PartitionStats& s = stats != nullptr ? *stats : local;
     s = PartitionStats{};
     stats_ = &s;
+    dirty_.assign(W_.size(), 1);
     for (int round = 0; round < options.max_rounds; ++round) {
       s.rounds = round + 1;
+      // Only candidates that touch a patch changed in the last round can have changed their gain.
+      seed_dirty_.swap(dirty_);
+      dirty_.assign(W_.size(), 0);
       const std::int64_t moves = FusePhase() + FacePhase();
       if (options.progress) {
         options.progress(std::min(0.95, 0.5 + 0.05 * round), "partition");
@@ -93,6 +97,7 @@ class Climber {
     alive_.push_back(1);
     alias_.push_back(k);
     head_.push_back(-1);
+    dirty_.push_back(1);
     return k;
   }
 
@@ -157,6 +162,9 @@ class Climber {
     return SetEnergy(W_[j] + w, Q_[j] + w * q, s2);
   }
 
+  // Changed in the previous round (or created since, which counts as changed).
+  bool Dirty(int k) const { return k >= static_cast<int>(seed_dirty_.size()) || seed_dirty_[k] || dirty_[k]; }
+
   int Find(int k) {
     while (alias_[k] != k) {
       alias_[k] = alias_[alias_[k]];
@@ -175,7 +183,7 @@ class Climber {
           const int h = p_.neighbours[f][e];
           if (h < 0 || h < f) continue;
           int a = g_[f], b = g_[h];
-          if (a == b) continue;
+          if (a == b || !(Dirty(a) || Dirty(b))) continue;
           if (a > b) std::swap(a, b);
           const double gain = FuseGain(a, b);
           if (gain > eps_) seed.push_back({gain, a, b, version_[a], version_[b]});
@@ -196,9 +204,14 @@ class Climber {
       const int a = Find(e.a), b = Find(e.b);
       if (a == b) continue;
       if (a != e.a || b != e.b || version_[a] != e.version_a || version_[b] != e.version_b) {
+        // Lazy greedy: a refreshed gain that still beats (nearly) everything left is taken at once instead of
+        // re-queued; a big patch absorbing small ones would otherwise re-queue its whole rim on every fuse.
         const double gain = FuseGain(a, b);
-        if (gain > eps_) queue.push({gain, a, b, version_[a], version_[b]});
-        continue;
+        if (gain <= eps_) continue;
+        if (!queue.empty() && gain < queue.top().gain - 0.1 * std::abs(queue.top().gain)) {
+          queue.push({gain, a, b, version_[a], version_[b]});
+          continue;
+        }
       }
       Fuse(a, b);
       ++applied;
@@ -234,6 +247,7 @@ class Climber {
     alias_[gone] = keep;
     ++version_[keep];
     ++version_[gone];
+    dirty_[keep] = 1;
   }
 
   // ---- split / swap phase -----------------------------------------------------------------------------
@@ -273,6 +287,9 @@ class Climber {
     {
       std::vector<FaceEntry> seed;
       for (int f = 0; f < p_.num_faces(); ++f) {
+        bool touched = Dirty(g_[f]);
+        for (int h : p_.neighbours[f]) touched = touched || (h >= 0 && Dirty(g_[h]));
+        if (!touched) continue;
         const FaceEntry e = BestFaceMove(f);
         if (e.gain > eps_) seed.push_back(e);
       }
@@ -329,6 +346,8 @@ class Climber {
     g_[f] = to;
     ++version_[from];
     ++version_[to];
+    dirty_[from] = 1;
+    dirty_[to] = 1;
   }
 
   // Walks the fan around vertex v from `start` (away from the removed face f) and reports whether it reaches
@@ -427,6 +446,7 @@ class Climber {
   std::vector<double> W_, Q_, S_;
   std::vector<int> size_, version_, alias_, head_;
   std::vector<char> alive_;
+  std::vector<char> dirty_, seed_dirty_;
   std::vector<int> next_, prev_;
   std::vector<int> mark_;
   int stamp_ = 0;

@@ -1,0 +1,186 @@
+// `rangebayes decimate`: Bayesian decimation of a mesh (or of the poses of an animated mesh) into planar patches.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/command.h"
+#include "apps/progress.h"
+#include "bayes/decimate.h"
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/render.h"
+#include "pipeline/png.h"
+
+namespace rangebayes::apps {
+namespace {
+
+struct DecimateArgs {
+  std::vector<std::string> files;
+  std::string out_dir;
+  double lambda = DecimateOptions{}.lambda;
+  int target_faces = 0;
+  double chain_tolerance = DecimateOptions{}.chain_tolerance_rel;
+  bool uniform = false;
+  bool polygons = false;
+  std::string png;
+  bool quiet = false;
+};
+
+// Distinct, stable colours for patch ids (golden-ratio hue steps).
+Eigen::Vector3f PatchColour(int k) {
+  const double h = std::fmod(0.13 + 0.618033988749895 * k, 1.0) * 6.0;
+  const double s = 0.55 + 0.3 * ((k * 7) % 3) / 2.0, v = 0.95;
+  const int i = static_cast<int>(h);
+  const double f = h - i, p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
+  double r = v, g = t, b = p;
+  switch (i % 6) {
+    case 1: r = q; g = v; b = p; break;
+    case 2: r = p; g = v; b = t; break;
+    case 3: r = p; g = q; b = v; break;
+    case 4: r = t; g = p; b = v; break;
+    case 5: r = v; g = p; b = q; break;
+    default: break;
+  }
+  return Eigen::Vector3f(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
+}
+
+// Dense mesh | dense faces coloured by patch | decimated mesh with its patch normal fields.
+RgbImage Picture(const Mesh& dense, const DecimatedMesh& d) {
+  RenderOptions options;
+  options.width_px = 640;
+  options.height_px = 520;
+  options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+  const RgbImage a = RenderMesh(dense, options);
+  RenderOptions coloured = options;
+  coloured.face_colors.resize(dense.num_faces(), 3);
+  for (int f = 0; f < dense.num_faces(); ++f) {
+    const int k = d.dense_face_patch[f];
+    coloured.face_colors.row(f) = k < 0 ? Eigen::Vector3f(0.2f, 0.2f, 0.2f).transpose() : PatchColour(k).transpose();
+  }
+  const RgbImage b = RenderMesh(dense, coloured);
+  RenderOptions smooth = options;
+  smooth.shading = Shading::kSmooth;
+  smooth.corner_normals.resize(3 * d.mesh.num_faces(), 3);
+  for (int f = 0; f < d.mesh.num_faces(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      smooth.corner_normals.row(3 * f + c) = d.corner_normals.normals.row(d.corner_normals.normal_index(f, c));
+    }
+  }
+  const RgbImage c = RenderMesh(d.mesh, smooth);
+  return SideBySide({a, b, c});
+}
+
+void WriteOne(const DecimatedMesh& d, const std::string& path, bool polygons) {
+  if (polygons) {
+    WritePolygonMesh(d.mesh.V, d.polygons, path);
+    return;
+  }
+  MeshWriteOptions options;
+  if (MeshFormatFromPath(path) != MeshFormat::kOff) options.corner_normals = d.corner_normals;
+  WriteMesh(d.mesh, path, options);
+}
+
+void Run(const DecimateArgs& a) {
+  const bool animated = !a.out_dir.empty();
+  if (!animated && a.files.size() != 2) {
+    UsageError("give IN OUT, or several poses with --out DIR (got " + std::to_string(a.files.size()) + " files)");
+  }
+  if (animated && a.files.empty()) UsageError("--out DIR needs at least one pose");
+  std::vector<std::string> inputs = a.files;
+  if (!animated) inputs.resize(1);
+
+  DecimateOptions options;
+  options.lambda = a.lambda;
+  options.target_faces = a.target_faces;
+  options.chain_tolerance_rel = a.chain_tolerance;
+  options.weighting = a.uniform ? DecimateWeighting::kUniform : DecimateWeighting::kArea;
+  options.Check();
+
+  std::vector<Mesh> poses;
+  for (const std::string& path : inputs) {
+    MeshReadSummary read;
+    poses.push_back(ReadMesh(path, &read));
+    for (const std::string& n : read.notices) Notice(a.quiet, path + ": " + n);
+  }
+  DecimateSummary s;
+  std::vector<DecimatedMesh> out;
+  {
+    ProgressPrinter progress(a.quiet);
+    options.progress = progress.callback();
+    out = DecimateAnimated(poses, options, &s);
+    progress.Finish();
+  }
+  for (const std::string& n : s.notices) Notice(a.quiet, n);
+
+  std::vector<std::string> written;
+  if (animated) {
+    std::filesystem::create_directories(a.out_dir);
+    for (size_t m = 0; m < out.size(); ++m) {
+      const std::string path =
+          (std::filesystem::path(a.out_dir) / (std::filesystem::path(inputs[m]).stem().string() + ".obj")).string();
+      WriteOne(out[m], path, a.polygons);
+      written.push_back(path);
+    }
+  } else {
+    WriteOne(out[0], a.files[1], a.polygons);
+    written.push_back(a.files[1]);
+  }
+  if (!a.png.empty()) {
+    WritePng(Picture(poses[0], out[0]), a.png);
+    written.push_back(a.png);
+  }
+
+  std::printf("input: %d faces%s\n", s.input_faces,
+              animated ? (", " + std::to_string(poses.size()) + " poses sharing one patch map").c_str() : "");
+  std::printf("patches: %d; output: %d faces, %d vertices (%.2f%% of the input faces)%s\n", s.num_patches,
+              s.output_faces, s.output_vertices, 100.0 * s.output_faces / std::max(1, s.input_faces),
+              a.polygons ? "; written as one polygon per patch" : "");
+  std::printf("lambda: %.6g%s; energy %.6g (data %.6g + lambda x patches %.6g)\n", s.lambda,
+              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " decimations)").c_str()
+                                 : "",
+              s.energy, s.data_energy, s.energy - s.data_energy);
+  std::printf("moves: %lld fuses, %lld splits, %lld swaps; %lld refused because they would disconnect a patch; "
+              "%d rounds%s\n",
+              s.fuses, s.splits, s.swaps, s.rejected_disconnecting, s.rounds,
+              s.converged ? ", converged" : ", stopped at max_rounds");
+  std::printf("vertices: %d where patches meet, %d more kept for chain shape or to avoid flipped triangles\n",
+              s.kept_corner_vertices, s.blocked_vertices);
+  std::printf("time: %.3f s partition, %.3f s geometry, %.3f s total\n", s.seconds_partition, s.seconds_geometry,
+              s.seconds_total);
+  for (const std::string& w : written) std::printf("wrote %s\n", w.c_str());
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
+  auto a = std::make_shared<DecimateArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "decimate",
+      "Bayesian decimation into planar patches with smooth per-patch shading normals (paper section 6).\n"
+      "  rangebayes decimate IN OUT [--lambda L | --target-faces N] [--png FILE] [--polygons]\n"
+      "  rangebayes decimate POSE1 POSE2 ... --out DIR   (animated: one patch map shared by all poses)");
+  sub->add_option("files", a->files, "IN OUT (PLY/OBJ/OFF), or the poses of one connectivity with --out")
+      ->required();
+  sub->add_option("--out", a->out_dir, "animated mode: write one decimated OBJ per pose into this folder");
+  auto* lambda = sub->add_option("--lambda", a->lambda,
+                                 "energy cost of one patch (normal difference squared x faces, area weights "
+                                 "normalised to mean 1): larger gives fewer patches")
+                     ->check(CLI::PositiveNumber);
+  sub->add_option("--target-faces", a->target_faces, "find lambda by bisection for about this many output triangles")
+      ->check(CLI::PositiveNumber)
+      ->excludes(lambda);
+  sub->add_option("--chain-tolerance", a->chain_tolerance,
+                  "patch-boundary chains are straightened while removed vertices stay within this share of the "
+                  "bounding-box diagonal")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--uniform-weights", a->uniform, "weight every face 1 (the paper) instead of by its area");
+  sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
+  sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
+  sub->add_flag("--quiet", a->quiet, "no progress or notices on stderr");
+  sub->callback([a] { Run(*a); });
+});
+
+}  // namespace rangebayes::apps

@@ -1,0 +1,69 @@
+// End-to-end: the `rangebayes decimate` subcommand as a user runs it.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "core/mesh_io.h"
+#include "tests/apps/run_binary.h"
+
+namespace rangebayes {
+namespace {
+
+std::string TempDir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rb_decimate_cli_" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+TEST(DecimateCli, WritesMeshWithCornerNormalsAndPicture) {
+  const std::string dir = TempDir("static");
+  const RunResult r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/out.obj --lambda 5 --png " +
+                                    dir + "/out.png --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("patches:"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("fuses"), std::string::npos) << r.output;
+  const Mesh out = ReadMesh(dir + "/out.obj");
+  EXPECT_GT(out.num_faces(), 12);
+  EXPECT_LT(out.num_faces(), 1000);
+  EXPECT_TRUE(std::filesystem::file_size(dir + "/out.png") > 1000);
+}
+
+TEST(DecimateCli, PolygonsAndTargetFaces) {
+  const std::string dir = TempDir("poly");
+  RunResult r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/poly.obj --lambda 5 --polygons");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("one polygon per patch"), std::string::npos);
+  r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/t.ply --target-faces 400 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Mesh out = ReadMesh(dir + "/t.ply");
+  EXPECT_NEAR(out.num_faces(), 400, 60);  // bisection tolerance plus the step of a few faces per patch
+}
+
+TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {
+  const std::string dir = TempDir("animated");
+  Mesh a = ReadMesh("tests/data/meshes/fandisk_gt.obj");
+  Mesh b = a;
+  b.V.col(2) += 0.05 * b.V.col(0).cwiseProduct(b.V.col(0));  // a bent copy
+  WriteMesh(a, dir + "/pose1.obj");
+  WriteMesh(b, dir + "/pose2.obj");
+  const RunResult r =
+      RunRangebayes("decimate " + dir + "/pose1.obj " + dir + "/pose2.obj --out " + dir + "/out --lambda 5 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Mesh o1 = ReadMesh(dir + "/out/pose1.obj"), o2 = ReadMesh(dir + "/out/pose2.obj");
+  EXPECT_EQ(o1.F, o2.F);
+  EXPECT_GT(o1.num_faces(), 12);
+}
+
+TEST(DecimateCli, UsageAndInputErrors) {
+  EXPECT_EQ(RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj").exit_code, 2);
+  EXPECT_EQ(RunRangebayes("decimate a.obj b.obj --lambda 1 --target-faces 5").exit_code, 2);
+  EXPECT_EQ(RunRangebayes("decimate a.obj b.obj --lambda -1").exit_code, 2);
+  const RunResult missing = RunRangebayes("decimate no_such_mesh.obj /tmp/rb_x.obj");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.output.find("no_such_mesh.obj"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace rangebayes
