@@ -13,6 +13,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
+#include "calibration/disparity_noise_model.h"
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
 #include "core/error.h"
@@ -40,13 +41,14 @@ struct MatchCliOptions {
   int window_px = 5;
   std::string cost = "auto";
   double image_noise_gray = 2.0;
-  double sigma_floor_px = SpaceTimeMatcherOptions{}.sigma_floor_px;
-  double sigma_scale = SpaceTimeMatcherOptions{}.sigma_scale;
+  double sigma_floor_px = -1.0;  // < 0: the matcher's fitted default
+  double sigma_scale = -1.0;
   double max_sigma_px = 0.0;
   int downsample = 1;
-  double max_jump_sigma = TriangulateOptions{}.max_jump_sigma;
+  double max_jump_sigma = 6.0;
   bool no_mesh = false;
   bool quiet = false;
+  std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
 };
 
 void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
@@ -55,13 +57,17 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
       ->check(CLI::Range(3, 1024));
   sub->add_option("--window", o->window_px, "Spatial window side w (px, odd, 1-31)")->check(CLI::Range(1, 31));
   sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
-  sub->add_option("--sigma-floor", o->sigma_floor_px, "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2)");
-  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless)");
+  sub->add_option("--sigma-floor", o->sigma_floor_px,
+                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.01");
+  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless); < 0: fitted default 2.1");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,
                   "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance)");
   sub->add_flag("--no-mesh", o->no_mesh, "Do not write mesh.ply");
+  sub->add_option("--noise-model", o->noise_model,
+                  "noise.yaml from 'rangebayes calibrate noise': replaces --sigma-floor/--sigma-scale (and the sigma_d "
+                  "of matchers without one)");
   sub->add_flag("--quiet,-q", o->quiet, "No progress or notices on stderr");
 }
 
@@ -69,7 +75,8 @@ SpaceTimeCost ParseCost(const std::string& name) {
   if (name == "auto") return SpaceTimeCost::kAuto;
   if (name == "ssd") return SpaceTimeCost::kSsd;
   if (name == "zncc") return SpaceTimeCost::kZnccTime;
-  UsageError("--cost must be auto, ssd or zncc, not '" + name + "'");
+  if (name == "zncc-space") return SpaceTimeCost::kZnccSpace;
+  UsageError("--cost must be auto, ssd, zncc or zncc-space, not '" + name + "'");
 }
 
 SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o) {
@@ -79,9 +86,16 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o) {
   m.window_px = o.window_px;
   m.cost = ParseCost(o.cost);
   m.image_noise_gray = o.image_noise_gray;
-  m.sigma_floor_px = o.sigma_floor_px;
-  m.sigma_scale = o.sigma_scale;
+  if (o.sigma_floor_px >= 0.0) m.sigma_floor_px = o.sigma_floor_px;
+  if (o.sigma_scale >= 0.0) m.sigma_scale = o.sigma_scale;
   m.max_sigma_disparity_px = o.max_sigma_px;
+  if (!o.noise_model.empty()) {
+    const DisparityNoiseModel n = ReadDisparityNoiseModel(o.noise_model);
+    const bool constant = n.form == NoiseForm::kConstant;
+    m.sigma_floor_px = constant ? n.sigma_px : n.floor_px;
+    // A constant model ignores the prediction (the matcher needs a positive scale).
+    m.sigma_scale = constant ? 1e-9 : n.scale * (n.image_noise_gray > 0 ? n.image_noise_gray / o.image_noise_gray : 1.0);
+  }
   return m;
 }
 
@@ -121,6 +135,10 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
   TriangulateOptions t;
   t.downsample = o.downsample;
   t.max_jump_sigma = o.max_jump_sigma;
+  if (!o.noise_model.empty()) {
+    const DisparityNoiseModel n = ReadDisparityNoiseModel(o.noise_model);
+    if (n.form == NoiseForm::kConstant) t.default_sigma_disparity_px = n.sigma_px;
+  }
   TriangulateSummary ts;
   const auto start = std::chrono::steady_clock::now();
   const NoisyMesh mesh = TriangulateDepth(frame, t, &ts);
@@ -159,7 +177,7 @@ void AddStereo(CLI::App& app) {
       ->check(CLI::IsMember({"sgbm", "block"}));
   sub->add_option("--sgbm-block", o->sgbm_block, "SGBM block size (px, odd, 1-11)");
   AddMatchOptions(sub, &o->m);
-  sub->add_option("--cost", o->m.cost, "Block matcher cost: auto, ssd or zncc (zncc needs several frames)");
+  sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o] {
     cv::Mat left = ReadImageOrThrow(o->left), right = ReadImageOrThrow(o->right);
     RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
@@ -205,7 +223,7 @@ void AddSpaceTime(CLI::App& app) {
   sub->add_option("--first", o->first, "First frame of the window (index into frames.csv)")
       ->check(CLI::NonNegativeNumber);
   AddMatchOptions(sub, &o->m);
-  sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc for T >= 3), ssd or zncc");
+  sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc over time for T >= 3, else ssd), ssd, zncc or zncc-space");
   sub->callback([o] {
     RecordingReadSummary rs;
     const Recording rec = OpenRecording(o->recording, &rs);

@@ -21,6 +21,7 @@ void SpaceTimeMatcherOptions::Check() const {
            " is outside 3–1024");
   RB_CHECK(window_px >= 1 && window_px <= 31 && window_px % 2 == 1, "window_px ", window_px,
            " must be odd and in 1–31");
+  RB_CHECK(uniqueness_ratio >= 0.0, "uniqueness_ratio ", uniqueness_ratio, " must be ≥ 0");
   RB_CHECK(image_noise_gray > 0.0, "image_noise_gray ", image_noise_gray, " must be positive");
   RB_CHECK(sigma_floor_px >= 0.0 && sigma_scale > 0.0, "sigma model floor ", sigma_floor_px, " px / scale ",
            sigma_scale, " must be ≥ 0 / > 0");
@@ -216,6 +217,33 @@ void WindowSlopes(const cv::Mat& coarse, int x, int y, int r, double* sx, double
   *sy = std::clamp(p(2), -1.0, 1.0);
 }
 
+// Single frames: each pixel minus the mean of its w×w neighbourhood, divided by sqrt(local variance + σ_n²).
+// The SSD of such images behaves like a window ZNCC: blind to the gain and offset differences between the
+// two cameras (Middlebury 2014's exposure and lighting variants), at the price of σ_n scaled per pixel.
+void NormaliseSpatially(Sequence* s, int window, double noise_gray, std::vector<float>* noise_scale) {
+  const int W = s->width, H = s->height;
+  noise_scale->assign(static_cast<size_t>(W) * H, 1.0f);
+  for (int t = 0; t < s->frames; ++t) {
+    cv::Mat image(H, W, CV_32F);
+    for (int y = 0; y < H; ++y) std::copy_n(s->row(y) + t * W, W, image.ptr<float>(y));
+    cv::Mat mean, mean2;
+    cv::boxFilter(image, mean, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
+    cv::boxFilter(image.mul(image), mean2, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true,
+                  cv::BORDER_REFLECT);
+    const float n2 = static_cast<float>(noise_gray * noise_gray);
+    for (int y = 0; y < H; ++y) {
+      float* out = s->row(y) + t * W;
+      const float* m = mean.ptr<float>(y);
+      const float* m2 = mean2.ptr<float>(y);
+      for (int x = 0; x < W; ++x) {
+        const float inv = 1.0f / std::sqrt(std::max(0.0f, m2[x] - m[x] * m[x]) + n2);
+        out[x] = (image.at<float>(y, x) - m[x]) * inv;
+        if (t == 0) (*noise_scale)[static_cast<size_t>(y) * W + x] = inv;
+      }
+    }
+  }
+}
+
 struct BandBuffers {
   std::vector<float> volume;   // [row][di][x]
   std::vector<float> e;        // one row of per-pixel temporal costs, padded by r on both sides
@@ -242,6 +270,10 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   Sequence R = Interleave(right);
   const int W = L.width, H = L.height;
   std::vector<float> noise_left, noise_right;
+  if (cost == SpaceTimeCost::kZnccSpace) {
+    NormaliseSpatially(&L, options_.window_px, options_.image_noise_gray, &noise_left);
+    NormaliseSpatially(&R, options_.window_px, options_.image_noise_gray, &noise_right);
+  }
   if (cost == SpaceTimeCost::kZnccTime) {
     NormaliseTemporally(&L, options_.image_noise_gray, &noise_left);
     NormaliseTemporally(&R, options_.image_noise_gray, &noise_right);
@@ -260,7 +292,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   result.disparity_px.create(H, W, CV_32F);
   result.sigma_disparity_px.create(H, W, CV_32F);
   result.frames_used = T;
-  std::atomic<int> valid{0}, rej_lr{0}, rej_flat{0}, rej_sigma{0};
+  std::atomic<int> valid{0}, rej_lr{0}, rej_flat{0}, rej_sigma{0}, rej_ambiguous{0};
 
   tbb::enumerable_thread_specific<BandBuffers> buffers;
   tbb::parallel_for(tbb::blocked_range<int>(0, num_bands, 1), [&](const tbb::blocked_range<int>& range) {
@@ -329,7 +361,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
       b.best_right.resize(W);
       b.arg_left.resize(W);
       b.arg_right.resize(W);
-      int band_valid = 0, band_lr = 0, band_flat = 0, band_sigma = 0;
+      int band_valid = 0, band_lr = 0, band_flat = 0, band_sigma = 0, band_ambiguous = 0;
       for (int j = 0; j < rows; ++j) {
         const int y = y0 + j;
         const float* vol = b.volume.data() + static_cast<size_t>(j) * D * W;
@@ -372,6 +404,21 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
           if (di == 0 || di == D - 1 || x - (d + 1) < 0 || x - (d - 1) >= W) {
             ++band_flat;
             continue;
+          }
+          if (options_.uniqueness_ratio > 0.0) {
+            // The best cost must beat every disparity at least 2 away by the margin, else the match is
+            // ambiguous (repeated texture) and its small σ from the curvature would be a lie.
+            const float best = vol[static_cast<size_t>(di) * W + x];
+            const float limit = best * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f;
+            const int da = std::max(0, x - W + 1 - dmin), db = std::min(D - 1, x - dmin);
+            bool unique = true;
+            for (int k = da; k <= db && unique; ++k) {
+              if (std::abs(k - di) >= 2 && vol[static_cast<size_t>(k) * W + x] < limit) unique = false;
+            }
+            if (!unique) {
+              ++band_ambiguous;
+              continue;
+            }
           }
           const float cm = vol[static_cast<size_t>(di - 1) * W + x];
           const float c0 = vol[static_cast<size_t>(di) * W + x];
@@ -418,6 +465,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
       rej_lr += band_lr;
       rej_flat += band_flat;
       rej_sigma += band_sigma;
+      rej_ambiguous += band_ambiguous;
     }
   });
   if (options_.subpixel_iterations > 0) {
@@ -463,6 +511,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   summary_.rejected_left_right = rej_lr;
   summary_.rejected_flat = rej_flat;
   summary_.rejected_sigma = rej_sigma;
+  summary_.rejected_ambiguous = rej_ambiguous;
   result.valid_fraction = static_cast<double>(valid) / (static_cast<double>(W) * H);
   result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;

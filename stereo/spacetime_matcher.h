@@ -12,6 +12,7 @@ namespace rangebayes {
 enum class SpaceTimeCost {
   kAuto,       // kZnccTime when T ≥ 3 frames, kSsd otherwise
   kSsd,        // sum of squared grey-level differences
+  kZnccSpace,  // SSD of images normalised by the mean and deviation of each pixel's w×w neighbourhood
   kZnccTime,   // SSD of per-pixel temporally normalised signals = Σ over the window of 2T(1 − temporal ZNCC)
 };
 
@@ -20,6 +21,7 @@ struct SpaceTimeMatcherOptions {
   int num_disparities = 64;          // 3–1024: disparities min … min + num − 1 are searched
   int window_px = 5;                 // odd, 1–31: spatial window side w
   SpaceTimeCost cost = SpaceTimeCost::kAuto;
+  double uniqueness_ratio = 0.05;    // ≥ 0: best cost × (1 + ratio) must stay below all costs ≥ 2 px away (0: off)
   double left_right_max_diff_px = 1.0;  // < 0: off; else max |d_left − d_right| (integer disparities)
   double image_noise_gray = 2.0;     // > 0: σ_n of one image sample, grey levels of the input (8-bit: 0–255)
   // σ_d = sqrt(floor² + (scale · σ_pred)²), σ_pred² = 2σ_n²/Σg² at the refined minimum (= 4σ_n²/C″, DESIGN.md
@@ -43,6 +45,7 @@ struct SpaceTimeMatchSummary {
   int rejected_left_right = 0;
   int rejected_flat = 0;      // no curvature (textureless) or minimum at the end of the search range
   int rejected_sigma = 0;
+  int rejected_ambiguous = 0;  // failed the uniqueness test
 };
 
 class SpaceTimeMatcher : public StereoMatcher {

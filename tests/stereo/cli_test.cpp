@@ -1,0 +1,72 @@
+// The stereo commands as a user runs them: synth → spacetime → eval-depth, stereo on Middlebury, errors.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "stereo/pfm.h"
+#include "tests/apps/run_binary.h"
+
+namespace rangebayes {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Temp(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / "rangebayes_stereo_cli" / name;
+  fs::remove_all(p);
+  fs::create_directories(p.parent_path());
+  return p.string();
+}
+
+TEST(StereoCli, SynthSpaceTimeEvalDepth) {
+  const std::string rec = Temp("rec"), out = Temp("out");
+  RunResult r = RunRangebayes("synth --scene box --frames 6 --width 160 --height 120 --seed 3 --out " + rec);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(rec + "/ground_truth/disparity_left_px.pfm"));
+  r = RunRangebayes("spacetime " + rec + " --out " + out + " --min-disparity 4 --num-disparities 24 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"disparity.pfm", "sigma_disparity.pfm", "depth.pfm", "sigma_depth.pfm", "disparity.png",
+                        "depth.png", "sigma_disparity.png", "mesh.ply"}) {
+    EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+  }
+  const cv::Mat d = ReadPfm(out + "/disparity.pfm");
+  EXPECT_EQ(d.cols, 160);
+  r = RunRangebayes("eval-depth " + out + "/disparity.pfm " + rec + "/ground_truth/disparity_left_px.pfm --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("bad_1"), std::string::npos) << r.output;
+  // The same recording's first pair through `stereo` with its rig, block matcher.
+  const std::string out2 = Temp("out2");
+  r = RunRangebayes("stereo " + rec + "/left/000000.png " + rec + "/right/000000.png --rig " + rec +
+                    "/rig.yaml --matcher block --min-disparity 4 --num-disparities 24 --out " + out2);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out2 + "/mesh.ply"));
+}
+
+TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
+  const std::string out = Temp("tsukuba");
+  RunResult r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png "
+                              "--num-disparities 16 --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes("eval-depth " + out + "/disparity.pfm tests/data/stereo/tsukuba");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("bad-1 "), std::string::npos) << r.output;
+}
+
+TEST(StereoCli, ErrorsAreOneLine) {
+  RunResult r = RunRangebayes("stereo tests/data/stereo/none.png tests/data/stereo/tsukuba/imR.png --out " +
+                              Temp("err"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("none.png"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png recordings/synth_planes_320x240/left/000000.png --out " +
+                    Temp("err2"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  r = RunRangebayes("spacetime tests/data/stereo --out " + Temp("err3"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  r = RunRangebayes("synth --scene teapot --out " + Temp("err4"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+}  // namespace
+}  // namespace rangebayes
