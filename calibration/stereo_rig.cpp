@@ -19,7 +19,13 @@ void ReadMatrix(const cv::FileStorage& fs, const std::string& path, const char* 
   }
   cv::Mat m;
   node >> m;
-  RB_CHECK(!m.empty(), path, ": field '", name, "' is not a matrix");
+  if constexpr (EigenType::RowsAtCompileTime != Eigen::Dynamic && EigenType::ColsAtCompileTime != Eigen::Dynamic) {
+    RB_CHECK(!m.empty(), path, ": field '", name, "' is not a matrix");
+  } else if (m.empty()) {
+    // An empty distortion vector (no distortion) is what WriteStereoRig writes for a rig without one.
+    out->resize(0);
+    return;
+  }
   m.convertTo(m, CV_64F);
   if constexpr (EigenType::RowsAtCompileTime != Eigen::Dynamic && EigenType::ColsAtCompileTime != Eigen::Dynamic) {
     RB_CHECK(m.rows == EigenType::RowsAtCompileTime && m.cols == EigenType::ColsAtCompileTime, path, ": field '",

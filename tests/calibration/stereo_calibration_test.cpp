@@ -188,3 +188,32 @@ TEST(BoardSpec, CharucoAvailabilityIsReportedCleanly) {
 
 }  // namespace
 }  // namespace rangebayes
+
+namespace rangebayes {
+namespace {
+
+// A rig without distortion (a rectified Middlebury rig, or a synthetic one) writes empty distortion vectors;
+// reading the file back must accept them.
+TEST(StereoRigYaml, RoundTripWithoutDistortion) {
+  StereoRig rig;
+  rig.width = 320;
+  rig.height = 240;
+  rig.K_left << 400, 0, 160, 0, 400, 120, 0, 0, 1;
+  rig.K_right = rig.K_left;
+  rig.t_right_from_left_m << -0.1, 0, 0;
+  rig.is_rectified = true;
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "rangebayes_rig_no_distortion.yaml").string();
+  WriteStereoRig(rig, path);
+  const StereoRig back = ReadStereoRig(path);
+  EXPECT_EQ(back.distortion_left.size(), 0);
+  EXPECT_EQ(back.distortion_right.size(), 0);
+  EXPECT_EQ(back.width, 320);
+  EXPECT_TRUE(back.is_rectified);
+  EXPECT_DOUBLE_EQ(back.K_left(0, 0), 400.0);
+  EXPECT_DOUBLE_EQ(back.baseline_m(), 0.1);
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace rangebayes
