@@ -88,9 +88,7 @@ StereoRig StereoRigFromMiddlebury(const MiddleburyCalib& calib) {
   rig.K_left = calib.cam0;
   rig.K_right = calib.cam1;
   rig.R_right_from_left.setIdentity();
-  // Rectified views have no distortion; written as zeros because ReadStereoRig rejects an empty matrix.
-  rig.distortion_left = Eigen::VectorXd::Zero(5);
-  rig.distortion_right = Eigen::VectorXd::Zero(5);
+  // Rectified views have no distortion: the distortion vectors stay empty.
   const double b = calib.baseline_mm / 1000.0;
   rig.t_right_from_left_m = Eigen::Vector3d(-b, 0.0, 0.0);
   rig.is_rectified = true;

@@ -149,12 +149,7 @@ RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<
   fs::create_directories(root / "right", ec);
   RB_CHECK(!ec, folder, "/right: cannot create folder (", ec.message(), ")");
   if (rig.has_value()) {
-    // An empty distortion vector is written as an empty matrix, which ReadStereoRig rejects; zeros say
-    // the same thing and read back.
-    StereoRig copy = *rig;
-    if (copy.distortion_left.size() == 0) copy.distortion_left = Eigen::VectorXd::Zero(5);
-    if (copy.distortion_right.size() == 0) copy.distortion_right = Eigen::VectorXd::Zero(5);
-    WriteStereoRig(copy, (root / "rig.yaml").string());
+    WriteStereoRig(*rig, (root / "rig.yaml").string());
   } else {
     fs::remove(root / "rig.yaml", ec);
     meta_.emplace("rig", "none (uncalibrated)");

@@ -388,8 +388,6 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   rig.height = h;
   rig.K_left << f, 0, cx, 0, f, cy, 0, 0, 1;
   rig.K_right = rig.K_left;
-  rig.distortion_left = Eigen::VectorXd::Zero(5);  // ReadStereoRig rejects an empty matrix
-  rig.distortion_right = Eigen::VectorXd::Zero(5);
   rig.t_right_from_left_m = Vector3d(-B, 0, 0);
   rig.is_rectified = true;
   rig.P1.setZero();
