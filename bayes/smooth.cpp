@@ -366,6 +366,8 @@ void SmoothOptions::Check() const {
            " is outside [0, 1e7]");
   RB_CHECK(lbfgs_memory >= 1 && lbfgs_memory <= 50, "smooth: lbfgs_memory ", lbfgs_memory, " is outside [1, 50]");
   RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
+  RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
+           "smooth: face_epsilon_squared needs the built-in square-root prior");
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");
 }
 
@@ -416,7 +418,12 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
       RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
                " is not finite and positive definite");
     }
-    const SmoothingEnergy energy(mesh, information, options.prior_weight, *potential);
+    RB_CHECK(options.face_epsilon_squared.empty() ||
+                 static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
+             "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
+             mesh.num_faces(), " faces");
+    const SmoothingEnergy energy(mesh, information, options.prior_weight, *potential,
+                                 options.face_epsilon_squared.empty() ? nullptr : &options.face_epsilon_squared);
     std::vector<Eigen::Matrix3d>().swap(information);
     summary.inactive_faces = energy.num_inactive_faces();
     summary.memory_bytes = energy.MemoryBytes();

@@ -36,6 +36,10 @@ std::string SmoothMinimiserName(SmoothMinimiser minimiser);
 struct SmoothOptions {
   PriorKind prior = PriorKind::kSqrt;  // used when `potential` is null
   double sqrt_epsilon_squared = 1e-4;  // ε² of the square-root potential (the paper's value), (0, 4]
+  // Optional ε² per face for the built-in square-root potential (empty: sqrt_epsilon_squared everywhere); else
+  // size #F, each in (0, 4]; a face pair (s, t) uses φ(d) = sqrt(d² + ½(ε_s² + ε_t²)). Only with
+  // prior = kSqrt and no `potential` (Error otherwise).
+  std::vector<double> face_epsilon_squared;
   double cauchy_scale = 0.3;           // c of log(1 + d²/c²), (0, 2]
   // A potential to use instead of `prior` (e.g. a learned spline); not owned, must outlive the call.
   const Potential* potential = nullptr;

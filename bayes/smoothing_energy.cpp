@@ -32,7 +32,8 @@ inline Eigen::Vector3d Position(const double* x, int v) { return Eigen::Vector3d
 }  // namespace
 
 SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::Matrix3d>& information,
-                                 double prior_weight, const Potential& potential)
+                                 double prior_weight, const Potential& potential,
+                                 const std::vector<double>* face_epsilon_squared)
     : num_vertices_(measured.num_vertices()),
       faces_(measured.F),
       z_(measured.V.data(), 3 * static_cast<Eigen::Index>(measured.num_vertices())),
@@ -44,6 +45,17 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   RB_CHECK(prior_weight >= 0 && std::isfinite(prior_weight), "smoothing: prior weight ", prior_weight,
            " must be finite and non-negative");
   RB_CHECK(measured.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
+  if (face_epsilon_squared != nullptr) {
+    RB_CHECK(dynamic_cast<const SqrtPotential*>(&potential) != nullptr,
+             "smoothing: a per-face epsilon_squared needs the square-root potential, not ", potential.Name());
+    RB_CHECK(static_cast<int>(face_epsilon_squared->size()) == nf, "smoothing: ", face_epsilon_squared->size(),
+             " per-face epsilon_squared values for ", nf, " faces");
+    for (int f = 0; f < nf; ++f) {
+      const double e2 = (*face_epsilon_squared)[static_cast<size_t>(f)];
+      RB_CHECK(e2 > 0 && e2 <= 4, "smoothing: epsilon_squared of face ", f, " is ", e2, ", outside (0, 4]");
+    }
+    face_epsilon_squared_ = *face_epsilon_squared;
+  }
   information_.resize(6 * static_cast<size_t>(nv));
   for (int i = 0; i < nv; ++i) {
     const Eigen::Matrix3d& W = information[static_cast<size_t>(i)];
@@ -134,7 +146,7 @@ size_t SmoothingEnergy::MemoryBytes() const {
   return sizeof(int) * (neighbour_offsets_.size() + neighbours_.size() + corner_offsets_.size() +
                         corners_.size()) +
          sizeof(double) * (information_.size() + normals_.size() +
-                           inverse_length_.size() + h_.size()) +
+                           inverse_length_.size() + h_.size() + face_epsilon_squared_.size()) +
          active_.size();
 }
 
@@ -172,16 +184,24 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   const bool want_gradient = gradient != nullptr;
   const double beta = prior_weight_;
   const Potential& potential = *potential_;
+  const bool per_face_epsilon = !face_epsilon_squared_.empty();
+  const double* face_e2 = face_epsilon_squared_.data();
   const double prior_sum = DeterministicSum(nf, [&](int t) {
     const double* nt = &normals_[3 * static_cast<size_t>(t)];
     double energy = 0;
     double g[3] = {0, 0, 0};
     for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
-      const double* ns = &normals_[3 * static_cast<size_t>(neighbours_[static_cast<size_t>(q)])];
+      const int s = neighbours_[static_cast<size_t>(q)];
+      const double* ns = &normals_[3 * static_cast<size_t>(s)];
       const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
-      const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double d2 = dx * dx + dy * dy + dz * dz;
       double value = 0, weight = 0;
-      potential.EvaluateWeight(d, &value, &weight);
+      if (per_face_epsilon) {
+        value = std::sqrt(d2 + 0.5 * (face_e2[t] + face_e2[s]));
+        weight = 1.0 / value;
+      } else {
+        potential.EvaluateWeight(std::sqrt(d2), &value, &weight);
+      }
       energy += value;
       g[0] += weight * dx;
       g[1] += weight * dy;

@@ -34,8 +34,12 @@ class SmoothingEnergy {
   // measured: z and faces (indices checked; throws Error); referenced, not copied: it must outlive this
   // object and stay unchanged. information: one W_i per vertex (symmetric). `potential` is not owned and
   // must outlive this object. prior_weight = β ≥ 0.
+  //
+  // face_epsilon_squared (optional, null = off): one ε² per face (size #F, each in (0, 4]; copied) for the
+  // built-in square-root potential only: a pair (s, t) then costs φ(d) = sqrt(d² + ½(ε_s² + ε_t²)) instead of
+  // the potential's global ε². Throws Error if `potential` is not a SqrtPotential or a value is out of range.
   SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::Matrix3d>& information, double prior_weight,
-                  const Potential& potential);
+                  const Potential& potential, const std::vector<double>* face_epsilon_squared = nullptr);
 
   // E(x) and, when gradient is not null, ∂E/∂x (resized to 3·#V). Not safe to call concurrently on one
   // object (it reuses internal buffers).
@@ -68,6 +72,8 @@ class SmoothingEnergy {
   std::vector<double> information_;  // 6 per vertex: xx xy xz yy yz zz
   double prior_weight_ = 0;
   const Potential* potential_ = nullptr;
+  // Per-face ε² of the square-root potential (empty: the potential's own, global ε²).
+  std::vector<double> face_epsilon_squared_;
   // Face neighbours (compressed rows over faces, neighbours ascending) of active faces only.
   std::vector<int> neighbour_offsets_;
   std::vector<int> neighbours_;

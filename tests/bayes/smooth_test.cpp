@@ -117,6 +117,17 @@ TEST(Smooth, EmptyMeshAndBadCovariance) {
   SmoothOptions bad;
   bad.prior_weight = -1;
   EXPECT_THROW(bad.Check(), Error);
+  // A per-face ε² only with the built-in square root, and one per face.
+  SmoothOptions per_face;
+  per_face.face_epsilon_squared.assign(3, 1e-3);
+  per_face.prior = PriorKind::kCauchy;
+  EXPECT_THROW(per_face.Check(), Error);
+  per_face.prior = PriorKind::kSqrt;
+  per_face.Check();
+  const NoisyMesh grid = MakeGenericNoisyMesh(testing::Grid(2, 2), GenericNoiseOptions{.noise_edge_multiple = 0.2});
+  EXPECT_THROW(Smooth(grid, per_face), Error);
+  per_face.face_epsilon_squared.assign(static_cast<size_t>(grid.mesh.num_faces()), 1e-3);
+  EXPECT_EQ(Smooth(grid, per_face).num_vertices(), grid.mesh.num_vertices());
 }
 
 TEST(NoiseModel, CovarianceIsAlongTheNormal) {

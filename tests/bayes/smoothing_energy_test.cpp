@@ -65,6 +65,53 @@ TEST(SmoothingEnergy, GradientMatchesCentralDifferences) {
   }
 }
 
+// The per-face ε² of the square-root potential (a pair uses the mean of its two faces' ε²): same check, with
+// ε² spread over two orders of magnitude so a wrong pairing of the faces' values would show.
+TEST(SmoothingEnergy, PerFaceEpsilonGradientMatchesCentralDifferences) {
+  const Mesh measured = testing::NoisyRoof(3, 4, 0.1, 7);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> log_uniform(std::log(1e-4), std::log(0.05));
+  std::vector<double> face_e2(static_cast<size_t>(measured.num_faces()));
+  for (double& e2 : face_e2) e2 = std::exp(log_uniform(rng));
+  const SqrtPotential potential(1e-4);
+  const SmoothingEnergy energy(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, potential,
+                               &face_e2);
+  std::normal_distribution<double> gauss(0.0, 0.05);
+  Eigen::VectorXd x = energy.Measurements();
+  for (Eigen::Index i = 0; i < x.size(); ++i) x[i] += gauss(rng);
+  Eigen::VectorXd gradient;
+  energy.Evaluate(x, &gradient);
+  const double h = 1e-6;
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    Eigen::VectorXd xp = x, xm = x;
+    xp[i] += h;
+    xm[i] -= h;
+    const double numeric = (energy.Evaluate(xp, nullptr).total() - energy.Evaluate(xm, nullptr).total()) / (2 * h);
+    EXPECT_NEAR(gradient[i], numeric, 1e-5 * std::max(1.0, std::abs(numeric))) << "coordinate " << i;
+  }
+  // The energy is the definition: with every ε² equal to the global one it matches the plain potential.
+  const std::vector<double> uniform(face_e2.size(), 0.01);
+  const SqrtPotential global(0.01);
+  const SmoothingEnergy per_face(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, potential,
+                                 &uniform);
+  const SmoothingEnergy plain(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, global);
+  EXPECT_NEAR(per_face.Evaluate(x, nullptr).total(), plain.Evaluate(x, nullptr).total(),
+              1e-12 * plain.Evaluate(x, nullptr).total());
+  // Only with the square-root potential, and one value in (0, 4] per face.
+  const QuadraticPotential quadratic;
+  EXPECT_THROW(SmoothingEnergy(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, quadratic,
+                               &face_e2),
+               Error);
+  std::vector<double> short_list(face_e2.begin(), face_e2.end() - 1);
+  EXPECT_THROW(SmoothingEnergy(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, potential,
+                               &short_list),
+               Error);
+  std::vector<double> bad = face_e2;
+  bad[0] = 0;
+  EXPECT_THROW(SmoothingEnergy(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, potential, &bad),
+               Error);
+}
+
 TEST(SmoothingEnergy, PartsMatchDefinition) {
   // Two triangles folded by 90°: d = √2 for their one pair.
   Mesh mesh;
