@@ -27,6 +27,7 @@ struct SynthArgs {
   std::string out;
   std::uint64_t seed = 1;
   double k = 0.3;
+  double k_max = 0;
   bool scanner = false;
   int train = 8;
   int test = 4;
@@ -40,6 +41,7 @@ void RunSynth(const SynthArgs& args) {
   SynthMeshSetOptions options;
   options.seed = args.seed;
   options.noise.k = args.k;
+  options.noise_k_max = args.k_max;
   options.noise.kind = args.scanner ? SynthNoise::kScanner : SynthNoise::kNormal;
   options.num_train = args.train;
   options.num_test = args.test;
@@ -59,6 +61,7 @@ void RunSynth(const SynthArgs& args) {
     PairsList list;
     list.noise_kind = SynthNoiseName(options.noise.kind);
     list.noise_k = options.noise.k;
+    if (options.noise_k_max > options.noise.k) list.noise_k_max = options.noise_k_max;
     for (const SynthPair& pair : pairs) {
       const std::string noisy = folder + "/" + pair.name + "_noisy.ply";
       const std::string truth = folder + "/" + pair.name + "_gt.ply";
@@ -79,9 +82,12 @@ void RunSynth(const SynthArgs& args) {
   progress.Finish();
   int vertices = 0;
   for (const auto& p : set.train) vertices += p.clean.num_vertices();
-  std::printf("wrote %zu training pairs (%d vertices) and %zu held-out pairs to %s (noise %s, k = %g, seed %llu)\n",
+  const std::string levels = options.noise_k_max > options.noise.k
+                                 ? StrCat(options.noise.k, "..", options.noise_k_max, " (a mixture)")
+                                 : StrCat(options.noise.k);
+  std::printf("wrote %zu training pairs (%d vertices) and %zu held-out pairs to %s (noise %s, k = %s, seed %llu)\n",
               set.train.size(), vertices, set.test.size(), args.out.c_str(), SynthNoiseName(options.noise.kind).c_str(),
-              options.noise.k, static_cast<unsigned long long>(args.seed));
+              levels.c_str(), static_cast<unsigned long long>(args.seed));
   std::printf("train with: rangebayes learn-prior --pairs %s/train_pairs.txt --out prior.yaml\n", args.out.c_str());
 }
 
@@ -214,6 +220,7 @@ void RunLearn(const LearnArgs& args) {
   prior.prior_weight = options.prior_weight;
   prior.noise_kind = list.noise_kind.empty() ? (k_used_count > 0 ? "generic" : "covariance") : list.noise_kind;
   prior.noise_k = k_used_count > 0 ? k_used_sum / k_used_count : k;
+  if (k_used_count == 0) prior.noise_k_max = list.noise_k_max;
   prior.training_set = std::filesystem::absolute(args.pairs).lexically_normal().string();
   prior.training_pairs = static_cast<int>(pairs.size());
   prior.method = LearnMethodName(options.method);
@@ -242,6 +249,10 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--seed", args->seed, "Random seed: the same seed writes the same meshes");
     sub->add_option("--noise", args->k, "Noise sigma in units of the mean edge length l_e (k), [0, 5]")
         ->check(CLI::Range(0.0, 5.0));
+    sub->add_option("--noise-max", args->k_max,
+                    "A mixture of noise levels: copies spread evenly over k in [--noise, --noise-max] (each noisy "
+                    "PLY then holds its own covariance); 0: one level, [0, 5]")
+        ->check(CLI::Range(0.0, 5.0));
     sub->add_flag("--scanner-noise", args->scanner,
                   "Ray-aligned scanner noise (sigma along the ray from a virtual camera, sigma/10 across; the PLY "
                   "holds the covariance) instead of Gaussian noise along the vertex normals");
@@ -256,6 +267,7 @@ void AddCommands(CLI::App& app) {
     sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");
     sub->callback([args] {
       if (args->max_cells < args->min_cells) UsageError("--max-cells must not be below --min-cells");
+      if (args->k_max > 0 && args->k_max <= args->k) UsageError("--noise-max must be above --noise");
       RunSynth(*args);
     });
   }

@@ -68,7 +68,9 @@ void WriteLearnedPrior(const LearnedPrior& prior, const std::string& path) {
   out << "]\n"
       << "prior_weight: " << Number(prior.prior_weight) << "\n"
       << "noise_kind: " << Quote(prior.noise_kind) << "\n"
-      << "noise_k: " << Number(prior.noise_k) << "\n"
+      << "noise_k: " << Number(prior.noise_k) << "\n";
+  if (std::isfinite(prior.noise_k_max)) out << "noise_k_max: " << Number(prior.noise_k_max) << "\n";
+  out
       << "training_set: " << Quote(prior.training_set) << "\n"
       << "training_pairs: " << prior.training_pairs << "\n"
       << "method: " << Quote(prior.method) << "\n"
@@ -155,6 +157,7 @@ LearnedPrior ReadLearnedPrior(const std::string& path) {
   RB_CHECK(prior.prior_weight >= 0 && std::isfinite(prior.prior_weight), path, ": prior_weight must be finite and non-negative");
   prior.noise_kind = text("noise_kind");
   if (values.count("noise_k")) prior.noise_k = real("noise_k");
+  if (values.count("noise_k_max")) prior.noise_k_max = real("noise_k_max");
   prior.training_set = text("training_set");
   if (values.count("training_pairs")) prior.training_pairs = static_cast<int>(real("training_pairs"));
   prior.method = text("method");
@@ -179,8 +182,8 @@ PairsList ReadPairsList(const std::string& path) {
     if (trimmed.empty()) continue;
     if (trimmed[0] == '#') {
       std::istringstream comment(trimmed.substr(1));
-      std::string key, kind, k;
-      comment >> key >> kind >> k;
+      std::string key, kind, k, k_max;
+      comment >> key >> kind >> k >> k_max;
       if (key == "noise:" && !kind.empty()) {
         list.noise_kind = kind;
         if (k.rfind("k=", 0) == 0) {
@@ -188,6 +191,13 @@ PairsList ReadPairsList(const std::string& path) {
             list.noise_k = std::stod(k.substr(2));
           } catch (const std::exception&) {
             RB_FAIL(path, ":", number, ": bad noise level '", k, "'");
+          }
+        }
+        if (k_max.rfind("k_max=", 0) == 0) {
+          try {
+            list.noise_k_max = std::stod(k_max.substr(6));
+          } catch (const std::exception&) {
+            RB_FAIL(path, ":", number, ": bad noise level '", k_max, "'");
           }
         }
       }
@@ -209,7 +219,11 @@ void WritePairsList(const PairsList& list, const std::string& path) {
   std::ofstream out(path);
   RB_CHECK(out.good(), "cannot write pairs list '", path, "'");
   out << "# NOISY GROUND_TRUTH (paths relative to this file)\n";
-  if (!list.noise_kind.empty()) out << "# noise: " << list.noise_kind << " k=" << Number(list.noise_k) << "\n";
+  if (!list.noise_kind.empty()) {
+    out << "# noise: " << list.noise_kind << " k=" << Number(list.noise_k);
+    if (std::isfinite(list.noise_k_max)) out << " k_max=" << Number(list.noise_k_max);
+    out << "\n";
+  }
   for (size_t i = 0; i < list.noisy.size(); ++i) out << list.noisy[i] << " " << list.truth[i] << "\n";
   out.close();
   RB_CHECK(!out.fail(), "cannot write pairs list '", path, "'");

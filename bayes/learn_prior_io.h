@@ -18,6 +18,8 @@ struct LearnedPrior {
   double prior_weight = 0;         // β the potential was trained with (use the same β when smoothing); 0: not recorded
   std::string noise_kind;          // "normal", "scanner", or what the pairs list said; may be empty
   double noise_k = std::numeric_limits<double>::quiet_NaN();  // σ / l_e of the training noise; NaN: unknown
+  // A mixture of levels: the training noise spans [noise_k, noise_k_max]; NaN: a single level.
+  double noise_k_max = std::numeric_limits<double>::quiet_NaN();
   std::string training_set;        // the pairs list it was trained on
   int training_pairs = 0;
   std::string method;              // "implicit" or "interleaved"
@@ -34,12 +36,14 @@ LearnedPrior ReadLearnedPrior(const std::string& path);
 
 // A list of training pairs: one `NOISY GROUND_TRUTH` per line (paths without spaces, relative ones taken from
 // the list's folder), blank lines and `#` comments skipped. A comment `# noise: KIND k=K` (what synth-meshes
-// writes) records the noise the pairs carry.
+// writes) records the noise the pairs carry; `# noise: KIND k=K k_max=KMAX` a mixture of levels in [K, KMAX]
+// (the noisy meshes then carry their own covariances).
 struct PairsList {
   std::vector<std::string> noisy;
   std::vector<std::string> truth;
   std::string noise_kind;                                      // empty when the list does not say
   double noise_k = std::numeric_limits<double>::quiet_NaN();   // NaN when the list does not say
+  double noise_k_max = std::numeric_limits<double>::quiet_NaN();  // NaN unless a mixture of levels
 };
 // Throws Error naming the file and line on a malformed line or an empty list.
 PairsList ReadPairsList(const std::string& path);

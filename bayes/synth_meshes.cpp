@@ -9,6 +9,7 @@
 #include <set>
 #include <unordered_map>
 
+#include "bayes/noise_model.h"
 #include "core/error.h"
 #include "core/topology.h"
 
@@ -254,6 +255,7 @@ void SynthMeshSetOptions::Check() const {
   RB_CHECK(copies >= 1 && copies <= 100, "synth meshes: copies must be in [1, 100], got ", copies);
   noise.Check();
   object.Check();
+  RB_CHECK(noise_k_max >= 0 && noise_k_max <= 5, "synth meshes: noise_k_max must be in [0, 5], got ", noise_k_max);
 }
 
 Mesh MakeRightAngledObject(const RightAngledObjectOptions& options, std::uint64_t seed) {
@@ -312,6 +314,8 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
   SynthMeshSet set;
   std::set<std::vector<int>> train_objects;
   std::uint64_t draw = 0;
+  const bool mixture = options.noise_k_max > options.noise.k;
+  int pair_index = 0;  // over train and test separately (reset below), for the mixture's level sequence
   auto add = [&](const std::string& prefix, int index, bool is_test, std::vector<SynthPair>* out) {
     RightAngledObjectOptions object = options.object;
     object.shape = static_cast<RightAngledShape>(index % 4);
@@ -330,11 +334,25 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
                     RightAngledShapeName(object.shape).c_str(), c);
       pair.name = name;
       pair.clean = clean;
-      pair.noisy = AddSynthNoise(clean, options.noise, MixSeed(options.seed ^ 0xabcdefULL, draw * 131 + c));
+      SynthNoiseOptions noise = options.noise;
+      if (mixture) {
+        // Golden-ratio sequence: evenly spread levels, uncorrelated with the shape cycle (index % 4).
+        const double fraction = std::fmod(0.5 + 0.6180339887498949 * pair_index, 1.0);
+        noise.k = options.noise.k + fraction * (options.noise_k_max - options.noise.k);
+      }
+      ++pair_index;
+      pair.k = noise.k;
+      pair.noisy = AddSynthNoise(clean, noise, MixSeed(options.seed ^ 0xabcdefULL, draw * 131 + c));
+      if (mixture && !pair.noisy.has_covariance()) {
+        GenericNoiseOptions generic;
+        generic.noise_edge_multiple = std::max(noise.k, 1e-6);
+        pair.noisy.covariance = MakeGenericNoisyMesh(pair.noisy.mesh, generic).covariance;
+      }
       out->push_back(std::move(pair));
     }
   };
   for (int i = 0; i < options.num_train; ++i) add("train", i, false, &set.train);
+  pair_index = 0;
   for (int i = 0; i < options.num_test; ++i) add("test", i, true, &set.test);
   return set;
 }

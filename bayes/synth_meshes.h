@@ -50,12 +50,19 @@ struct SynthMeshSetOptions {
   int num_test = 4;          // held-out objects (never among the training objects); [0, 10000]
   int copies = 1;            // noisy copies per object; [1, 100]
   SynthNoiseOptions noise;
+  // A mixture of noise levels when above noise.k: the noisy copies' k are spread evenly over
+  // [noise.k, noise_k_max] (a low-discrepancy sequence over the pairs in order, so that any prefix of the set
+  // covers the range) and every noisy mesh carries the covariance of its own level (the generic isotropic
+  // σ²·I for normal noise, σ = k·l_e of the noisy mesh as `rangebayes smooth --noise k` would use).
+  // 0 or ≤ noise.k: every copy at noise.k. [0, 5]
+  double noise_k_max = 0;
   RightAngledObjectOptions object;  // shape is cycled over all four kinds
   void Check() const;
 };
 
 struct SynthPair {
   std::string name;  // "train_03_stairs_c0"
+  double k = 0;      // the noise level of this copy (σ / l_e)
   Mesh clean;
   NoisyMesh noisy;
 };

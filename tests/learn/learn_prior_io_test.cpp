@@ -38,6 +38,10 @@ TEST(LearnPriorIo, RoundTrip) {
   EXPECT_EQ(read.training_pairs, 8);
   EXPECT_EQ(read.date, prior.date);
   EXPECT_TRUE(std::isnan(read.training_mse_le2));
+  EXPECT_TRUE(std::isnan(read.noise_k_max));  // a single level: not written
+  prior.noise_k_max = 0.5;
+  WriteLearnedPrior(prior, path);
+  EXPECT_EQ(ReadLearnedPrior(path).noise_k_max, 0.5);
   std::remove(path.c_str());
 }
 
@@ -77,6 +81,11 @@ TEST(LearnPriorIo, PairsListResolvesRelativePaths) {
   EXPECT_EQ(read.truth[1], "/abs/b_gt.ply");
   EXPECT_EQ(read.noise_kind, "scanner");
   EXPECT_EQ(read.noise_k, 0.5);
+  EXPECT_TRUE(std::isnan(read.noise_k_max));
+  list.noise_k_max = 0.75;  // a mixture of levels
+  WritePairsList(list, path);
+  EXPECT_EQ(ReadPairsList(path).noise_k_max, 0.75);
+  EXPECT_EQ(ReadPairsList(path).noise_k, 0.5);
   {
     std::ofstream out(path);
     out << "only_one_path.ply\n";

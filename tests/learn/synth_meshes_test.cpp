@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/topology.h"
 
@@ -95,6 +97,35 @@ TEST(SynthMeshes, NoiseHasTheRequestedSize) {
     EXPECT_EQ(noisy.has_covariance(), kind == SynthNoise::kScanner);
     EXPECT_EQ(noisy.mesh.F, clean.F);
   }
+}
+
+TEST(SynthMeshes, NoiseMixtureSpreadsLevelsAndCarriesCovariances) {
+  SynthMeshSetOptions options;
+  options.num_train = 8;
+  options.num_test = 2;
+  options.object.min_cells = 4;
+  options.object.max_cells = 6;
+  options.noise.k = 0.2;
+  options.noise_k_max = 0.5;
+  const SynthMeshSet set = MakeSynthMeshSet(options);
+  std::vector<double> levels;
+  for (const SynthPair& pair : set.train) {
+    ASSERT_TRUE(pair.noisy.has_covariance()) << pair.name;
+    EXPECT_GE(pair.k, 0.2);
+    EXPECT_LE(pair.k, 0.5);
+    // The stored covariance is the generic isotropic σ²·I at this pair's own level, σ = k·l_e (noisy mesh).
+    const double sigma = pair.k * MeanEdgeLength(pair.noisy.mesh);
+    EXPECT_NEAR(pair.noisy.covariance[0](0, 0), sigma * sigma, 1e-9 * sigma * sigma) << pair.name;
+    levels.push_back(pair.k);
+  }
+  std::sort(levels.begin(), levels.end());
+  // Golden-ratio spread: 8 levels cover the range with no gap wider than 2.5× the even spacing 0.3/8.
+  EXPECT_LT(levels.front(), 0.25);
+  EXPECT_GT(levels.back(), 0.45);
+  for (size_t i = 1; i < levels.size(); ++i) EXPECT_LT(levels[i] - levels[i - 1], 2.5 * 0.3 / 8);
+  // Without a mixture every copy carries the one level.
+  options.noise_k_max = 0;
+  for (const SynthPair& pair : MakeSynthMeshSet(options).train) EXPECT_EQ(pair.k, 0.2);
 }
 
 }  // namespace
