@@ -23,6 +23,7 @@ struct DecimateArgs {
   double lambda = DecimateOptions{}.lambda;
   int target_faces = 0;
   double chain_tolerance = DecimateOptions{}.chain_tolerance_rel;
+  double chain_reserve = DecimateOptions{}.chain_reserve_share;
   bool uniform = false;
   bool polygons = false;
   std::string png;
@@ -96,6 +97,7 @@ void Run(const DecimateArgs& a) {
   options.lambda = a.lambda;
   options.target_faces = a.target_faces;
   options.chain_tolerance_rel = a.chain_tolerance;
+  options.chain_reserve_share = a.chain_reserve;
   options.weighting = a.uniform ? DecimateWeighting::kUniform : DecimateWeighting::kArea;
   options.Check();
 
@@ -142,6 +144,12 @@ void Run(const DecimateArgs& a) {
               a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " decimations)").c_str()
                                  : "",
               s.energy, s.data_energy, s.energy - s.data_energy);
+  if (a.target_faces > 0) {
+    std::printf("lambda search: straightened patches need %d faces at lambda %.6g, %d at lambda %.6g (budget %d of "
+                "%d; chain vertices kept up to chain error %.3g%% of the diagonal)\n",
+                s.faces_too_many, s.lambda_too_many, s.faces_fits, s.lambda_fits, s.budget_faces, a.target_faces,
+                100.0 * s.max_chain_error_rel);
+  }
   std::printf("moves: %lld fuses, %lld splits, %lld swaps; %lld refused because they would disconnect a patch; "
               "%d rounds%s\n",
               s.fuses, s.splits, s.swaps, s.rejected_disconnecting, s.rounds,
@@ -169,13 +177,18 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                                  "energy cost of one patch (normal difference squared x faces, area weights "
                                  "normalised to mean 1): larger gives fewer patches")
                      ->check(CLI::PositiveNumber);
-  sub->add_option("--target-faces", a->target_faces, "find lambda by bisection for about this many output triangles")
+  sub->add_option("--target-faces", a->target_faces,
+                  "find lambda by bisection for this many output triangles (the output has N or N-1 unless N is "
+                  "below what one patch per component needs)")
       ->check(CLI::PositiveNumber)
       ->excludes(lambda);
   sub->add_option("--chain-tolerance", a->chain_tolerance,
                   "patch-boundary chains are straightened while removed vertices stay within this share of the "
-                  "bounding-box diagonal")
+                  "bounding-box diagonal (with --target-faces the budget decides instead)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--chain-reserve", a->chain_reserve,
+                  "with --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
+      ->check(CLI::Range(0.0, 0.99));
   sub->add_flag("--uniform-weights", a->uniform, "weight every face 1 (the paper) instead of by its area");
   sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
   sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");

@@ -133,15 +133,26 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
                                  "welded back in the output"));
   }
   if (unreferenced > 0) out.notices.push_back(StrCat(unreferenced, " vertices are not used by any face; dropped"));
+  // The common case, a manifold mesh with every vertex used: keep the input's vertex ids so that its edge
+  // topology (a sort of all half-edges, the largest cost of this preparation) serves the split mesh too.
+  const bool identity = split_vertices == 0 && unreferenced == 0 && ns == nv;
+  if (identity) {
+    out.F = mesh.F;
+    std::iota(out.split_source.begin(), out.split_source.end(), 0);
+  }
   out.poses.resize(poses.size());
   for (size_t m = 0; m < poses.size(); ++m) {
     out.poses[m].resize(ns, 3);
     for (int s = 0; s < ns; ++s) out.poses[m].row(s) = poses[m].V.row(out.split_source[s]);
   }
-  Mesh split;
-  split.V = out.poses[0];
-  split.F = out.F;
-  out.topology = ComputeEdgeTopology(split);
+  if (identity) {
+    out.topology = topology;
+  } else {
+    Mesh split;
+    split.V = out.poses[0];
+    split.F = out.F;
+    out.topology = ComputeEdgeTopology(split);
+  }
   out.boundary_vertex.assign(ns, 0);
   for (int e = 0; e < out.topology.edge_faces.rows(); ++e) {
     if (out.topology.edge_faces.size(e) == 1) {
@@ -328,8 +339,8 @@ struct Attempt {
   double seconds_partition = 0.0, seconds_geometry = 0.0;
 };
 
-Attempt RunOnce(const Prepared& prep, const Problem& problem, double lambda, const DecimateOptions& options,
-                const std::vector<std::pair<int, int>>& signature, const ProgressCallback& progress) {
+Attempt PartitionOnce(const Problem& problem, double lambda, const DecimateOptions& options,
+                      const ProgressCallback& progress) {
   Attempt a;
   const auto t0 = Clock::now();
   PartitionOptions popts;
@@ -338,23 +349,34 @@ Attempt RunOnce(const Prepared& prep, const Problem& problem, double lambda, con
   a.face_patch = HillClimbPartition(problem.problem, lambda, popts, &a.stats);
   a.num_patches = a.stats.num_patches;
   a.seconds_partition = Seconds(t0);
+  return a;
+}
+
+// budget_faces > 0: chains are straightened by error down to that many faces (see DecimateOptions).
+void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budget_faces,
+                  const std::vector<std::pair<int, int>>& signature, Attempt* a) {
   const auto t1 = Clock::now();
   std::vector<const Vertices*> poses;
   for (const Vertices& V : prep.poses) poses.push_back(&V);
   PatchTriangulationOptions topts;
   topts.min_cos_to_patch_normal = options.min_cos_to_patch_normal;
   topts.chain_tolerance_rel = options.chain_tolerance_rel;
-  a.triangulation =
-      TriangulatePatches(poses, prep.F, a.face_patch, a.num_patches, prep.locked, topts, prep.boundary_vertex);
-  const int ns = static_cast<int>(prep.split_source.size());
-  if (TopologySignature(ns, a.triangulation.F) != signature || !IsManifold(a.triangulation.F, ns)) {
-    // Safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
-    a.fell_back = true;
-    a.triangulation.F = prep.F;
-    a.triangulation.face_patch = a.face_patch;
+  if (budget_faces > 0) {
+    // Only (numerically) straight chain runs go unconditionally; the budgeted pass decides the rest.
+    topts.chain_tolerance_rel = std::min(options.chain_tolerance_rel, 1e-7);
+    topts.target_faces = budget_faces;
   }
-  a.seconds_geometry = Seconds(t1);
-  return a;
+  a->fell_back = false;
+  a->triangulation =
+      TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.locked, topts, prep.boundary_vertex);
+  const int ns = static_cast<int>(prep.split_source.size());
+  if (TopologySignature(ns, a->triangulation.F) != signature || !IsManifold(a->triangulation.F, ns)) {
+    // Safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
+    a->fell_back = true;
+    a->triangulation.F = prep.F;
+    a->triangulation.face_patch = a->face_patch;
+  }
+  a->seconds_geometry = Seconds(t1);
 }
 
 std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<int>& face_patch, int num_patches) {
@@ -405,8 +427,9 @@ std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<in
 void DecimateOptions::Check() const {
   RB_CHECK(lambda > 0.0 && std::isfinite(lambda), "decimate: lambda must be positive, got ", lambda);
   RB_CHECK(target_faces >= 0, "decimate: target_faces must be ≥ 0, got ", target_faces);
-  RB_CHECK(target_tolerance > 0.0 && target_tolerance < 1.0, "decimate: target_tolerance must be in (0, 1)");
-  RB_CHECK(max_bisection_steps >= 1, "decimate: max_bisection_steps must be ≥ 1");
+  RB_CHECK(chain_reserve_share >= 0.0 && chain_reserve_share < 1.0, "decimate: chain_reserve_share must be in [0, 1)");
+  RB_CHECK(lambda_resolution > 0.0 && lambda_resolution < 1.0, "decimate: lambda_resolution must be in (0, 1)");
+  RB_CHECK(max_bisection_steps >= 2, "decimate: max_bisection_steps must be ≥ 2");
   RB_CHECK(max_rounds >= 1, "decimate: max_rounds must be ≥ 1");
   RB_CHECK(min_cos_to_patch_normal >= 0.0 && min_cos_to_patch_normal < 1.0,
            "decimate: min_cos_to_patch_normal must be in [0, 1)");
@@ -440,86 +463,69 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   Attempt best;
   double lambda = options.lambda;
   if (options.target_faces <= 0) {
-    best = RunOnce(prep, problem, lambda, options, signature, options.progress);
+    best = PartitionOnce(problem, lambda, options, options.progress);
+    GeometryOnce(prep, options, 0, signature, &best);
   } else {
-    // Output faces fall as λ grows: bracket the target geometrically, then bisect in log λ.
+    // Bracket λ geometrically, then bisect in log λ on "the straightened patches fit in the budget".
     const int target = options.target_faces;
-    auto faces_of = [](const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); };
-    double lo = 0.0, hi = 0.0;  // faces(lo) > target ≥ faces(hi)
-    bool have_best = false;
+    const int budget = std::max(
+        1, static_cast<int>(std::lround((1.0 - options.chain_reserve_share) * static_cast<double>(target))));
+    s.budget_faces = budget;
     int steps = 0;
-    auto consider = [&](Attempt&& a, double l) {
-      const int n = faces_of(a);
-      if (!have_best || std::abs(n - target) < std::abs(faces_of(best) - target) ||
-          (std::abs(n - target) == std::abs(faces_of(best) - target) && n <= target)) {
-        best = std::move(a);
-        s.lambda = l;
-        have_best = true;
-      }
-      return n;
-    };
-    DecimateOptions run_options = options;
+    Attempt too_many, fits;  // the attempts at the bracket ends
+    double lo = 0.0, hi = 0.0;
+    auto faces_of = [](const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); };
     auto run = [&](double l) {
       ++steps;
       if (options.progress) {
         options.progress(std::min(0.99, static_cast<double>(steps) / options.max_bisection_steps),
                          "searching lambda");
       }
-      return consider(RunOnce(prep, problem, l, run_options, signature, nullptr), l);
-    };
-    // The face count has a floor at a given chain tolerance (the chains' own vertices); when even a huge λ
-    // stays above the target, the chains are allowed to straighten further.
-    double l = lambda;
-    int n = 0;
-    while (true) {
-      n = run(l);
-      lo = hi = 0.0;
-      if (n > target) {
-        lo = l;
-        for (int grow = 0; grow < 8 && steps < options.max_bisection_steps; ++grow) {
-          l *= 4.0;
-          n = run(l);
-          if (n <= target) {
-            hi = l;
-            break;
-          }
-          lo = l;
-        }
-        if (hi == 0.0 && run_options.chain_tolerance_rel < 0.05 && steps < options.max_bisection_steps) {
-          run_options.chain_tolerance_rel = std::max(2.0 * run_options.chain_tolerance_rel, 1e-3);
-          s.notices.push_back(StrCat("target ", target, " faces not reached at lambda ", l,
-                                     "; chain tolerance raised to ", run_options.chain_tolerance_rel));
-          l = lambda;
-          continue;
-        }
-      } else {
+      Attempt a = PartitionOnce(problem, l, options, nullptr);
+      GeometryOnce(prep, options, budget, signature, &a);
+      const bool ok = faces_of(a) <= budget;
+      if (ok) {
         hi = l;
-        while (steps < options.max_bisection_steps) {
-          l /= 4.0;
-          n = run(l);
-          if (n > target) {
-            lo = l;
-            break;
-          }
-          hi = l;
-          if (l < 1e-12) break;
-        }
-      }
-      break;
-    }
-    while (lo > 0.0 && hi > 0.0 && steps < options.max_bisection_steps) {
-      if (std::abs(faces_of(best) - target) <= options.target_tolerance * target) break;
-      const double mid = std::sqrt(lo * hi);
-      n = run(mid);
-      if (n > target) {
-        lo = mid;
+        fits = std::move(a);
       } else {
-        hi = mid;
+        lo = l;
+        too_many = std::move(a);
       }
-      if (hi / lo < 1.0 + 1e-6) break;
+      return ok;
+    };
+    double l = lambda;
+    if (run(l)) {
+      while (steps < options.max_bisection_steps && l > 1e-12) {
+        l /= 4.0;
+        if (!run(l)) break;
+      }
+    } else {
+      while (steps < options.max_bisection_steps && l < 1e12) {
+        l *= 4.0;
+        if (run(l)) break;
+      }
+    }
+    while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) &&
+           steps < options.max_bisection_steps) {
+      run(std::sqrt(lo * hi));
     }
     s.bisection_steps = steps;
-    lambda = s.lambda;
+    s.lambda_too_many = lo;
+    s.lambda_fits = hi;
+    s.faces_too_many = lo > 0.0 ? faces_of(too_many) : 0;
+    s.faces_fits = hi > 0.0 ? faces_of(fits) : 0;
+    if (hi > 0.0) {
+      lambda = hi;
+      best = std::move(fits);
+      if (budget < target) GeometryOnce(prep, options, target, signature, &best);
+    } else {
+      // Even one patch per component needs more triangles than the budget: the fewest found.
+      lambda = lo;
+      best = std::move(too_many);
+      GeometryOnce(prep, options, target, signature, &best);
+      s.notices.push_back(StrCat("target ", target, " faces not reachable: ", faces_of(best),
+                                 " faces at lambda ", lo, " (the patches' corners and guarded vertices)"));
+    }
   }
   s.lambda = lambda;
 
@@ -587,6 +593,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   s.converged = best.stats.converged;
   s.kept_corner_vertices = tri.kept_corner_vertices;
   s.blocked_vertices = tri.blocked_vertices;
+  s.max_chain_error_rel = tri.max_chain_error_rel;
   s.fell_back_to_dense = best.fell_back;
   if (best.fell_back) {
     s.notices.push_back("the reduced mesh failed the topology check; the dense faces were kept (please report)");

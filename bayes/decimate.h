@@ -17,6 +17,13 @@
 // the faces, so λ keeps the paper's scale: one patch costs as much as λ faces' worth of squared normal
 // difference. Two patches of a and b faces whose normals differ by θ fuse when (ab/(a+b))·2(1 − cos θ) < λ
 // (two single faces: 1 − cos θ < λ). `target_faces` finds λ for a requested triangle count instead.
+//
+// Target faces: a triangle budget is split between patches (each costs its corner vertices) and the detail
+// of the patch boundaries (chain vertices). The search finds by bisection in log λ the smallest λ whose
+// patches, with every chain straightened as far as the manifold and flip guards allow, fit in
+// (1 − chain_reserve_share) of the budget (fewer patches fit at larger λ, so "fits" is monotone up to the
+// hill climbing's local optima); at that λ the chains are then straightened only down to the full budget,
+// least chain error first, so the kept chain vertices are those where the boundaries curve most.
 #pragma once
 
 #include <string>
@@ -32,9 +39,17 @@ enum class DecimateWeighting { kArea, kUniform };
 
 struct DecimateOptions {
   double lambda = 2.0;  // λ, the energy one patch costs (normal difference² × faces), > 0
-  int target_faces = 0;  // > 0: find λ by bisection so that the output has about this many triangles
-  double target_tolerance = 0.02;  // accepted relative miss of target_faces, (0, 1)
-  int max_bisection_steps = 30;     // decimations tried when searching λ, ≥ 1
+  // > 0: find λ for this many output triangles (see "Target faces" above); the output has target_faces or
+  // target_faces − 1 triangles unless even one patch per component needs more.
+  int target_faces = 0;
+  // With target_faces: share of the budget kept for patch-boundary detail, [0, 1). λ is the smallest for which
+  // the patches with fully straightened chains fit in (1 − share)·target_faces triangles; the rest of the
+  // budget keeps the chain vertices of largest chain error. Default 0 (all to patches): it gave the lowest
+  // shading-normal error on fandisk at 2% and on bunny at 2% and 10% (BENCHMARKS.md); 0.2 trades some of it
+  // for a lower Hausdorff distance on CAD shapes.
+  double chain_reserve_share = 0.0;
+  double lambda_resolution = 0.02;  // the λ search stops when λ_fits / λ_too_many ≤ 1 + this, (0, 1)
+  int max_bisection_steps = 30;     // decimations tried when searching λ, ≥ 2
   DecimateWeighting weighting = DecimateWeighting::kArea;
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
   double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
@@ -61,6 +76,13 @@ struct DecimateSummary {
   int rounds = 0;
   bool converged = false;  // the last round found no improving move
   int bisection_steps = 0;
+  // The λ search's final bracket (target_faces > 0): at lambda_too_many the straightened patches need
+  // faces_too_many > budget_faces triangles, at lambda_fits (the λ used) faces_fits ≤ budget_faces.
+  // lambda_too_many = 0 when even the smallest λ tried fits; lambda_fits = 0 when no λ tried fits.
+  int budget_faces = 0;
+  double lambda_too_many = 0.0, lambda_fits = 0.0;
+  int faces_too_many = 0, faces_fits = 0;
+  double max_chain_error_rel = 0.0;  // largest chain error the budgeted chain pass accepted, share of the diagonal
   int kept_corner_vertices = 0;  // vertices where ≥ 3 patch sides meet (and loop anchors, locked vertices)
   int blocked_vertices = 0;      // further vertices kept because removing them would flip or break something
   bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept

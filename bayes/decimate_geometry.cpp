@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <queue>
+#include <tuple>
 #include <unordered_map>
 
 #include "core/error.h"
@@ -58,6 +60,8 @@ class Reducer {
       }
     }
     area_eps_ = 1e-14 * diag2;
+    diag_ = std::sqrt(diag2);
+    alive_count_ = nf;
     chain_tolerance_ = options.chain_tolerance_rel * std::sqrt(diag2);
     if (static_cast<int>(boundary_vertex.size()) == nv) {
       boundary_ = boundary_vertex;
@@ -128,6 +132,7 @@ class Reducer {
       }
       if (queue.empty()) break;
     }
+    if (options_.target_faces > 0) BudgetedChainPass(options_.target_faces);
     PatchTriangulation out;
     int count = 0;
     for (char a : alive_face_) count += a;
@@ -147,6 +152,7 @@ class Reducer {
         ++out.blocked_vertices;
       }
     }
+    out.max_chain_error_rel = diag_ > 0.0 ? max_chain_error_ / diag_ : 0.0;
     out.collapses = collapses_;
     out.collapse_attempts = attempts_;
     out.pops = pops_;
@@ -324,6 +330,92 @@ class Reducer {
     return true;
   }
 
+  // The chain error of removing chain vertex v: the largest distance (over poses) of v and the chain vertices
+  // already removed next to it from the straightened segment between its two chain neighbours; infinity when
+  // v is not a chain vertex.
+  double ChainError(int v) {
+    Neighbourhood(v, &scratch_);
+    int ends[2] = {-1, -1}, features = 0;
+    for (const Neighbour& n : scratch_) {
+      if (!n.feature()) continue;
+      if (features < 2) ends[features] = n.vertex;
+      ++features;
+    }
+    if (features != 2) return std::numeric_limits<double>::infinity();
+    const int u = ends[0], w = ends[1];
+    double error = 0.0;
+    for (const Vertices* V : poses_) {
+      const Eigen::Vector3d a = V->row(u).transpose(), b = V->row(w).transpose();
+      error = std::max(error, SegmentDistance(V->row(v).transpose(), a, b));
+      for (long long key : {EdgeKey(u, v), EdgeKey(v, w)}) {
+        auto it = removed_on_edge_.find(key);
+        if (it == removed_on_edge_.end()) continue;
+        for (int x : it->second) error = std::max(error, SegmentDistance(V->row(x).transpose(), a, b));
+      }
+    }
+    return error;
+  }
+
+  // Removes chain vertices, least chain error first, until at most `target` faces are alive. Interior
+  // vertices next to a removed one are retried at once (their stars changed; most become removable).
+  void BudgetedChainPass(int target) {
+    chain_tolerance_ = std::numeric_limits<double>::infinity();
+    using Entry = std::tuple<double, int, int>;  // chain error, vertex, version
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
+    const int nv = static_cast<int>(vf_.size());
+    for (int v = 0; v < nv; ++v) {
+      if (vf_[v].empty() || kept_[v]) continue;
+      const double e = ChainError(v);
+      if (std::isfinite(e)) queue.emplace(e, v, version_[v]);
+    }
+    std::vector<int> targets, around, inner;
+    while (!queue.empty() && alive_count_ > target) {
+      auto [error, v, version] = queue.top();
+      queue.pop();
+      ++pops_;
+      if (vf_[v].empty() || kept_[v]) continue;
+      if (version != version_[v]) {
+        error = ChainError(v);
+        if (!std::isfinite(error)) continue;
+        if (!queue.empty() && error > std::get<0>(queue.top())) {
+          queue.emplace(error, v, version_[v]);
+          continue;
+        }
+      }
+      Targets(v, &targets);
+      int onto = -1;
+      for (int u : targets) {
+        if (TryCollapse(v, u)) {
+          onto = u;
+          break;
+        }
+      }
+      if (onto < 0) continue;  // refused; retried when a neighbour's collapse bumps its version
+      max_chain_error_ = std::max(max_chain_error_, error);
+      around.clear();
+      for (int f : vf_[onto]) {
+        for (int x : T_[f]) {
+          if (x != onto && !kept_[x]) around.push_back(x);
+        }
+      }
+      around.push_back(onto);
+      std::sort(around.begin(), around.end());
+      around.erase(std::unique(around.begin(), around.end()), around.end());
+      for (int x : around) {
+        if (vf_[x].empty() || kept_[x]) continue;
+        const double e = ChainError(x);
+        if (std::isfinite(e)) {
+          queue.emplace(e, x, version_[x]);
+        } else if (alive_count_ > target) {
+          Targets(x, &inner);
+          for (int u : inner) {
+            if (TryCollapse(x, u)) break;
+          }
+        }
+      }
+    }
+  }
+
   bool TryCollapse(int v, int u) {
     ++attempts_;
     if (vf_[u].empty()) return false;
@@ -423,6 +515,7 @@ class Reducer {
       removed_on_edge_.erase(EdgeKey(v, w));
       removed_on_edge_[EdgeKey(u, w)] = chain_points_;
     }
+    alive_count_ -= static_cast<int>(deleted_.size());
     for (int f : deleted_) {
       alive_face_[f] = 0;
       --patch_count_[patch_[f]];
@@ -472,6 +565,9 @@ class Reducer {
   std::vector<int> chain_points_;
   std::unordered_map<long long, std::vector<int>> removed_on_edge_;
   double chain_tolerance_ = 0.0;
+  double diag_ = 0.0;
+  double max_chain_error_ = 0.0;
+  int alive_count_ = 0;
 };
 
 }  // namespace

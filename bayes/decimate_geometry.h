@@ -35,6 +35,11 @@ struct PatchTriangulationOptions {
   // A chain vertex is removed only while every removed vertex of its chain stays within this distance of
   // the simplified chain (share of the bounding-box diagonal), [0, ∞). 0 keeps straight chains only.
   double chain_tolerance_rel = 0.005;
+  // > 0: after the pass above, chain vertices are removed in order of the chain error their removal causes
+  // (largest distance of a removed vertex to the straightened chain), least first, until at most this many
+  // faces remain or no chain vertex can go. The budget goes where the boundaries are straightest, and the
+  // kept chain vertices are those where the boundaries curve most. 0: no budgeted pass.
+  int target_faces = 0;
 };
 
 struct PatchTriangulation {
@@ -45,6 +50,8 @@ struct PatchTriangulation {
   int collapses = 0;
   long long collapse_attempts = 0;  // collapses tested (refused ones included)
   long long pops = 0;
+  // Budgeted pass (target_faces > 0): the largest chain error accepted, share of the bounding-box diagonal.
+  double max_chain_error_rel = 0.0;
 };
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite

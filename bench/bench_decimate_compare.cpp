@@ -1,7 +1,9 @@
 // Bayesian decimation against CGAL's quadric edge collapse (Garland–Heckbert plane policies, QSlim-style) and
 // CGAL's variational shape approximation (Cohen-Steiner et al. 2004) at equal triangle count.
 //
-//   bench_decimate_compare MESH [SHARE ...]        (default shares 0.02 0.10)
+//   bench_decimate_compare MESH [SHARE ...] [--reserve R] [--bayes-only]   (default shares 0.02 0.10)
+//
+// --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL.
 //
 // Per method and share it prints: output triangles, symmetric Hausdorff and RMS surface distance (relative to
 // the bounding-box diagonal, from area-uniform samples on both surfaces), the area-weighted angle between each
@@ -349,7 +351,18 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::vector<double> shares;
-  for (int i = 2; i < argc; ++i) shares.push_back(std::atof(argv[i]));
+  double reserve = DecimateOptions{}.chain_reserve_share;
+  bool bayes_only = false;
+  for (int i = 2; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--reserve" && i + 1 < argc) {
+      reserve = std::atof(argv[++i]);
+    } else if (arg == "--bayes-only") {
+      bayes_only = true;
+    } else {
+      shares.push_back(std::atof(argv[i]));
+    }
+  }
   if (shares.empty()) shares = {0.02, 0.10};
   Reference ref;
   ref.dense = ReadMesh(argv[1]);
@@ -367,6 +380,7 @@ int main(int argc, char** argv) {
     double t0 = Now();
     DecimateOptions options;
     options.target_faces = target;
+    options.chain_reserve_share = reserve;
     DecimateSummary summary;
     const DecimatedMesh ours = Decimate(ref.dense, options, &summary);
     const double t_ours = Now() - t0;
@@ -375,6 +389,9 @@ int main(int argc, char** argv) {
       for (int k = 0; k < 3; ++k) corner.row(3 * f + k) = ours.corner_normals.normals.row(ours.corner_normals.normal_index(f, k));
     }
     Print("bayes", share, Evaluate(ref, {{ours.mesh, corner}}), t_ours);
+    std::printf("           (%d patches, lambda %.4g, chain reserve %.2f, chain error up to %.3g%% of the diagonal)\n",
+                summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel);
+    if (bayes_only) continue;
     const int n = ours.mesh.num_faces();
     t0 = Now();
     const Mesh gh = GarlandHeckbert(ref.dense, n);

@@ -38,7 +38,10 @@ TEST(DecimateCli, PolygonsAndTargetFaces) {
   r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/t.ply --target-faces 400 --quiet");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const Mesh out = ReadMesh(dir + "/t.ply");
-  EXPECT_NEAR(out.num_faces(), 400, 60);  // bisection tolerance plus the step of a few faces per patch
+  // The budgeted chain pass stops at the target or one collapse (two faces on this closed mesh) below.
+  EXPECT_LE(out.num_faces(), 400);
+  EXPECT_GE(out.num_faces(), 399);
+  EXPECT_NE(r.output.find("lambda search"), std::string::npos) << r.output;
 }
 
 TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {

@@ -229,6 +229,20 @@ void ExpectValidDecimation(const Mesh& dense, const DecimatedMesh& out) {
   }
 }
 
+// What the λ search guarantees (DecimateOptions::target_faces): the straightened patches overflow the budget
+// at λ_too_many and fit at λ_fits = the λ used, and the two are no further apart than the resolution, so no λ
+// between them was skipped by more than that.
+void ExpectTargetSearchBracket(const DecimateSummary& s, const DecimateOptions& options) {
+  EXPECT_GT(s.lambda_too_many, 0.0);
+  EXPECT_GT(s.lambda_fits, s.lambda_too_many);
+  EXPECT_LE(s.lambda_fits, s.lambda_too_many * (1.0 + options.lambda_resolution));
+  EXPECT_EQ(s.lambda, s.lambda_fits);
+  EXPECT_GT(s.faces_too_many, s.budget_faces);
+  EXPECT_LE(s.faces_fits, s.budget_faces);
+  EXPECT_LE(s.output_faces, options.target_faces);
+  EXPECT_LE(s.bisection_steps, options.max_bisection_steps);
+}
+
 TEST(Decimate, PlanarGridBecomesOnePatchOfTwoTriangles) {
   const Mesh grid = Grid(10);
   DecimateSummary summary;
@@ -422,10 +436,38 @@ TEST(Decimate, TargetFacesFindsLambda) {
   DecimateSummary summary;
   const DecimatedMesh out = Decimate(sphere, options, &summary);
   ExpectValidDecimation(sphere, out);
-  // The face count jumps as λ crosses merge thresholds (on this sphere the bisection reaches 238 for 200:
-  // every patch merge removes several triangles at once), so only the neighbourhood of the target is checked.
-  EXPECT_NEAR(out.mesh.num_faces(), 200, 50);
-  EXPECT_GT(summary.bisection_steps, 1);
+  ExpectTargetSearchBracket(summary, options);
+  // The budgeted chain pass stops as soon as at most 200 faces are left; on a closed mesh every collapse
+  // removes exactly two faces, so it stops at 200 itself.
+  EXPECT_EQ(out.mesh.num_faces(), 200);
+  EXPECT_EQ(summary.output_faces, 200);
+  EXPECT_GT(summary.bisection_steps, 2);
+  // A tighter resolution brackets λ tighter (and still lands on the target).
+  options.lambda_resolution = 0.001;
+  DecimateSummary fine;
+  const DecimatedMesh out_fine = Decimate(sphere, options, &fine);
+  ExpectTargetSearchBracket(fine, options);
+  EXPECT_EQ(out_fine.mesh.num_faces(), 200);
+  EXPECT_GT(fine.bisection_steps, summary.bisection_steps);
+}
+
+// Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
+TEST(Decimate, ChainReserveTradesPatchesForBoundaryDetail) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.target_faces = 200;
+  options.chain_reserve_share = 0.0;
+  DecimateSummary none;
+  Decimate(sphere, options, &none);
+  options.chain_reserve_share = 0.5;
+  DecimateSummary half;
+  const DecimatedMesh out = Decimate(sphere, options, &half);
+  ExpectValidDecimation(sphere, out);
+  ExpectTargetSearchBracket(half, options);
+  EXPECT_EQ(half.budget_faces, 100);
+  EXPECT_GT(none.num_patches, half.num_patches);
+  EXPECT_EQ(none.output_faces, 200);
+  EXPECT_EQ(half.output_faces, 200);
 }
 
 // The linear normal field reproduces a cylinder's smoothly varying normal far better than a constant.
@@ -509,7 +551,10 @@ TEST(Decimate, FandiskAtTwoAndTenPercent) {
     SCOPED_TRACE(share);
     ExpectValidDecimation(fandisk, out);
     EXPECT_FALSE(summary.fell_back_to_dense);
-    EXPECT_NEAR(out.mesh.num_faces(), options.target_faces, 0.1 * options.target_faces);
+    ExpectTargetSearchBracket(summary, options);
+    // Closed mesh: the budgeted pass lands on the target or one collapse (two faces) below it.
+    EXPECT_LE(out.mesh.num_faces(), options.target_faces);
+    EXPECT_GE(out.mesh.num_faces(), options.target_faces - 1);
   }
 }
 
