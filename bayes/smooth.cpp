@@ -7,6 +7,8 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
+#include <utility>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -190,15 +192,27 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   std::deque<Eigen::VectorXd> s_history, y_history;
   std::deque<double> rho_history;
 
-  p = -g;
+  // Preconditioner M⁻¹ (3×3 blocks) and z = M⁻¹ g.
+  const bool precondition = options.preconditioner_every > 0;
+  std::vector<double> blocks;
+  Eigen::VectorXd z;
+  if (precondition) {
+    energy.BlockJacobiInverse(x, &blocks);
+    energy.ApplyBlocks(blocks, g, &z);
+  }
+  const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
+  bool unit_step = precondition;  // after a (re)start a preconditioned step of length 1 is the Newton guess
+
+  p = -zg;
   double alpha_prev = 0, slope_prev = 0;
   double first_decrease = -1;
   int since_restart = 0;
   for (int iteration = 1; iteration <= max_iterations; ++iteration) {
     double slope = g.dot(p);
     if (!(slope < 0)) {
-      p = -g;
-      slope = -g.squaredNorm();
+      p = -zg;
+      slope = -g.dot(zg);
+      unit_step = precondition;
       ++summary->restarts;
       since_restart = 0;
       s_history.clear();
@@ -206,7 +220,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       rho_history.clear();
     }
     double alpha_init;
-    if (lbfgs && !s_history.empty()) {
+    if ((lbfgs && !s_history.empty()) || unit_step) {
       alpha_init = 1.0;
     } else if (alpha_prev > 0 && slope_prev < 0) {
       alpha_init = alpha_prev * std::min(slope_prev / slope, 10.0);
@@ -221,8 +235,9 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
         summary->termination = SmoothTermination::kNoProgress;
         break;
       }
-      // Retry once from steepest descent before giving up.
-      p = -g;
+      // Retry once from (preconditioned) steepest descent before giving up.
+      p = -zg;
+      unit_step = precondition;
       since_restart = 0;
       alpha_prev = 0;
       ++summary->restarts;
@@ -249,9 +264,17 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       }
     }
     x.swap(x_new);
-    const double gg_old = g.squaredNorm();
-    // PR+: β = max(0, g_newᵀ(g_new − g) / gᵀg).
-    const double beta_pr = (g_new.squaredNorm() - g_new.dot(g)) / gg_old;
+    unit_step = false;
+    // PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner).
+    double beta_pr;
+    if (precondition) {
+      const double zg_old = z.dot(g);
+      if (iteration % options.preconditioner_every == 0) energy.BlockJacobiInverse(x, &blocks);
+      energy.ApplyBlocks(blocks, g_new, &z);
+      beta_pr = (z.dot(g_new) - z.dot(g)) / zg_old;
+    } else {
+      beta_pr = (g_new.squaredNorm() - g_new.dot(g)) / g.squaredNorm();
+    }
     g.swap(g_new);
     alpha_prev = step.alpha;
     slope_prev = slope;
@@ -289,7 +312,12 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
         a[static_cast<size_t>(j)] = rho_history[static_cast<size_t>(j)] * s_history[static_cast<size_t>(j)].dot(q);
         q -= a[static_cast<size_t>(j)] * y_history[static_cast<size_t>(j)];
       }
-      if (m > 0) {
+      if (precondition) {
+        // H0 = M⁻¹ (the block-Jacobi inverse) instead of a scaled identity.
+        Eigen::VectorXd r;
+        energy.ApplyBlocks(blocks, q, &r);
+        q.swap(r);
+      } else if (m > 0) {
         const Eigen::VectorXd& y = y_history.back();
         q *= 1.0 / (rho_history.back() * y.squaredNorm());
       }
@@ -299,15 +327,66 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       }
       p = -q;
     } else if (since_restart >= restart_every) {
-      p = -g;
+      p = -zg;
+      unit_step = precondition;
       since_restart = 0;
       ++summary->restarts;
     } else {
-      p = -g + std::max(0.0, beta_pr) * p;
+      p = -zg + std::max(0.0, beta_pr) * p;
     }
   }
-  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 5);
+  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 5) +
+                           sizeof(double) * (blocks.size() + static_cast<size_t>(z.size()));
   return {x, parts};
+}
+
+// Spreads the low 21 bits of v to every third bit (Morton / Z-order interleave).
+uint64_t SpreadBits(uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+// The solver's internal order: vertices along a Morton (Z-order) curve of their measured positions, faces by
+// their smallest new vertex index. Meshes are often stored in scan order or shuffled (the NLLR files are), and
+// every energy evaluation gathers neighbours' normals and positions: in a spatially coherent order those hit
+// the cache (measured 1.8× less CPU per evaluation on child). The order depends only on the input, so the
+// result stays the same whatever the thread count. Returns new → old indices; the mesh must be finite.
+void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<int>* face_order) {
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+  vertex_order->resize(static_cast<size_t>(nv));
+  face_order->resize(static_cast<size_t>(nf));
+  if (nv == 0) return;
+  const Eigen::RowVector3d lo = mesh.V.colwise().minCoeff(), hi = mesh.V.colwise().maxCoeff();
+  const Eigen::RowVector3d scale = (hi - lo).cwiseMax(1e-300).cwiseInverse() * 2097151.0;
+  std::vector<std::pair<uint64_t, int>> keys(static_cast<size_t>(std::max(nv, nf)));
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, 4096), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      uint64_t key = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double q = std::clamp((mesh.V(i, k) - lo[k]) * scale[k], 0.0, 2097151.0);
+        key |= SpreadBits(static_cast<uint64_t>(q)) << k;
+      }
+      keys[static_cast<size_t>(i)] = {key, i};
+    }
+  });
+  std::sort(keys.begin(), keys.begin() + nv);  // (key, index) pairs are distinct: a unique order
+  std::vector<int> new_index(static_cast<size_t>(nv));
+  for (int n = 0; n < nv; ++n) {
+    (*vertex_order)[static_cast<size_t>(n)] = keys[static_cast<size_t>(n)].second;
+    new_index[static_cast<size_t>(keys[static_cast<size_t>(n)].second)] = n;
+  }
+  for (int f = 0; f < nf; ++f) {
+    const int m = std::min({new_index[static_cast<size_t>(mesh.F(f, 0))], new_index[static_cast<size_t>(mesh.F(f, 1))],
+                            new_index[static_cast<size_t>(mesh.F(f, 2))]});
+    keys[static_cast<size_t>(f)] = {static_cast<uint64_t>(m), f};
+  }
+  std::sort(keys.begin(), keys.begin() + nf);
+  for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(f)] = keys[static_cast<size_t>(f)].second;
 }
 
 }  // namespace
@@ -365,6 +444,8 @@ void SmoothOptions::Check() const {
   RB_CHECK(max_iterations >= 0 && max_iterations <= 10000000, "smooth: max_iterations ", max_iterations,
            " is outside [0, 1e7]");
   RB_CHECK(lbfgs_memory >= 1 && lbfgs_memory <= 50, "smooth: lbfgs_memory ", lbfgs_memory, " is outside [1, 50]");
+  RB_CHECK(preconditioner_every >= 0 && preconditioner_every <= 1000000, "smooth: preconditioner_every ",
+           preconditioner_every, " is outside [0, 1e6]");
   RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
   RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
            "smooth: face_epsilon_squared needs the built-in square-root prior");
@@ -398,6 +479,20 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
 
   tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
   summary.num_threads = arena.max_concurrency();
+  // Checked here, before the reordering, so that messages name the caller's indices.
+  RB_CHECK(mesh.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.F(f, k);
+      RB_CHECK(v >= 0 && v < mesh.num_vertices(), "smoothing: face ", f, " refers to vertex ", v,
+               ", but the mesh has ", mesh.num_vertices(), " vertices");
+    }
+  }
+  RB_CHECK(options.face_epsilon_squared.empty() ||
+               static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
+           "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
+           mesh.num_faces(), " faces");
+
   Mesh result;
   arena.execute([&] {
     std::vector<Eigen::Matrix3d> information(noisy.covariance.size());
@@ -418,18 +513,47 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
       RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
                " is not finite and positive definite");
     }
-    RB_CHECK(options.face_epsilon_squared.empty() ||
-                 static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
-             "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
-             mesh.num_faces(), " faces");
-    const SmoothingEnergy energy(mesh, information, options.prior_weight, *potential,
-                                 options.face_epsilon_squared.empty() ? nullptr : &options.face_epsilon_squared);
+    // The solver works on a reordered copy (SolverOrder); the result goes back to the input's order.
+    std::vector<int> vertex_order, face_order;
+    SolverOrder(mesh, &vertex_order, &face_order);
+    const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+    Mesh ordered;
+    ordered.V.resize(nv, 3);
+    ordered.F.resize(nf, 3);
+    {
+      std::vector<int> new_index(static_cast<size_t>(nv));
+      std::vector<Eigen::Matrix3d> ordered_information(information.size());
+      for (int n = 0; n < nv; ++n) {
+        const int i = vertex_order[static_cast<size_t>(n)];
+        ordered.V.row(n) = mesh.V.row(i);
+        new_index[static_cast<size_t>(i)] = n;
+        ordered_information[static_cast<size_t>(n)] = information[static_cast<size_t>(i)];
+      }
+      information.swap(ordered_information);
+      for (int m = 0; m < nf; ++m) {
+        const int f = face_order[static_cast<size_t>(m)];
+        for (int k = 0; k < 3; ++k) ordered.F(m, k) = new_index[static_cast<size_t>(mesh.F(f, k))];
+      }
+    }
+    std::vector<double> face_epsilon_squared;
+    if (!options.face_epsilon_squared.empty()) {
+      face_epsilon_squared.resize(static_cast<size_t>(nf));
+      for (int m = 0; m < nf; ++m) {
+        face_epsilon_squared[static_cast<size_t>(m)] =
+            options.face_epsilon_squared[static_cast<size_t>(face_order[static_cast<size_t>(m)])];
+      }
+    }
+    std::vector<int>().swap(face_order);
+    const SmoothingEnergy energy(ordered, information, options.prior_weight, *potential,
+                                 face_epsilon_squared.empty() ? nullptr : &face_epsilon_squared);
     std::vector<Eigen::Matrix3d>().swap(information);
     summary.inactive_faces = energy.num_inactive_faces();
-    summary.memory_bytes = energy.MemoryBytes();
+    summary.memory_bytes = energy.MemoryBytes() + sizeof(double) * static_cast<size_t>(ordered.V.size()) +
+                           sizeof(int) * (static_cast<size_t>(ordered.F.size()) + vertex_order.size()) +
+                           sizeof(double) * face_epsilon_squared.size();
     summary.setup_time_s = Seconds(start);
     result.F = mesh.F;
-    if (mesh.num_vertices() == 0) {
+    if (nv == 0) {
       result.V = mesh.V;
       summary.termination = SmoothTermination::kNothingToDo;
       return;
@@ -441,7 +565,13 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
     summary.prior_energy = minimum.parts.prior;
     summary.flipped_faces = energy.CountFoldedFaces(minimum.x);
     summary.input_flipped_faces = energy.CountFoldedFaces(energy.Measurements());
-    result.V = Eigen::Map<const Vertices>(minimum.x.data(), mesh.num_vertices(), 3);
+    result.V.resize(nv, 3);
+    for (int n = 0; n < nv; ++n) {
+      const int i = vertex_order[static_cast<size_t>(n)];
+      result.V(i, 0) = minimum.x[3 * n];
+      result.V(i, 1) = minimum.x[3 * n + 1];
+      result.V(i, 2) = minimum.x[3 * n + 2];
+    }
   });
   summary.time_s = Seconds(start);
   if (summary_out != nullptr) *summary_out = std::move(summary);

@@ -48,6 +48,10 @@ struct SmoothOptions {
   SmoothMinimiser minimiser = SmoothMinimiser::kConjugateGradient;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
   int lbfgs_memory = 6;     // L-BFGS correction pairs, [1, 50]
+  // Rebuild the 3×3 block-Jacobi preconditioner (SmoothingEnergy::BlockJacobiInverse) every N iterations;
+  // 0: none (plain PR+ CG / L-BFGS with a scaled identity), the default: on child the preconditioned runs
+  // stalled at a higher energy (BENCHMARKS.md "Speed and memory"). [0, 1e6]
+  int preconditioner_every = 0;
   int restart_every = 0;    // CG restart to steepest descent every N iterations; 0: every 3·#V (i.e. rarely)
   int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)

@@ -137,7 +137,7 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   }
   normals_.assign(3 * static_cast<size_t>(nf), 0.0);
   inverse_length_.assign(static_cast<size_t>(nf), 0.0);
-  h_.assign(3 * static_cast<size_t>(nf), 0.0);
+  h_.assign(9 * static_cast<size_t>(nf), 0.0);
 }
 
 Eigen::VectorXd SmoothingEnergy::Measurements() const { return z_; }
@@ -150,12 +150,9 @@ size_t SmoothingEnergy::MemoryBytes() const {
          active_.size();
 }
 
-EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::VectorXd* gradient) const {
-  RB_CHECK(x_vector.size() == z_.size(), "smoothing: state has ", x_vector.size(), " entries, expected ", z_.size());
-  const int nf = num_faces(), nv = num_vertices_;
-  const double* x = x_vector.data();
-
-  // Pass 1: unit normal and 1/|c_t| per active face.
+// Unit normal and 1/|c_t| per active face into normals_ / inverse_length_.
+void SmoothingEnergy::ComputeNormals(const double* x) const {
+  const int nf = num_faces();
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
     for (int f = r.begin(); f != r.end(); ++f) {
       double* n = &normals_[3 * static_cast<size_t>(f)];
@@ -180,47 +177,87 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     }
   });
 
-  // Pass 2: per face, half of each pair's potential (both faces of a pair count it) and h_t.
+}
+
+EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::VectorXd* gradient) const {
+  RB_CHECK(x_vector.size() == z_.size(), "smoothing: state has ", x_vector.size(), " entries, expected ", z_.size());
+  const int nf = num_faces(), nv = num_vertices_;
+  const double* x = x_vector.data();
+
+  ComputeNormals(x);
+
+  // Pass 2: per face t, half of each pair's potential (both faces of a pair count it), then, for the gradient,
+  // h_t = β P_t g_t / |c_t| with g_t = Σ_s w_ts (n_t − n_s), and the face's three corner contributions
+  // h_t × e_k (e_k the edge opposite corner k) into h_[9t + 3k ..]. The pair kernel is a template argument so
+  // the square root (the default) is inlined; other potentials go through the virtual call.
   const bool want_gradient = gradient != nullptr;
   const double beta = prior_weight_;
-  const Potential& potential = *potential_;
-  const bool per_face_epsilon = !face_epsilon_squared_.empty();
-  const double* face_e2 = face_epsilon_squared_.data();
-  const double prior_sum = DeterministicSum(nf, [&](int t) {
-    const double* nt = &normals_[3 * static_cast<size_t>(t)];
-    double energy = 0;
-    double g[3] = {0, 0, 0};
-    for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
-      const int s = neighbours_[static_cast<size_t>(q)];
-      const double* ns = &normals_[3 * static_cast<size_t>(s)];
-      const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
-      const double d2 = dx * dx + dy * dy + dz * dz;
-      double value = 0, weight = 0;
-      if (per_face_epsilon) {
-        value = std::sqrt(d2 + 0.5 * (face_e2[t] + face_e2[s]));
-        weight = 1.0 / value;
-      } else {
-        potential.EvaluateWeight(std::sqrt(d2), &value, &weight);
+  auto face_pass = [&](auto pair) {
+    return DeterministicSum(nf, [&](int t) {
+      const double* nt = &normals_[3 * static_cast<size_t>(t)];
+      double energy = 0, gx = 0, gy = 0, gz = 0;
+      const int end = neighbour_offsets_[t + 1];
+      for (int q = neighbour_offsets_[t]; q < end; ++q) {
+        const int s = neighbours_[static_cast<size_t>(q)];
+        const double* ns = &normals_[3 * static_cast<size_t>(s)];
+        const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
+        double weight;
+        energy += pair(t, s, dx * dx + dy * dy + dz * dz, &weight);
+        gx += weight * dx;
+        gy += weight * dy;
+        gz += weight * dz;
       }
-      energy += value;
-      g[0] += weight * dx;
-      g[1] += weight * dy;
-      g[2] += weight * dz;
-    }
-    if (want_gradient) {
-      double* h = &h_[3 * static_cast<size_t>(t)];
-      const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
-      const double ng = nt[0] * g[0] + nt[1] * g[1] + nt[2] * g[2];
-      h[0] = (g[0] - nt[0] * ng) * inv;
-      h[1] = (g[1] - nt[1] * ng) * inv;
-      h[2] = (g[2] - nt[2] * ng) * inv;
-    }
-    return 0.5 * energy;
-  });
+      if (want_gradient) {
+        double* out = &h_[9 * static_cast<size_t>(t)];
+        const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
+        if (inv == 0) {
+          for (int k = 0; k < 9; ++k) out[k] = 0;
+        } else {
+          const double ng = nt[0] * gx + nt[1] * gy + nt[2] * gz;
+          const double hx = (gx - nt[0] * ng) * inv, hy = (gy - nt[1] * ng) * inv, hz = (gz - nt[2] * ng) * inv;
+          const double* p[3] = {x + 3 * faces_(t, 0), x + 3 * faces_(t, 1), x + 3 * faces_(t, 2)};
+          for (int k = 0; k < 3; ++k) {
+            const double* p1 = p[k == 2 ? 0 : k + 1];
+            const double* p2 = p[k == 0 ? 2 : k - 1];
+            const double ex = p2[0] - p1[0], ey = p2[1] - p1[1], ez = p2[2] - p1[2];
+            out[3 * k] = hy * ez - hz * ey;
+            out[3 * k + 1] = hz * ex - hx * ez;
+            out[3 * k + 2] = hx * ey - hy * ex;
+          }
+        }
+      }
+      return 0.5 * energy;
+    });
+  };
+  double prior_sum;
+  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+  if (!face_epsilon_squared_.empty()) {
+    const double* face_e2 = face_epsilon_squared_.data();
+    prior_sum = face_pass([face_e2](int t, int s, double d2, double* weight) {
+      const double value = std::sqrt(d2 + 0.5 * (face_e2[t] + face_e2[s]));
+      *weight = 1.0 / value;
+      return value;
+    });
+  } else if (sqrt_potential != nullptr) {
+    const double e2 = sqrt_potential->epsilon_squared();
+    prior_sum = face_pass([e2](int, int, double d2, double* weight) {
+      const double value = std::sqrt(d2 + e2);
+      *weight = 1.0 / value;
+      return value;
+    });
+  } else {
+    const Potential& potential = *potential_;
+    prior_sum = face_pass([&potential](int, int, double d2, double* weight) {
+      double value = 0;
+      potential.EvaluateWeight(std::sqrt(d2), &value, weight);
+      return value;
+    });
+  }
 
-  // Pass 3: per vertex, the data term and the gather of face contributions in corner order.
+  // Pass 3: per vertex, the data term and the gather of corner contributions in corner order.
   if (want_gradient) gradient->resize(z_.size());
   double* grad = want_gradient ? gradient->data() : nullptr;
+  const double* contributions = h_.data();
   const double data_sum = DeterministicSum(nv, [&](int i) {
     const double* w = &information_[6 * static_cast<size_t>(i)];
     const double rx = x[3 * i] - z_[3 * i], ry = x[3 * i + 1] - z_[3 * i + 1], rz = x[3 * i + 2] - z_[3 * i + 2];
@@ -228,21 +265,142 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
     const double wz = w[2] * rx + w[4] * ry + w[5] * rz;
     if (grad != nullptr) {
-      Eigen::Vector3d sum(2 * wx, 2 * wy, 2 * wz);
-      for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
-        const int corner = corners_[static_cast<size_t>(q)];
-        const int f = corner / 3, k = corner % 3;
-        const Eigen::Vector3d h(&h_[3 * static_cast<size_t>(f)]);
-        const Eigen::Vector3d edge = Position(x, faces_(f, (k + 2) % 3)) - Position(x, faces_(f, (k + 1) % 3));
-        sum += h.cross(edge);
+      double sx = 2 * wx, sy = 2 * wy, sz = 2 * wz;
+      const int end = corner_offsets_[i + 1];
+      for (int q = corner_offsets_[i]; q < end; ++q) {
+        const double* c = contributions + 3 * static_cast<size_t>(corners_[static_cast<size_t>(q)]);
+        sx += c[0];
+        sy += c[1];
+        sz += c[2];
       }
-      grad[3 * i] = sum.x();
-      grad[3 * i + 1] = sum.y();
-      grad[3 * i + 2] = sum.z();
+      grad[3 * i] = sx;
+      grad[3 * i + 1] = sy;
+      grad[3 * i + 2] = sz;
     }
     return rx * wx + ry * wy + rz * wz;
   });
   return EnergyParts{data_sum, beta * prior_sum};
+}
+
+void SmoothingEnergy::BlockJacobiInverse(const Eigen::VectorXd& x_vector, std::vector<double>* inverse_blocks) const {
+  RB_CHECK(x_vector.size() == z_.size(), "smoothing: state has ", x_vector.size(), " entries, expected ", z_.size());
+  const int nf = num_faces(), nv = num_vertices_;
+  const double* x = x_vector.data();
+  ComputeNormals(x);
+  // Per face t the prior's Hessian with respect to n_t, A_t = β Σ_s [w I + (max(0, φ'') − w) û ûᵀ] (û the unit
+  // normal difference), then per corner k the curvature of moving that corner along n_t:
+  // (e_k × n_t)ᵀ A_t (e_k × n_t) / |c_t|², into h_[3t + k].
+  const bool per_face_epsilon = !face_epsilon_squared_.empty();
+  const double* face_e2 = face_epsilon_squared_.data();
+  const Potential& potential = *potential_;
+  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+  const double global_e2 = sqrt_potential != nullptr ? sqrt_potential->epsilon_squared() : 0.0;
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int t = r.begin(); t != r.end(); ++t) {
+      double* out = &h_[3 * static_cast<size_t>(t)];
+      out[0] = out[1] = out[2] = 0;
+      if (!active_[static_cast<size_t>(t)]) continue;
+      const double* nt = &normals_[3 * static_cast<size_t>(t)];
+      double A[6] = {0, 0, 0, 0, 0, 0};
+      for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
+        const int s = neighbours_[static_cast<size_t>(q)];
+        const double* ns = &normals_[3 * static_cast<size_t>(s)];
+        const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        const double d = std::sqrt(d2);
+        double weight = 0, second = 0;
+        if (per_face_epsilon || sqrt_potential != nullptr) {
+          const double e2 = per_face_epsilon ? 0.5 * (face_e2[t] + face_e2[s]) : global_e2;
+          const double phi = std::sqrt(d2 + e2);
+          weight = 1.0 / phi;
+          second = e2 / (phi * phi * phi);
+        } else {
+          double value = 0, dp = 0, dm = 0;
+          potential.EvaluateWeight(d, &value, &weight);
+          const double step = 1e-4;
+          potential.Evaluate(std::min(d + step, 2.0), &value, &dp);
+          potential.Evaluate(std::max(d - step, 0.0), &value, &dm);
+          second = (dp - dm) / (std::min(d + step, 2.0) - std::max(d - step, 0.0));
+        }
+        weight = std::max(0.0, weight);
+        second = std::max(0.0, second);
+        A[0] += weight;
+        A[3] += weight;
+        A[5] += weight;
+        if (d > 1e-12) {
+          const double k = (second - weight) / d2;
+          A[0] += k * dx * dx;
+          A[1] += k * dx * dy;
+          A[2] += k * dx * dz;
+          A[3] += k * dy * dy;
+          A[4] += k * dy * dz;
+          A[5] += k * dz * dz;
+        }
+      }
+      const double scale = prior_weight_ * inverse_length_[static_cast<size_t>(t)] * inverse_length_[static_cast<size_t>(t)];
+      for (int k = 0; k < 3; ++k) {
+        const double* p1 = x + 3 * faces_(t, (k + 1) % 3);
+        const double* p2 = x + 3 * faces_(t, (k + 2) % 3);
+        const double ex = p2[0] - p1[0], ey = p2[1] - p1[1], ez = p2[2] - p1[2];
+        const double mx = ey * nt[2] - ez * nt[1], my = ez * nt[0] - ex * nt[2], mz = ex * nt[1] - ey * nt[0];
+        out[k] = scale * (A[0] * mx * mx + A[3] * my * my + A[5] * mz * mz +
+                          2 * (A[1] * mx * my + A[2] * mx * mz + A[4] * my * mz));
+      }
+    }
+  });
+  inverse_blocks->resize(6 * static_cast<size_t>(nv));
+  double* out = inverse_blocks->data();
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      const double* w = &information_[6 * static_cast<size_t>(i)];
+      double b[6] = {2 * w[0], 2 * w[1], 2 * w[2], 2 * w[3], 2 * w[4], 2 * w[5]};
+      for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
+        const int corner = corners_[static_cast<size_t>(q)];
+        const int f = corner / 3;
+        const double* n = &normals_[3 * static_cast<size_t>(f)];
+        const double c = h_[static_cast<size_t>(corner)];
+        b[0] += c * n[0] * n[0];
+        b[1] += c * n[0] * n[1];
+        b[2] += c * n[0] * n[2];
+        b[3] += c * n[1] * n[1];
+        b[4] += c * n[1] * n[2];
+        b[5] += c * n[2] * n[2];
+      }
+      // Inverse of the symmetric 3×3 by cofactors; B is positive definite (W_i is, by construction).
+      const double c00 = b[3] * b[5] - b[4] * b[4], c01 = b[2] * b[4] - b[1] * b[5], c02 = b[1] * b[4] - b[2] * b[3];
+      const double c11 = b[0] * b[5] - b[2] * b[2], c12 = b[1] * b[2] - b[0] * b[4], c22 = b[0] * b[3] - b[1] * b[1];
+      const double det = b[0] * c00 + b[1] * c01 + b[2] * c02;
+      double* o = out + 6 * static_cast<size_t>(i);
+      if (det > 0 && std::isfinite(det)) {
+        const double inv = 1.0 / det;
+        o[0] = c00 * inv;
+        o[1] = c01 * inv;
+        o[2] = c02 * inv;
+        o[3] = c11 * inv;
+        o[4] = c12 * inv;
+        o[5] = c22 * inv;
+      } else {
+        o[0] = o[3] = o[5] = 0;  // should not happen; a zero block keeps the direction a descent one
+        o[1] = o[2] = o[4] = 0;
+      }
+    }
+  });
+}
+
+void SmoothingEnergy::ApplyBlocks(const std::vector<double>& blocks, const Eigen::VectorXd& v,
+                                  Eigen::VectorXd* out) const {
+  out->resize(v.size());
+  const double* in = v.data();
+  double* o = out->data();
+  tbb::parallel_for(tbb::blocked_range<int>(0, num_vertices_, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      const double* b = &blocks[6 * static_cast<size_t>(i)];
+      const double a0 = in[3 * i], a1 = in[3 * i + 1], a2 = in[3 * i + 2];
+      o[3 * i] = b[0] * a0 + b[1] * a1 + b[2] * a2;
+      o[3 * i + 1] = b[1] * a0 + b[3] * a1 + b[4] * a2;
+      o[3 * i + 2] = b[2] * a0 + b[4] * a1 + b[5] * a2;
+    }
+  });
 }
 
 double SmoothingEnergy::DataCurvature(const Eigen::VectorXd& p) const {

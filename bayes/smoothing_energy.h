@@ -48,6 +48,18 @@ class SmoothingEnergy {
   // pᵀ H_data p with H_data = blockdiag(2 W_i): the data term's curvature along p (a cheap first step length).
   double DataCurvature(const Eigen::VectorXd& p) const;
 
+  // A 3×3 block-Jacobi preconditioner at x: per vertex i the inverse of
+  //   B_i = 2 W_i + Σ_{faces t ∋ i} ω_t n_t n_tᵀ |e_ti|² / |c_t|²,   ω_t = β Σ_{s ~ t} max(0, w(d_st)),
+  // the Gauss–Newton (lagged-diffusivity) diagonal block of the Hessian: w = φ'(d)/d frozen at x, the cross
+  // terms between the two faces of a pair dropped, and ∂n_t/∂x_i = P_t [e_ti]_× / |c_t| (e_ti the edge opposite
+  // i, c_t the unnormalised normal) whose JᵀJ is n_t n_tᵀ |e_ti|²/|c_t|². So the prior stiffens only the normal
+  // direction, which is what makes plain CG slow: tangentially only W acts. Output: 6 per vertex (xx xy xz yy
+  // yz zz of B_i⁻¹). Same threading and determinism as Evaluate.
+  void BlockJacobiInverse(const Eigen::VectorXd& x, std::vector<double>* inverse_blocks) const;
+
+  // out = blockdiag(blocks) · v with `blocks` as BlockJacobiInverse writes them.
+  void ApplyBlocks(const std::vector<double>& blocks, const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
+
   // The measurements as the starting state.
   Eigen::VectorXd Measurements() const;
 
@@ -66,6 +78,8 @@ class SmoothingEnergy {
   size_t MemoryBytes() const;
 
  private:
+  void ComputeNormals(const double* x) const;
+
   int num_vertices_ = 0;
   const Faces& faces_;
   Eigen::Map<const Eigen::VectorXd> z_;  // the measured V, row-major: vertex i at [3i, 3i+3)
@@ -82,7 +96,7 @@ class SmoothingEnergy {
   // Per vertex, its corners 3·f + k in ascending order (the fixed gather order).
   std::vector<int> corner_offsets_;
   std::vector<int> corners_;
-  // Scratch: unit normals and 1/|c_t| per face, then h_t per face.
+  // Scratch: unit normals and 1/|c_t| per face, then the gradient's three corner contributions per face (9).
   mutable std::vector<double> normals_;
   mutable std::vector<double> inverse_length_;
   mutable std::vector<double> h_;

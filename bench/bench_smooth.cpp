@@ -125,6 +125,7 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   if (flags.count("--cauchy")) options.cauchy_scale = std::stod(flags["--cauchy"]);
   if (flags.count("--threads")) options.num_threads = std::stoi(flags["--threads"]);
   if (flags.count("--max-iterations")) options.max_iterations = std::stoi(flags["--max-iterations"]);
+  if (flags.count("--precondition-every")) options.preconditioner_every = std::stoi(flags["--precondition-every"]);
   if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
   return options;
 }
@@ -223,6 +224,11 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
     const double cpu = CpuSeconds() - cpu_start;
     const double iteration_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.iterations);
     const double evaluation_time = (summary.time_s - summary.setup_time_s) / std::max(1, summary.evaluations);
+    if (flags.count("--gt")) {
+      std::printf("MAE %.3f deg vs %s | ", MeanAngularErrorDeg(result, ReadMesh(flags["--gt"])), flags["--gt"].c_str());
+    }
+    std::printf("final energy %.6e (data %.4e prior %.4e) | ", summary.data_energy + summary.prior_energy,
+                summary.data_energy, summary.prior_energy);
     std::printf(
         "%s: V=%d F=%d threads=%d minimiser=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
         "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/evaluation | termination: %s | "
