@@ -9,6 +9,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
+#include "bayes/learn_prior_io.h"
 #include "capture/device_list.h"
 #include "capture/libcamera_source.h"
 #include "capture/playback_source.h"
@@ -25,6 +26,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Live-path defaults (BENCHMARKS.md "Capture and pipeline" has the measurements behind them).
+constexpr int kLiveStereoDownsample = 2;
+constexpr double kLiveSmoothBudgetMs = 40.0;
+
 // Pipeline settings shared by replay and live.
 struct PipelineCli {
   std::string matcher = "sgbm";
@@ -34,11 +39,16 @@ struct PipelineCli {
   int min_disparity_px = 0;
   int block_px = 5;
   int downsample = 1;
+  int stereo_downsample = 0;  // 0: 1, or 2 with --live-path
   bool no_smooth = false;
+  double smooth_budget_ms = -1.0;  // < 0: none, or kLiveSmoothBudgetMs with --live-path
   std::string tolerance = "default";
   double prior_weight = SmoothOptions{}.prior_weight;
+  std::string prior_file;  // a learned prior (rangebayes learn-prior); empty: the square root
+  mutable std::shared_ptr<const SplinePotential> learned_prior;  // kept alive for the run's SmoothOptions
   int max_iterations = 0;
   bool no_decimate = false;
+  bool decimate = false;
   double lambda = DecimateOptions{}.lambda;
   int queue_capacity = 4;
   bool live_path = false;
@@ -58,21 +68,35 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--num-disparities", o->num_disparities, "Disparities searched (px)")->check(CLI::Range(3, 1024));
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
   sub->add_option("--block", o->block_px, "Matching window side (px, odd)")->check(CLI::Range(1, 31));
-  sub->add_option("--downsample", o->downsample, "Triangulate every n-th pixel (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--downsample", o->downsample, "Triangulate every n-th pixel (1-64, full-resolution pixels)")
+      ->check(CLI::Range(1, 64));
+  sub->add_option("--stereo-downsample", o->stereo_downsample,
+                  "Match on the rectified pair shrunk by 1, 2, 4 or 8 (pyrDown; rig and disparity range scaled "
+                  "to match; 0: 1, or 2 with --live-path)")
+      ->check(CLI::IsMember({0, 1, 2, 4, 8}));
   sub->add_flag("--no-smooth", o->no_smooth, "Skip Bayesian smoothing");
   sub->add_option("--tolerance", o->tolerance, "Smoothing stopping preset: fast, default or tight")
       ->check(CLI::IsMember({"fast", "default", "tight"}));
   sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)");
+  sub->add_option("--prior", o->prior_file,
+                  "Learned smoothing prior FILE.yaml from 'rangebayes learn-prior' (its beta unless --prior-weight "
+                  "is given; default: the square root)");
   sub->add_option("--max-iterations", o->max_iterations,
                   "Smoothing iteration cap (0: the tolerance preset's; --live-path: 25 unless given)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--smooth-budget", o->smooth_budget_ms,
+                  "Smoothing time per frame (ms): iterations are capped from the measured per-iteration cost "
+                  "(-1: no budget, or 40 with --live-path)");
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
+  sub->add_flag("--decimate", o->decimate, "With --live-path: run decimation too (off there by default: too slow)");
   sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
   sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
   sub->add_flag("--live-path", o->live_path,
-                "Live preview settings: drop the oldest frame when a stage is busy, triangulate every 4th pixel, "
-                "fast smoothing tolerance capped at 25 iterations (overrides --downsample and --tolerance)");
-  sub->add_option("--preview-width", o->preview_width_px, "Width of each rendered preview panel (px; 0: frame width)");
+                "Live preview settings: drop the oldest frame when a stage is busy, match at half resolution, "
+                "triangulate every 4th pixel, fast smoothing tolerance within a 40 ms budget, no decimation "
+                "(overrides --downsample and --tolerance)");
+  sub->add_option("--preview-width", o->preview_width_px,
+                  "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
   sub->add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
 }
@@ -94,9 +118,18 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.spacetime.min_disparity_px = o.min_disparity_px;
   p.spacetime.window_px = o.block_px;
   p.triangulate.downsample = o.downsample;
+  p.stereo_downsample = o.stereo_downsample > 0 ? o.stereo_downsample : 1;
+  p.smooth_budget_ms = std::max(0.0, o.smooth_budget_ms);
   p.smooth = !o.no_smooth;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
   p.smoothing.prior_weight = o.prior_weight;
+  if (!o.prior_file.empty()) {
+    const LearnedPrior prior = ReadLearnedPrior(o.prior_file);
+    o.learned_prior = std::make_shared<const SplinePotential>(prior.spline, prior.theta);
+    p.smoothing.potential = o.learned_prior.get();
+    const bool beta_given = o.prior_weight != SmoothOptions{}.prior_weight;
+    if (prior.prior_weight > 0 && !beta_given) p.smoothing.prior_weight = prior.prior_weight;
+  }
   p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;
   p.decimation.lambda = o.lambda;
@@ -105,8 +138,11 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
     p.queue_capacity = 1;
     p.triangulate.downsample = 4;
     p.smoothing.tolerance = SmoothTolerance::kFast;
-    // A preview needs a usable surface per frame, not a converged one: cap the CG iterations.
-    if (o.max_iterations == 0) p.smoothing.max_iterations = 25;
+    // A preview needs a usable surface per frame, not a converged one: smoothing gets a time budget, the
+    // stereo pair is matched at half resolution, and decimation (far over budget) is off unless asked for.
+    if (o.stereo_downsample == 0) p.stereo_downsample = kLiveStereoDownsample;
+    if (o.smooth_budget_ms < 0.0) p.smooth_budget_ms = kLiveSmoothBudgetMs;
+    p.decimate = o.decimate && !o.no_decimate;
   }
   return p;
 }
@@ -142,14 +178,23 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
                  const std::string& out_dir) {
   FileSinkOptions sink_options;
   sink_options.preview_width_px = cli.preview_width_px;
+  // Live previews are drawn at the matched resolution: a 640-px panel costs 4x the rendering time of a 320-px one.
+  if (cli.live_path && cli.preview_width_px == 0) {
+    sink_options.preview_width_px = std::max(16, rig.width / options.stereo_downsample);
+  }
   if (cli.no_previews) sink_options.depth_png = sink_options.shaded_png = false;
   FileSink sink(out_dir, sink_options);
   ProgressPrinter progress(cli.quiet);
   options.progress = progress.callback();
   InstallStopSignalHandlers();
   options.stop = &StopFlag();
-  const PipelineSummary summary = RunPipeline(source, rig, options, {&sink});
+  PipelineSummary summary = RunPipeline(source, rig, options, {&sink});
   progress.Finish();
+  if (cli.live_path && !options.decimate && !cli.no_decimate) {
+    summary.notices.push_back(
+        "live path: decimation is off by default (it takes several times the 100 ms frame budget; --decimate "
+        "turns it on)");
+  }
   WritePipelineSummaryJson(summary, (fs::path(out_dir) / "summary.json").string());
   PrintSummary(summary, out_dir, cli.quiet);
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
@@ -332,6 +377,7 @@ void AddLive(CLI::App& app) {
       }
       std::string Describe() const override { return inner_.Describe(); }
       FrameSourceStats stats() const override { return inner_.stats(); }
+      bool realtime() const override { return inner_.realtime(); }
      private:
       FrameSource& inner_;
       RecordingWriter* writer_;
@@ -350,6 +396,7 @@ void AddReplay(CLI::App& app) {
     double speed_factor = 1.0;
     int first = 0;
     int count = -1;
+    int repeats = 1;
     PipelineCli pipeline;
   };
   auto o = std::make_shared<Options>();
@@ -364,6 +411,9 @@ void AddReplay(CLI::App& app) {
       ->check(CLI::Range(0.001, 1000.0));
   sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")->check(CLI::NonNegativeNumber);
   sub->add_option("--count", o->count, "Entries to play (-1: all)");
+  sub->add_option("--repeat", o->repeats,
+                  "Play the entries this many times (frame indices keep increasing; for live-path timing)")
+      ->check(CLI::Range(1, 1000000));
   AddPipelineOptions(sub, &o->pipeline);
   sub->callback([o] {
     RecordingReadSummary read_summary;
@@ -381,6 +431,7 @@ void AddReplay(CLI::App& app) {
     playback.speed_factor = o->speed_factor;
     playback.first_position = o->first;
     playback.count = o->count;
+    playback.repeats = o->repeats;
     if (playback.speed == PlaybackSpeed::kStep) {
       playback.step_gate = [] {
         std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");

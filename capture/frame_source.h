@@ -47,6 +47,10 @@ class FrameSource {
   virtual RecordingMeta Meta() const { return {{"source", Describe()}}; }
   // The number of frames still to come when known in advance (recordings), for progress and time left.
   virtual std::optional<std::int64_t> frames_total() const { return std::nullopt; }
+  // True when frames arrive at their own pace whether or not anyone takes them (cameras, recordings played
+  // at the recorded speed); false when the next frame exists only when asked for (recordings played as fast
+  // as possible or one step at a time). A live pipeline drops frames only from a real-time source.
+  virtual bool realtime() const { return true; }
 };
 
 }  // namespace rangebayes

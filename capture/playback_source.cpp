@@ -12,6 +12,7 @@ void PlaybackOptions::Check() const {
            speed_factor);
   RB_CHECK(first_position >= 0, "playback first position must be >= 0, got ", first_position);
   RB_CHECK(count >= -1, "playback count must be >= -1, got ", count);
+  RB_CHECK(repeats >= 1 && repeats <= 1'000'000, "playback repeats must be in 1..1000000, got ", repeats);
   RB_CHECK(speed != PlaybackSpeed::kStep || static_cast<bool>(step_gate), "step playback needs a step gate");
 }
 
@@ -37,7 +38,7 @@ RecordingMeta PlaybackSource::Meta() const {
 
 std::optional<std::int64_t> PlaybackSource::frames_total() const {
   if (options_.loop) return std::nullopt;
-  return std::max(0, end_position_ - options_.first_position);
+  return static_cast<std::int64_t>(std::max(0, end_position_ - options_.first_position)) * options_.repeats;
 }
 
 StereoFrame PlaybackSource::FrameAt(int position) const { return LoadRecordingFrame(recording_, position); }
@@ -59,7 +60,8 @@ void PlaybackSource::Seek(int position) {
 FrameResult PlaybackSource::Next() {
   FrameResult result;
   if (position_ >= end_position_) {
-    if (!options_.loop || end_position_ <= options_.first_position) return result;
+    if (end_position_ <= options_.first_position) return result;
+    if (!options_.loop && ++plays_done_ >= options_.repeats) return result;
     // Indices keep increasing across loops so that sinks and recorders never see one twice.
     loop_index_offset_ += recording_.frames[static_cast<size_t>(end_position_ - 1)].index + 1;
     Seek(options_.first_position);

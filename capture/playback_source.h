@@ -21,6 +21,7 @@ struct PlaybackOptions {
   int first_position = 0;            // ≥ 0: first entry of frames.csv to play (position, not index)
   int count = -1;                    // -1: to the end; otherwise at most this many entries
   bool loop = false;                 // start again after the last entry (live-path benchmarks)
+  int repeats = 1;                   // 1–1e6: play the selection this many times (ignored with loop)
   std::function<bool()> step_gate;   // kStep: called before each frame; false ends the stream
   void Check() const;
 };
@@ -36,6 +37,7 @@ class PlaybackSource : public FrameSource {
   FrameSourceStats stats() const override { return stats_; }
   RecordingMeta Meta() const override;
   std::optional<std::int64_t> frames_total() const override;
+  bool realtime() const override { return options_.speed == PlaybackSpeed::kRecorded; }
 
   // Random access by position in frames.csv (0 ≤ position < num_frames) or by the recorded frame index.
   // Throw Error naming the index when the frame cannot be loaded.
@@ -55,6 +57,7 @@ class PlaybackSource : public FrameSource {
   std::chrono::steady_clock::time_point wall_start_;
   std::int64_t recorded_start_ns_ = 0;
   std::int64_t loop_index_offset_ = 0;
+  int plays_done_ = 0;  // completed passes over the selection
 };
 
 }  // namespace rangebayes

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <deque>
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 #include <thread>
 
 #include "core/error.h"
@@ -121,7 +123,51 @@ cv::Mat ToMatcherInput(const cv::Mat& image) {
   return image;
 }
 
+cv::Mat Shrink(const cv::Mat& image, int factor) {
+  cv::Mat out = image;
+  for (int f = factor; f > 1; f /= 2) {
+    cv::Mat half;
+    cv::pyrDown(out, half);
+    out = half;
+  }
+  return out;
+}
+
+// Running mean of the smoothing cost per vertex, for PipelineOptions::smooth_budget_ms.
+struct SmoothCost {
+  double setup_ms_per_vertex = 0.0;
+  double iteration_ms_per_vertex = 0.0;
+  int samples = 0;
+  double iterations_sum = 0.0;
+  double iteration_ms_sum = 0.0;
+  int smoothed = 0;
+};
+
 }  // namespace
+
+int SmoothIterationsForBudget(double budget_ms, double setup_ms, double ms_per_iteration, int cap) {
+  int n = 1;
+  if (ms_per_iteration > 0.0 && std::isfinite(ms_per_iteration)) {
+    const double fit = std::floor((budget_ms - setup_ms) / ms_per_iteration);
+    n = fit >= 1e7 ? 10'000'000 : std::max(1, static_cast<int>(fit));
+  }
+  return cap > 0 ? std::min(n, cap) : n;
+}
+
+CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor) {
+  RB_CHECK(factor == 1 || factor == 2 || factor == 4 || factor == 8, "stereo downsample must be 1, 2, 4 or 8, got ",
+           factor);
+  CameraIntrinsics k = full;
+  for (int f = factor; f > 1; f /= 2) {
+    k.fx_px *= 0.5;
+    k.fy_px *= 0.5;
+    k.cx_px *= 0.5;
+    k.cy_px *= 0.5;
+    k.width = (k.width + 1) / 2;
+    k.height = (k.height + 1) / 2;
+  }
+  return k;
+}
 
 void PipelineOptions::Check() const {
   RB_CHECK(queue_capacity >= 1 && queue_capacity <= 64, "pipeline queue capacity must be in 1..64, got ",
@@ -131,6 +177,10 @@ void PipelineOptions::Check() const {
   RB_CHECK(window_step_frames >= 0 && window_step_frames <= window_frames,
            "space-time window step must be in 0..window_frames, got ", window_step_frames);
   RB_CHECK(max_consecutive_timeouts >= 1, "max_consecutive_timeouts must be >= 1");
+  RB_CHECK(stereo_downsample == 1 || stereo_downsample == 2 || stereo_downsample == 4 || stereo_downsample == 8,
+           "stereo downsample must be 1, 2, 4 or 8, got ", stereo_downsample);
+  RB_CHECK(smooth_budget_ms >= 0.0 && std::isfinite(smooth_budget_ms),
+           "smoothing budget must be >= 0 ms, got ", smooth_budget_ms);
   rectify.Check();
   sgbm.Check();
   spacetime.Check();
@@ -144,6 +194,20 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
                             const std::vector<PipelineSink*>& sinks) {
   options.Check();
   const Rectifier rectifier(rig, options.rectify);
+  const int ds = options.stereo_downsample;
+  const CameraIntrinsics match_intrinsics = DownsampledIntrinsics(rectifier.intrinsics(), ds);
+  // Disparity ranges are given in full-resolution pixels: at 1/ds resolution they shrink by ds.
+  SgbmMatcherOptions sgbm_options = options.sgbm;
+  SpaceTimeMatcherOptions spacetime_options = options.spacetime;
+  if (ds > 1) {
+    const auto floor_div = [ds](int v) { return v >= 0 ? v / ds : -((-v + ds - 1) / ds); };
+    sgbm_options.num_disparities = std::max(1, (options.sgbm.num_disparities + ds - 1) / ds);
+    sgbm_options.min_disparity_px = floor_div(options.sgbm.min_disparity_px);
+    spacetime_options.num_disparities = std::max(3, (options.spacetime.num_disparities + ds - 1) / ds);
+    spacetime_options.min_disparity_px = floor_div(options.spacetime.min_disparity_px);
+  }
+  TriangulateOptions triangulate_options = options.triangulate;
+  triangulate_options.downsample = std::max(1, (options.triangulate.downsample + ds / 2) / ds);
   const int window = options.window_frames;
   const int step = options.window_step_frames > 0 ? options.window_step_frames : window;
   const std::optional<std::int64_t> frames_total = source.frames_total();
@@ -182,7 +246,19 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   }
 
   std::vector<std::unique_ptr<ItemQueue>> queues;
-  for (int i = 0; i < 6; ++i) queues.push_back(std::make_unique<ItemQueue>(options.queue_capacity, options.queue_policy));
+  // Live drops only where frames enter: a stage downstream waits for the next one rather than work on a
+  // frame that would be thrown away, so the pipeline runs at the pace of its slowest stage and no CPU time
+  // goes to frames that never come out. A source that is not real time (a recording played as fast as
+  // possible) is never dropped from: it is simply asked for the next frame when there is room.
+  const bool drop_at_capture = options.queue_policy == QueueFullPolicy::kDropOldest && source.realtime();
+  for (int i = 0; i < 6; ++i) {
+    queues.push_back(std::make_unique<ItemQueue>(
+        options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock));
+  }
+  if (options.queue_policy == QueueFullPolicy::kDropOldest && !source.realtime()) {
+    summary.notices.push_back(
+        "live settings on a source that is not real time: frames are read when the pipeline has room, none dropped");
+  }
   ItemQueue& q_captured = *queues[0];
   ItemQueue& q_rectified = *queues[1];
   ItemQueue& q_matched = *queues[2];
@@ -190,6 +266,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   ItemQueue& q_smoothed = *queues[4];
   ItemQueue& q_decimated = *queues[5];
 
+  SmoothCost smooth_cost;  // written by the smooth thread only, read after the join
   std::array<std::thread, 7> threads;
   int next_thread = 0;
   threads[next_thread++] = std::thread([&] {
@@ -249,8 +326,9 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
                " but right is ", f.right.cols, "x", f.right.rows);
       cv::Mat l, r;
       rectifier.Rectify(ToMatcherInput(f.left), ToMatcherInput(f.right), &l, &r);
-      item.left_rect.push_back(l);
-      item.right_rect.push_back(r);
+      item.result.left_rectified = l;
+      item.left_rect.push_back(Shrink(l, ds));
+      item.right_rect.push_back(Shrink(r, ds));
       item.frames.clear();  // the raw images are not needed downstream
     });
   });
@@ -258,18 +336,16 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   threads[next_thread++] = std::thread([&] {
     std::unique_ptr<StereoMatcher> matcher;
     if (options.matcher == PipelineMatcher::kSgbm) {
-      matcher = std::make_unique<SgbmMatcher>(options.sgbm);
+      matcher = std::make_unique<SgbmMatcher>(sgbm_options);
     } else {
-      matcher = std::make_unique<SpaceTimeMatcher>(options.spacetime);
+      matcher = std::make_unique<SpaceTimeMatcher>(spacetime_options);
     }
-    const CameraIntrinsics intrinsics = rectifier.intrinsics();
     auto match = [&](Item& item) {
       const DisparityResult d = matcher->Match(item.left_rect, item.right_rect);
-      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, intrinsics,
-                                             rectifier.baseline_m(), rectifier.doffs_px(), options.depth);
+      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, match_intrinsics,
+                                             rectifier.baseline_m(), rectifier.doffs_px() / ds, options.depth);
       item.result.depth.frame_id = item.result.index;
       item.result.depth.timestamp_ns = item.result.timestamp_ns;
-      item.result.left_rectified = item.left_rect.back();
       item.left_rect.clear();
       item.right_rect.clear();
     };
@@ -294,6 +370,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       merged->result.last_index = buffer.back()->result.index;
       merged->result.timestamp_ns = buffer.back()->result.timestamp_ns;
       merged->result.frames = window;
+      merged->result.left_rectified = buffer.back()->result.left_rectified;
       for (const ItemPtr& b : buffer) {
         merged->left_rect.push_back(b->left_rect.front());
         merged->right_rect.push_back(b->right_rect.front());
@@ -313,7 +390,9 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   threads[next_thread++] = std::thread([&] {
     run.Stage(q_matched, q_triangulated, t_triangulate, [&](Item& item) {
       TriangulateSummary ts;
-      item.result.raw_mesh = TriangulateDepth(item.result.depth, options.triangulate, &ts);
+      item.result.raw_mesh = TriangulateDepth(item.result.depth, triangulate_options, &ts);
+      // pyrDown pixel x sits at full-resolution 2x (see DownsampledIntrinsics).
+      if (ds > 1) item.result.raw_mesh.pixel *= static_cast<float>(ds);
       RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index,
                ": no surface (", ts.vertices, " valid depth pixels, no triangle)");
     });
@@ -322,7 +401,32 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   threads[next_thread++] = std::thread([&] {
     run.Stage(q_triangulated, q_smoothed, t_smooth, [&](Item& item) {
       if (!options.smooth) return;
-      item.result.smoothed = Smooth(item.result.raw_mesh, options.smoothing);
+      SmoothOptions smoothing = options.smoothing;
+      const double vertices = static_cast<double>(std::max(1, item.result.raw_mesh.mesh.num_vertices()));
+      if (options.smooth_budget_ms > 0.0) {
+        smoothing.max_iterations =
+            smooth_cost.samples == 0
+                ? std::min(kSmoothBudgetProbeIterations,
+                           options.smoothing.max_iterations > 0 ? options.smoothing.max_iterations
+                                                                : kSmoothBudgetProbeIterations)
+                : SmoothIterationsForBudget(options.smooth_budget_ms, smooth_cost.setup_ms_per_vertex * vertices,
+                                            smooth_cost.iteration_ms_per_vertex * vertices,
+                                            options.smoothing.max_iterations);
+      }
+      SmoothSummary ss;
+      item.result.smoothed = Smooth(item.result.raw_mesh, smoothing, &ss);
+      const double setup_ms = 1000.0 * ss.setup_time_s;
+      const double iteration_ms = ss.iterations > 0 ? 1000.0 * (ss.time_s - ss.setup_time_s) / ss.iterations : 0.0;
+      ++smooth_cost.smoothed;
+      smooth_cost.iterations_sum += ss.iterations;
+      if (ss.iterations > 0) {
+        // A running mean, weighted toward recent frames, so that a change in load or mesh size is followed.
+        const double w = smooth_cost.samples == 0 ? 1.0 : 0.3;
+        smooth_cost.setup_ms_per_vertex += w * (setup_ms / vertices - smooth_cost.setup_ms_per_vertex);
+        smooth_cost.iteration_ms_per_vertex += w * (iteration_ms / vertices - smooth_cost.iteration_ms_per_vertex);
+        smooth_cost.iteration_ms_sum += iteration_ms;
+        ++smooth_cost.samples;
+      }
     });
   });
 
@@ -401,6 +505,24 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   const std::int64_t finished = summary.results + summary.failed;
   summary.latency_mean_ms = finished > 0 ? latency_sum_ms / static_cast<double>(finished) : 0.0;
   summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
+  if (smooth_cost.smoothed > 0) summary.smooth_iterations_mean = smooth_cost.iterations_sum / smooth_cost.smoothed;
+  if (smooth_cost.samples > 0) summary.smooth_ms_per_iteration_mean = smooth_cost.iteration_ms_sum / smooth_cost.samples;
+  if (options.smooth && options.smooth_budget_ms > 0.0) {
+    char line[200];
+    std::snprintf(line, sizeof(line),
+                  "smoothing budget %.0f ms per frame: iterations capped from the measured cost (%.1f iterations "
+                  "per frame on average, %.2f ms each)",
+                  options.smooth_budget_ms, summary.smooth_iterations_mean, summary.smooth_ms_per_iteration_mean);
+    summary.notices.push_back(line);
+  }
+  if (ds > 1) {
+    summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", match_intrinsics.width, "x",
+                                     match_intrinsics.height, ", ",
+                                     options.matcher == PipelineMatcher::kSgbm ? sgbm_options.num_disparities
+                                                                               : spacetime_options.num_disparities,
+                                     " disparities), triangulated every ", triangulate_options.downsample,
+                                     " pixel(s) of it"));
+  }
   return summary;
 }
 
@@ -422,6 +544,8 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["wall_s"] = summary.wall_s;
   j["frames_per_s"] = summary.frames_per_s;
   j["latency_mean_ms"] = summary.latency_mean_ms;
+  j["smooth_iterations_mean"] = summary.smooth_iterations_mean;
+  j["smooth_ms_per_iteration_mean"] = summary.smooth_ms_per_iteration_mean;
   j["source_stats"] = {{"frames_delivered", summary.source_stats.frames_delivered},
                        {"frames_skipped", summary.source_stats.frames_skipped},
                        {"timeouts", summary.source_stats.timeouts},

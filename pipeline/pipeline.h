@@ -1,7 +1,10 @@
 // The stereo-to-mesh pipeline (DESIGN.md §1): capture → rectify → stereo (one frame, or space-time over a
 // window of frames) → triangulate → smooth → decimate → sinks, each stage in its own thread, connected by
 // bounded queues. Replay (QueueFullPolicy::kBlock) never drops a frame; live (kDropOldest) drops the oldest
-// waiting frame when a stage falls behind and counts it. Every result carries its frame index and timestamp.
+// captured frame when the pipeline is busy and counts it: only the queue after capture drops, every later
+// stage waits for the next one, so no work is spent on a frame that would be thrown away and the pipeline
+// runs at its slowest stage's pace. A source that is not realtime() is never dropped from (it is read when
+// there is room). Every result carries its frame index and timestamp.
 //
 // Errors: a frame that fails in a stage (a corrupt image, a matcher or solver error) is counted, its reason
 // kept, and the run goes on; no exception leaves a stage thread. A lost device ends the run early with
@@ -61,18 +64,28 @@ class PipelineSink {
 };
 
 struct PipelineOptions {
-  QueueFullPolicy queue_policy = QueueFullPolicy::kBlock;  // kBlock: replay; kDropOldest: live
+  QueueFullPolicy queue_policy = QueueFullPolicy::kBlock;  // kBlock: replay; kDropOldest: live (see above)
   int queue_capacity = 4;            // 1–64 items between two stages
   PipelineMatcher matcher = PipelineMatcher::kSgbm;
   int window_frames = 1;             // 1–256: frames per space-time window (1: single-frame stereo)
   int window_step_frames = 0;        // 0: = window_frames (windows do not overlap); else 1–window_frames
   RectifierOptions rectify;
+  // 1, 2, 4 or 8: match on the rectified pair shrunk this many times by cv::pyrDown (1: full resolution).
+  // The rectified camera (f, c, doffs) is scaled with it, so depths stay in metres; the matcher's
+  // disparity range (sgbm/spacetime num_disparities, min_disparity_px) and triangulate.downsample are given
+  // in full-resolution pixels and divided by it here. Triangle vertices keep full-resolution pixels.
+  int stereo_downsample = 1;
   SgbmMatcherOptions sgbm;
   SpaceTimeMatcherOptions spacetime;
   DepthFromDisparityOptions depth;
   TriangulateOptions triangulate;
   bool smooth = true;                // run Bayesian smoothing (bayes/smooth.h)
   SmoothOptions smoothing;
+  // ≥ 0 ms; 0: no budget. Else smoothing.max_iterations (or the preset's cap) is lowered per frame so that
+  // smoothing takes about this long: the smoother cannot be stopped by a deadline, so the cap comes from
+  // the per-iteration cost measured on the frames before (a running mean per vertex; the first frame gets
+  // kSmoothBudgetProbeIterations iterations to measure it). Results then depend on timing.
+  double smooth_budget_ms = 0.0;
   bool decimate = true;              // run Bayesian decimation (bayes/decimate.h) on the smoothed mesh
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
@@ -109,7 +122,20 @@ struct PipelineSummary {
   double wall_s = 0.0;
   double frames_per_s = 0.0;         // frames captured and fully processed per wall second
   double latency_mean_ms = 0.0;      // capture-to-sink time per result
+  double smooth_iterations_mean = 0.0;  // smoothing iterations per smoothed result
+  double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
 };
+
+// Iterations the first frame gets under PipelineOptions::smooth_budget_ms, to measure their cost.
+inline constexpr int kSmoothBudgetProbeIterations = 3;
+
+// The largest number of smoothing iterations that fits `budget_ms` when setup costs `setup_ms` and each
+// iteration `ms_per_iteration` (≥ 1; never above `cap` when cap > 0).
+int SmoothIterationsForBudget(double budget_ms, double setup_ms, double ms_per_iteration, int cap);
+
+// The rectified left camera of an image shrunk `factor` times (1, 2, 4, 8) by repeated cv::pyrDown: dst(x)
+// averages src around 2x, so f and c halve exactly per halving; the size is ((w + 1) / 2, (h + 1) / 2).
+CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor);
 
 // Runs the pipeline until the source ends, the stop flag is set, or the source fails. Throws Error only
 // before starting (invalid options, a rig whose size does not match the first frame); everything after

@@ -92,6 +92,24 @@ TEST(Playback, RandomAccessStepAndRecordedSpeed) {
   EXPECT_THROW(PlaybackSource(rec, bad), Error);
 }
 
+TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
+  const TempDir dir("repeat");
+  const Recording rec = OpenRecording(MakeRecording(dir, 4));
+  PlaybackOptions o;
+  o.first_position = 1;
+  o.count = 2;
+  o.repeats = 3;
+  PlaybackSource source(rec, o);
+  EXPECT_EQ(source.frames_total().value_or(-1), 6);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = source.Next(); r.status == FrameStatus::kFrame; r = source.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got, (std::vector<std::int64_t>{1, 2, 4, 5, 7, 8}));  // each pass adds the last index + 1 = 3
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
+  PlaybackOptions bad;
+  bad.repeats = 0;
+  EXPECT_THROW(PlaybackSource(rec, bad), Error);
+}
+
 TEST(Playback, LoopKeepsIndicesIncreasing) {
   const TempDir dir("loop");
   PlaybackOptions options;

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -221,19 +223,134 @@ TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
   }
 }
 
+TEST(PipelineScaling, DownsampledIntrinsicsHalveCoordinatesPerLevel) {
+  CameraIntrinsics k;
+  k.fx_px = 640;
+  k.fy_px = 600;
+  k.cx_px = 319.5;
+  k.cy_px = 240;
+  k.width = 641;
+  k.height = 480;
+  const CameraIntrinsics h = DownsampledIntrinsics(k, 2);
+  EXPECT_DOUBLE_EQ(h.fx_px, 320);
+  EXPECT_DOUBLE_EQ(h.fy_px, 300);
+  EXPECT_DOUBLE_EQ(h.cx_px, 159.75);  // pyrDown's pixel x sits at 2x: coordinates halve exactly
+  EXPECT_EQ(h.width, 321);            // cv::pyrDown's (w + 1) / 2
+  const CameraIntrinsics q = DownsampledIntrinsics(k, 4);
+  EXPECT_DOUBLE_EQ(q.fx_px, 160);
+  EXPECT_EQ(q.width, 161);
+  EXPECT_EQ(q.height, 120);
+  EXPECT_THROW(DownsampledIntrinsics(k, 3), Error);
+}
+
+TEST(PipelineScaling, SmoothIterationsForBudget) {
+  EXPECT_EQ(SmoothIterationsForBudget(40.0, 4.0, 3.0, 0), 12);
+  EXPECT_EQ(SmoothIterationsForBudget(40.0, 4.0, 3.0, 5), 5);    // the cap wins
+  EXPECT_EQ(SmoothIterationsForBudget(40.0, 50.0, 3.0, 0), 1);   // setup alone is over budget: one iteration
+  EXPECT_EQ(SmoothIterationsForBudget(40.0, 0.0, 0.0, 300), 1);  // unknown cost
+}
+
+// Matching at half resolution with the rig scaled to match gives the same depths: every vertex against the
+// ground truth at its (full-resolution) pixel.
+TEST(Pipeline, StereoDownsampleKeepsDepthsInMetres) {
+  const TempDir dir("pipe_ds");
+  SynthOptions o;
+  o.scene = SynthScene::kPlanes;
+  o.frames = 1;
+  o.width = 192;
+  o.height = 144;
+  o.supersample = 1;
+  const std::string folder = dir.path() + "/synth";
+  const SynthRecording scene = RenderSynthetic(o);
+  WriteSyntheticRecording(scene, o, folder);
+  const Recording rec = OpenRecording(folder);
+  PlaybackSource source(rec);
+  CollectSink sink;
+  PipelineOptions options = SmallOptions();
+  options.stereo_downsample = 2;
+  options.sgbm.num_disparities = 64;  // full-resolution pixels: 32 are searched at 96×72
+  options.triangulate.downsample = 2;  // every 2nd full-resolution pixel: every pixel of the 96×72 depth
+  options.smooth = false;
+  options.decimate = false;
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  ASSERT_EQ(sink.results.size(), 1u) << (s.errors.empty() ? "" : s.errors.front());
+  const PipelineResult& r = sink.results[0];
+  EXPECT_EQ(r.depth.width(), 96);
+  EXPECT_EQ(r.depth.height(), 72);
+  EXPECT_EQ(r.left_rectified.cols, 192);
+  const NoisyMesh& m = r.raw_mesh;
+  ASSERT_GT(m.mesh.num_vertices(), 96 * 72 / 2);
+  std::vector<double> relative_error;
+  for (int i = 0; i < m.mesh.num_vertices(); ++i) {
+    const float u = m.pixel(i, 0), v = m.pixel(i, 1);
+    ASSERT_TRUE(u >= 0 && u <= 191 && v >= 0 && v <= 143) << u << " " << v;
+    const float z_true = scene.depth_m.at<float>(static_cast<int>(std::lround(v)), static_cast<int>(std::lround(u)));
+    if (std::isfinite(z_true)) relative_error.push_back(std::abs(m.mesh.V(i, 2) - z_true) / z_true);
+  }
+  ASSERT_FALSE(relative_error.empty());
+  std::nth_element(relative_error.begin(), relative_error.begin() + relative_error.size() / 2, relative_error.end());
+  // Wrongly scaled intrinsics would be off by a factor (50–100%); SGBM's 1/16-px steps at ~5 px disparity
+  // and occlusion edges give a few per cent. Measured median: see the comment below.
+  EXPECT_LT(relative_error[relative_error.size() / 2], 0.05);
+  ASSERT_FALSE(s.notices.empty());
+  EXPECT_NE(s.notices.back().find("1/2 resolution (96x72, 32 disparities)"), std::string::npos) << s.notices.back();
+}
+
+TEST(Pipeline, SmoothBudgetCapsIterations) {
+  const TempDir dir("pipe_budget");
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
+  PlaybackSource source(rec);
+  CollectSink sink;
+  PipelineOptions options = SmallOptions();
+  options.decimate = false;
+  options.smooth_budget_ms = 1e-3;  // far below one iteration: every frame gets the minimum
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  ASSERT_EQ(sink.results.size(), 3u);
+  for (const PipelineResult& r : sink.results) ASSERT_TRUE(r.smoothed.has_value());
+  // Frame 0 probes kSmoothBudgetProbeIterations; the others get one iteration each.
+  EXPECT_LE(s.smooth_iterations_mean, (kSmoothBudgetProbeIterations + 2.0) / 3.0 + 1e-9);
+  EXPECT_GT(s.smooth_ms_per_iteration_mean, 0.0);
+  bool noticed = false;
+  for (const std::string& n : s.notices) noticed |= n.find("smoothing budget") != std::string::npos;
+  EXPECT_TRUE(noticed);
+}
+
 TEST(Pipeline, LiveQueuesAccountForEveryFrame) {
   const TempDir dir("pipe_live");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 6));
-  PlaybackSource source(rec);
+  PlaybackOptions camera_like;
+  camera_like.speed = PlaybackSpeed::kRecorded;  // real time, like a camera: frames come whether taken or not
+  camera_like.speed_factor = 1000.0;             // every 33 µs, far faster than the stages
+  PlaybackSource source(rec, camera_like);
   CollectSink sink;
   PipelineOptions options = SmallOptions();
   options.queue_policy = QueueFullPolicy::kDropOldest;
   options.queue_capacity = 1;
   options.triangulate.downsample = 4;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
-  // Drops depend on timing; what must hold is that every frame is either a result or a counted drop.
+  // Drops depend on timing; what must hold is that every frame is either a result or a counted drop, and
+  // that only the queue after capture drops.
   EXPECT_EQ(s.frames_captured, s.results + s.failed + s.dropped);
   EXPECT_GE(s.results, 1);
+  ASSERT_EQ(s.dropped_per_queue.size(), 6u);
+  for (size_t i = 1; i < s.dropped_per_queue.size(); ++i) EXPECT_EQ(s.dropped_per_queue[i], 0) << i;
+}
+
+TEST(Pipeline, LiveSettingsOnAReplayAsFastAsPossibleDropNothing) {
+  const TempDir dir("pipe_live_fast");
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 4));
+  PlaybackSource source(rec);  // kFastest: not real time
+  CollectSink sink;
+  PipelineOptions options = SmallOptions();
+  options.queue_policy = QueueFullPolicy::kDropOldest;
+  options.queue_capacity = 1;
+  options.decimate = false;
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  EXPECT_EQ(s.dropped, 0);
+  EXPECT_EQ(s.results, 4);
+  bool noticed = false;
+  for (const std::string& n : s.notices) noticed |= n.find("not real time") != std::string::npos;
+  EXPECT_TRUE(noticed);
 }
 
 }  // namespace
