@@ -1,0 +1,181 @@
+#include "bayes/adaptive_epsilon.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/error.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+// Lower median (the smaller middle value for an even count): with two neighbours, one across a crease and one
+// not, it takes the one that is not.
+double LowerMedian(std::vector<double>* values) {
+  const size_t mid = (values->size() - 1) / 2;
+  std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(mid), values->end());
+  return (*values)[mid];
+}
+
+}  // namespace
+
+void AdaptiveEpsilonOptions::Check() const {
+  RB_CHECK(ring_iterations >= 0 && ring_iterations <= 20, "adaptive epsilon: ring_iterations ", ring_iterations,
+           " is outside [0, 20]");
+  RB_CHECK(truncate_normal_difference > 0 && truncate_normal_difference <= 2,
+           "adaptive epsilon: truncate_normal_difference ", truncate_normal_difference, " is outside (0, 2]");
+  RB_CHECK(protect_normal_difference > 0 && protect_normal_difference <= 2,
+           "adaptive epsilon: protect_normal_difference ", protect_normal_difference, " is outside (0, 2]");
+  RB_CHECK(protect_rings >= -1 && protect_rings <= 10, "adaptive epsilon: protect_rings ", protect_rings,
+           " is outside [-1, 10]");
+  RB_CHECK(scale >= 0 && scale <= 1e4, "adaptive epsilon: scale ", scale, " is outside [0, 1e4]");
+  RB_CHECK(floor_normal_difference >= 0 && floor_normal_difference <= 2, "adaptive epsilon: floor_normal_difference ",
+           floor_normal_difference, " is outside [0, 2]");
+  RB_CHECK(min_epsilon_squared > 0 && min_epsilon_squared <= 4, "adaptive epsilon: min_epsilon_squared ",
+           min_epsilon_squared, " is outside (0, 4]");
+  RB_CHECK(max_epsilon_squared >= min_epsilon_squared && max_epsilon_squared <= 4,
+           "adaptive epsilon: max_epsilon_squared ", max_epsilon_squared, " is outside [min_epsilon_squared, 4]");
+}
+
+std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
+                                           AdaptiveEpsilonSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  const int nf = reference.num_faces(), nv = reference.num_vertices();
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = reference.F(f, k);
+      RB_CHECK(v >= 0 && v < nv, "adaptive epsilon: face ", f, " refers to vertex ", v, ", but the mesh has ", nv,
+               " vertices");
+    }
+  }
+
+  // Unit normals; faces without one are left out.
+  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(nf), Eigen::Vector3d::Zero());
+  std::vector<char> valid(static_cast<size_t>(nf), 0);
+  for (int f = 0; f < nf; ++f) {
+    const int a = reference.F(f, 0), b = reference.F(f, 1), c = reference.F(f, 2);
+    if (a == b || b == c || a == c) continue;
+    const Eigen::Vector3d pa = reference.V.row(a).transpose();
+    const Eigen::Vector3d cross =
+        (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
+    const double length = cross.norm();
+    if (length > 0 && std::isfinite(length)) {
+      normal[static_cast<size_t>(f)] = cross / length;
+      valid[static_cast<size_t>(f)] = 1;
+    }
+  }
+
+  // Step 1: median (or mean) normal difference to the edge neighbours.
+  const bool use_median = options.statistic == AdaptiveEpsilonStatistic::kMedian;
+  const IndexPairs pairs = ComputeFacePairs(reference);
+  std::vector<char> crease(static_cast<size_t>(nf), 0);
+  std::vector<std::vector<double>> differences(static_cast<size_t>(nf));
+  for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
+    const int s = pairs(p, 0), t = pairs(p, 1);
+    if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
+    const double d = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
+    if (d > options.protect_normal_difference) crease[static_cast<size_t>(s)] = crease[static_cast<size_t>(t)] = 1;
+    differences[static_cast<size_t>(s)].push_back(d);
+    differences[static_cast<size_t>(t)].push_back(d);
+  }
+  std::vector<double> typical(static_cast<size_t>(nf), 0.0);
+  std::vector<char> has_value(static_cast<size_t>(nf), 0);
+  for (int f = 0; f < nf; ++f) {
+    std::vector<double>& d = differences[static_cast<size_t>(f)];
+    if (d.empty()) continue;
+    if (use_median) {
+      typical[static_cast<size_t>(f)] = LowerMedian(&d);
+    } else {
+      double sum = 0;
+      for (double x : d) sum += x;
+      typical[static_cast<size_t>(f)] = sum / static_cast<double>(d.size());
+    }
+    has_value[static_cast<size_t>(f)] = 1;
+  }
+  std::vector<std::vector<double>>().swap(differences);
+
+  // Step 2: median filter (or truncated mean) over the faces sharing a vertex (each face once).
+  const Adjacency vertex_faces = ComputeVertexFaces(reference);
+  std::vector<int> stamp(static_cast<size_t>(nf), -1);
+  std::vector<double> window, next(static_cast<size_t>(nf));
+  for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
+    for (int f = 0; f < nf; ++f) {
+      next[static_cast<size_t>(f)] = typical[static_cast<size_t>(f)];
+      if (!has_value[static_cast<size_t>(f)]) continue;
+      window.clear();
+      for (int k = 0; k < 3; ++k) {
+        const int v = reference.F(f, k);
+        for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) {
+          if (stamp[static_cast<size_t>(*g)] == f || !has_value[static_cast<size_t>(*g)]) continue;
+          stamp[static_cast<size_t>(*g)] = f;
+          window.push_back(typical[static_cast<size_t>(*g)]);
+        }
+      }
+      if (use_median) {
+        next[static_cast<size_t>(f)] = LowerMedian(&window);
+      } else {
+        double sum = 0;
+        int count = 0;
+        for (double x : window) {
+          if (x > options.truncate_normal_difference) continue;
+          sum += x;
+          ++count;
+        }
+        next[static_cast<size_t>(f)] = count > 0 ? sum / count : 0.0;
+      }
+    }
+    typical.swap(next);
+    std::fill(stamp.begin(), stamp.end(), -1);
+  }
+
+  // Crease protection: grow the crease faces by protect_rings vertex rings.
+  if (options.protect_rings >= 0) {
+    for (int ring = 0; ring < options.protect_rings; ++ring) {
+      std::vector<char> grown = crease;
+      for (int f = 0; f < nf; ++f) {
+        if (!crease[static_cast<size_t>(f)]) continue;
+        for (int k = 0; k < 3; ++k) {
+          const int v = reference.F(f, k);
+          for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) grown[static_cast<size_t>(*g)] = 1;
+        }
+      }
+      crease.swap(grown);
+    }
+  } else {
+    std::fill(crease.begin(), crease.end(), 0);
+  }
+
+  // Step 3: ε² = c · (m² − d₀²), clamped.
+  std::vector<double> epsilon_squared(static_cast<size_t>(nf), options.min_epsilon_squared);
+  const double floor2 = options.floor_normal_difference * options.floor_normal_difference;
+  int at_minimum = 0;
+  for (int f = 0; f < nf; ++f) {
+    if (has_value[static_cast<size_t>(f)] && !crease[static_cast<size_t>(f)]) {
+      const double m = typical[static_cast<size_t>(f)];
+      epsilon_squared[static_cast<size_t>(f)] = std::clamp(options.scale * std::max(0.0, m * m - floor2),
+                                                           options.min_epsilon_squared, options.max_epsilon_squared);
+    }
+    if (epsilon_squared[static_cast<size_t>(f)] <= options.min_epsilon_squared) ++at_minimum;
+  }
+
+  if (summary != nullptr) {
+    AdaptiveEpsilonSummary s;
+    s.faces_at_minimum = at_minimum;
+    if (nf > 0) {
+      std::vector<double> sorted = epsilon_squared;
+      std::sort(sorted.begin(), sorted.end());
+      auto quantile = [&](double q) { return sorted[static_cast<size_t>(q * (sorted.size() - 1) + 0.5)]; };
+      s.p10_epsilon_squared = quantile(0.1);
+      s.median_epsilon_squared = quantile(0.5);
+      s.p90_epsilon_squared = quantile(0.9);
+    }
+    s.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    *summary = s;
+  }
+  return epsilon_squared;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,180 @@
+// Adaptive ε benchmark (BENCHMARKS.md "Bayesian smoothing" → "Adaptive ε"): the square-root prior with one ε²
+// per face from bayes/adaptive_epsilon.h, on every denoising case of the benchmark meshes.
+//
+//   bench_adaptive quality [--data DIR] [--reference gt|prepass|none] [--statistic median|mean] [--scale C]
+//                          [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
+//                          [--max E2] [--cases a,b,...] [--estimate] [--baseline]
+//     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
+//     --reference prepass  the rule on the noisy input smoothed once with the default (global ε² = 1e-4,
+//                          fast tolerance): what a real run can do; the pre-pass time is included
+//     --reference none     the default smoother (global ε²), for comparison
+//     --baseline           also run the default smoother and print its MAE beside
+#include <sys/resource.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "bayes/adaptive_epsilon.h"
+#include "bayes/noise_model.h"
+#include "bayes/smooth.h"
+#include "core/mesh_io.h"
+
+using namespace rangebayes;
+
+namespace {
+
+struct Case {
+  std::string name, gt, noisy;
+  double k, target;
+};
+
+std::vector<Case> Cases() {
+  const double none = std::nan("");
+  return {
+      {"fandisk 0.3", "guideddenoising/fandisk_gt.obj", "guideddenoising/fandisk_noisy_gauss0.3.obj", 0.3, 2.4},
+      {"fandisk 0.6 (GCN)", "gcn-denoiser/fandisk_gt.obj", "gcn-denoiser/fandisk_noisy_gauss_n6.obj", 0.6, none},
+      {"fandisk 0.7", "guideddenoising/fandisk_gt.obj", "guideddenoising/fandisk_noisy_gauss0.7.obj", 0.7, 5.5},
+      {"block 0.4", "guideddenoising/block_gt.obj", "guideddenoising/block_noisy_gauss0.4.obj", 0.4, 4.0},
+      {"trim-star 0.3 (GCN)", "gcn-denoiser/trim-star_gt.obj", "gcn-denoiser/trim-star_noisy_gauss_n3.obj", 0.3, 5.3},
+      {"nicolo 0.2", "guideddenoising/nicolo_gt.obj", "guideddenoising/nicolo_noisy_gauss0.2.obj", 0.2, 6.5},
+      {"bunny 0.2", "guideddenoising/bunny_gt.obj", "guideddenoising/bunny_noisy_gauss0.2.obj", 0.2, 6.6},
+      {"julius 0.2", "guideddenoising/julius_gt.obj", "guideddenoising/julius_noisy_gauss0.2.obj", 0.2, none},
+      {"igea 0.3", "nllr/igea_gt.off", "nllr/igea_noisy_n3.off", 0.3, 10.0},
+      {"child 0.3", "nllr/child_gt.off", "nllr/child_noisy_n3.off", 0.3, 7.5},
+  };
+}
+
+// Mean angular error of face normals in degrees (the same measure as bench_smooth).
+double MeanAngularErrorDeg(const Mesh& result, const Mesh& gt) {
+  double sum = 0;
+  int count = 0;
+  for (int f = 0; f < gt.num_faces(); ++f) {
+    auto normal = [&](const Mesh& m) {
+      const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+      return Eigen::Vector3d((b - a).cross(c - a).normalized());
+    };
+    const double dot = normal(result).dot(normal(gt));
+    if (!std::isfinite(dot)) continue;
+    sum += std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / M_PI;
+    ++count;
+  }
+  return count > 0 ? sum / count : std::nan("");
+}
+
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + 1e-6 * usage.ru_utime.tv_usec + usage.ru_stime.tv_sec + 1e-6 * usage.ru_stime.tv_usec;
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+int Quality(std::map<std::string, std::string>& flags) {
+  const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
+  const std::string reference = flags.count("--reference") ? flags["--reference"] : "prepass";
+  if (reference != "gt" && reference != "prepass" && reference != "none") {
+    std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass or none\n");
+    return 2;
+  }
+  AdaptiveEpsilonOptions rule;
+  if (flags.count("--statistic")) {
+    const std::string s = flags["--statistic"];
+    if (s != "median" && s != "mean") {
+      std::fprintf(stderr, "bench_adaptive: --statistic must be median or mean\n");
+      return 2;
+    }
+    rule.statistic = s == "median" ? AdaptiveEpsilonStatistic::kMedian : AdaptiveEpsilonStatistic::kTruncatedMean;
+  }
+  if (flags.count("--scale")) rule.scale = std::stod(flags["--scale"]);
+  if (flags.count("--rings")) rule.ring_iterations = std::stoi(flags["--rings"]);
+  if (flags.count("--truncate")) rule.truncate_normal_difference = std::stod(flags["--truncate"]);
+  if (flags.count("--protect")) rule.protect_normal_difference = std::stod(flags["--protect"]);
+  if (flags.count("--protect-rings")) rule.protect_rings = std::stoi(flags["--protect-rings"]);
+  if (flags.count("--floor")) rule.floor_normal_difference = std::stod(flags["--floor"]);
+  if (flags.count("--max")) rule.max_epsilon_squared = std::stod(flags["--max"]);
+  rule.Check();
+  const bool estimate = flags.count("--estimate") > 0;
+  const bool baseline = flags.count("--baseline") > 0;
+  const std::string selected = flags.count("--cases") ? flags["--cases"] : "";
+
+  std::printf("reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d), floor %g, "
+              "eps2 in [%g, %g], noise level %s\n",
+              reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
+              rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference,
+              rule.protect_rings, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
+              estimate ? "estimated" : "given");
+  std::printf("| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | CPU (s) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  for (const Case& c : Cases()) {
+    if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
+    const Mesh gt = ReadMesh(data + "/" + c.gt);
+    const Mesh noisy = ReadMesh(data + "/" + c.noisy);
+    GenericNoiseOptions noise;
+    if (!estimate) noise.noise_edge_multiple = c.k;
+    const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
+    SmoothOptions options;
+    double baseline_mae = std::nan("");
+    if (baseline) baseline_mae = MeanAngularErrorDeg(Smooth(input, options), gt);
+
+    const double cpu_start = CpuSeconds();
+    const auto start = std::chrono::steady_clock::now();
+    AdaptiveEpsilonSummary rule_summary;
+    double prepass_s = 0;
+    if (reference == "gt") {
+      options.face_epsilon_squared = AdaptiveEpsilonSquared(gt, rule, &rule_summary);
+    } else if (reference == "prepass") {
+      SmoothOptions pre = options;
+      pre.tolerance = SmoothTolerance::kFast;
+      const Mesh smoothed = Smooth(input, pre);
+      options.face_epsilon_squared = AdaptiveEpsilonSquared(smoothed, rule, &rule_summary);
+      prepass_s = Seconds(start);
+    }
+    const Mesh result = Smooth(input, options);
+    const double total_s = Seconds(start), cpu = CpuSeconds() - cpu_start;
+    const double mae = MeanAngularErrorDeg(result, gt);
+    char base[32], target[32];
+    std::snprintf(base, sizeof base, std::isnan(baseline_mae) ? "–" : "%.2f", baseline_mae);
+    std::snprintf(target, sizeof target, std::isnan(c.target) ? "–" : "%.1f", c.target);
+    std::printf("| %s | %s | %s | %.2f | %.2g / %.2g / %.2g | %.2f | %.2f | %.2f |\n", c.name.c_str(), target, base,
+                mae, rule_summary.p10_epsilon_squared, rule_summary.median_epsilon_squared,
+                rule_summary.p90_epsilon_squared, prepass_s, total_s, cpu);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) != "quality") {
+    std::fprintf(stderr, "usage: bench_adaptive quality [--reference gt|prepass|none] [options]\n");
+    return 2;
+  }
+  std::map<std::string, std::string> flags;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a(argv[i]);
+    if (a.rfind("--", 0) != 0) {
+      std::fprintf(stderr, "bench_adaptive: unexpected argument %s\n", a.c_str());
+      return 2;
+    }
+    if (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0) {
+      flags.insert_or_assign(a, std::string(argv[++i]));
+    } else {
+      flags.insert_or_assign(a, std::string(1, '1'));
+    }
+  }
+  try {
+    return Quality(flags);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_adaptive: %s\n", e.what());
+    return 1;
+  }
+}
