@@ -92,11 +92,14 @@ class Reducer {
   PatchTriangulation Run() {
     const int nv = static_cast<int>(vf_.size());
     using Entry = std::tuple<double, int, int>;  // cost, vertex, version
-    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
-    std::vector<int> blocked_version(nv, -1);
+    std::vector<Entry> seed;
+    seed.reserve(static_cast<size_t>(nv));
     for (int v = 0; v < nv; ++v) {
-      if (!kept_[v] && !vf_[v].empty()) queue.emplace(Cost(v), v, version_[v]);
+      if (!kept_[v] && !vf_[v].empty()) seed.emplace_back(Cost(v), v, version_[v]);
     }
+    // Heapify once (linear) instead of nv pushes.
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue(std::greater<Entry>(), std::move(seed));
+    std::vector<int> blocked_version(nv, -1);
     std::vector<int> targets;
     while (true) {
       while (!queue.empty()) {
@@ -200,21 +203,27 @@ class Reducer {
     int features = 0;
     for (const Neighbour& n : scratch_) features += n.feature() ? 1 : 0;
     if (features != 0 && features != 2) return;
-    for (const Neighbour& n : scratch_) {
-      if (features == 0 || n.feature()) targets->push_back(n.vertex);
-    }
     const Vertices& V = *poses_[0];
-    std::sort(targets->begin(), targets->end(), [&](int a, int b) {
-      const double da = (V.row(a) - V.row(v)).squaredNorm(), db = (V.row(b) - V.row(v)).squaredNorm();
-      return da != db ? da < db : a < b;
-    });
+    by_length_.clear();
+    for (const Neighbour& n : scratch_) {
+      if (features == 0 || n.feature()) by_length_.emplace_back((V.row(n.vertex) - V.row(v)).squaredNorm(), n.vertex);
+    }
+    std::sort(by_length_.begin(), by_length_.end());
+    for (const auto& [length2, x] : by_length_) targets->push_back(x);
   }
 
+  // The squared length of v's shortest collapse edge (the first of Targets), without sorting them all.
   double Cost(int v) {
-    std::vector<int> targets;
-    Targets(v, &targets);
-    if (targets.empty()) return std::numeric_limits<double>::infinity();
-    return (poses_[0]->row(targets[0]) - poses_[0]->row(v)).squaredNorm();
+    Neighbourhood(v, &scratch_);
+    int features = 0;
+    for (const Neighbour& n : scratch_) features += n.feature() ? 1 : 0;
+    if (features != 0 && features != 2) return std::numeric_limits<double>::infinity();
+    const Vertices& V = *poses_[0];
+    double best = std::numeric_limits<double>::infinity();
+    for (const Neighbour& n : scratch_) {
+      if (features == 0 || n.feature()) best = std::min(best, (V.row(n.vertex) - V.row(v)).squaredNorm());
+    }
+    return best;
   }
 
   void Classify() {
@@ -561,6 +570,7 @@ class Reducer {
   int collapses_ = 0;
   long long attempts_ = 0, pops_ = 0;
   std::vector<Neighbour> scratch_;
+  std::vector<std::pair<double, int>> by_length_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
   std::unordered_map<long long, std::vector<int>> removed_on_edge_;

@@ -195,12 +195,29 @@ class Climber {
       seed.erase(std::unique(seed.begin(), seed.end(),
                              [](const FuseEntry& x, const FuseEntry& y) { return x.a == y.a && x.b == y.b; }),
                  seed.end());
-      queue = std::priority_queue<FuseEntry>(std::less<FuseEntry>(), std::move(seed));
+      // The seed is consumed in sorted order (one cache-friendly sort instead of a heap pop per candidate);
+      // refreshed candidates go to a heap that is merged with it on the fly. Same order as one heap.
+      std::sort(seed.begin(), seed.end(), [](const FuseEntry& x, const FuseEntry& y) { return y < x; });
+      seed_ = std::move(seed);
     }
+    size_t next = 0;
+    auto empty = [&] { return next >= seed_.size() && queue.empty(); };
+    auto top = [&]() -> const FuseEntry& {
+      if (next >= seed_.size()) return queue.top();
+      if (queue.empty() || queue.top() < seed_[next]) return seed_[next];
+      return queue.top();
+    };
+    auto pop = [&] {
+      if (next < seed_.size() && (queue.empty() || queue.top() < seed_[next])) {
+        ++next;
+      } else {
+        queue.pop();
+      }
+    };
     std::int64_t applied = 0;
-    while (!queue.empty()) {
-      FuseEntry e = queue.top();
-      queue.pop();
+    while (!empty()) {
+      FuseEntry e = top();
+      pop();
       const int a = Find(e.a), b = Find(e.b);
       if (a == b) continue;
       if (a != e.a || b != e.b || version_[a] != e.version_a || version_[b] != e.version_b) {
@@ -208,7 +225,7 @@ class Climber {
         // re-queued; a big patch absorbing small ones would otherwise re-queue its whole rim on every fuse.
         const double gain = FuseGain(a, b);
         if (gain <= eps_) continue;
-        if (!queue.empty() && gain < queue.top().gain - 0.1 * std::abs(queue.top().gain)) {
+        if (!empty() && gain < top().gain - 0.1 * std::abs(top().gain)) {
           queue.push({gain, a, b, version_[a], version_[b]});
           continue;
         }
@@ -450,6 +467,7 @@ class Climber {
   std::vector<int> next_, prev_;
   std::vector<int> mark_;
   int stamp_ = 0;
+  std::vector<FuseEntry> seed_;  // the fuse phase's sorted seed candidates
 };
 
 }  // namespace
