@@ -167,7 +167,8 @@ struct MinimiseResult {
 };
 
 MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSummary* summary) {
-  const Preset preset = PresetFor(options.tolerance);
+  Preset preset = PresetFor(options.tolerance);
+  if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
   const int max_iterations = options.max_iterations > 0 ? options.max_iterations : preset.max_iterations;
   const SmoothingEnergy& energy = problem.energy();
   const bool lbfgs = options.minimiser == SmoothMinimiser::kLbfgs;
@@ -229,7 +230,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
     }
     LineSearchResult step =
-        LineSearch(problem, x, p, e, slope, alpha_init, lbfgs ? 0.9 : 0.1, &x_new, &g_new);
+        LineSearch(problem, x, p, e, slope, alpha_init, lbfgs ? 0.9 : options.line_search_c2, &x_new, &g_new);
     if (!step.success) {
       if (since_restart == 0) {
         summary->termination = SmoothTermination::kNoProgress;
@@ -444,6 +445,9 @@ void SmoothOptions::Check() const {
   RB_CHECK(max_iterations >= 0 && max_iterations <= 10000000, "smooth: max_iterations ", max_iterations,
            " is outside [0, 1e7]");
   RB_CHECK(lbfgs_memory >= 1 && lbfgs_memory <= 50, "smooth: lbfgs_memory ", lbfgs_memory, " is outside [1, 50]");
+  RB_CHECK(energy_tolerance >= 0 && energy_tolerance < 1, "smooth: energy_tolerance ", energy_tolerance,
+           " is outside [0, 1)");
+  RB_CHECK(line_search_c2 > 0 && line_search_c2 < 1, "smooth: line_search_c2 ", line_search_c2, " is outside (0, 1)");
   RB_CHECK(preconditioner_every >= 0 && preconditioner_every <= 1000000, "smooth: preconditioner_every ",
            preconditioner_every, " is outside [0, 1e6]");
   RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
@@ -499,6 +503,12 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
     tbb::parallel_for(tbb::blocked_range<size_t>(0, information.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
         const Eigen::Matrix3d& c = noisy.covariance[i];
+        if (c(0, 0) > 0 && std::isfinite(c(0, 0)) && c(0, 0) == c(1, 1) && c(1, 1) == c(2, 2) && c(0, 1) == 0 &&
+            c(1, 0) == 0 && c(0, 2) == 0 && c(2, 0) == 0 && c(1, 2) == 0 && c(2, 1) == 0) {
+          // σ² I (every generic mesh): exactly isotropic, which the energy stores compactly.
+          information[i] = Eigen::Matrix3d::Identity() * (0.5 / c(0, 0));
+          continue;
+        }
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
         const Eigen::Vector3d values = solver.eigenvalues();
         if (!c.allFinite() || solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) {

@@ -46,6 +46,11 @@ struct SmoothOptions {
   double prior_weight = 2.4;  // β, multiplies the prior sum; [0, 1e6]; 2.4 is the measured default rule
   SmoothTolerance tolerance = SmoothTolerance::kDefault;
   SmoothMinimiser minimiser = SmoothMinimiser::kConjugateGradient;
+  // Stop when the relative energy decrease per iteration (mean over 5) falls below this; 0: the preset's
+  // (fast 1e-4, default 1e-6, tight 1e-9). [0, 1)
+  double energy_tolerance = 0;
+  // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1).
+  double line_search_c2 = 0.1;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
   int lbfgs_memory = 6;     // L-BFGS correction pairs, [1, 50]
   // Rebuild the 3×3 block-Jacobi preconditioner (SmoothingEnergy::BlockJacobiInverse) every N iterations;

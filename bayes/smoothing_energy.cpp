@@ -56,10 +56,21 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
     }
     face_epsilon_squared_ = *face_epsilon_squared;
   }
-  information_.resize(6 * static_cast<size_t>(nv));
+  // Isotropic W_i = w_i I (every generic mesh) is stored as one number per vertex instead of six.
+  isotropic_ = true;
+  for (int i = 0; i < nv && isotropic_; ++i) {
+    const Eigen::Matrix3d& W = information[static_cast<size_t>(i)];
+    isotropic_ = W(0, 1) == 0 && W(1, 0) == 0 && W(0, 2) == 0 && W(2, 0) == 0 && W(1, 2) == 0 && W(2, 1) == 0 &&
+                 W(0, 0) == W(1, 1) && W(1, 1) == W(2, 2);
+  }
+  information_.resize((isotropic_ ? 1 : 6) * static_cast<size_t>(nv));
   for (int i = 0; i < nv; ++i) {
     const Eigen::Matrix3d& W = information[static_cast<size_t>(i)];
     RB_CHECK(W.allFinite(), "smoothing: information matrix of vertex ", i, " is not finite");
+    if (isotropic_) {
+      information_[static_cast<size_t>(i)] = W(0, 0);
+      continue;
+    }
     double* w = &information_[6 * static_cast<size_t>(i)];
     // Symmetrise: only the symmetric part enters rᵀ W r.
     w[0] = W(0, 0);
@@ -259,7 +270,8 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   double* grad = want_gradient ? gradient->data() : nullptr;
   const double* contributions = h_.data();
   const double data_sum = DeterministicSum(nv, [&](int i) {
-    const double* w = &information_[6 * static_cast<size_t>(i)];
+    double w[6];
+    Information(i, w);
     const double rx = x[3 * i] - z_[3 * i], ry = x[3 * i + 1] - z_[3 * i + 1], rz = x[3 * i + 2] - z_[3 * i + 2];
     const double wx = w[0] * rx + w[1] * ry + w[2] * rz;
     const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
@@ -352,7 +364,8 @@ void SmoothingEnergy::BlockJacobiInverse(const Eigen::VectorXd& x_vector, std::v
   double* out = inverse_blocks->data();
   tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i != r.end(); ++i) {
-      const double* w = &information_[6 * static_cast<size_t>(i)];
+      double w[6];
+      Information(i, w);
       double b[6] = {2 * w[0], 2 * w[1], 2 * w[2], 2 * w[3], 2 * w[4], 2 * w[5]};
       for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
         const int corner = corners_[static_cast<size_t>(q)];
@@ -405,7 +418,8 @@ void SmoothingEnergy::ApplyBlocks(const std::vector<double>& blocks, const Eigen
 
 double SmoothingEnergy::DataCurvature(const Eigen::VectorXd& p) const {
   return DeterministicSum(num_vertices_, [&](int i) {
-    const double* w = &information_[6 * static_cast<size_t>(i)];
+    double w[6];
+      Information(i, w);
     const double px = p[3 * i], py = p[3 * i + 1], pz = p[3 * i + 2];
     return 2 * (px * (w[0] * px + w[1] * py + w[2] * pz) + py * (w[1] * px + w[3] * py + w[4] * pz) +
                 pz * (w[2] * px + w[4] * py + w[5] * pz));

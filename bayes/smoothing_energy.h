@@ -83,7 +83,19 @@ class SmoothingEnergy {
   int num_vertices_ = 0;
   const Faces& faces_;
   Eigen::Map<const Eigen::VectorXd> z_;  // the measured V, row-major: vertex i at [3i, 3i+3)
-  std::vector<double> information_;  // 6 per vertex: xx xy xz yy yz zz
+  // W_i: 6 per vertex (xx xy xz yy yz zz), or 1 per vertex (w_i of W_i = w_i I) when isotropic_.
+  std::vector<double> information_;
+  bool isotropic_ = false;
+  void Information(int i, double* w) const {
+    if (isotropic_) {
+      const double v = information_[static_cast<size_t>(i)];
+      w[0] = w[3] = w[5] = v;
+      w[1] = w[2] = w[4] = 0;
+    } else {
+      const double* p = &information_[6 * static_cast<size_t>(i)];
+      for (int k = 0; k < 6; ++k) w[k] = p[k];
+    }
+  }
   double prior_weight_ = 0;
   const Potential* potential_ = nullptr;
   // Per-face ε² of the square-root potential (empty: the potential's own, global ε²).
