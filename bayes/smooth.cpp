@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Eigenvalues>
@@ -41,6 +42,38 @@ Preset PresetFor(SmoothTolerance tolerance) {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Vector operations of the minimiser, parallel over fixed chunks (the reduction tree depends only on the
+// length, so the bytes do not depend on the thread count). At 2 threads the serial versions took ~10% of a run.
+constexpr Eigen::Index kVectorChunk = 8192;
+
+double Dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<Eigen::Index>(0, a.size(), kVectorChunk), 0.0,
+      [&](const tbb::blocked_range<Eigen::Index>& r, double sum) {
+        return sum + a.segment(r.begin(), r.size()).dot(b.segment(r.begin(), r.size()));
+      },
+      [](double u, double v) { return u + v; });
+}
+
+// out = a + alpha · b
+void Axpy(const Eigen::VectorXd& a, double alpha, const Eigen::VectorXd& b, Eigen::VectorXd* out) {
+  out->resize(a.size());
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, a.size(), kVectorChunk),
+                    [&](const tbb::blocked_range<Eigen::Index>& r) {
+                      out->segment(r.begin(), r.size()) =
+                          a.segment(r.begin(), r.size()) + alpha * b.segment(r.begin(), r.size());
+                    });
+}
+
+// p = alpha · p − z
+void ScaleSubtract(double alpha, const Eigen::VectorXd& z, Eigen::VectorXd* p) {
+  tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, z.size(), kVectorChunk),
+                    [&](const tbb::blocked_range<Eigen::Index>& r) {
+                      p->segment(r.begin(), r.size()) =
+                          alpha * p->segment(r.begin(), r.size()) - z.segment(r.begin(), r.size());
+                    });
 }
 
 // Line search on φ(α) = E(x + α p): Newton–Raphson on the directional derivative φ'(α) = g(x + α p)·p with
@@ -84,7 +117,7 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
   const int start_evaluations = problem.evaluations;
   for (int it = 0; it < kMaxEvaluations; ++it) {
     if (!(alpha > 0) || !std::isfinite(alpha)) break;
-    *x_out = x + alpha * p;
+    Axpy(x, alpha, p, x_out);
     const EnergyParts parts = problem.Evaluate(*x_out, g_out);
     last_alpha = alpha;
     const double e = parts.total();
@@ -101,7 +134,7 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
       if (hi - lo <= 1e-14 * hi) break;
       continue;
     }
-    const double slope = g_out->dot(p);
+    const double slope = Dot(*g_out, p);
     if (!best.success || e <= best.energy) {
       best.success = true;
       best.alpha = alpha;
@@ -131,7 +164,7 @@ LineSearchResult LineSearch(Problem& problem, const Eigen::VectorXd& x, const Ei
     alpha = next;
   }
   if (best.success && last_alpha != best.alpha) {
-    *x_out = x + best.alpha * p;
+    Axpy(x, best.alpha, p, x_out);
     best.parts = problem.Evaluate(*x_out, g_out);
     best.energy = best.parts.total();
   }
@@ -180,7 +213,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   EnergyParts parts = problem.Evaluate(x, &g);
   double e = parts.total();
   summary->energy.push_back(e);
-  summary->initial_gradient_norm = g.norm();
+  summary->initial_gradient_norm = std::sqrt(Dot(g, g));
   summary->final_gradient_norm = summary->initial_gradient_norm;
   summary->termination = SmoothTermination::kMaxIterations;
   if (!(summary->initial_gradient_norm > 0)) {
@@ -209,10 +242,10 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   double first_decrease = -1;
   int since_restart = 0;
   for (int iteration = 1; iteration <= max_iterations; ++iteration) {
-    double slope = g.dot(p);
+    double slope = Dot(g, p);
     if (!(slope < 0)) {
       p = -zg;
-      slope = -g.dot(zg);
+      slope = -Dot(g, zg);
       unit_step = precondition;
       ++summary->restarts;
       since_restart = 0;
@@ -269,12 +302,12 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     // PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner).
     double beta_pr;
     if (precondition) {
-      const double zg_old = z.dot(g);
+      const double zg_old = Dot(z, g);
       if (iteration % options.preconditioner_every == 0) energy.BlockJacobiInverse(x, &blocks);
       energy.ApplyBlocks(blocks, g_new, &z);
-      beta_pr = (z.dot(g_new) - z.dot(g)) / zg_old;
+      beta_pr = (Dot(z, g_new) - Dot(z, g)) / zg_old;
     } else {
-      beta_pr = (g_new.squaredNorm() - g_new.dot(g)) / g.squaredNorm();
+      beta_pr = (Dot(g_new, g_new) - Dot(g_new, g)) / Dot(g, g);
     }
     g.swap(g_new);
     alpha_prev = step.alpha;
@@ -282,7 +315,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     e = e_new;
     parts = step.parts;
     summary->energy.push_back(e);
-    summary->final_gradient_norm = g.norm();
+    summary->final_gradient_norm = std::sqrt(Dot(g, g));
     ++since_restart;
 
     const int count = static_cast<int>(summary->energy.size());
@@ -333,7 +366,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       since_restart = 0;
       ++summary->restarts;
     } else {
-      p = -zg + std::max(0.0, beta_pr) * p;
+      ScaleSubtract(std::max(0.0, beta_pr), zg, &p);
     }
   }
   summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 5) +
