@@ -33,11 +33,11 @@ Preset PresetFor(SmoothTolerance tolerance) {
     case SmoothTolerance::kFast:
       return {1e-4, 1e-2, 300};
     case SmoothTolerance::kDefault:
-      return {1e-6, 1e-3, 2000};
+      return {3e-5, 1e-3, 2000};
     case SmoothTolerance::kTight:
       return {1e-9, 1e-6, 20000};
   }
-  return {1e-6, 1e-3, 2000};
+  return {3e-5, 1e-3, 2000};
 }
 
 double Seconds(std::chrono::steady_clock::time_point since) {
