@@ -10,6 +10,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
+#include "bayes/adaptive_epsilon.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
@@ -33,6 +34,7 @@ struct SmoothArgs {
   double beta = SmoothOptions{}.prior_weight;
   bool beta_given = false;  // --beta on the command line (else a learned prior's own beta is used)
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
+  bool adaptive_epsilon = false;  // --adaptive-eps: per-face ε² from a pre-pass (bayes/adaptive_epsilon.h)
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
   std::string png;
@@ -110,6 +112,13 @@ void RunSmooth(const SmoothArgs& args) {
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
   std::fflush(stdout);
 
+  if (args.adaptive_epsilon) {
+    AdaptiveEpsilonSummary adaptive;
+    options.face_epsilon_squared = AdaptiveEpsilonFromPrepass(noisy, options, ScanAdaptiveEpsilonOptions(), &adaptive);
+    std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (fast pre-pass %.3f s)\n",
+                adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
+                adaptive.time_s);
+  }
   ProgressPrinter progress(args.quiet);
   options.progress = progress.callback();
   SmoothSummary summary;
@@ -202,6 +211,9 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       ->check(CLI::IsMember({"cg", "lbfgs"}));
   sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
+  sub->add_flag("--adaptive-eps", args->adaptive_epsilon,
+                "per-face epsilon^2 from a fast pre-pass (sqrt prior): better on smooth detailed scans, worse on "
+                "sharp CAD shapes (BENCHMARKS.md 'Adaptive eps'); costs a second, fast smoothing run");
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")

@@ -178,4 +178,33 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
   return epsilon_squared;
 }
 
+AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions() {
+  AdaptiveEpsilonOptions options;
+  options.statistic = AdaptiveEpsilonStatistic::kTruncatedMean;
+  options.scale = 8.0;
+  options.ring_iterations = 3;
+  options.truncate_normal_difference = 0.3;
+  options.protect_rings = -1;
+  return options;
+}
+
+std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const SmoothOptions& options,
+                                               const AdaptiveEpsilonOptions& rule, AdaptiveEpsilonSummary* summary) {
+  RB_CHECK(options.potential == nullptr && options.prior == PriorKind::kSqrt,
+           "adaptive epsilon: needs the square-root prior (--prior sqrt)");
+  rule.Check();
+  const auto start = std::chrono::steady_clock::now();
+  SmoothOptions pre = options;
+  pre.tolerance = SmoothTolerance::kFast;
+  pre.max_iterations = 0;
+  pre.face_epsilon_squared.clear();
+  pre.progress = nullptr;
+  const Mesh smoothed = Smooth(noisy, pre);
+  std::vector<double> epsilon_squared = AdaptiveEpsilonSquared(smoothed, rule, summary);
+  if (summary != nullptr) {
+    summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return epsilon_squared;
+}
+
 }  // namespace rangebayes

@@ -23,6 +23,7 @@
 
 #include <vector>
 
+#include "bayes/smooth.h"
 #include "core/mesh.h"
 
 namespace rangebayes {
@@ -55,7 +56,7 @@ struct AdaptiveEpsilonSummary {
   double p10_epsilon_squared = 0;
   double p90_epsilon_squared = 0;
   int faces_at_minimum = 0;           // faces clamped to min_epsilon_squared (flat or beside a crease)
-  double time_s = 0;
+  double time_s = 0;                 // the whole call (with the pre-pass for AdaptiveEpsilonFromPrepass)
 };
 
 // One ε² per face of `reference` (#F values in [min, max]). Faces without a normal (zero area, repeated
@@ -63,5 +64,18 @@ struct AdaptiveEpsilonSummary {
 // Error on bad face indices or options.
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options = {},
                                            AdaptiveEpsilonSummary* summary = nullptr);
+
+// The rule for smooth, finely detailed scans (opt-in: `rangebayes smooth --adaptive-eps`): truncated mean,
+// scale 8, three rings, no crease protection. Measured with a pre-pass reference (BENCHMARKS.md "Adaptive ε"):
+// child 0.3 8.38 → 7.38°, igea 0.3 → 10.15°, but sharp CAD shapes get worse (fandisk 0.3 2.10 → 2.67°), so it is
+// not the default.
+AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions();
+
+// ε² per face of `noisy` from a pre-pass: Smooth(noisy, options) with the fast tolerance and the global ε²
+// (options.face_epsilon_squared ignored), then AdaptiveEpsilonSquared on its result. Costs one fast smoothing
+// run (≈ 0.5–1× the main run). `options` must use the square-root prior (Error otherwise).
+std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const SmoothOptions& options,
+                                               const AdaptiveEpsilonOptions& rule,
+                                               AdaptiveEpsilonSummary* summary = nullptr);
 
 }  // namespace rangebayes

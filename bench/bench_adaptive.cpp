@@ -1,13 +1,14 @@
 // Adaptive ε benchmark (BENCHMARKS.md "Bayesian smoothing" → "Adaptive ε"): the square-root prior with one ε²
 // per face from bayes/adaptive_epsilon.h, on every denoising case of the benchmark meshes.
 //
-//   bench_adaptive quality [--data DIR] [--reference gt|prepass|none] [--statistic median|mean] [--scale C]
-//                          [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
+//   bench_adaptive quality [--data DIR] [--reference gt|prepass|none] [--rule scan] [--statistic median|mean]
+//                          [--scale C] [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
 //                          [--max E2] [--cases a,b,...] [--estimate] [--baseline]
 //     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
 //     --reference prepass  the rule on the noisy input smoothed once with the default (global ε² = 1e-4,
 //                          fast tolerance): what a real run can do; the pre-pass time is included
 //     --reference none     the default smoother (global ε²), for comparison
+//     --rule scan          start from ScanAdaptiveEpsilonOptions() (what `rangebayes smooth --adaptive-eps` uses)
 //     --baseline           also run the default smoother and print its MAE beside
 #include <sys/resource.h>
 
@@ -85,6 +86,13 @@ int Quality(std::map<std::string, std::string>& flags) {
     return 2;
   }
   AdaptiveEpsilonOptions rule;
+  if (flags.count("--rule")) {
+    if (flags["--rule"] != "scan") {
+      std::fprintf(stderr, "bench_adaptive: --rule must be scan\n");
+      return 2;
+    }
+    rule = ScanAdaptiveEpsilonOptions();
+  }
   if (flags.count("--statistic")) {
     const std::string s = flags["--statistic"];
     if (s != "median" && s != "mean") {
@@ -111,7 +119,8 @@ int Quality(std::map<std::string, std::string>& flags) {
               rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference,
               rule.protect_rings, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
               estimate ? "estimated" : "given");
-  std::printf("| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | CPU (s) |\n");
+  std::printf("| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | "
+              "CPU (s) |\n");
   std::printf("|---|---|---|---|---|---|---|---|\n");
   for (const Case& c : Cases()) {
     if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
@@ -131,10 +140,7 @@ int Quality(std::map<std::string, std::string>& flags) {
     if (reference == "gt") {
       options.face_epsilon_squared = AdaptiveEpsilonSquared(gt, rule, &rule_summary);
     } else if (reference == "prepass") {
-      SmoothOptions pre = options;
-      pre.tolerance = SmoothTolerance::kFast;
-      const Mesh smoothed = Smooth(input, pre);
-      options.face_epsilon_squared = AdaptiveEpsilonSquared(smoothed, rule, &rule_summary);
+      options.face_epsilon_squared = AdaptiveEpsilonFromPrepass(input, options, rule, &rule_summary);
       prepass_s = Seconds(start);
     }
     const Mesh result = Smooth(input, options);

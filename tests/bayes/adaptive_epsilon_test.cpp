@@ -75,7 +75,9 @@ TEST(AdaptiveEpsilon, GrowsInCurvedRegionsOnly) {
 // Degenerate faces (a repeated index, zero area) and an isolated face get the minimum and never NaN.
 TEST(AdaptiveEpsilon, DegenerateFacesGetTheMinimum) {
   Mesh mesh = Grid(6, 6);
-  for (int v = 0; v < mesh.num_vertices(); ++v) mesh.V(v, 2) = 0.05 * (mesh.V(v, 0) * mesh.V(v, 0) + mesh.V(v, 1) * mesh.V(v, 1));
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    mesh.V(v, 2) = 0.05 * (mesh.V(v, 0) * mesh.V(v, 0) + mesh.V(v, 1) * mesh.V(v, 1));
+  }
   const int n = mesh.num_faces();
   mesh.F.conservativeResize(n + 2, 3);
   mesh.F.row(n) << 0, 0, 1;  // repeated index
