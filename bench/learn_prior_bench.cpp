@@ -4,12 +4,14 @@
 //   learn_prior_bench [--method implicit|interleaved] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
 //                     [--copies 1]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
-//                     [--tolerance fast|default|tight]
+//                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
 //                     [--mesh NOISY GT K]...
 //
 // Prints the training curve (time, loss) and a table of MAE (degrees) and D (mean squared vertex error / l_e²).
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -20,6 +22,7 @@
 #include "bayes/noise_model.h"
 #include "bayes/synth_meshes.h"
 #include "core/mesh_io.h"
+#include "core/topology.h"
 
 using namespace rangebayes;
 
@@ -48,6 +51,43 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
   for (size_t p = 0; p < pairs.size(); ++p) {
     std::printf("    %-28s sqrt %.3f  learned %.3f\n", pairs[p].name.c_str(), base.pair_mae_deg[p], mine.pair_mae_deg[p]);
   }
+}
+
+Eigen::Vector3d FaceNormal(const Mesh& m, int f) {
+  const Eigen::Vector3d a = m.V.row(m.F(f, 0));
+  return (Eigen::Vector3d(m.V.row(m.F(f, 1))) - a).cross(Eigen::Vector3d(m.V.row(m.F(f, 2))) - a).normalized();
+}
+
+// How many face pairs the potential acts on per knot interval: d = ‖n_s − n_t‖ at `meshes` (the square-root
+// smoothing results), and among them the pairs that meet at a right angle in the ground truth (d = √2 there).
+void PrintPairHistogram(const std::vector<TrainingPair>& pairs, const std::vector<Mesh>& meshes, int num_knots) {
+  const double spacing = 2.0 / (num_knots - 1);
+  std::vector<long long> noisy_count(num_knots - 1, 0), right_angle_noisy(num_knots - 1, 0);
+  long long total = 0, right_angles = 0;
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const TrainingPair& pair = pairs[p];
+    const IndexPairs face_pairs = ComputeFacePairs(pair.truth);
+    for (int k = 0; k < face_pairs.rows(); ++k) {
+      const int s = face_pairs(k, 0), t = face_pairs(k, 1);
+      const double d_truth = (FaceNormal(pair.truth, s) - FaceNormal(pair.truth, t)).norm();
+      const double d = (FaceNormal(meshes[p], s) - FaceNormal(meshes[p], t)).norm();
+      if (!std::isfinite(d)) continue;
+      const int bin = std::min(num_knots - 2, static_cast<int>(d / spacing));
+      ++noisy_count[bin];
+      ++total;
+      if (std::abs(d_truth - std::sqrt(2.0)) < 1e-6) {
+        ++right_angles;
+        ++right_angle_noisy[bin];
+      }
+    }
+  }
+  std::printf("face pairs: %lld, %lld (%.2f%%) at right angles in the truth; d after square-root smoothing per knot interval "
+              "[t_j, t_j+1): all (right-angle ones)\n  ",
+              total, right_angles, 100.0 * right_angles / std::max<long long>(1, total));
+  for (int j = 0; j + 1 < num_knots; ++j) {
+    std::printf(" %.2f:%lld(%lld)", j * spacing, noisy_count[j], right_angle_noisy[j]);
+  }
+  std::printf("\n");
 }
 
 }  // namespace
@@ -84,6 +124,8 @@ int main(int argc, char** argv) {
     else if (a == "--step") options.interleaved_step = options.initial_step = std::stod(next());
     else if (a == "--theta-out") theta_out = next();
     else if (a == "--tolerance") options.tolerance = ParseSmoothTolerance(next());
+    else if (a == "--cold") options.warm_start = false;
+    else if (a == "--warm-tolerance") options.warm_gradient_tolerance = std::stod(next());
     else if (a == "--mesh") {
       External e;
       e.noisy = next();
@@ -106,15 +148,24 @@ int main(int argc, char** argv) {
               LearnMethodName(options.method).c_str(), synth.noise.k,
               std::max(synth.noise.k, synth.noise_k_max), train.size(), vertices, test.size(),
               options.spline.num_knots, options.regularizer_weight);
+  PrintPairHistogram(train, EvaluatePrior(train, SqrtPotential(options.spline.epsilon_squared), options, true).smoothed,
+                     options.spline.num_knots);
   options.progress = [](double, std::string_view stage) {
     std::fprintf(stderr, "  %.*s\n", static_cast<int>(stage.size()), stage.data());
   };
   LearnPriorSummary summary;
   const Eigen::VectorXd theta = LearnPrior(train, options, {}, &summary);
   options.progress = nullptr;
-  std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs, %.1f s, %s\n", summary.initial_data_loss / summary.num_vertices,
-              summary.final_data_loss / summary.num_vertices, summary.iterations, summary.smoothing_runs, summary.total_time_s,
+  std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
+              "%.1f s, %s\n",
+              summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
+              summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
               summary.termination.c_str());
+  std::printf("curve (s, D/vertex):");
+  for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
+    std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);
+  }
+  std::printf("\n");
   std::printf("theta:");
   for (int j = 0; j < theta.size(); ++j) std::printf(" %.4f", theta[j]);
   std::printf("\n");
