@@ -6,6 +6,7 @@
 //   bench_stereo --quality=2014 [--data=DIR]        Middlebury 2014 quarter: bad-2.0, σ_d ranking
 //   bench_stereo --quality=graycode [--data=DIR]    Gray-code plane: disparity noise about a fitted plane
 //   bench_stereo --quality=synth                    synthetic scenes: space-time vs SGBM depth RMS
+//   bench_stereo --quality=sigmafit                 σ_d model (floor, scale) fitted on synthetic scenes
 // DIR defaults to ../shared/data/stereo (relative to the repository root).
 #include <benchmark/benchmark.h>
 
@@ -21,6 +22,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
+#include <tbb/global_control.h>
 #include <vector>
 
 #include "reconstruction/triangulate.h"
@@ -68,6 +70,7 @@ void BM_SpaceTime640(benchmark::State& state) {
   rb::SpaceTimeMatcherOptions m = Options640();
   m.subpixel_iterations = static_cast<int>(state.range(1));
   rb::SpaceTimeMatcher matcher(m);
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(2)));
   double valid = 0;
   for (auto _ : state) {
     const rb::DisparityResult r = matcher.Match(left, right);
@@ -76,8 +79,18 @@ void BM_SpaceTime640(benchmark::State& state) {
   }
   state.counters["valid"] = valid;
 }
-BENCHMARK(BM_SpaceTime640)->Args({8, 2})->Args({8, 0})->Args({1, 2})->Args({16, 2})->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+// Args: frames T, Gauss–Newton sub-pixel iterations (0: parabola only), threads.
+BENCHMARK(BM_SpaceTime640)
+    ->ArgNames({"T", "gn", "threads"})
+    ->Args({8, 0, 1})
+    ->Args({8, 0, 2})
+    ->Args({8, 2, 1})
+    ->Args({8, 2, 2})
+    ->Args({16, 0, 2})
+    ->Args({1, 0, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime();
 
 void BM_Sgbm640(benchmark::State& state) {
   const rb::SynthRecording& rec = Scene640(1);
@@ -90,7 +103,7 @@ void BM_Sgbm640(benchmark::State& state) {
     benchmark::DoNotOptimize(r.disparity_px.data);
   }
 }
-BENCHMARK(BM_Sgbm640)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Sgbm640)->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 
 void BM_Triangulate640(benchmark::State& state) {
   const rb::SynthRecording& rec = Scene640(8);
@@ -99,6 +112,7 @@ void BM_Triangulate640(benchmark::State& state) {
       rb::DepthFromDisparity(rec.disparity_px, sigma, rec.intrinsics, rec.rig.baseline_m(), 0.0);
   rb::TriangulateOptions o;
   o.downsample = static_cast<int>(state.range(0));
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(1)));
   int faces = 0;
   for (auto _ : state) {
     rb::TriangulateSummary s;
@@ -108,7 +122,15 @@ void BM_Triangulate640(benchmark::State& state) {
   }
   state.counters["faces"] = faces;
 }
-BENCHMARK(BM_Triangulate640)->Arg(1)->Arg(4)->Unit(benchmark::kMillisecond)->UseRealTime();
+// Args: downsample factor, threads.
+BENCHMARK(BM_Triangulate640)
+    ->ArgNames({"downsample", "threads"})
+    ->Args({1, 1})
+    ->Args({1, 2})
+    ->Args({4, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime();
 
 // ---------------------------------------------------------------- quality helpers
 
@@ -323,14 +345,21 @@ void QualityGrayCode(const std::string& data) {
       l = {load(0, "left")};
       r = {load(0, "right")};
     }
-    rb::SpaceTimeMatcherOptions o;
-    o.min_disparity_px = 56;
-    o.num_disparities = 48;
-    o.window_px = T == 1 ? 9 : 5;
-    char name[64];
-    std::snprintf(name, sizeof name, T == 1 ? "block T=1 w=9, frame 00" : "space-time T=%d w=5, frames %02d-26", T,
-                  26 - T + 1);
-    report(name, rb::SpaceTimeMatcher(o).Match(l, r));
+    for (int gn : {0, 2}) {
+      rb::SpaceTimeMatcherOptions o;
+      o.min_disparity_px = 56;
+      o.num_disparities = 48;
+      o.window_px = T == 1 ? 9 : 5;
+      o.subpixel_iterations = gn;
+      char name[64];
+      if (T == 1) {
+        std::snprintf(name, sizeof name, "block T=1 w=9, frame 00, %s", gn ? "GN" : "parabola");
+      } else {
+        std::snprintf(name, sizeof name, "space-time T=%d w=5, frames %02d-26, %s", T, 26 - T + 1,
+                      gn ? "GN" : "parabola");
+      }
+      report(name, rb::SpaceTimeMatcher(o).Match(l, r));
+    }
   }
 }
 
@@ -395,6 +424,83 @@ void QualitySynth() {
   }
 }
 
+// Fits the σ_d model σ² = floor² + (k·σ_pred)² to the disparity errors of the space-time matcher on the
+// synthetic scenes (planes, sphere, box, cylinder, stairs; 320×240, seeds 5 and 6, image noise 2), per T:
+// maximum likelihood over a grid of floor and k, residuals beyond 5σ left out as outliers (re-cut after
+// each fit). Prints the fit and the mean normalised squared residual per σ_pred quintile.
+void QualitySigmaFit() {
+  std::printf("sigma_d model fit: sigma^2 = floor^2 + (k*pred)^2, synthetic scenes 320x240, noise 2, seeds 5-6\n");
+  for (int T : {1, 8, 16}) {
+    std::vector<double> pred, err;
+    for (const auto scene : {rb::SynthScene::kPlanes, rb::SynthScene::kSphere, rb::SynthScene::kBox,
+                             rb::SynthScene::kCylinder, rb::SynthScene::kStairs}) {
+      for (std::uint64_t seed : {5u, 6u}) {
+        rb::SynthOptions so;
+        so.scene = scene;
+        so.frames = T;
+        so.image_noise_gray = 2.0;
+        so.seed = seed;
+        const rb::SynthRecording rec = rb::RenderSynthetic(so);
+        rb::SpaceTimeMatcherOptions mo;
+        mo.min_disparity_px = 8;
+        mo.num_disparities = 48;
+        mo.image_noise_gray = 2.0;
+        mo.sigma_floor_px = 0.0;
+        mo.sigma_scale = 1.0;
+        const auto r = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
+        for (int y = 0; y < rec.depth_m.rows; ++y)
+          for (int x = 0; x < rec.depth_m.cols; ++x) {
+            const float d = r.disparity_px.at<float>(y, x), g = rec.disparity_px.at<float>(y, x);
+            if (!std::isfinite(d) || !std::isfinite(g)) continue;
+            pred.push_back(r.sigma_disparity_px.at<float>(y, x));
+            err.push_back(d - g);
+          }
+      }
+    }
+    std::vector<bool> in(err.size(), true);
+    double best_f = 0, best_k = 1;
+    for (int round = 0; round < 4; ++round) {
+      double best_nll = std::numeric_limits<double>::infinity();
+      for (double f = 0.0; f <= 0.3001; f += 0.01)
+        for (double k = 0.5; k <= 6.0001; k += 0.1) {
+          double nll = 0;
+          for (size_t i = 0; i < err.size(); i += 7) {  // every 7th pixel: the grid search stays quick
+            if (!in[i]) continue;
+            const double s2 = f * f + k * k * pred[i] * pred[i];
+            nll += std::log(s2) + err[i] * err[i] / s2;
+          }
+          if (nll < best_nll) {
+            best_nll = nll;
+            best_f = f;
+            best_k = k;
+          }
+        }
+      for (size_t i = 0; i < err.size(); ++i) {
+        const double s2 = best_f * best_f + best_k * best_k * pred[i] * pred[i];
+        in[i] = err[i] * err[i] <= 25.0 * s2;
+      }
+    }
+    size_t outliers = 0;
+    for (bool b : in) outliers += !b;
+    std::vector<size_t> order;
+    for (size_t i = 0; i < err.size(); ++i)
+      if (in[i]) order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return pred[a] < pred[b]; });
+    std::printf("T=%2d: floor %.3f px, scale %.2f; %zu pixels, %.2f%% beyond 5 sigma; mean z2 per pred quintile:", T,
+                best_f, best_k, err.size(), 100.0 * outliers / err.size());
+    for (int q = 0; q < 5; ++q) {
+      double z2 = 0;
+      const size_t a = order.size() * q / 5, b = order.size() * (q + 1) / 5;
+      for (size_t i = a; i < b; ++i) {
+        const size_t j = order[i];
+        z2 += err[j] * err[j] / (best_f * best_f + best_k * best_k * pred[j] * pred[j]);
+      }
+      std::printf(" %.2f", z2 / (b - a));
+    }
+    std::printf("\n");
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -415,6 +521,7 @@ int main(int argc, char** argv) {
     if (quality == "2014") Quality2014(data);
     if (quality == "graycode") QualityGrayCode(data);
     if (quality == "synth") QualitySynth();
+    if (quality == "sigmafit") QualitySigmaFit();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_stereo: error: %s\n", e.what());
     return 1;

@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <cstdint>
 #include <cmath>
 #include <vector>
 
@@ -60,67 +61,120 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
   out.covariance.resize(nv);
   out.pixel.resize(nv, 2);
   std::vector<int> index(z.size(), -1);
+  const double inv_fx = 1.0 / K.fx_px, inv_fy = 1.0 / K.fy_px;
   tbb::parallel_for(0, gh, [&](int gy) {
     int i = row_vertices[gy];
+    const double v = gy * s;
+    const double ny = (v - K.cy_px) * inv_fy;
     for (int gx = 0; gx < gw; ++gx) {
       const size_t g = static_cast<size_t>(gy) * gw + gx;
-      if (!std::isfinite(z[g])) continue;
+      const double depth = z[g];
+      if (!std::isfinite(depth)) continue;
       index[g] = i;
-      const double u = gx * s, v = gy * s, depth = z[g];
-      const Eigen::Vector3d p((u - K.cx_px) * depth / K.fx_px, (v - K.cy_px) * depth / K.fy_px, depth);
-      const Eigen::Vector3d r = p.normalized();
-      const double sigma_ray = sz[g] / r.z();
-      const double sigma_lat = p.norm() / K.fx_px * sigma_px;
-      out.mesh.V.row(i) = p.transpose();
-      out.covariance[i] = (sigma_ray * sigma_ray - sigma_lat * sigma_lat) * (r * r.transpose()) +
-                          sigma_lat * sigma_lat * Eigen::Matrix3d::Identity();
-      out.pixel(i, 0) = static_cast<float>(u);
-      out.pixel(i, 1) = static_cast<float>(v);
+      const double u = gx * s;
+      const double px = (u - K.cx_px) * inv_fx * depth, py = ny * depth;
+      const double norm = std::sqrt(px * px + py * py + depth * depth);
+      const double inv_norm = 1.0 / norm;
+      const double rx = px * inv_norm, ry = py * inv_norm, rz = depth * inv_norm;
+      // Closed form of Σ = σ_ray² r rᵀ + σ_lat² (I − r rᵀ) = (σ_ray² − σ_lat²) r rᵀ + σ_lat² I, with
+      // σ_ray = σ_Z / r_z = σ_Z·|p|/Z and σ_lat = |p|/f · σ_px.
+      const double sigma_ray = sz[g] * norm / depth;
+      const double sigma_lat = norm * inv_fx * sigma_px;
+      const double b = sigma_lat * sigma_lat;
+      const double a = sigma_ray * sigma_ray - b;
+      double* vrow = out.mesh.V.data() + static_cast<size_t>(i) * 3;
+      vrow[0] = px;
+      vrow[1] = py;
+      vrow[2] = depth;
+      double* c = out.covariance[i].data();  // symmetric: storage order does not matter
+      c[0] = a * rx * rx + b;
+      c[4] = a * ry * ry + b;
+      c[8] = a * rz * rz + b;
+      c[1] = c[3] = a * rx * ry;
+      c[2] = c[6] = a * rx * rz;
+      c[5] = c[7] = a * ry * rz;
+      float* pix = out.pixel.data() + static_cast<size_t>(i) * 2;
+      pix[0] = static_cast<float>(u);
+      pix[1] = static_cast<float>(v);
       ++i;
     }
   });
 
   const auto connected = [&](size_t a, size_t b) {
     const double za = z[a], zb = z[b];
+    if (!(za == za) || !(zb == zb)) return false;  // NaN: no vertex
     const double jump = std::abs(za - zb);
-    const double noise2 = static_cast<double>(sz[a]) * sz[a] + static_cast<double>(sz[b]) * sz[b];
     const double allowed_slope = 0.5 * (za + zb) * slope;
-    // jump > k·σ + slope allowance, written without a square root when the slope term is zero.
+    // jump > k·σ + slope allowance, written without a square root.
     if (jump <= allowed_slope) return true;
     const double excess = jump - allowed_slope;
+    const double noise2 = static_cast<double>(sz[a]) * sz[a] + static_cast<double>(sz[b]) * sz[b];
     return excess * excess <= k2 * noise2;
   };
+
+  // Every grid edge is tested once: per block (x, y) bit 0 its top edge (x,y)–(x+1,y), bit 1 its left edge
+  // (x,y)–(x,y+1), bit 2 the diagonal (x,y)–(x+1,y+1), bit 3 the diagonal (x+1,y)–(x,y+1); the bottom and
+  // right edges are the top and left edges of the blocks below and to the right (a last row and column of
+  // pseudo-blocks holds the grid's bottom and right edges).
+  std::vector<std::uint8_t> edges(z.size(), 0);
+  tbb::parallel_for(0, gh, [&](int gy) {
+    std::uint8_t* e = edges.data() + static_cast<size_t>(gy) * gw;
+    const size_t row = static_cast<size_t>(gy) * gw;
+    for (int gx = 0; gx < gw; ++gx) {
+      const size_t c0 = row + gx;
+      std::uint8_t bits = 0;
+      if (gx + 1 < gw) bits |= connected(c0, c0 + 1) ? 1 : 0;
+      if (gy + 1 < gh) {
+        bits |= connected(c0, c0 + gw) ? 2 : 0;
+        if (gx + 1 < gw) {
+          bits |= connected(c0, c0 + gw + 1) ? 4 : 0;
+          bits |= connected(c0 + 1, c0 + gw) ? 8 : 0;
+        }
+      }
+      e[gx] = bits;
+    }
+  });
 
   // Faces per row of 2×2 blocks: counted, then written, so rows can run in parallel.
   const int block_rows = std::max(0, gh - 1);
   std::vector<int> row_faces(block_rows + 1, 0);
-  std::vector<int> row_cuts(block_rows, 0);
-  // Per block: bit mask of emitted triangles (1: a-b-c type 1, 2: type 2 ...), computed once.
+  std::vector<int> row_cuts(gh, 0);
+  // Per block: bit mask of emitted triangles (1: A, 2: B, 4: C, 8: D below), computed once.
   std::vector<std::uint8_t> block_code(static_cast<size_t>(std::max(0, gw - 1)) * block_rows, 0);
-  tbb::parallel_for(0, block_rows, [&](int gy) {
-    int faces = 0, cuts = 0;
+  tbb::parallel_for(0, gh, [&](int gy) {
+    // Cut edges: grid edges between two valid vertices that are not connected (top and left edges here).
+    int cuts = 0;
+    const size_t row = static_cast<size_t>(gy) * gw;
+    for (int gx = 0; gx < gw; ++gx) {
+      const bool valid = index[row + gx] >= 0;
+      if (!valid) continue;
+      if (gx + 1 < gw && index[row + gx + 1] >= 0) cuts += !(edges[row + gx] & 1);
+      if (gy + 1 < gh && index[row + gx + gw] >= 0) cuts += !(edges[row + gx] & 2);
+    }
+    row_cuts[gy] = cuts;
+    if (gy + 1 >= gh) return;
+    int faces = 0;
     for (int gx = 0; gx + 1 < gw; ++gx) {
-      // Corners: 0 = (x, y), 1 = (x+1, y), 2 = (x, y+1), 3 = (x+1, y+1).
-      const size_t c[4] = {static_cast<size_t>(gy) * gw + gx, static_cast<size_t>(gy) * gw + gx + 1,
-                           static_cast<size_t>(gy + 1) * gw + gx, static_cast<size_t>(gy + 1) * gw + gx + 1};
-      bool valid[4];
-      for (int k = 0; k < 4; ++k) valid[k] = index[c[k]] >= 0;
-      const auto edge = [&](int a, int b) { return valid[a] && valid[b] && connected(c[a], c[b]); };
-      const bool e01 = edge(0, 1), e02 = edge(0, 2), e13 = edge(1, 3), e23 = edge(2, 3);
-      const bool e03 = edge(0, 3), e12 = edge(1, 2);
-      // Edges on the block's top and left sides are counted here once; the others belong to the next block.
-      cuts += (valid[0] && valid[1] && !e01) + (valid[0] && valid[2] && !e02);
-      if (gy + 2 == gh) cuts += valid[2] && valid[3] && !e23;
-      if (gx + 2 == gw) cuts += valid[1] && valid[3] && !e13;
+      const std::uint8_t here = edges[row + gx];
+      const bool e01 = here & 1, e02 = here & 2, e03 = here & 4, e12 = here & 8;
+      const bool e13 = edges[row + gx + 1] & 2, e23 = edges[row + gw + gx] & 1;
       // Triangles (image y down, so (0,2,1) is counter-clockwise seen from the camera):
       //   diagonal 0–3: A = (0,2,3), B = (0,3,1); diagonal 1–2: C = (0,2,1), D = (1,2,3).
       const bool A = e02 && e23 && e03, B = e03 && e13 && e01;
       const bool C = e02 && e12 && e01, D = e12 && e23 && e13;
       std::uint8_t code = 0;
       if (A && B && C && D) {
-        const Eigen::Vector3d p0 = out.mesh.V.row(index[c[0]]), p1 = out.mesh.V.row(index[c[1]]);
-        const Eigen::Vector3d p2 = out.mesh.V.row(index[c[2]]), p3 = out.mesh.V.row(index[c[3]]);
-        code = (p0 - p3).squaredNorm() <= (p1 - p2).squaredNorm() ? 0b0011 : 0b1100;
+        // Split along the shorter 3-D diagonal.
+        const double* p0 = out.mesh.V.data() + 3 * static_cast<size_t>(index[row + gx]);
+        const double* p1 = out.mesh.V.data() + 3 * static_cast<size_t>(index[row + gx + 1]);
+        const double* p2 = out.mesh.V.data() + 3 * static_cast<size_t>(index[row + gw + gx]);
+        const double* p3 = out.mesh.V.data() + 3 * static_cast<size_t>(index[row + gw + gx + 1]);
+        double d03 = 0, d12 = 0;
+        for (int k = 0; k < 3; ++k) {
+          d03 += (p0[k] - p3[k]) * (p0[k] - p3[k]);
+          d12 += (p1[k] - p2[k]) * (p1[k] - p2[k]);
+        }
+        code = d03 <= d12 ? 0b0011 : 0b1100;
       } else if (A && B) {
         code = 0b0011;
       } else if (C && D) {
@@ -132,21 +186,27 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
       faces += __builtin_popcount(code);
     }
     row_faces[gy + 1] = faces;
-    row_cuts[gy] = cuts;
   });
   for (int gy = 0; gy < block_rows; ++gy) row_faces[gy + 1] += row_faces[gy];
   out.mesh.F.resize(row_faces[block_rows], 3);
   tbb::parallel_for(0, block_rows, [&](int gy) {
-    int f = row_faces[gy];
+    int* f = out.mesh.F.data() + 3 * static_cast<size_t>(row_faces[gy]);
+    const size_t row = static_cast<size_t>(gy) * gw;
     for (int gx = 0; gx + 1 < gw; ++gx) {
       const std::uint8_t code = block_code[static_cast<size_t>(gy) * (gw - 1) + gx];
       if (!code) continue;
-      const int i0 = index[static_cast<size_t>(gy) * gw + gx], i1 = index[static_cast<size_t>(gy) * gw + gx + 1];
-      const int i2 = index[static_cast<size_t>(gy + 1) * gw + gx], i3 = index[static_cast<size_t>(gy + 1) * gw + gx + 1];
-      if (code & 0b0001) out.mesh.F.row(f++) << i0, i2, i3;
-      if (code & 0b0010) out.mesh.F.row(f++) << i0, i3, i1;
-      if (code & 0b0100) out.mesh.F.row(f++) << i0, i2, i1;
-      if (code & 0b1000) out.mesh.F.row(f++) << i1, i2, i3;
+      const int i0 = index[row + gx], i1 = index[row + gx + 1];
+      const int i2 = index[row + gw + gx], i3 = index[row + gw + gx + 1];
+      const auto put = [&f](int a, int b, int c) {
+        f[0] = a;
+        f[1] = b;
+        f[2] = c;
+        f += 3;
+      };
+      if (code & 0b0001) put(i0, i2, i3);
+      if (code & 0b0010) put(i0, i3, i1);
+      if (code & 0b0100) put(i0, i2, i1);
+      if (code & 0b1000) put(i1, i2, i3);
     }
   });
   if (summary) {

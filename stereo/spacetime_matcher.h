@@ -24,17 +24,20 @@ struct SpaceTimeMatcherOptions {
   double uniqueness_ratio = 0.05;    // ≥ 0: best cost × (1 + ratio) must stay below all costs ≥ 2 px away (0: off)
   double left_right_max_diff_px = 1.0;  // < 0: off; else max |d_left − d_right| (integer disparities)
   double image_noise_gray = 2.0;     // > 0: σ_n of one image sample, grey levels of the input (8-bit: 0–255)
-  // σ_d = sqrt(floor² + (scale · σ_pred)²), σ_pred² = 2σ_n²/Σg² at the refined minimum (= 4σ_n²/C″, DESIGN.md
-  // §2). Fitted on synthetic scenes from stereo/synth (planes, sphere, box, cylinder, stairs; 320×240, noise
-  // 2 grey levels; normalised squared residuals averaging 1 per σ_pred decile, residuals beyond 5σ left out
-  // as outliers, 1–2% of pixels): T = 8 gives floor ≈ 0, scale 2.1; T = 1: scale 1.4; T = 16: scale 2.5 (the
-  // error left after many frames is mostly model error, which does not shrink with T as σ_pred does).
-  // Real cameras need their own fit (calibration's disparity noise model).
-  double sigma_floor_px = 0.01;      // ≥ 0
-  double sigma_scale = 2.1;          // > 0
+  // σ_d = sqrt(floor² + (scale · σ_pred)²), σ_pred² = 4σ_n²/C″ from the cost curvature at the integer minimum
+  // (DESIGN.md §2). Fitted by maximum likelihood on synthetic scenes from stereo/synth (planes, sphere, box,
+  // cylinder, stairs; 320×240, noise 2 grey levels, seeds 5–6; residuals beyond 5σ left out as outliers,
+  // 1.2–1.5% of pixels; `bench_stereo --quality=sigmafit`) with parabola sub-pixel refinement: T = 8 gives
+  // floor 0.04 px (the parabola's pixel-locking bias, which no averaging removes), scale 2.2; T = 1: 0.03 /
+  // 1.8; T = 16: 0.02 / 3.1 (the error left after many frames is mostly model error, which does not shrink
+  // with T as σ_pred does). Real cameras need their own fit (calibration's disparity noise model).
+  double sigma_floor_px = 0.04;      // ≥ 0
+  double sigma_scale = 2.2;          // > 0
   double max_sigma_disparity_px = 0.0;  // ≥ 0: pixels with a larger σ_d become NaN (0: keep all)
-  int subpixel_iterations = 2;       // 0–5: Gauss–Newton steps after the parabola (0: parabola only)
-  int rows_per_task = 16;            // 1–1024: rows per parallel task (a band's cost volume stays in cache)
+  // 0–5: Gauss–Newton steps after the parabola on the pixels that passed the checks (0: parabola only, the
+  // default: 0.051 px about the Gray-code plane at T = 16 against 0.050 px with 2 steps, at a third of the time)
+  int subpixel_iterations = 0;
+  int rows_per_task = 32;            // 1–1024: rows per parallel task (each band recomputes w − 1 rows above it)
   void Check() const;
 };
 
