@@ -495,7 +495,8 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     };
     double l = lambda;
     if (run(l)) {
-      while (steps < options.max_bisection_steps && l > 1e-12) {
+      // Once every face is its own patch a smaller λ changes nothing: the budget holds the dense mesh.
+      while (steps < options.max_bisection_steps && l > 1e-12 && fits.num_patches < prep.F.rows()) {
         l /= 4.0;
         if (!run(l)) break;
       }

@@ -451,6 +451,19 @@ TEST(Decimate, TargetFacesFindsLambda) {
   EXPECT_GT(fine.bisection_steps, summary.bisection_steps);
 }
 
+// A budget above the input's face count keeps the dense mesh and stops searching once every face is a patch.
+TEST(Decimate, TargetAboveInputKeepsDenseMesh) {
+  const Mesh sphere = Sphere(2);
+  DecimateOptions options;
+  options.target_faces = 2 * sphere.num_faces();
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(sphere, options, &summary);
+  ExpectValidDecimation(sphere, out);
+  EXPECT_EQ(out.mesh.num_faces(), sphere.num_faces());
+  EXPECT_EQ(summary.lambda_too_many, 0.0);
+  EXPECT_LT(summary.bisection_steps, options.max_bisection_steps);
+}
+
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
 TEST(Decimate, ChainReserveTradesPatchesForBoundaryDetail) {
   const Mesh sphere = Sphere(4);
