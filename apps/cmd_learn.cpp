@@ -297,7 +297,7 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--prior-weight", args->prior_weight, "Prior weight beta of the smoother, (0, 1e6]")
         ->check(CLI::Range(1e-12, 1e6));
     sub->add_option("--iterations", args->iterations,
-                    "Outer iterations (0: 300 interleaved, 40 implicit), [0, 1e6]")
+                    "Outer iterations (0: 400 interleaved, 40 implicit), [0, 1e6]")
         ->check(CLI::Range(0, 1000000));
     sub->add_option("--time-limit", args->time_limit_s, "Stop learning after this many seconds (0: no limit)")
         ->check(CLI::Range(0.0, 1e9));

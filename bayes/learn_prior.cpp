@@ -620,7 +620,7 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
   LearnPriorSummary summary;
   for (const TrainingPair& pair : pairs) summary.num_vertices += pair.truth.num_vertices();
   const int max_iterations =
-      options.max_iterations > 0 ? options.max_iterations : (options.method == LearnMethod::kImplicit ? 40 : 300);
+      options.max_iterations > 0 ? options.max_iterations : (options.method == LearnMethod::kImplicit ? 40 : 400);
   Report report{options, &summary, start, max_iterations};
   Eigen::VectorXd theta;
   if (options.method == LearnMethod::kImplicit) {

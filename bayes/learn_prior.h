@@ -55,7 +55,7 @@ struct LearnPriorOptions {
   double regularizer_weight = 1.0;   // w of eq. 19; [0, 1e6]
   double prior_weight = SmoothOptions{}.prior_weight;  // β the smoother multiplies φ by (its default rule); (0, 1e6]
   SmoothTolerance tolerance = SmoothTolerance::kDefault;  // inner smoothing (implicit method)
-  int max_iterations = 0;            // outer iterations; 0: 40 implicit, 300 interleaved; else [1, 1e6]
+  int max_iterations = 0;            // outer iterations; 0: 40 implicit, 400 interleaved; else [1, 1e6]
   double time_limit_s = 0;           // stop after this much wall time (checked per iteration); 0: none; ≥ 0
   // Implicit: the first step's largest θ_j change, in knot-value units; (0, 1].
   double initial_step = 0.02;
