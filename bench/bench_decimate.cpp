@@ -2,13 +2,16 @@
 //
 //   bench_decimate speed MESH LEVELS [LAMBDA]
 //       decimates MESH and its midpoint subdivisions (×4 faces per level) and prints time per input face.
-//   bench_decimate animated MESH [POSES] [SHARE]
+//   bench_decimate animated MESH [POSES] [SHARE] [joints|smooth]
 //       bends and twists MESH into POSES poses (pose 1 the rest pose) and compares, at equal triangle count
 //       (SHARE of the input faces), one patch map shared by all poses (paper §6.3) against decimating the rest
 //       pose and carrying its patches to the other poses. Error per pose: area-weighted angle (degrees) between
 //       each dense face normal and its patch's linear shading normal at the face centroid, the fields refitted
-//       in every pose for both methods.
+//       in every pose for both methods. joints (default): the bends are concentrated at two joints (a band of
+//       4% of the length each, at 1/3 and 2/3 of the long axis), as in an articulated animation; smooth: one bend
+//       and one twist spread evenly along the whole length (each small patch then moves almost rigidly).
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -74,7 +77,7 @@ int Speed(const std::string& path, int levels, double lambda) {
 
 // Pose m of M: along the longest bounding-box axis (t in [0, 1]) bend about a perpendicular axis by up to
 // 50° and twist about the long axis by up to 60°, with phases that differ per pose; pose 0 is the rest pose.
-std::vector<Mesh> MakePoses(const Mesh& rest, int count) {
+std::vector<Mesh> MakePoses(const Mesh& rest, int count, bool joints) {
   const Eigen::RowVector3d lo = rest.V.colwise().minCoeff(), hi = rest.V.colwise().maxCoeff();
   int axis = 0;
   (hi - lo).maxCoeff(&axis);
@@ -87,6 +90,31 @@ std::vector<Mesh> MakePoses(const Mesh& rest, int count) {
     const double bend = (50.0 * M_PI / 180.0) * std::sin(phase);
     const double twist = (60.0 * M_PI / 180.0) * std::sin(2.0 * phase + 0.5);
     Mesh pose = rest;
+    if (joints) {
+      // Rotation about the `side` axis through each joint, applied to the part beyond it, ramped over a
+      // narrow band (smoothstep) so that the surface bends there and stays rigid elsewhere.
+      const double joint_t[2] = {1.0 / 3.0, 2.0 / 3.0};
+      const double angle[2] = {(60.0 * M_PI / 180.0) * std::sin(phase), (60.0 * M_PI / 180.0) * std::sin(2.0 * phase + 1.0)};
+      const double band = 0.04;
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      b(side) = 1.0;
+      for (int v = 0; v < rest.num_vertices(); ++v) {
+        const Eigen::Vector3d p0 = (rest.V.row(v) - centre).transpose();
+        const double t = (p0(axis) + 0.5 * length) / length;
+        Eigen::Vector3d p = p0;
+        // Outer joint first, so the inner joint carries the outer part with it.
+        for (int j = 1; j >= 0; --j) {
+          const double x = std::clamp((t - joint_t[j]) / band + 0.5, 0.0, 1.0);
+          const double ramp = x * x * (3.0 - 2.0 * x);
+          Eigen::Vector3d pivot = Eigen::Vector3d::Zero();
+          pivot(axis) = (joint_t[j] - 0.5) * length;
+          p = Eigen::AngleAxisd(angle[j] * ramp, b) * (p - pivot) + pivot;
+        }
+        pose.V.row(v) = p.transpose() + centre;
+      }
+      poses.push_back(pose);
+      continue;
+    }
     for (int v = 0; v < rest.num_vertices(); ++v) {
       Eigen::Vector3d p = (rest.V.row(v) - centre).transpose();
       const double t = (p(axis) + 0.5 * length) / length;  // 0 at one end, 1 at the other
@@ -106,9 +134,9 @@ std::vector<Mesh> MakePoses(const Mesh& rest, int count) {
   return poses;
 }
 
-int Animated(const std::string& path, int count, double share) {
+int Animated(const std::string& path, int count, double share, bool joints) {
   const Mesh rest = ReadMesh(path);
-  const std::vector<Mesh> poses = MakePoses(rest, count);
+  const std::vector<Mesh> poses = MakePoses(rest, count, joints);
   const int target = static_cast<int>(share * rest.num_faces());
   DecimateOptions options;
   options.target_faces = target;
@@ -144,9 +172,10 @@ int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   if (mode == "speed" && argc >= 4) return Speed(argv[2], std::atoi(argv[3]), argc > 4 ? std::atof(argv[4]) : 2.0);
   if (mode == "animated" && argc >= 3) {
-    return Animated(argv[2], argc > 3 ? std::atoi(argv[3]) : 8, argc > 4 ? std::atof(argv[4]) : 0.05);
+    return Animated(argv[2], argc > 3 ? std::atoi(argv[3]) : 8, argc > 4 ? std::atof(argv[4]) : 0.05,
+                    argc > 5 ? std::string(argv[5]) != "smooth" : true);
   }
   std::fprintf(stderr,
-               "usage: %s speed MESH LEVELS [LAMBDA]\n       %s animated MESH [POSES] [SHARE]\n", argv[0], argv[0]);
+               "usage: %s speed MESH LEVELS [LAMBDA]\n       %s animated MESH [POSES] [SHARE] [joints|smooth]\n", argv[0], argv[0]);
   return 2;
 }
