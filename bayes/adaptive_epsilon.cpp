@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -30,6 +31,8 @@ void AdaptiveEpsilonOptions::Check() const {
            "adaptive epsilon: protect_normal_difference ", protect_normal_difference, " is outside (0, 2]");
   RB_CHECK(protect_rings >= -1 && protect_rings <= 10, "adaptive epsilon: protect_rings ", protect_rings,
            " is outside [-1, 10]");
+  RB_CHECK(protect_min_crease_degree >= 0 && protect_min_crease_degree <= 10,
+           "adaptive epsilon: protect_min_crease_degree ", protect_min_crease_degree, " is outside [0, 10]");
   RB_CHECK(scale >= 0 && scale <= 1e4, "adaptive epsilon: scale ", scale, " is outside [0, 1e4]");
   RB_CHECK(floor_normal_difference >= 0 && floor_normal_difference <= 2, "adaptive epsilon: floor_normal_difference ",
            floor_normal_difference, " is outside [0, 2]");
@@ -72,12 +75,13 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
   const bool use_median = options.statistic == AdaptiveEpsilonStatistic::kMedian;
   const IndexPairs pairs = ComputeFacePairs(reference);
   std::vector<char> crease(static_cast<size_t>(nf), 0);
+  std::vector<Eigen::Index> crease_pairs;
   std::vector<std::vector<double>> differences(static_cast<size_t>(nf));
   for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
     const int s = pairs(p, 0), t = pairs(p, 1);
     if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
     const double d = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
-    if (d > options.protect_normal_difference) crease[static_cast<size_t>(s)] = crease[static_cast<size_t>(t)] = 1;
+    if (d > options.protect_normal_difference) crease_pairs.push_back(p);
     differences[static_cast<size_t>(s)].push_back(d);
     differences[static_cast<size_t>(t)].push_back(d);
   }
@@ -131,8 +135,35 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
     std::fill(stamp.begin(), stamp.end(), -1);
   }
 
-  // Crease protection: grow the crease faces by protect_rings vertex rings.
+  // Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings.
   if (options.protect_rings >= 0) {
+    std::vector<std::array<int, 2>> crease_edges(crease_pairs.size(), {-1, -1});
+    std::vector<int> crease_degree(static_cast<size_t>(nv), 0);
+    for (size_t e = 0; e < crease_pairs.size(); ++e) {
+      const int s = pairs(crease_pairs[e], 0), t = pairs(crease_pairs[e], 1);
+      int found = 0;
+      for (int a = 0; a < 3 && found < 2; ++a) {
+        for (int b = 0; b < 3; ++b) {
+          if (reference.F(s, a) == reference.F(t, b)) {
+            crease_edges[e][static_cast<size_t>(found++)] = reference.F(s, a);
+            break;
+          }
+        }
+      }
+      if (found < 2) continue;
+      ++crease_degree[static_cast<size_t>(crease_edges[e][0])];
+      ++crease_degree[static_cast<size_t>(crease_edges[e][1])];
+    }
+    for (size_t e = 0; e < crease_pairs.size(); ++e) {
+      if (options.protect_min_crease_degree > 0 &&
+          (crease_edges[e][1] < 0 ||
+           crease_degree[static_cast<size_t>(crease_edges[e][0])] < options.protect_min_crease_degree ||
+           crease_degree[static_cast<size_t>(crease_edges[e][1])] < options.protect_min_crease_degree)) {
+        continue;
+      }
+      crease[static_cast<size_t>(pairs(crease_pairs[e], 0))] = 1;
+      crease[static_cast<size_t>(pairs(crease_pairs[e], 1))] = 1;
+    }
     for (int ring = 0; ring < options.protect_rings; ++ring) {
       std::vector<char> grown = crease;
       for (int f = 0; f < nf; ++f) {
@@ -184,7 +215,9 @@ AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions() {
   options.scale = 8.0;
   options.ring_iterations = 3;
   options.truncate_normal_difference = 0.3;
-  options.protect_rings = -1;
+  options.protect_normal_difference = 0.7;
+  options.protect_rings = 1;
+  options.protect_min_crease_degree = 2;
   return options;
 }
 

@@ -45,6 +45,10 @@ struct AdaptiveEpsilonOptions {
   // [-1, 10].
   double protect_normal_difference = 0.5;
   int protect_rings = -1;
+  // Only crease edges whose two end vertices each touch at least this many crease edges protect (2: parts of
+  // crease lines; isolated sharp pairs, as a detailed scan's pre-pass has many, do not). 0: every crease pair.
+  // [0, 10].
+  int protect_min_crease_degree = 0;
   double floor_normal_difference = 0.0;  // d₀ subtracted in quadrature (a noise floor of the reference), [0, 2]
   double min_epsilon_squared = 1e-4;     // lower clamp, (0, 4]; 1e-4 is the paper's global value
   double max_epsilon_squared = 0.2;      // upper clamp, [min_epsilon_squared, 4]

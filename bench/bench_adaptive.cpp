@@ -106,6 +106,7 @@ int Quality(std::map<std::string, std::string>& flags) {
   if (flags.count("--truncate")) rule.truncate_normal_difference = std::stod(flags["--truncate"]);
   if (flags.count("--protect")) rule.protect_normal_difference = std::stod(flags["--protect"]);
   if (flags.count("--protect-rings")) rule.protect_rings = std::stoi(flags["--protect-rings"]);
+  if (flags.count("--protect-degree")) rule.protect_min_crease_degree = std::stoi(flags["--protect-degree"]);
   if (flags.count("--floor")) rule.floor_normal_difference = std::stod(flags["--floor"]);
   if (flags.count("--max")) rule.max_epsilon_squared = std::stod(flags["--max"]);
   rule.Check();
@@ -113,11 +114,11 @@ int Quality(std::map<std::string, std::string>& flags) {
   const bool baseline = flags.count("--baseline") > 0;
   const std::string selected = flags.count("--cases") ? flags["--cases"] : "";
 
-  std::printf("reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d), floor %g, "
+  std::printf("reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
               "eps2 in [%g, %g], noise level %s\n",
               reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
               rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference,
-              rule.protect_rings, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
+              rule.protect_rings, rule.protect_min_crease_degree, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
               estimate ? "estimated" : "given");
   std::printf("| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | "
               "CPU (s) |\n");

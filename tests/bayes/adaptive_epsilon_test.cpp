@@ -39,6 +39,10 @@ TEST(AdaptiveEpsilon, CreaseKeepsTheMinimum) {
   mean.protect_rings = 1;
   const std::vector<double> protected_e2 = AdaptiveEpsilonSquared(roof, mean);
   for (double v : protected_e2) EXPECT_DOUBLE_EQ(v, 1e-4);
+  // The crease is a line (every crease vertex touches two crease edges, the ends one: those end edges are
+  // dropped, the one-ring growth covers them), so the scan preset protects it too.
+  const std::vector<double> scan_e2 = AdaptiveEpsilonSquared(roof, ScanAdaptiveEpsilonOptions());
+  for (double v : scan_e2) EXPECT_DOUBLE_EQ(v, 1e-4);
 }
 
 // Flat for x < 15, a doubly curved bowl for x > 15 (tangent-continuous at x = 15): ε grows in the curved part
