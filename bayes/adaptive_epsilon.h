@@ -6,19 +6,27 @@
 //   SmoothOptions options;  options.face_epsilon_squared = e2;   // a pair uses sqrt(d² + ½(ε_s² + ε_t²))
 //
 // The rule reads the local shape of a reference mesh with the faces of the mesh to smooth (the ground truth in
-// an oracle experiment, or a pre-smoothed copy of the noisy input):
-//   1. per face t, a_t = the median of d = ‖n_t − n_s‖ over its edge neighbours s (at a crease one of the three
-//      is large and the median ignores it; in a curved region all three are similar);
-//   2. m_t = a_t median-filtered `ring_iterations` times over the faces that share a vertex with t (a crease
-//      line is a minority of any neighbourhood, so m stays near 0 beside it; a curved region keeps its
-//      typical d);
-//   3. ε_t² = clamp(scale · max(0, m_t² − floor_normal_difference²), min, max).
-// Cost: O(#F · ring_iterations · 13 log 13), a few tens of ms at 100k faces.
+// an oracle experiment, or the noisy input after a fast default pre-pass):
+//   1. per face t, a_t = the median (kMedian) or mean (kTruncatedMean) of d = ‖n_t − n_s‖ over its edge
+//      neighbours s (at a crease one of the three is large and the median ignores it; in a curved region all
+//      three are similar);
+//   2. m_t = a_t filtered `ring_iterations` times over the faces that share a vertex with t: median, or mean of
+//      the values ≤ truncate_normal_difference (a crease line is a minority of any neighbourhood, so m stays
+//      near 0 beside it; a curved region keeps its typical d);
+//   3. ε_t² = clamp(scale · max(0, m_t² − floor_normal_difference²), min, max), and the minimum on and
+//      protect_rings around crease pairs (d > protect_normal_difference) when protection is on.
+// Cost: O(#F · ring_iterations · 13 log 13), ≈ 10–50 ms at 100k faces, plus the pre-pass when there is one.
 //
-// Measured (BENCHMARKS.md "Adaptive ε"): with the ground truth as reference (an upper bound of what any
-// per-face ε can do) igea 0.3 reaches 9.72° and child 0.3 6.76° while the CAD cases keep their numbers; with a
-// pre-smoothed noisy input as reference the gain mostly vanishes (the pre-pass has already flattened the
-// detail this rule would need to see), so Smooth() does not use this rule by default.
+// Why not the default (measured, BENCHMARKS.md "Adaptive ε"): with the ground truth as reference (median, scale
+// 4: an upper bound of what a per-face ε can do) every issue target is met (igea 0.3 9.70°, child 0.3 6.85°, CAD
+// cases unchanged). With a real reference — the default smoother's own fast result — the information is mostly
+// gone: at k = 0.3 the pre-pass has flattened igea's fine detail into facets (median pair d 0.016 against the
+// ground truth's 0.11) and the noise swamps it in the input (noisy median d 0.56). What is left is the facet
+// pattern: many small creases (d < 0.3) on a smoothed scan, few on CAD. The truncated mean reads it: smooth scans
+// improve (child 8.30 → 7.44°, bunny, nicolo, julius 0.2–0.4° better), but the residual noise creases of flat
+// CAD regions and shallow real creases raise ε there too (trim-star 5.15 → 5.49°, block 3.74 → 4.05°), and no
+// scale / truncation / protection setting measured kept all six CAD targets and met igea and child. So the
+// default stays the global ε² = 1e-4 and this rule is opt-in (`rangebayes smooth --adaptive-eps`).
 #pragma once
 
 #include <vector>
@@ -69,10 +77,10 @@ struct AdaptiveEpsilonSummary {
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options = {},
                                            AdaptiveEpsilonSummary* summary = nullptr);
 
-// The rule for smooth, finely detailed scans (opt-in: `rangebayes smooth --adaptive-eps`): truncated mean,
-// scale 8, three rings, no crease protection. Measured with a pre-pass reference (BENCHMARKS.md "Adaptive ε"):
-// child 0.3 8.38 → 7.38°, igea 0.3 → 10.15°, but sharp CAD shapes get worse (fandisk 0.3 2.10 → 2.67°), so it is
-// not the default.
+// The rule for smooth, finely detailed scans (opt-in: `rangebayes smooth --adaptive-eps`): truncated mean
+// (≤ 0.3), scale 8, three rings, crease lines of d > 0.7 protected with one ring. Chosen on the whole benchmark
+// table, not per mesh (BENCHMARKS.md "Adaptive ε"): child 0.3 7.44°, igea 0.3 10.22°, fandisk 0.3 2.31°, but
+// block 0.4 4.05° and trim-star 0.3 5.49° miss their targets, so it is not the default.
 AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions();
 
 // ε² per face of `noisy` from a pre-pass: Smooth(noisy, options) with the fast tolerance and the global ε²
