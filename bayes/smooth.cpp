@@ -227,15 +227,24 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   std::deque<double> rho_history;
 
   // Preconditioner M⁻¹ (3×3 blocks) and z = M⁻¹ g.
-  const bool precondition = options.preconditioner_every > 0;
+  // Preconditioner M⁻¹ and z = M⁻¹ g (see SmoothOptions::preconditioner).
+  const bool block_jacobi = options.preconditioner == SmoothPreconditioner::kBlockJacobi;
+  const bool precondition =
+      block_jacobi || (options.preconditioner == SmoothPreconditioner::kData && !energy.uniform_isotropic());
   std::vector<double> blocks;
+  auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
+    if (block_jacobi) {
+      energy.ApplyBlocks(blocks, v, out);
+    } else {
+      energy.ApplyDataInverse(v, out);
+    }
+  };
   Eigen::VectorXd z;
-  if (precondition) {
-    energy.BlockJacobiInverse(x, &blocks);
-    energy.ApplyBlocks(blocks, g, &z);
-  }
+  if (block_jacobi) energy.BlockJacobiInverse(x, &blocks);
+  if (precondition) apply(g, &z);
   const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
-  bool unit_step = precondition;  // after a (re)start a preconditioned step of length 1 is the Newton guess
+  // After a (re)start a block-Jacobi step of length 1 is the Newton guess.
+  bool unit_step = block_jacobi;
 
   p = -zg;
   double alpha_prev = 0, slope_prev = 0;
@@ -246,7 +255,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     if (!(slope < 0)) {
       p = -zg;
       slope = -Dot(g, zg);
-      unit_step = precondition;
+      unit_step = block_jacobi;
       ++summary->restarts;
       since_restart = 0;
       s_history.clear();
@@ -271,7 +280,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       }
       // Retry once from (preconditioned) steepest descent before giving up.
       p = -zg;
-      unit_step = precondition;
+      unit_step = block_jacobi;
       since_restart = 0;
       alpha_prev = 0;
       ++summary->restarts;
@@ -303,8 +312,8 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     double beta_pr;
     if (precondition) {
       const double zg_old = Dot(z, g);
-      if (iteration % options.preconditioner_every == 0) energy.BlockJacobiInverse(x, &blocks);
-      energy.ApplyBlocks(blocks, g_new, &z);
+      if (block_jacobi && iteration % options.preconditioner_every == 0) energy.BlockJacobiInverse(x, &blocks);
+      apply(g_new, &z);
       beta_pr = (Dot(z, g_new) - Dot(z, g)) / zg_old;
     } else {
       beta_pr = (Dot(g_new, g_new) - Dot(g_new, g)) / Dot(g, g);
@@ -349,7 +358,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       if (precondition) {
         // H0 = M⁻¹ (the block-Jacobi inverse) instead of a scaled identity.
         Eigen::VectorXd r;
-        energy.ApplyBlocks(blocks, q, &r);
+        apply(q, &r);
         q.swap(r);
       } else if (m > 0) {
         const Eigen::VectorXd& y = y_history.back();
@@ -362,7 +371,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       p = -q;
     } else if (since_restart >= restart_every) {
       p = -zg;
-      unit_step = precondition;
+      unit_step = block_jacobi;
       since_restart = 0;
       ++summary->restarts;
     } else {
@@ -454,6 +463,25 @@ std::string SmoothMinimiserName(SmoothMinimiser minimiser) {
   return minimiser == SmoothMinimiser::kLbfgs ? "lbfgs" : "cg";
 }
 
+SmoothPreconditioner ParseSmoothPreconditioner(const std::string& name) {
+  if (name == "none") return SmoothPreconditioner::kNone;
+  if (name == "data") return SmoothPreconditioner::kData;
+  if (name == "block-jacobi") return SmoothPreconditioner::kBlockJacobi;
+  RB_FAIL("unknown preconditioner '", name, "' (expected none, data or block-jacobi)");
+}
+
+std::string SmoothPreconditionerName(SmoothPreconditioner preconditioner) {
+  switch (preconditioner) {
+    case SmoothPreconditioner::kNone:
+      return "none";
+    case SmoothPreconditioner::kData:
+      return "data";
+    case SmoothPreconditioner::kBlockJacobi:
+      return "block-jacobi";
+  }
+  return "data";
+}
+
 std::string SmoothTerminationName(SmoothTermination termination) {
   switch (termination) {
     case SmoothTermination::kEnergyConverged:
@@ -481,8 +509,8 @@ void SmoothOptions::Check() const {
   RB_CHECK(energy_tolerance >= 0 && energy_tolerance < 1, "smooth: energy_tolerance ", energy_tolerance,
            " is outside [0, 1)");
   RB_CHECK(line_search_c2 > 0 && line_search_c2 < 1, "smooth: line_search_c2 ", line_search_c2, " is outside (0, 1)");
-  RB_CHECK(preconditioner_every >= 0 && preconditioner_every <= 1000000, "smooth: preconditioner_every ",
-           preconditioner_every, " is outside [0, 1e6]");
+  RB_CHECK(preconditioner_every >= 1 && preconditioner_every <= 1000000, "smooth: preconditioner_every ",
+           preconditioner_every, " is outside [1, 1e6]");
   RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
   RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
            "smooth: face_epsilon_squared needs the built-in square-root prior");

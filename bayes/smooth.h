@@ -27,15 +27,17 @@ namespace rangebayes {
 // fast 1e-4 / 1e-2 (a usable result soon), default 3e-5 / 1e-3, tight 1e-9 / 1e-6. The default was 1e-6 until
 // the quality-vs-iterations scan in BENCHMARKS.md ("Speed and memory"): at 3e-5 every quality target still
 // holds with margin (no MAE worse than at 1e-6 by more than 0.03°, several better) at about half the
-// evaluations; at 5e-5
-// block 0.4 stopped on a plateau at 3.97° (target 4.0), which is why it is not looser.
+// evaluations; at 5e-5 block 0.4 stopped on a plateau at 3.97° (target 4.0), which is why it is not looser.
 enum class SmoothTolerance { kFast, kDefault, kTight };
 enum class SmoothMinimiser { kConjugateGradient, kLbfgs };
+enum class SmoothPreconditioner { kNone, kData, kBlockJacobi };
 
 SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
 std::string SmoothToleranceName(SmoothTolerance tolerance);
 SmoothMinimiser ParseSmoothMinimiser(const std::string& name);  // "cg", "lbfgs"
 std::string SmoothMinimiserName(SmoothMinimiser minimiser);
+SmoothPreconditioner ParseSmoothPreconditioner(const std::string& name);  // "none", "data", "block-jacobi"
+std::string SmoothPreconditionerName(SmoothPreconditioner preconditioner);
 
 struct SmoothOptions {
   PriorKind prior = PriorKind::kSqrt;  // used when `potential` is null
@@ -57,10 +59,12 @@ struct SmoothOptions {
   double line_search_c2 = 0.1;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
   int lbfgs_memory = 6;     // L-BFGS correction pairs, [1, 50]
-  // Rebuild the 3×3 block-Jacobi preconditioner (SmoothingEnergy::BlockJacobiInverse) every N iterations;
-  // 0: none (plain PR+ CG / L-BFGS with a scaled identity), the default: on child the preconditioned runs
-  // stalled at a higher energy (BENCHMARKS.md "Speed and memory"). [0, 1e6]
-  int preconditioner_every = 0;
+  // CG / L-BFGS preconditioner: kData (default) solves with the data term's Hessian blockdiag(2 W_i), exact
+  // and constant, which removes the conditioning that anisotropic stereo covariances add (a no-op when every
+  // W_i is the same multiple of I, as for generic meshes); kBlockJacobi adds the prior's Gauss–Newton diagonal
+  // blocks, rebuilt every `preconditioner_every` iterations (measured worse: BENCHMARKS.md "Speed and memory").
+  SmoothPreconditioner preconditioner = SmoothPreconditioner::kData;
+  int preconditioner_every = 10;  // kBlockJacobi rebuild period (iterations), [1, 1e6]
   int restart_every = 0;    // CG restart to steepest descent every N iterations; 0: every 3·#V (i.e. rarely)
   int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)

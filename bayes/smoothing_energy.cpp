@@ -64,6 +64,10 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
                  W(0, 0) == W(1, 1) && W(1, 1) == W(2, 2);
   }
   information_.resize((isotropic_ ? 1 : 6) * static_cast<size_t>(nv));
+  uniform_isotropic_ = isotropic_;
+  for (int i = 1; i < nv && uniform_isotropic_; ++i) {
+    uniform_isotropic_ = information[static_cast<size_t>(i)](0, 0) == information[0](0, 0);
+  }
   for (int i = 0; i < nv; ++i) {
     const Eigen::Matrix3d& W = information[static_cast<size_t>(i)];
     RB_CHECK(W.allFinite(), "smoothing: information matrix of vertex ", i, " is not finite");
@@ -424,6 +428,33 @@ void SmoothingEnergy::ApplyBlocks(const std::vector<double>& blocks, const Eigen
       o[3 * i] = b[0] * a0 + b[1] * a1 + b[2] * a2;
       o[3 * i + 1] = b[1] * a0 + b[3] * a1 + b[4] * a2;
       o[3 * i + 2] = b[2] * a0 + b[4] * a1 + b[5] * a2;
+    }
+  });
+}
+
+void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd* out) const {
+  out->resize(v.size());
+  const double* in = v.data();
+  double* o = out->data();
+  tbb::parallel_for(tbb::blocked_range<int>(0, num_vertices_, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      double b[6];
+      Information(i, b);
+      const double a0 = in[3 * i], a1 = in[3 * i + 1], a2 = in[3 * i + 2];
+      // (2W)⁻¹ by cofactors; W_i is positive definite (Smooth raises its eigenvalues to 1e-6 of the largest).
+      const double c00 = b[3] * b[5] - b[4] * b[4], c01 = b[2] * b[4] - b[1] * b[5], c02 = b[1] * b[4] - b[2] * b[3];
+      const double c11 = b[0] * b[5] - b[2] * b[2], c12 = b[1] * b[2] - b[0] * b[4], c22 = b[0] * b[3] - b[1] * b[1];
+      const double det = b[0] * c00 + b[1] * c01 + b[2] * c02;
+      if (!(det > 0) || !std::isfinite(det)) {
+        o[3 * i] = a0;  // not positive definite (a caller-built W): leave this vertex unpreconditioned
+        o[3 * i + 1] = a1;
+        o[3 * i + 2] = a2;
+        continue;
+      }
+      const double s = 0.5 / det;
+      o[3 * i] = s * (c00 * a0 + c01 * a1 + c02 * a2);
+      o[3 * i + 1] = s * (c01 * a0 + c11 * a1 + c12 * a2);
+      o[3 * i + 2] = s * (c02 * a0 + c12 * a1 + c22 * a2);
     }
   });
 }

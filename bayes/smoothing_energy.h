@@ -60,6 +60,11 @@ class SmoothingEnergy {
   // out = blockdiag(blocks) · v with `blocks` as BlockJacobiInverse writes them.
   void ApplyBlocks(const std::vector<double>& blocks, const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
 
+  // out = blockdiag(2 W_i)⁻¹ · v: the data term's exact Hessian inverse (computed per call, no storage).
+  void ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
+  // Every W_i the same multiple of I (then ApplyDataInverse is a global scale, which CG does not need).
+  bool uniform_isotropic() const { return uniform_isotropic_; }
+
   // The measurements as the starting state.
   Eigen::VectorXd Measurements() const;
 
@@ -86,6 +91,7 @@ class SmoothingEnergy {
   // W_i: 6 per vertex (xx xy xz yy yz zz), or 1 per vertex (w_i of W_i = w_i I) when isotropic_.
   std::vector<double> information_;
   bool isotropic_ = false;
+  bool uniform_isotropic_ = false;
   void Information(int i, double* w) const {
     if (isotropic_) {
       const double v = information_[static_cast<size_t>(i)];

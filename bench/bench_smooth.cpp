@@ -4,8 +4,11 @@
 //                        [--beta B] [--ratio R] [--eps2 E] [--prior sqrt|quadratic|cauchy] [--cases a,b,...]
 //       runs every denoising case of DIR (default ../shared/data/meshes) and prints a Markdown table of the
 //       mean angular error (degrees) beside DESIGN.md §4's reference points.
-//   bench_smooth speed MESH [--threads N] [--tolerance T] [--noise K] [--minimiser M] [--repeat R]
-//       times one smoothing run (setup, iterations, per-iteration and per-face times, memory).
+//   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K] [--minimiser M]
+//                      [--repeat R] [--gt GT] [--file-covariance] [--preconditioner none|data|block-jacobi]
+//                      [--precondition-every N] [--energy-tolerance E]
+//       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
+//       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
 #include <sys/resource.h>
 
@@ -127,6 +130,7 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   if (flags.count("--max-iterations")) options.max_iterations = std::stoi(flags["--max-iterations"]);
   if (flags.count("--energy-tolerance")) options.energy_tolerance = std::stod(flags["--energy-tolerance"]);
   if (flags.count("--c2")) options.line_search_c2 = std::stod(flags["--c2"]);
+  if (flags.count("--preconditioner")) options.preconditioner = ParseSmoothPreconditioner(flags["--preconditioner"]);
   if (flags.count("--precondition-every")) options.preconditioner_every = std::stoi(flags["--precondition-every"]);
   if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
   return options;
@@ -220,7 +224,8 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
   GenericNoiseOptions noise;
   noise.noise_edge_multiple = flags.count("--noise") ? std::stod(flags["--noise"]) : 0.3;
   const int repeat = flags.count("--repeat") ? std::stoi(flags["--repeat"]) : 1;
-  const NoisyMesh input = MakeGenericNoisyMesh(mesh, noise);
+  // --file-covariance: the PLY's own per-vertex covariances (stereo meshes), not the generic noise model.
+  const NoisyMesh input = flags.count("--file-covariance") ? ReadNoisyMesh(positional.at(0)) : MakeGenericNoisyMesh(mesh, noise);
   const double rss_input = PeakRssMiB();
   for (int r = 0; r < repeat; ++r) {
     SmoothSummary summary;
@@ -235,11 +240,12 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
     std::printf("final energy %.6e (data %.4e prior %.4e) | ", summary.data_energy + summary.prior_energy,
                 summary.data_energy, summary.prior_energy);
     std::printf(
-        "%s: V=%d F=%d threads=%d minimiser=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
+        "%s: V=%d F=%d threads=%d minimiser=%s preconditioner=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
         "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/evaluation | termination: %s | "
         "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
         name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
-        SmoothMinimiserName(options.minimiser).c_str(), SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
+        SmoothMinimiserName(options.minimiser).c_str(), SmoothPreconditionerName(options.preconditioner).c_str(),
+        SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
         cpu, summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
         1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
         static_cast<double>(summary.memory_bytes) / std::max(1, mesh.num_vertices()), PeakRssMiB(), rss_mesh,
