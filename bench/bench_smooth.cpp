@@ -241,13 +241,14 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
                 summary.data_energy, summary.prior_energy);
     std::printf(
         "%s: V=%d F=%d threads=%d minimiser=%s preconditioner=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
-        "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/evaluation | termination: %s | "
+        "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/iteration, %.1f ns/face/evaluation | "
+        "termination: %s | "
         "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
         name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
         SmoothMinimiserName(options.minimiser).c_str(), SmoothPreconditionerName(options.preconditioner).c_str(),
         SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
         cpu, summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
-        1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
+        1e9 * iteration_time / std::max(1, mesh.num_faces()), 1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
         static_cast<double>(summary.memory_bytes) / std::max(1, mesh.num_vertices()), PeakRssMiB(), rss_mesh,
         rss_input);
     std::fflush(stdout);
