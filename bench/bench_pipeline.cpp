@@ -13,6 +13,9 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
@@ -115,6 +118,7 @@ void Counters(benchmark::State& state, double vertices = 0) {
   if (vertices > 0) state.counters["vertices"] = vertices;
 }
 
+// One stereo pair from the recording on disk (LoadRecordingFrame: two PNG reads, as the capture stage does).
 void BM_CaptureDecode(benchmark::State& state) {
   const rb::Recording rec = rb::OpenRecording(F().folder);
   int i = 0;
@@ -125,6 +129,28 @@ void BM_CaptureDecode(benchmark::State& state) {
   Counters(state);
 }
 BENCHMARK(BM_CaptureDecode)->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
+
+// The two halves of BM_CaptureDecode: reading one image file's bytes, and decoding them (cv::imdecode).
+void BM_CaptureReadFile(benchmark::State& state) {
+  const std::string path = F().folder + "/left/000000.png";
+  std::vector<char> bytes;
+  for (auto _ : state) {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    benchmark::DoNotOptimize(bytes.data());
+  }
+  Counters(state);
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+}
+BENCHMARK(BM_CaptureReadFile)->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
+
+void BM_PngDecode(benchmark::State& state) {
+  std::ifstream in(F().folder + "/left/000000.png", std::ios::binary);
+  const std::vector<uchar> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (auto _ : state) benchmark::DoNotOptimize(cv::imdecode(bytes, cv::IMREAD_UNCHANGED).data);
+  Counters(state);
+}
+BENCHMARK(BM_PngDecode)->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 
 void BM_Rectify(benchmark::State& state) {
   // The synthetic rig is rectified already (a passthrough); un-mark it so that real remap maps are built.

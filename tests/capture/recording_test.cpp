@@ -39,16 +39,7 @@ TEST(Recording, RoundTripKeepsImagesTimestampsAndRig) {
   EXPECT_EQ(rec.meta.at("complete"), "true");
   EXPECT_EQ(rec.meta.at("frame_count"), "4");
   EXPECT_EQ(rec.meta.at("note"), "done");
-  for (int i = 0; i < rec.num_frames(); ++i) {
-    const StereoFrame got = LoadRecordingFrame(rec, i);
-    const StereoFrame want = TestFrame(rec.frames[i].index, 64, 48, CV_8UC1);
-    EXPECT_EQ(got.index, want.index);
-    EXPECT_EQ(got.timestamp_left_ns, want.timestamp_left_ns);
-    EXPECT_EQ(got.timestamp_right_ns, want.timestamp_right_ns);
-    EXPECT_EQ(got.pattern_id, want.pattern_id);
-    EXPECT_EQ(cv::norm(got.left, want.left, cv::NORM_INF), 0.0);  // lossless
-    EXPECT_EQ(cv::norm(got.right, want.right, cv::NORM_INF), 0.0);
-  }
+  ExpectRecordingHoldsTestFrames(rec, 64, 48, CV_8UC1);
 }
 
 TEST(Recording, SixteenBitAndColourAreLossless) {
@@ -211,9 +202,7 @@ TEST(Recording, KilledWriterLeavesReadableRecording) {
   char c = 0;
   ASSERT_EQ(read(ready[0], &c, 1), 1);
   close(ready[0]);
-  kill(child, SIGKILL);
-  int status = 0;
-  waitpid(child, &status, 0);
+  const int status = SignalAndWait(child, SIGKILL);
   ASSERT_TRUE(WIFSIGNALED(status));
 
   RecordingReadSummary s;
@@ -221,10 +210,7 @@ TEST(Recording, KilledWriterLeavesReadableRecording) {
   EXPECT_GE(rec.num_frames(), 6);
   EXPECT_EQ(rec.meta.at("complete"), "false");
   EXPECT_EQ(s.missing_files, 0);
-  for (int i = 0; i < rec.num_frames(); ++i) {
-    const StereoFrame f = LoadRecordingFrame(rec, i);
-    EXPECT_EQ(cv::norm(f.left, TestFrame(f.index, 64, 48, CV_8UC1).left, cv::NORM_INF), 0.0);
-  }
+  ExpectRecordingHoldsTestFrames(rec, 64, 48, CV_8UC1);
 }
 
 }  // namespace

@@ -1,13 +1,17 @@
 // Helpers shared by the capture tests: temporary folders, deterministic frames, a plausible rig.
 #pragma once
 
+#include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <string>
 
 #include "calibration/stereo_rig.h"
+#include "capture/recording.h"
 #include "capture/stereo_frame.h"
 
 namespace rangebayes {
@@ -46,6 +50,32 @@ inline StereoFrame TestFrame(std::int64_t index, int width, int height, int type
   rng.fill(f.left, cv::RNG::UNIFORM, 0.0, top);
   rng.fill(f.right, cv::RNG::UNIFORM, 0.0, top);
   return f;
+}
+
+// Sends `signal` to a child process and reaps it; returns the waitpid status.
+inline int SignalAndWait(pid_t child, int signal) {
+  ::kill(child, signal);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  return status;
+}
+
+// Every frame of `rec` loads and equals TestFrame(its index) exactly (index, timestamps, pattern id, both
+// images: the recording format is lossless).
+inline void ExpectRecordingHoldsTestFrames(const Recording& rec, int width, int height, int type) {
+  for (int i = 0; i < rec.num_frames(); ++i) {
+    SCOPED_TRACE("frame position " + std::to_string(i));
+    const StereoFrame got = LoadRecordingFrame(rec, i);
+    const StereoFrame want = TestFrame(rec.frames[static_cast<size_t>(i)].index, width, height, type);
+    EXPECT_EQ(got.index, want.index);
+    EXPECT_EQ(got.timestamp_left_ns, want.timestamp_left_ns);
+    EXPECT_EQ(got.timestamp_right_ns, want.timestamp_right_ns);
+    EXPECT_EQ(got.pattern_id, want.pattern_id);
+    ASSERT_EQ(got.left.type(), want.left.type());
+    ASSERT_EQ(got.left.size(), want.left.size());
+    EXPECT_EQ(cv::norm(got.left, want.left, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(got.right, want.right, cv::NORM_INF), 0.0);
+  }
 }
 
 // A rectified rig of the given size: f = 100 px, baseline 0.1 m.
