@@ -58,8 +58,8 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
   sub->add_option("--window", o->window_px, "Spatial window side w (px, odd, 1-31)")->check(CLI::Range(1, 31));
   sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
   sub->add_option("--sigma-floor", o->sigma_floor_px,
-                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.04");
-  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless); < 0: fitted default 2.2");
+                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03");
+  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless); < 0: fitted default 1.7");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,

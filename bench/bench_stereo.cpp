@@ -447,6 +447,7 @@ void QualitySigmaFit() {
         mo.image_noise_gray = 2.0;
         mo.sigma_floor_px = 0.0;
         mo.sigma_scale = 1.0;
+        mo.neighbour_jump_px = -1.0;  // J is added outside the floor-plus-scale form
         const auto r = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
         for (int y = 0; y < rec.depth_m.rows; ++y)
           for (int x = 0; x < rec.depth_m.cols; ++x) {

@@ -25,6 +25,7 @@ void SpaceTimeMatcherOptions::Check() const {
   RB_CHECK(image_noise_gray > 0.0, "image_noise_gray ", image_noise_gray, " must be positive");
   RB_CHECK(sigma_floor_px >= 0.0 && sigma_scale > 0.0, "sigma model floor ", sigma_floor_px, " px / scale ",
            sigma_scale, " must be ≥ 0 / > 0");
+  RB_CHECK(ambiguity_weight >= 0.0, "ambiguity_weight ", ambiguity_weight, " must be ≥ 0");
   RB_CHECK(max_sigma_disparity_px >= 0.0, "max_sigma_disparity_px must be ≥ 0");
   RB_CHECK(subpixel_iterations >= 0 && subpixel_iterations <= 5, "subpixel_iterations ", subpixel_iterations,
            " is outside 0–5");
@@ -395,6 +396,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   const int band = options_.rows_per_task;
   const int num_bands = (H + band - 1) / band;
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  const double window_samples = static_cast<double>(w) * w * T;
 
   DisparityResult result;
   result.disparity_px.create(H, W, CV_32F);
@@ -440,7 +442,9 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
         WinnerTakeAllRow(vol, W, D, dmin, b.best_left.data(), b.arg_left.data(), b.best_right.data(),
                          b.arg_right.data());
         const bool unique_test = options_.uniqueness_ratio > 0.0;
-        if (unique_test) RunnerUpRow(vol, W, D, dmin, b.arg_left.data(), b.second.data(), b.arg_second.data());
+        if (unique_test || options_.ambiguity_weight > 0.0) {
+          RunnerUpRow(vol, W, D, dmin, b.arg_left.data(), b.second.data(), b.arg_second.data());
+        }
         float* out_d = result.disparity_px.ptr<float>(y);
         float* out_s = result.sigma_disparity_px.ptr<float>(y);
         for (int x = 0; x < W; ++x) {
@@ -489,7 +493,16 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
           // same relation for a cost scaled by ½).
           const double noise =
               options_.image_noise_gray * (noise_left.empty() ? 1.0 : noise_left[static_cast<size_t>(y) * W + x]);
-          const double sigma_pred = std::sqrt(4.0 * noise * noise / curvature);
+          // σ_pred² = 4σ_eff²/C″ + p₂/(1 + p₂)·(d₂ − d)², see SpaceTimeMatcherOptions.
+          double noise2 = noise * noise;
+          if (options_.residual_noise) noise2 = std::max(noise2, c0 / (2.0 * window_samples));
+          double var_pred = 4.0 * noise2 / curvature;
+          if (options_.ambiguity_weight > 0.0 && b.arg_second[x] >= 0) {
+            const double p = std::exp(-(b.second[x] - c0) / (4.0 * noise2));
+            const double dd = b.arg_second[x] - di;
+            var_pred += options_.ambiguity_weight * p / (1.0 + p) * dd * dd;
+          }
+          const double sigma_pred = std::sqrt(var_pred);
           const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
                                          options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
           if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
@@ -546,6 +559,43 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
     valid = refined.load();
     rej_flat += failed.load();
     rej_sigma += too_uncertain.load();
+  }
+  if (options_.neighbour_jump_px >= 0.0) {
+    // σ_d² += J: the mean over the valid w×w neighbours of (d_n − d)² for the differences beyond
+    // neighbour_jump_px (window straddling a depth edge, isolated mismatches).
+    const cv::Mat d = result.disparity_px.clone();
+    const double jump = options_.neighbour_jump_px;
+    std::atomic<int> dropped{0};
+    tbb::parallel_for(0, H, [&](int y) {
+      float* out_d = result.disparity_px.ptr<float>(y);
+      float* out_s = result.sigma_disparity_px.ptr<float>(y);
+      const float* dr = d.ptr<float>(y);
+      int row_dropped = 0;
+      for (int x = 0; x < W; ++x) {
+        const float dc = dr[x];
+        if (!std::isfinite(dc)) continue;
+        double j2 = 0.0;
+        int n = 0;
+        for (int yy = std::max(0, y - r); yy <= std::min(H - 1, y + r); ++yy) {
+          const float* row = d.ptr<float>(yy);
+          for (int xx = std::max(0, x - r); xx <= std::min(W - 1, x + r); ++xx) {
+            const double diff = row[xx] - dc;
+            if (!std::isfinite(diff)) continue;
+            ++n;
+            j2 += std::abs(diff) > jump ? diff * diff : 0.0;
+          }
+        }
+        const double sigma = std::sqrt(static_cast<double>(out_s[x]) * out_s[x] + j2 / n);
+        out_s[x] = static_cast<float>(sigma);
+        if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
+          out_d[x] = out_s[x] = nan;
+          ++row_dropped;
+        }
+      }
+      dropped += row_dropped;
+    });
+    valid -= dropped.load();
+    rej_sigma += dropped.load();
   }
   summary_.valid_pixels = valid;
   summary_.rejected_left_right = rej_lr;

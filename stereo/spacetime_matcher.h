@@ -24,15 +24,28 @@ struct SpaceTimeMatcherOptions {
   double uniqueness_ratio = 0.05;    // ≥ 0: best cost × (1 + ratio) must stay below all costs ≥ 2 px away (0: off)
   double left_right_max_diff_px = 1.0;  // < 0: off; else max |d_left − d_right| (integer disparities)
   double image_noise_gray = 2.0;     // > 0: σ_n of one image sample, grey levels of the input (8-bit: 0–255)
-  // σ_d = sqrt(floor² + (scale · σ_pred)²), σ_pred² = 4σ_n²/C″ from the cost curvature at the integer minimum
-  // (DESIGN.md §2). Fitted by maximum likelihood on synthetic scenes from stereo/synth (planes, sphere, box,
-  // cylinder, stairs; 320×240, noise 2 grey levels, seeds 5–6; residuals beyond 5σ left out as outliers,
-  // 1.2–1.5% of pixels; `bench_stereo --quality=sigmafit`) with parabola sub-pixel refinement: T = 8 gives
-  // floor 0.04 px (the parabola's pixel-locking bias, which no averaging removes), scale 2.2; T = 1: 0.03 /
-  // 1.8; T = 16: 0.02 / 3.1 (the error left after many frames is mostly model error, which does not shrink
-  // with T as σ_pred does). Real cameras need their own fit (calibration's disparity noise model).
-  double sigma_floor_px = 0.04;      // ≥ 0
-  double sigma_scale = 2.2;          // > 0
+  // σ_d = sqrt(floor² + (scale · σ_pred)² + J), σ_pred² = 4σ_eff²/C″ + … from the cost curvature at the integer
+  // minimum (DESIGN.md §2; the other terms below). Fitted by maximum likelihood (J off) on synthetic scenes
+  // from stereo/synth (planes, sphere, box, cylinder, stairs; 320×240, noise 2 grey levels, seeds 5–6;
+  // residuals beyond 5σ left out as outliers, 0.5–0.8% of pixels; `bench_stereo --quality=sigmafit`) with
+  // parabola sub-pixel refinement: T = 8 gives floor 0.03 px (the parabola's pixel-locking bias, which no
+  // averaging removes), scale 1.7; T = 1: 0.05 / 1.1; T = 16: 0.02 / 1.9. Mean squared normalised residual
+  // per σ_pred quintile 0.5–1.3 (the residual-noise term over-predicts a little on clean synthetic data).
+  // Real cameras need their own fit (calibration's disparity noise model).
+  double sigma_floor_px = 0.03;      // ≥ 0
+  double sigma_scale = 1.7;          // > 0
+  // Match ambiguity and window consistency, for the confident gross mismatches the curvature cannot see
+  // (Middlebury 2014, T = 1: with curvature alone the lowest-σ decile holds errors of RMS 8.3 px and the
+  // top/bottom decile RMS ratio is 1.4; with the three terms below 7.3, `bench_stereo --quality=2014`):
+  //   σ_d² = floor² + scale²·σ_pred² + J,   σ_pred² = 4σ_eff²/C″ + a·p₂/(1 + p₂)·(d₂ − d)²
+  // σ_eff² = max(σ_n², C(d)/(2N)) (residual_noise; N = w²T samples: the noise the fit itself shows, which
+  // is larger than σ_n where the model fails); p₂ = exp(−(C(d₂) − C(d))/(4σ_eff²)) the likelihood ratio of
+  // the runner-up minimum d₂ (≥ 2 px away) under Gaussian noise, a = ambiguity_weight, so σ_pred grows to
+  // the runner-up's distance as the two become equally likely; J = mean over the valid w×w neighbours of
+  // (d_n − d)² for |d_n − d| > neighbour_jump_px (a window straddling a depth edge, isolated mismatches).
+  bool residual_noise = true;
+  double ambiguity_weight = 1.0;     // ≥ 0 (0: off)
+  double neighbour_jump_px = 1.0;    // < 0: off; ≥ 0: neighbour differences above this count into J
   double max_sigma_disparity_px = 0.0;  // ≥ 0: pixels with a larger σ_d become NaN (0: keep all)
   // 0–5: Gauss–Newton steps after the parabola on the pixels that passed the checks (0: parabola only, the
   // default: 0.051 px about the Gray-code plane at T = 16 against 0.050 px with 2 steps, at a third of the time)
