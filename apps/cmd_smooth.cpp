@@ -114,8 +114,8 @@ void RunSmooth(const SmoothArgs& args) {
 
   if (args.adaptive_epsilon) {
     AdaptiveEpsilonSummary adaptive;
-    options.face_epsilon_squared = AdaptiveEpsilonFromPrepass(noisy, options, ScanAdaptiveEpsilonOptions(), &adaptive);
-    std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (fast pre-pass %.3f s)\n",
+    options.face_epsilon_squared = AdaptiveEpsilonTwoPass(noisy, options, ScanAdaptiveEpsilonOptions(), {}, &adaptive);
+    std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (two fast pre-passes %.3f s)\n",
                 adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
                 adaptive.time_s);
   }
@@ -213,7 +213,7 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
   sub->add_flag("--adaptive-eps", args->adaptive_epsilon,
                 "per-face epsilon^2 from a fast pre-pass (sqrt prior): better on smooth detailed scans, worse on "
-                "sharp CAD shapes (BENCHMARKS.md 'Adaptive eps'); costs a second, fast smoothing run");
+                "sharp CAD shapes (BENCHMARKS.md 'Adaptive eps'); costs two more, fast smoothing runs");
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")

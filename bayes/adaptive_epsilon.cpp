@@ -240,4 +240,22 @@ std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const Smo
   return epsilon_squared;
 }
 
+std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothOptions& options,
+                                           const AdaptiveEpsilonOptions& first, const AdaptiveEpsilonOptions& second,
+                                           AdaptiveEpsilonSummary* summary) {
+  second.Check();
+  const auto start = std::chrono::steady_clock::now();
+  SmoothOptions pass = options;
+  pass.face_epsilon_squared = AdaptiveEpsilonFromPrepass(noisy, options, first);
+  pass.tolerance = SmoothTolerance::kFast;
+  pass.max_iterations = 0;
+  pass.progress = nullptr;
+  const Mesh smoothed = Smooth(noisy, pass);
+  std::vector<double> epsilon_squared = AdaptiveEpsilonSquared(smoothed, second, summary);
+  if (summary != nullptr) {
+    summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return epsilon_squared;
+}
+
 }  // namespace rangebayes

@@ -7,6 +7,8 @@
 //     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
 //     --reference prepass  the rule on the noisy input smoothed once with the default (global ε² = 1e-4,
 //                          fast tolerance): what a real run can do; the pre-pass time is included
+//     --reference twice    AdaptiveEpsilonTwoPass: the --rule result (fast) as the reference of the median rule
+//                          (scale --second-scale, default 4); what `rangebayes smooth --adaptive-eps` does
 //     --reference none     the default smoother (global ε²), for comparison
 //     --rule scan          start from ScanAdaptiveEpsilonOptions() (what `rangebayes smooth --adaptive-eps` uses)
 //     --baseline           also run the default smoother and print its MAE beside
@@ -81,7 +83,7 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 int Quality(std::map<std::string, std::string>& flags) {
   const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
   const std::string reference = flags.count("--reference") ? flags["--reference"] : "prepass";
-  if (reference != "gt" && reference != "prepass" && reference != "none") {
+  if (reference != "gt" && reference != "prepass" && reference != "none" && reference != "twice") {
     std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass or none\n");
     return 2;
   }
@@ -143,6 +145,12 @@ int Quality(std::map<std::string, std::string>& flags) {
     } else if (reference == "prepass") {
       options.face_epsilon_squared = AdaptiveEpsilonFromPrepass(input, options, rule, &rule_summary);
       prepass_s = Seconds(start);
+    } else if (reference == "twice") {
+      // The --rule result (fast) as the reference of a second rule (the median rule, scale --second-scale).
+      AdaptiveEpsilonOptions second;
+      if (flags.count("--second-scale")) second.scale = std::stod(flags["--second-scale"]);
+      options.face_epsilon_squared = AdaptiveEpsilonTwoPass(input, options, rule, second, &rule_summary);
+      prepass_s = Seconds(start);
     }
     const Mesh result = Smooth(input, options);
     const double total_s = Seconds(start), cpu = CpuSeconds() - cpu_start;
@@ -150,7 +158,7 @@ int Quality(std::map<std::string, std::string>& flags) {
     char base[32], target[32];
     std::snprintf(base, sizeof base, std::isnan(baseline_mae) ? "–" : "%.2f", baseline_mae);
     std::snprintf(target, sizeof target, std::isnan(c.target) ? "–" : "%.1f", c.target);
-    std::printf("| %s | %s | %s | %.2f | %.2g / %.2g / %.2g | %.2f | %.2f | %.2f |\n", c.name.c_str(), target, base,
+    std::printf("| %s | %s | %s | %.3f | %.2g / %.2g / %.2g | %.2f | %.2f | %.2f |\n", c.name.c_str(), target, base,
                 mae, rule_summary.p10_epsilon_squared, rule_summary.median_epsilon_squared,
                 rule_summary.p90_epsilon_squared, prepass_s, total_s, cpu);
     std::fflush(stdout);

@@ -142,8 +142,8 @@ TEST(AdaptiveEpsilon, PlugsIntoSmooth) {
   EXPECT_NEAR(angle, 2 * std::atan(0.5) * 180 / M_PI, 1.0);
 }
 
-// The pre-pass helper (what `rangebayes smooth --adaptive-eps` calls): one value per face within the clamps; a
-// potential other than the built-in square root is refused with an Error, not ignored.
+// The pre-pass helpers (the two-pass one is what `rangebayes smooth --adaptive-eps` calls): one value per face
+// within the clamps; a potential other than the built-in square root is refused with an Error, not ignored.
 TEST(AdaptiveEpsilon, FromPrepassNeedsTheSquareRootPrior) {
   const Mesh noisy = testing::NoisyRoof(10, 10, 0.1, 5);
   GenericNoiseOptions noise;
@@ -158,6 +158,12 @@ TEST(AdaptiveEpsilon, FromPrepassNeedsTheSquareRootPrior) {
     EXPECT_LE(v, 0.2);
   }
   EXPECT_GE(summary.time_s, 0.0);
+  const std::vector<double> two = AdaptiveEpsilonTwoPass(input, SmoothOptions{});
+  ASSERT_EQ(static_cast<int>(two.size()), noisy.num_faces());
+  for (double v : two) {
+    EXPECT_GE(v, 1e-4);
+    EXPECT_LE(v, 0.2);
+  }
   SmoothOptions cauchy;
   cauchy.prior = PriorKind::kCauchy;
   EXPECT_THROW(AdaptiveEpsilonFromPrepass(input, cauchy, ScanAdaptiveEpsilonOptions()), Error);
