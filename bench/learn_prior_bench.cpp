@@ -2,7 +2,7 @@
 // the held-out synthetic set and on real benchmark meshes (BENCHMARKS.md "Learned priors").
 //
 //   learn_prior_bench [--method implicit|interleaved] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
-//                     [--copies 1]
+//                     [--copies 1] [--min-cells 6] [--max-cells 14]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
 //                     [--mesh NOISY GT K]...
@@ -114,6 +114,8 @@ int main(int argc, char** argv) {
     else if (a == "--k") synth.noise.k = std::stod(next());
     else if (a == "--k-max") synth.noise_k_max = std::stod(next());
     else if (a == "--copies") synth.copies = std::stoi(next());
+    else if (a == "--min-cells") synth.object.min_cells = std::stoi(next());
+    else if (a == "--max-cells") synth.object.max_cells = std::stoi(next());
     else if (a == "--train") synth.num_train = std::stoi(next());
     else if (a == "--test") synth.num_test = std::stoi(next());
     else if (a == "--seed") synth.seed = std::stoull(next());
