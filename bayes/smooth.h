@@ -103,7 +103,9 @@ struct SmoothSummary {
 
 // Smooths `noisy`: same vertex count and order, same faces. Requires noisy.has_covariance() with symmetric
 // positive definite covariances (eigenvalues below 1e-6 of the largest are raised to it); throws Error
-// naming the vertex otherwise, and on non-finite positions or bad face indices.
+// naming the vertex otherwise, and on non-finite positions or bad face indices. Internally the solver works on
+// a copy in a cache-friendly order (vertices along a Morton curve of the input positions); the caller's order
+// affects the result only through rounding.
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
 // The information matrix W = ½ Σ⁻¹ used for one covariance.
