@@ -22,11 +22,11 @@
 // cases unchanged). With a real reference — the default smoother's own fast result — the information is mostly
 // gone: at k = 0.3 the pre-pass has flattened igea's fine detail into facets (median pair d 0.016 against the
 // ground truth's 0.11) and the noise swamps it in the input (noisy median d 0.56). What is left is the facet
-// pattern: many small creases (d < 0.3) on a smoothed scan, few on CAD. The truncated mean reads it: smooth scans
-// improve (child 8.30 → 7.44°, bunny, nicolo, julius 0.2–0.4° better), but the residual noise creases of flat
-// CAD regions and shallow real creases raise ε there too (trim-star 5.15 → 5.49°, block 3.74 → 4.05°), and no
-// scale / truncation / protection setting measured kept all six CAD targets and met igea and child. So the
-// default stays the global ε² = 1e-4 and this rule is opt-in (`rangebayes smooth --adaptive-eps`).
+// pattern: many small creases (d < 0.3) on a smoothed scan, few on CAD. The truncated mean reads it (one pass:
+// child 8.30 → 7.44°, but trim-star 5.15 → 5.49°, block 3.74 → 4.05°). A second pass — the median rule on a fast
+// run with those ε — keeps the CAD targets and child (7.499°) but not igea (10.28°): 7 of 8 targets against
+// the global ε's 6, for about 2.5× the CPU time of a default run. That cost (and child's 0.001° margin) is why
+// the default stays the global ε² = 1e-4 and this rule is opt-in (`rangebayes smooth --adaptive-eps`).
 #pragma once
 
 #include <vector>
@@ -77,10 +77,10 @@ struct AdaptiveEpsilonSummary {
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options = {},
                                            AdaptiveEpsilonSummary* summary = nullptr);
 
-// The rule for smooth, finely detailed scans (opt-in: `rangebayes smooth --adaptive-eps`): truncated mean
-// (≤ 0.3), scale 8, three rings, crease lines of d > 0.7 protected with one ring. Chosen on the whole benchmark
-// table, not per mesh (BENCHMARKS.md "Adaptive ε"): child 0.3 7.44°, igea 0.3 10.22°, fandisk 0.3 2.31°, but
-// block 0.4 4.05° and trim-star 0.3 5.49° miss their targets, so it is not the default.
+// The first-pass rule (on the default pre-pass; the first half of `rangebayes smooth --adaptive-eps`):
+// truncated mean (≤ 0.3), scale 8, three rings, crease lines of d > 0.7 protected with one ring. Chosen on the
+// whole benchmark table, not per mesh (BENCHMARKS.md "Adaptive ε"). Alone: child 0.3 7.44°, igea 0.3 10.22°,
+// fandisk 0.3 2.31°, but block 0.4 4.05° and trim-star 0.3 5.49° miss their targets.
 AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions();
 
 // ε² per face of `noisy` from a pre-pass: Smooth(noisy, options) with the fast tolerance and the global ε²
