@@ -178,8 +178,8 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                                  "normalised to mean 1): larger gives fewer patches")
                      ->check(CLI::PositiveNumber);
   sub->add_option("--target-faces", a->target_faces,
-                  "find lambda by bisection for this many output triangles (the output has N or N-1 unless N is "
-                  "below what one patch per component needs)")
+                  "find lambda by bisection for this many output triangles (normally the output has N or N-1; more "
+                  "when N is below what one patch per component needs, with a notice)")
       ->check(CLI::PositiveNumber)
       ->excludes(lambda);
   sub->add_option("--chain-tolerance", a->chain_tolerance,

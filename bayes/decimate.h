@@ -39,8 +39,9 @@ enum class DecimateWeighting { kArea, kUniform };
 
 struct DecimateOptions {
   double lambda = 2.0;  // λ, the energy one patch costs (normal difference² × faces), > 0
-  // > 0: find λ for this many output triangles (see "Target faces" above); the output has target_faces or
-  // target_faces − 1 triangles unless even one patch per component needs more.
+  // > 0: find λ for this many output triangles (see "Target faces" above). The output normally has target_faces
+  // or target_faces − 1 triangles; more when even one patch per component needs more (a notice says so), fewer
+  // when the patches at the λ found come below the target with straight chains only.
   int target_faces = 0;
   // With target_faces: share of the budget kept for patch-boundary detail, [0, 1). λ is the smallest for which
   // the patches with fully straightened chains fit in (1 − share)·target_faces triangles; the rest of the
