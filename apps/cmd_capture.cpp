@@ -28,7 +28,7 @@ namespace fs = std::filesystem;
 
 // Live-path defaults (BENCHMARKS.md "Capture and pipeline" has the measurements behind them).
 constexpr int kLiveStereoDownsample = 2;
-constexpr double kLiveSmoothBudgetMs = 40.0;
+constexpr double kLiveSmoothBudgetMs = 80.0;
 
 // Pipeline settings shared by replay and live.
 struct PipelineCli {
@@ -86,7 +86,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): iterations are capped from the measured per-iteration cost "
-                  "(-1: no budget, or 40 with --live-path)");
+                  "(-1: no budget, or 80 with --live-path)");
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
@@ -94,7 +94,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
   sub->add_flag("--live-path", o->live_path,
                 "Live preview settings: drop the oldest frame when a stage is busy, match at half resolution, "
-                "triangulate every 4th pixel, fast smoothing tolerance within a 40 ms budget, no decimation "
+                "triangulate every 4th pixel, fast smoothing tolerance within an 80 ms budget, no decimation "
                 "(overrides --downsample and --tolerance)");
   sub->add_option("--preview-width", o->preview_width_px,
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
