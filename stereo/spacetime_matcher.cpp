@@ -247,8 +247,9 @@ void NormaliseSpatially(Sequence* s, int window, double noise_gray, std::vector<
 
 // The hot loops are compiled twice, for AVX2 and for the baseline ISA, and picked at load time (GCC
 // function multi-versioning): the default build targets plain x86-64 (SSE2), and AVX2 roughly halves the
-// time of the cost loops on machines that have it.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+// time of the cost loops on machines that have it. Not under ThreadSanitizer: the ifunc resolver runs before
+// the TSan runtime is initialised and crashes the program at start-up.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_THREAD__)
 #define RB_MULTIVERSION __attribute__((target_clones("avx2", "default")))
 #else
 #define RB_MULTIVERSION
