@@ -283,26 +283,6 @@ double CurvatureRegularizer(const Eigen::VectorXd& theta, double weight, Eigen::
   return value;
 }
 
-double MeanAngularErrorDeg(const Mesh& result, const Mesh& truth) {
-  RB_CHECK(result.F == truth.F, "mean angular error: the meshes differ in faces");
-  double sum = 0;
-  int count = 0;
-  for (int f = 0; f < truth.num_faces(); ++f) {
-    auto normal = [&](const Mesh& m) {
-      const Eigen::Vector3d a = m.V.row(m.F(f, 0));
-      const Eigen::Vector3d b = m.V.row(m.F(f, 1));
-      const Eigen::Vector3d c = m.V.row(m.F(f, 2));
-      return (b - a).cross(c - a).normalized().eval();
-    };
-    const Eigen::Vector3d n1 = normal(result);
-    const Eigen::Vector3d n2 = normal(truth);
-    if (!n1.allFinite() || !n2.allFinite()) continue;
-    sum += std::acos(std::clamp(n1.dot(n2), -1.0, 1.0));
-    ++count;
-  }
-  return count > 0 ? sum / count * 180.0 / M_PI : 0.0;
-}
-
 PriorEvaluation EvaluatePrior(const std::vector<TrainingPair>& pairs, const Potential& potential,
                               const LearnPriorOptions& options, bool keep_meshes) {
   options.Check();

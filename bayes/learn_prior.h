@@ -33,6 +33,7 @@
 #include "bayes/smooth.h"
 #include "bayes/spline_potential.h"
 #include "core/mesh.h"
+#include "core/normal_error.h"
 #include "core/progress.h"
 
 namespace rangebayes {
@@ -121,8 +122,5 @@ double ImplicitDataGradient(const std::vector<TrainingPair>& pairs, const Eigen:
 double WarmDataGradient(const std::vector<TrainingPair>& pairs, const Eigen::VectorXd& theta,
                         const LearnPriorOptions& options, std::vector<Eigen::VectorXd>* minima,
                         Eigen::VectorXd* gradient);
-
-// Mean angle in degrees between corresponding face normals of two meshes with the same faces.
-double MeanAngularErrorDeg(const Mesh& result, const Mesh& truth);
 
 }  // namespace rangebayes

@@ -27,6 +27,7 @@
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
 #include "core/mesh_io.h"
+#include "core/normal_error.h"
 
 using namespace rangebayes;
 
@@ -51,23 +52,6 @@ std::vector<Case> Cases() {
       {"igea 0.3", "nllr/igea_gt.off", "nllr/igea_noisy_n3.off", 0.3, 10.0},
       {"child 0.3", "nllr/child_gt.off", "nllr/child_noisy_n3.off", 0.3, 7.5},
   };
-}
-
-// Mean angular error of face normals in degrees (the same measure as bench_smooth).
-double MeanAngularErrorDeg(const Mesh& result, const Mesh& gt) {
-  double sum = 0;
-  int count = 0;
-  for (int f = 0; f < gt.num_faces(); ++f) {
-    auto normal = [&](const Mesh& m) {
-      const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
-      return Eigen::Vector3d((b - a).cross(c - a).normalized());
-    };
-    const double dot = normal(result).dot(normal(gt));
-    if (!std::isfinite(dot)) continue;
-    sum += std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / M_PI;
-    ++count;
-  }
-  return count > 0 ? sum / count : std::nan("");
 }
 
 double CpuSeconds() {

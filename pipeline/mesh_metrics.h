@@ -4,13 +4,9 @@
 #include <Eigen/Core>
 
 #include "core/mesh.h"
+#include "core/normal_error.h"  // MeanAngularErrorDeg
 
 namespace rangebayes {
-
-// Mean angular error (degrees) between the face normals of `result` and `ground_truth`: mean over faces, not
-// area weighted (what the denoising literature reports). Requires the same faces (same F); throws Error
-// otherwise. Faces degenerate in either mesh are left out (and counted in *skipped when given).
-double MeanAngularErrorDeg(const Mesh& result, const Mesh& ground_truth, int* skipped = nullptr);
 
 // Unsigned distance from each query point to the triangle surface `surface` (exact point–triangle distances;
 // FLANN over face centroids only picks the candidates, with a search radius that provably contains the

@@ -10,22 +10,10 @@
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
 #include "core/mesh_io.h"
+#include "core/normal_error.h"
 
 namespace rangebayes {
 namespace {
-
-double MeanAngularErrorDeg(const Mesh& result, const Mesh& gt) {
-  double sum = 0;
-  for (int f = 0; f < gt.num_faces(); ++f) {
-    auto normal = [&](const Mesh& m) {
-      const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
-      return Eigen::Vector3d((b - a).cross(c - a));
-    };
-    const Eigen::Vector3d n = normal(result), m = normal(gt);
-    sum += std::atan2(n.cross(m).norm(), n.dot(m)) * 180.0 / M_PI;
-  }
-  return sum / gt.num_faces();
-}
 
 struct QualityCase {
   std::string gt;
