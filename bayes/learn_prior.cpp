@@ -31,6 +31,8 @@ struct PairProblem {
 std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
                                  const Potential& potential) {
   std::vector<PairProblem> problems(pairs.size());
+  long long total_vertices = 0;
+  for (const TrainingPair& pair : pairs) total_vertices += pair.truth.num_vertices();
   for (size_t p = 0; p < pairs.size(); ++p) {
     const TrainingPair& pair = pairs[p];
     RB_CHECK(pair.noisy.has_covariance(), "learn prior: pair '", pair.name, "' has no per-vertex covariance");
@@ -44,6 +46,9 @@ std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const L
     const double le = MeanEdgeLength(pair.truth);
     RB_CHECK(le > 0 && pair.truth.num_vertices() > 0, "learn prior: pair '", pair.name, "' has no edges");
     problems[p].scale = 1.0 / (le * le);
+    if (options.loss_weighting == LossWeighting::kPerObject) {
+      problems[p].scale *= static_cast<double>(total_vertices) / (pairs.size() * pair.truth.num_vertices());
+    }
     problems[p].face_pairs = ComputeFacePairs(pair.truth);
   }
   return problems;
@@ -244,6 +249,26 @@ std::string LearnMethodName(LearnMethod method) {
   return method == LearnMethod::kInterleaved ? "interleaved" : "implicit";
 }
 
+KnotStepScaling ParseKnotStepScaling(const std::string& name) {
+  if (name == "fixed") return KnotStepScaling::kFixed;
+  if (name == "rms") return KnotStepScaling::kRms;
+  RB_FAIL("unknown knot step scaling '", name, "' (expected fixed or rms)");
+}
+
+std::string KnotStepScalingName(KnotStepScaling scaling) {
+  return scaling == KnotStepScaling::kFixed ? "fixed" : "rms";
+}
+
+LossWeighting ParseLossWeighting(const std::string& name) {
+  if (name == "vertex") return LossWeighting::kPerVertex;
+  if (name == "object") return LossWeighting::kPerObject;
+  RB_FAIL("unknown loss weighting '", name, "' (expected vertex or object)");
+}
+
+std::string LossWeightingName(LossWeighting weighting) {
+  return weighting == LossWeighting::kPerVertex ? "vertex" : "object";
+}
+
 void LearnPriorOptions::Check() const {
   spline.Check();
   RB_CHECK(regularizer_weight >= 0 && regularizer_weight <= 1e6, "learn prior: regularizer weight must be in [0, 1e6], got ",
@@ -265,6 +290,10 @@ void LearnPriorOptions::Check() const {
            interleaved_step);
   RB_CHECK(interleaved_epsilon > 0 && interleaved_epsilon <= 1, "learn prior: interleaved epsilon must be in (0, 1], got ",
            interleaved_epsilon);
+  RB_CHECK(interleaved_rms_decay >= 0 && interleaved_rms_decay < 1,
+           "learn prior: interleaved_rms_decay must be in [0, 1), got ", interleaved_rms_decay);
+  RB_CHECK(interleaved_step_decay_iterations >= 0 && interleaved_step_decay_iterations <= 1e9,
+           "learn prior: interleaved_step_decay_iterations must be in [0, 1e9], got ", interleaved_step_decay_iterations);
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "learn prior: num_threads must be in [0, 1024], got ", num_threads);
 }
 
@@ -515,6 +544,7 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
   }
   Eigen::VectorXd theta = spline->theta();
   const int num_knots = spline->num_knots();
+  Eigen::VectorXd mean_square = Eigen::VectorXd::Zero(num_knots);  // kRms: running mean of g_j²
   summary->termination = "max iterations";
   for (int iteration = 1; iteration <= report->max_iterations; ++iteration) {
     if (report->OutOfTime()) {
@@ -544,7 +574,20 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
     gradient += regularizer_gradient;
     gradient[0] = 0;
     gradient[num_knots - 1] = 0;
-    theta -= options.interleaved_step * gradient;
+    const double tau = options.interleaved_step_decay_iterations;
+    const double step = tau > 0 ? options.interleaved_step * tau / (tau + iteration - 1) : options.interleaved_step;
+    if (options.interleaved_scaling == KnotStepScaling::kRms) {
+      const double rho = options.interleaved_rms_decay;
+      // Bias-corrected as in Adam, so that the first steps are not inflated by the zero start of v.
+      mean_square = rho * mean_square + (1 - rho) * gradient.cwiseAbs2();
+      const double correction = 1 - std::pow(rho, iteration);
+      for (int j = 1; j + 1 < num_knots; ++j) {
+        const double rms = std::sqrt(mean_square[j] / correction);
+        if (rms > 0) theta[j] -= step * gradient[j] / rms;
+      }
+    } else {
+      theta -= step * gradient;
+    }
     spline->SetTheta(theta);
     states = std::move(next);
     data_loss = next_loss;

@@ -47,6 +47,18 @@ struct TrainingPair {
 };
 
 enum class LearnMethod { kInterleaved, kImplicit };
+// Interleaved scheme, how each knot's step is scaled: kFixed the paper's θ_j −= α g_j; kRms a diagonal
+// preconditioner θ_j −= α g_j / sqrt(v_j), v_j a running mean of g_j² (RMSprop), so that the sparsely populated
+// knots (few face pairs at their d) move at the same rate as the crowded ones.
+enum class KnotStepScaling { kFixed, kRms };
+KnotStepScaling ParseKnotStepScaling(const std::string& name);  // "fixed", "rms"; Error otherwise
+std::string KnotStepScalingName(KnotStepScaling scaling);
+// How the pairs' squared vertex errors are summed into D: kPerVertex (every training vertex alike, the paper's
+// sum) or kPerObject (each pair's mean over its vertices, times the mean vertex count per pair so that D keeps
+// its magnitude against w): small objects, which hold more edges and corners per vertex, weigh as much as big ones.
+enum class LossWeighting { kPerVertex, kPerObject };
+LossWeighting ParseLossWeighting(const std::string& name);  // "vertex", "object"; Error otherwise
+std::string LossWeightingName(LossWeighting weighting);
 LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "implicit"; Error otherwise
 std::string LearnMethodName(LearnMethod method);
 
@@ -73,6 +85,11 @@ struct LearnPriorOptions {
   // Interleaved: fixed step α of eq. 22 and finite-difference increment ε of eq. 21.
   double interleaved_step = 0.01;    // (0, 1e6]; measured on the synthetic set (BENCHMARKS.md)
   double interleaved_epsilon = 1e-3; // (0, 1]
+  KnotStepScaling interleaved_scaling = KnotStepScaling::kFixed;  // the paper's fixed step by default
+  double interleaved_rms_decay = 0.9;  // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
+  // Step schedule α_t = α · τ / (τ + t) at iteration t; 0: constant α. [0, 1e9]
+  double interleaved_step_decay_iterations = 0;
+  LossWeighting loss_weighting = LossWeighting::kPerVertex;
   int num_threads = 0;               // smoother threads; 0: all cores
   ProgressCallback progress;         // stage names the iteration and the current loss
   void Check() const;

@@ -152,4 +152,42 @@ void SplinePotential::ParameterGradient(double d, Eigen::VectorXd* dvalue_dtheta
   }
 }
 
+void SecondWellOptions::Check() const {
+  RB_CHECK(shoulder_min_d >= 0 && shoulder_min_d <= well_min_d && well_min_d > 0 && well_min_d < well_max_d &&
+               well_max_d < right_d && right_d <= 2,
+           "second well: need 0 <= shoulder_min_d <= well_min_d < well_max_d < right_d <= 2, got ", shoulder_min_d, ", ",
+           well_min_d, ", ", well_max_d, ", ", right_d);
+  RB_CHECK(min_depth >= 0, "second well: min_depth must be >= 0, got ", min_depth);
+  RB_CHECK(sample_step > 0 && sample_step <= 0.1, "second well: sample_step must be in (0, 0.1], got ", sample_step);
+}
+
+SecondWell FindSecondWell(const Potential& potential, const SecondWellOptions& options) {
+  options.Check();
+  SecondWell well;
+  const int samples = static_cast<int>(std::ceil((options.well_max_d - options.well_min_d) / options.sample_step));
+  well.well_d = options.well_min_d;
+  well.well_value = potential.Value(well.well_d);
+  for (int i = 1; i <= samples; ++i) {
+    const double d = std::min(options.well_max_d, options.well_min_d + i * options.sample_step);
+    const double value = potential.Value(d);
+    if (value < well.well_value) {
+      well.well_value = value;
+      well.well_d = d;
+    }
+  }
+  well.barrier_d = well.well_d;
+  well.barrier_value = well.well_value;
+  for (double d = options.shoulder_min_d; d < well.well_d; d += options.sample_step) {
+    const double value = potential.Value(d);
+    if (value > well.barrier_value) {
+      well.barrier_value = value;
+      well.barrier_d = d;
+    }
+  }
+  well.right_value = potential.Value(options.right_d);
+  well.depth = std::min(well.barrier_value, well.right_value) - well.well_value;
+  well.found = well.depth > options.min_depth;
+  return well;
+}
+
 }  // namespace rangebayes

@@ -5,6 +5,8 @@
 //                     [--copies 1] [--min-cells 6] [--max-cells 14]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
+//                     [--scaling fixed|rms] [--rms-decay 0.9] [--decay TAU] [--weighting vertex|object]
+//                     [--init-theta FILE [--eval-only]] [--no-train-eval]
 //                     [--mesh NOISY GT K]...
 //
 // Prints the training curve (time, loss) and a table of MAE (degrees) and D (mean squared vertex error / l_e²).
@@ -95,7 +97,8 @@ void PrintPairHistogram(const std::vector<TrainingPair>& pairs, const std::vecto
 int main(int argc, char** argv) {
   LearnPriorOptions options;
   SynthMeshSetOptions synth;
-  std::string theta_out;
+  std::string theta_out, theta_in;
+  bool train_eval = true, eval_only = false;
   struct External {
     std::string noisy, truth;
     double k;
@@ -125,6 +128,13 @@ int main(int argc, char** argv) {
     else if (a == "--w") options.regularizer_weight = std::stod(next());
     else if (a == "--step") options.interleaved_step = options.initial_step = std::stod(next());
     else if (a == "--theta-out") theta_out = next();
+    else if (a == "--init-theta") theta_in = next();
+    else if (a == "--no-train-eval") train_eval = false;
+    else if (a == "--eval-only") eval_only = true;
+    else if (a == "--scaling") options.interleaved_scaling = ParseKnotStepScaling(next());
+    else if (a == "--rms-decay") options.interleaved_rms_decay = std::stod(next());
+    else if (a == "--decay") options.interleaved_step_decay_iterations = std::stod(next());
+    else if (a == "--weighting") options.loss_weighting = ParseLossWeighting(next());
     else if (a == "--tolerance") options.tolerance = ParseSmoothTolerance(next());
     else if (a == "--cold") options.warm_start = false;
     else if (a == "--warm-tolerance") options.warm_gradient_tolerance = std::stod(next());
@@ -146,28 +156,45 @@ int main(int argc, char** argv) {
   for (const auto& p : set.test) test.push_back(MakePair(p.name, p.noisy.mesh, p.clean, p.k));
   int vertices = 0;
   for (const auto& p : train) vertices += p.truth.num_vertices();
-  std::printf("method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g\n",
+  std::printf("method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g "
+              "(%s, decay %g), loss per %s\n",
               LearnMethodName(options.method).c_str(), synth.noise.k,
               std::max(synth.noise.k, synth.noise_k_max), train.size(), vertices, test.size(),
-              options.spline.num_knots, options.regularizer_weight);
+              options.spline.num_knots, options.regularizer_weight, options.interleaved_step,
+              KnotStepScalingName(options.interleaved_scaling).c_str(), options.interleaved_step_decay_iterations,
+              LossWeightingName(options.loss_weighting).c_str());
+  Eigen::VectorXd initial_theta;
+  if (!theta_in.empty()) {
+    std::ifstream in(theta_in);
+    std::vector<double> values;
+    for (double v; in >> v;) values.push_back(v);
+    initial_theta = Eigen::Map<const Eigen::VectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
+    std::printf("starting from %s (%zu knots)\n", theta_in.c_str(), values.size());
+  }
   PrintPairHistogram(train, EvaluatePrior(train, SqrtPotential(options.spline.epsilon_squared), options, true).smoothed,
                      options.spline.num_knots);
   options.progress = [](double, std::string_view stage) {
     std::fprintf(stderr, "  %.*s\n", static_cast<int>(stage.size()), stage.data());
   };
-  LearnPriorSummary summary;
-  const Eigen::VectorXd theta = LearnPrior(train, options, {}, &summary);
-  options.progress = nullptr;
-  std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
-              "%.1f s, %s\n",
-              summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
-              summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
-              summary.termination.c_str());
-  std::printf("curve (s, D/vertex):");
-  for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
-    std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);
+  if (eval_only && initial_theta.size() == 0) {
+    std::fprintf(stderr, "--eval-only needs --init-theta\n");
+    return 2;
   }
-  std::printf("\n");
+  LearnPriorSummary summary;
+  const Eigen::VectorXd theta = eval_only ? initial_theta : LearnPrior(train, options, initial_theta, &summary);
+  options.progress = nullptr;
+  if (!eval_only) {
+    std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
+                "%.1f s, %s\n",
+                summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
+                summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
+                summary.termination.c_str());
+    std::printf("curve (s, D/vertex):");
+    for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
+      std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);
+    }
+    std::printf("\n");
+  }
   std::printf("theta:");
   for (int j = 0; j < theta.size(); ++j) std::printf(" %.4f", theta[j]);
   std::printf("\n");
@@ -175,11 +202,17 @@ int main(int argc, char** argv) {
   std::printf("phi - sqrt at d:");
   for (double d = 0.0; d <= 2.0001; d += 0.1) std::printf(" %.2f:%+.3f", d, learned.Value(d) - learned.Base(d));
   std::printf("\n");
+  const SecondWell well = FindSecondWell(learned);
+  std::printf("second well (min of phi on [1.2, 1.6] below the max on [0.9, d*] and below phi(1.8)): %s; d* %.3f "
+              "phi %.4f, barrier d %.3f phi %.4f, phi(1.8) %.4f, depth %+.4f\n",
+              well.found ? "FOUND" : "none", well.well_d, well.well_value, well.barrier_d, well.barrier_value,
+              well.right_value, well.depth);
   if (!theta_out.empty()) {
     std::ofstream out(theta_out);
+    out.precision(17);
     for (int j = 0; j < theta.size(); ++j) out << theta[j] << "\n";
   }
-  Compare("train", train, learned, options);
+  if (train_eval) Compare("train", train, learned, options);
   Compare("test", test, learned, options);
   for (const External& e : externals) {
     const Mesh noisy = ReadMesh(e.noisy);

@@ -4,6 +4,7 @@
 
 #include "bayes/noise_model.h"
 #include "bayes/synth_meshes.h"
+#include "core/error.h"
 
 namespace rangebayes {
 namespace {
@@ -94,6 +95,25 @@ TEST(LearnPrior, WarmImplicitGradientMatchesFiniteDifferencesAtK03) {
     // Measured: within 4% per entry (3% of the largest); 10% of the largest entry leaves room.
     EXPECT_NEAR(gradient[j], numeric, 0.1 * gradient.cwiseAbs().maxCoeff()) << j;
   }
+}
+
+// The per-knot RMS scaling (and the decaying step, and the per-object loss) must also lower the loss.
+TEST(LearnPrior, RmsScaledInterleavedReducesTheTrainingLoss) {
+  const std::vector<TrainingPair> pairs = TinyBoxes(2, 0.2);
+  LearnPriorOptions options;
+  options.interleaved_scaling = KnotStepScaling::kRms;
+  options.interleaved_step = 0.003;
+  options.interleaved_step_decay_iterations = 20;
+  options.loss_weighting = LossWeighting::kPerObject;
+  options.spline.num_knots = 8;
+  options.max_iterations = 30;
+  options.num_threads = 1;
+  LearnPriorSummary summary;
+  const Eigen::VectorXd theta = LearnPrior(pairs, options, {}, &summary);
+  EXPECT_NE(theta, SplinePotential::SquareRootTheta(options.spline));
+  EXPECT_LT(summary.final_data_loss, summary.initial_data_loss);
+  EXPECT_THROW(ParseKnotStepScaling("adam"), Error);
+  EXPECT_EQ(ParseLossWeighting(LossWeightingName(LossWeighting::kPerObject)), LossWeighting::kPerObject);
 }
 
 // Learning on two tiny boxes must lower the training loss with either method (starting from the square root,

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <random>
 
 #include "core/error.h"
@@ -89,6 +90,62 @@ TEST(SplinePotential, RejectsUnclampedEnds) {
   SplinePotentialOptions bad;
   bad.num_knots = 2;
   EXPECT_THROW(bad.Check(), Error);
+}
+
+Eigen::VectorXd Theta16(std::initializer_list<double> values) {
+  Eigen::VectorXd theta(static_cast<Eigen::Index>(values.size()));
+  int j = 0;
+  for (double v : values) theta[j++] = v;
+  return theta;
+}
+
+TEST(SecondWell, SquareRootAndAShoulderHaveNone) {
+  const SplinePotentialOptions options;
+  const SecondWell root = FindSecondWell(SplinePotential(options));
+  EXPECT_FALSE(root.found);
+  EXPECT_NEAR(root.well_d, 1.2, 1e-12);  // increasing: the window's left end
+  EXPECT_LE(root.depth, 0.0);
+  // The mixture prior of BENCHMARKS.md (session 2, 400 fixed-step iterations): φ − sqrt dips around 1.5 but φ
+  // itself keeps rising, so no well.
+  const Eigen::VectorXd shoulder = Theta16({0.0100, 0.1891, 0.3930, 0.5794, 0.7282, 0.8451, 0.9368, 1.0235, 1.1272,
+                                            1.2582, 1.3536, 1.4731, 1.6067, 1.7564, 1.8875, 2.0000});
+  Eigen::VectorXd clamped = shoulder;  // the ends exactly b(0), b(2) (printed to 4 digits)
+  clamped[0] = SplinePotential::SquareRootTheta(options)[0];
+  clamped[15] = SplinePotential::SquareRootTheta(options)[15];
+  const SplinePotential phi(options, clamped);
+  EXPECT_FALSE(FindSecondWell(phi).found);
+  EXPECT_FALSE(FindSecondWell(phi, SecondWellOptions{.min_depth = 0}).found);
+}
+
+TEST(SecondWell, FindsADipNearRoot2) {
+  const SplinePotentialOptions options;
+  Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
+  // Knots at 1.200 and 1.333 (indices 9, 10): φ(1.2) = 1.35 above φ(1.333) = 1.20, then the square root's 1.47.
+  theta[9] = 1.35;
+  theta[10] = 1.20;
+  const SecondWell well = FindSecondWell(SplinePotential(options, theta));
+  EXPECT_TRUE(well.found);
+  EXPECT_GT(well.well_d, 1.25);
+  EXPECT_LT(well.well_d, 1.45);
+  EXPECT_LT(well.barrier_d, well.well_d);
+  EXPECT_GT(well.depth, 0.05);
+  // The same dip made shallower than the margin does not count.
+  EXPECT_FALSE(FindSecondWell(SplinePotential(options, theta), SecondWellOptions{.min_depth = 1.0}).found);
+}
+
+TEST(SecondWell, IgnoresAWellElsewhere) {
+  const SplinePotentialOptions options;
+  Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
+  theta[4] = 0.2;  // a dip at d = 0.533 (below the window), φ increasing from 0.9 on
+  EXPECT_FALSE(FindSecondWell(SplinePotential(options, theta)).found);
+  theta = SplinePotential::SquareRootTheta(options);
+  theta[14] = 1.5;  // a dip at d = 1.867 (right of φ(1.8)): φ increasing on [0.9, 1.8]
+  EXPECT_FALSE(FindSecondWell(SplinePotential(options, theta)).found);
+}
+
+TEST(SecondWell, RejectsBadWindows) {
+  EXPECT_THROW(SecondWellOptions{.well_min_d = 1.7}.Check(), Error);
+  EXPECT_THROW(SecondWellOptions{.sample_step = 0}.Check(), Error);
 }
 
 }  // namespace
