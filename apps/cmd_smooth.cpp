@@ -34,7 +34,7 @@ struct SmoothArgs {
   double beta = SmoothOptions{}.prior_weight;
   bool beta_given = false;  // --beta on the command line (else a learned prior's own beta is used)
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
-  bool adaptive_epsilon = false;  // --adaptive-eps: per-face ε² from a pre-pass (bayes/adaptive_epsilon.h)
+  bool adaptive_epsilon = true;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
   std::string png;
@@ -112,12 +112,19 @@ void RunSmooth(const SmoothArgs& args) {
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
   std::fflush(stdout);
 
-  if (args.adaptive_epsilon) {
+  if (args.adaptive_epsilon && !learned && options.prior == PriorKind::kSqrt) {
     AdaptiveEpsilonSummary adaptive;
-    options.face_epsilon_squared = AdaptiveEpsilonTwoPass(noisy, options, ScanAdaptiveEpsilonOptions(), {}, &adaptive);
-    std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (two fast pre-passes %.3f s)\n",
-                adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
-                adaptive.time_s);
+    const AutoAdaptiveEpsilonOptions rule;
+    options.face_epsilon_squared = AdaptiveEpsilonAuto(noisy, options, rule, &adaptive);
+    if (adaptive.per_face) {
+      std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g >= %.3g; fast "
+                  "pre-pass %.3f s)\n",
+                  adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
+                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, adaptive.time_s);
+    } else {
+      std::printf("adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %.3f s)\n",
+                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, adaptive.time_s);
+    }
   }
   ProgressPrinter progress(args.quiet);
   options.progress = progress.callback();
@@ -211,9 +218,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       ->check(CLI::IsMember({"cg", "lbfgs"}));
   sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
-  sub->add_flag("--adaptive-eps", args->adaptive_epsilon,
-                "per-face epsilon^2 from a fast pre-pass (sqrt prior): better on smooth detailed scans, worse on "
-                "sharp CAD shapes (BENCHMARKS.md 'Adaptive eps'); costs two more, fast smoothing runs");
+  sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
+                "sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes (scans), the global "
+                "--eps2 on piecewise-flat ones (CAD); costs one fast smoothing run (BENCHMARKS.md 'Adaptive eps'). "
+                "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")

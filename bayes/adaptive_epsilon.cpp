@@ -23,6 +23,8 @@ double LowerMedian(std::vector<double>* values) {
 }  // namespace
 
 void AdaptiveEpsilonOptions::Check() const {
+  RB_CHECK(normal_smoothing_rings >= 0 && normal_smoothing_rings <= 50, "adaptive epsilon: normal_smoothing_rings ",
+           normal_smoothing_rings, " is outside [0, 50]");
   RB_CHECK(ring_iterations >= 0 && ring_iterations <= 20, "adaptive epsilon: ring_iterations ", ring_iterations,
            " is outside [0, 20]");
   RB_CHECK(truncate_normal_difference > 0 && truncate_normal_difference <= 2,
@@ -42,10 +44,9 @@ void AdaptiveEpsilonOptions::Check() const {
            "adaptive epsilon: max_epsilon_squared ", max_epsilon_squared, " is outside [min_epsilon_squared, 4]");
 }
 
-std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
-                                           AdaptiveEpsilonSummary* summary) {
-  const auto start = std::chrono::steady_clock::now();
-  options.Check();
+namespace {
+
+void CheckFaces(const Mesh& reference) {
   const int nf = reference.num_faces(), nv = reference.num_vertices();
   for (int f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -54,10 +55,13 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
                " vertices");
     }
   }
+}
 
-  // Unit normals; faces without one are left out.
-  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(nf), Eigen::Vector3d::Zero());
-  std::vector<char> valid(static_cast<size_t>(nf), 0);
+// Unit normals; faces without one (zero area, repeated index) are marked invalid.
+void FaceNormals(const Mesh& reference, std::vector<Eigen::Vector3d>* normal, std::vector<char>* valid) {
+  const int nf = reference.num_faces();
+  normal->assign(static_cast<size_t>(nf), Eigen::Vector3d::Zero());
+  valid->assign(static_cast<size_t>(nf), 0);
   for (int f = 0; f < nf; ++f) {
     const int a = reference.F(f, 0), b = reference.F(f, 1), c = reference.F(f, 2);
     if (a == b || b == c || a == c) continue;
@@ -66,12 +70,77 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
         (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
     const double length = cross.norm();
     if (length > 0 && std::isfinite(length)) {
-      normal[static_cast<size_t>(f)] = cross / length;
-      valid[static_cast<size_t>(f)] = 1;
+      (*normal)[static_cast<size_t>(f)] = cross / length;
+      (*valid)[static_cast<size_t>(f)] = 1;
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
+                                           AdaptiveEpsilonSummary* summary) {
+  return AdaptiveEpsilonSquared(reference, reference, options, summary);
+}
+
+std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& crease_reference,
+                                           const AdaptiveEpsilonOptions& options, AdaptiveEpsilonSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  CheckFaces(reference);
+  const int nf = reference.num_faces(), nv = reference.num_vertices();
+  RB_CHECK(&crease_reference == &reference || crease_reference.F == reference.F,
+           "adaptive epsilon: the crease reference has other faces than the reference (", crease_reference.num_faces(),
+           " vs ", nf, ")");
+
+  std::vector<Eigen::Vector3d> normal, crease_normal;
+  std::vector<char> valid, crease_valid;
+  FaceNormals(reference, &normal, &valid);
+  if (&crease_reference != &reference) {
+    FaceNormals(crease_reference, &crease_normal, &crease_valid);
+  } else {
+    crease_normal = normal;
+    crease_valid = valid;
+  }
+  const Adjacency vertex_faces = ComputeVertexFaces(reference);
+  std::vector<int> stamp(static_cast<size_t>(nf), -1);
+
+  // Step 0: area-weighted averages of the face normals over the faces sharing a vertex, normal_smoothing_rings
+  // times. The total turning of a surface survives averaging (a smoothly curved region keeps the gradient of
+  // its normal field) while the facets and small creases of a pre-smoothed scan, and noise, average out.
+  if (options.normal_smoothing_rings > 0) {
+    std::vector<double> area(static_cast<size_t>(nf), 0.0);
+    for (int f = 0; f < nf; ++f) {
+      if (!valid[static_cast<size_t>(f)]) continue;
+      const Eigen::Vector3d pa = reference.V.row(reference.F(f, 0)).transpose();
+      area[static_cast<size_t>(f)] = (reference.V.row(reference.F(f, 1)).transpose() - pa)
+                                         .cross(reference.V.row(reference.F(f, 2)).transpose() - pa)
+                                         .norm();
+    }
+    std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
+    for (int iteration = 0; iteration < options.normal_smoothing_rings; ++iteration) {
+      for (int f = 0; f < nf; ++f) {
+        next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
+        if (!valid[static_cast<size_t>(f)]) continue;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k) {
+          const int v = reference.F(f, k);
+          for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) {
+            if (stamp[static_cast<size_t>(*g)] == f || !valid[static_cast<size_t>(*g)]) continue;
+            stamp[static_cast<size_t>(*g)] = f;
+            sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
+          }
+        }
+        const double length = sum.norm();
+        if (length > 0) next[static_cast<size_t>(f)] = sum / length;
+      }
+      normal.swap(next);
+      std::fill(stamp.begin(), stamp.end(), -1);
     }
   }
 
-  // Step 1: median (or mean) normal difference to the edge neighbours.
+  // Step 1: median (or mean) normal difference to the edge neighbours; crease pairs from the unsmoothed
+  // normals (of crease_reference).
   const bool use_median = options.statistic == AdaptiveEpsilonStatistic::kMedian;
   const IndexPairs pairs = ComputeFacePairs(reference);
   std::vector<char> crease(static_cast<size_t>(nf), 0);
@@ -79,9 +148,13 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
   std::vector<std::vector<double>> differences(static_cast<size_t>(nf));
   for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
     const int s = pairs(p, 0), t = pairs(p, 1);
+    if (crease_valid[static_cast<size_t>(s)] && crease_valid[static_cast<size_t>(t)] &&
+        (crease_normal[static_cast<size_t>(s)] - crease_normal[static_cast<size_t>(t)]).norm() >
+            options.protect_normal_difference) {
+      crease_pairs.push_back(p);
+    }
     if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
     const double d = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
-    if (d > options.protect_normal_difference) crease_pairs.push_back(p);
     differences[static_cast<size_t>(s)].push_back(d);
     differences[static_cast<size_t>(t)].push_back(d);
   }
@@ -102,8 +175,6 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
   std::vector<std::vector<double>>().swap(differences);
 
   // Step 2: median filter (or truncated mean) over the faces sharing a vertex (each face once).
-  const Adjacency vertex_faces = ComputeVertexFaces(reference);
-  std::vector<int> stamp(static_cast<size_t>(nf), -1);
   std::vector<double> window, next(static_cast<size_t>(nf));
   for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
     for (int f = 0; f < nf; ++f) {
@@ -255,6 +326,58 @@ std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothO
   if (summary != nullptr) {
     summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
+  return epsilon_squared;
+}
+
+AdaptiveEpsilonOptions DetailAdaptiveEpsilonOptions() {
+  AdaptiveEpsilonOptions options;
+  options.statistic = AdaptiveEpsilonStatistic::kTruncatedMean;
+  options.truncate_normal_difference = 2.0;  // nothing truncated (d ≤ 2 always); ring_iterations 0 anyway
+  options.normal_smoothing_rings = 4;
+  options.ring_iterations = 0;
+  options.scale = 24.0;
+  options.max_epsilon_squared = 1.0;
+  return options;
+}
+
+void AutoAdaptiveEpsilonOptions::Check() const {
+  gate.Check();
+  detail.Check();
+  RB_CHECK(min_gate_median_epsilon_squared > 0 && min_gate_median_epsilon_squared <= 4,
+           "adaptive epsilon: min_gate_median_epsilon_squared ", min_gate_median_epsilon_squared,
+           " is outside (0, 4]");
+}
+
+std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
+                                        const AutoAdaptiveEpsilonOptions& rule, AdaptiveEpsilonSummary* summary) {
+  RB_CHECK(options.potential == nullptr && options.prior == PriorKind::kSqrt,
+           "adaptive epsilon: needs the square-root prior (--prior sqrt)");
+  rule.Check();
+  const auto start = std::chrono::steady_clock::now();
+  SmoothOptions pre = options;
+  pre.tolerance = SmoothTolerance::kFast;
+  pre.max_iterations = 0;
+  pre.energy_tolerance = 0;
+  pre.face_epsilon_squared.clear();
+  pre.progress = nullptr;
+  const Mesh smoothed = Smooth(noisy, pre);
+
+  AdaptiveEpsilonSummary gate_summary;
+  AdaptiveEpsilonSquared(smoothed, rule.gate, &gate_summary);
+  std::vector<double> epsilon_squared;
+  AdaptiveEpsilonSummary s = gate_summary;
+  s.per_face = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
+  if (s.per_face) {
+    // The global ε² (the user's --eps2) stays the floor, so a flat face is treated as without the rule.
+    AdaptiveEpsilonOptions detail = rule.detail;
+    detail.min_epsilon_squared = options.sqrt_epsilon_squared;
+    detail.max_epsilon_squared = std::max(detail.max_epsilon_squared, detail.min_epsilon_squared);
+    epsilon_squared = AdaptiveEpsilonSquared(smoothed, detail, &s);
+    s.per_face = true;
+  }
+  s.gate_median_epsilon_squared = gate_summary.median_epsilon_squared;
+  s.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (summary != nullptr) *summary = s;
   return epsilon_squared;
 }
 

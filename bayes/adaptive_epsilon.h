@@ -45,6 +45,9 @@ enum class AdaptiveEpsilonStatistic {
 
 struct AdaptiveEpsilonOptions {
   AdaptiveEpsilonStatistic statistic = AdaptiveEpsilonStatistic::kMedian;
+  // Area-weighted averaging passes of the reference's face normals over the faces sharing a vertex before d is
+  // read, [0, 50]; 0: the raw normals. Crease protection always reads the raw normals.
+  int normal_smoothing_rings = 0;
   int ring_iterations = 3;               // vertex-ring passes, [0, 20]; 3 ≈ a three-ring neighbourhood
   double scale = 4.0;                    // c in ε² = c · m², [0, 1e4]; 4 measured best with the ground truth
   double truncate_normal_difference = 0.3;  // kTruncatedMean: ring values above it are left out, (0, 2]
@@ -64,6 +67,10 @@ struct AdaptiveEpsilonOptions {
 };
 
 struct AdaptiveEpsilonSummary {
+  // AdaptiveEpsilonAuto only: the gate rule's median ε² on the pre-pass, and whether the mesh got per-face ε²
+  // (false: read as piecewise flat, the global ε² kept; the quantiles below are then the gate rule's).
+  double gate_median_epsilon_squared = 0;
+  bool per_face = true;
   double median_epsilon_squared = 0;  // over faces
   double p10_epsilon_squared = 0;
   double p90_epsilon_squared = 0;
@@ -75,6 +82,13 @@ struct AdaptiveEpsilonSummary {
 // index) and faces without edge neighbours get min_epsilon_squared and are skipped as neighbours. Throws
 // Error on bad face indices or options.
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options = {},
+                                           AdaptiveEpsilonSummary* summary = nullptr);
+
+// The same with the crease protection read from another mesh with the same faces (`crease_reference`, e.g. a
+// square-root result that keeps creases sharp) while m_t is read from `reference` (e.g. a large-ε result that
+// keeps gentle curvature but blurs creases into bands). Throws Error when the faces differ.
+std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& crease_reference,
+                                           const AdaptiveEpsilonOptions& options,
                                            AdaptiveEpsilonSummary* summary = nullptr);
 
 // The first-pass rule (on the default pre-pass; the first half of `rangebayes smooth --adaptive-eps`):
@@ -99,5 +113,36 @@ std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothO
                                            const AdaptiveEpsilonOptions& first = ScanAdaptiveEpsilonOptions(),
                                            const AdaptiveEpsilonOptions& second = {},
                                            AdaptiveEpsilonSummary* summary = nullptr);
+
+// The detail rule of AdaptiveEpsilonAuto: the pre-pass's face normals averaged over 4 vertex rings (area
+// weighted), per face the mean of d over its edge neighbours, no ring filter, scale 24, ε² in [1e-4, 1], no
+// crease protection. Why: the default pre-pass turns a gently curved surface into facets and small creases, but
+// the total turning survives, so the averaged normal field's d is the curvature at the face scale (igea 0.3:
+// 9.92° with it against 10.90° with the global ε²); the median of raw d (the ground-truth rule) reads ≈ 0 there.
+// It blurs CAD creases into bands (fandisk 0.3: 6.1°), hence the gate.
+AdaptiveEpsilonOptions DetailAdaptiveEpsilonOptions();
+
+struct AutoAdaptiveEpsilonOptions {
+  AdaptiveEpsilonOptions gate = ScanAdaptiveEpsilonOptions();     // read for its median ε² only
+  AdaptiveEpsilonOptions detail = DetailAdaptiveEpsilonOptions();  // the per-face ε² of a curved mesh
+  // Per-face ε² only when the gate rule's median ε² on the pre-pass is at least this, (0, 4]. Measured on the
+  // benchmark meshes (BENCHMARKS.md "Adaptive ε"): CAD shapes 1.4e-4–1.0e-3, scans 9.7e-3–1.8e-2, noise level
+  // given or estimated; 3e-3 sits between them (a factor ≥ 3 from each side).
+  double min_gate_median_epsilon_squared = 3e-3;
+  void Check() const;
+};
+
+// What `rangebayes smooth` uses for the square-root prior (its default; --no-adaptive-eps turns it off): one
+// fast pre-pass Smooth(noisy, options with the fast tolerance and the global ε²), then two O(#F) rules on its
+// result. The gate rule (ScanAdaptiveEpsilonOptions) tells a piecewise-flat shape from a curved one: on a
+// smoothed CAD shape nearly every face is flat (median ε² ≈ the minimum), on a smoothed scan the faces are
+// small facets of a curved surface. Piecewise flat: returns an empty vector (keep the global ε², the paper's
+// sharp prior: CAD results are those of the default); curved: the detail rule's ε² (#F values in [min(the
+// global ε², 1), 1]). With the true noise level every issue target is met (igea 0.3 9.92°, child 0.3 6.87°);
+// cost: one fast smoothing run on top of the main run (≈ 0.3–0.6× its CPU time). `options` must use the
+// square-root prior (Error otherwise); options.face_epsilon_squared is ignored.
+std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
+                                        const AutoAdaptiveEpsilonOptions& rule = {},
+                                        AdaptiveEpsilonSummary* summary = nullptr);
 
 }  // namespace rangebayes

@@ -1,16 +1,25 @@
 // Adaptive ε benchmark (BENCHMARKS.md "Bayesian smoothing" → "Adaptive ε"): the square-root prior with one ε²
 // per face from bayes/adaptive_epsilon.h, on every denoising case of the benchmark meshes.
 //
-//   bench_adaptive quality [--data DIR] [--reference gt|prepass|none] [--rule scan] [--statistic median|mean]
+//   bench_adaptive quality [--data DIR] [--reference gt|prepass|twice|auto|smoothref|none] [--rule scan] [--statistic median|mean]
 //                          [--scale C] [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
 //                          [--max E2] [--cases a,b,...] [--estimate] [--baseline]
 //     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
 //     --reference prepass  the rule on the noisy input smoothed once with the default (global ε² = 1e-4,
 //                          fast tolerance): what a real run can do; the pre-pass time is included
 //     --reference twice    AdaptiveEpsilonTwoPass: the --rule result (fast) as the reference of the median rule
-//                          (scale --second-scale, default 4); what `rangebayes smooth --adaptive-eps` does
+//                          (scale --second-scale, default 4); the second session's opt-in (superseded by auto)
+//     --reference auto     AdaptiveEpsilonAuto (what `rangebayes smooth` does by default for --prior sqrt): one
+//                          fast pre-pass, the gate, then the detail rule or the global ε²
+//     --reference smoothref  the rule on a smoother reference (--ref-eps2 E global ε² or --ref-prior quadratic,
+//                          --ref-beta, --ref-tolerance), crease protection from the default pre-pass
+//                          (--protect-from prepass|self); prints the reference's pair-d median / q90 and MAE
 //     --reference none     the default smoother (global ε²), for comparison
-//     --rule scan          start from ScanAdaptiveEpsilonOptions() (what `rangebayes smooth --adaptive-eps` uses)
+//     --normal-rings N     average the reference's face normals over N vertex rings first (the detail rule: 4)
+//     --beta B             prior weight of every run (default 2.4); --second-scale / --second-normal-rings /
+//                          --second-rings / --second-protect D set the second rule of --reference twice,
+//                          --extra-passes N repeats it on a fast run with its own ε²
+//     --rule scan          start from ScanAdaptiveEpsilonOptions() (the gate rule of auto)
 //     --baseline           also run the default smoother and print its MAE beside
 #include <sys/resource.h>
 
@@ -28,6 +37,7 @@
 #include "bayes/smooth.h"
 #include "core/mesh_io.h"
 #include "core/normal_error.h"
+#include "core/topology.h"
 
 using namespace rangebayes;
 
@@ -54,6 +64,25 @@ std::vector<Case> Cases() {
   };
 }
 
+// Median and 90th percentile of the normal difference d = ‖n_s − n_t‖ over the face pairs of `mesh`.
+std::pair<double, double> PairDifferenceQuantiles(const Mesh& mesh) {
+  const IndexPairs pairs = ComputeFacePairs(mesh);
+  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(mesh.num_faces()));
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
+    normal[static_cast<size_t>(f)] =
+        (mesh.V.row(mesh.F(f, 1)).transpose() - a).cross(mesh.V.row(mesh.F(f, 2)).transpose() - a).normalized();
+  }
+  std::vector<double> d;
+  for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
+    const double x = (normal[static_cast<size_t>(pairs(p, 0))] - normal[static_cast<size_t>(pairs(p, 1))]).norm();
+    if (std::isfinite(x)) d.push_back(x);
+  }
+  if (d.empty()) return {0, 0};
+  std::sort(d.begin(), d.end());
+  return {d[d.size() / 2], d[d.size() * 9 / 10]};
+}
+
 double CpuSeconds() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -67,8 +96,9 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 int Quality(std::map<std::string, std::string>& flags) {
   const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
   const std::string reference = flags.count("--reference") ? flags["--reference"] : "prepass";
-  if (reference != "gt" && reference != "prepass" && reference != "none" && reference != "twice") {
-    std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass or none\n");
+  if (reference != "gt" && reference != "prepass" && reference != "none" && reference != "twice" &&
+      reference != "smoothref" && reference != "auto") {
+    std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass, twice, auto, smoothref or none\n");
     return 2;
   }
   AdaptiveEpsilonOptions rule;
@@ -88,6 +118,7 @@ int Quality(std::map<std::string, std::string>& flags) {
     rule.statistic = s == "median" ? AdaptiveEpsilonStatistic::kMedian : AdaptiveEpsilonStatistic::kTruncatedMean;
   }
   if (flags.count("--scale")) rule.scale = std::stod(flags["--scale"]);
+  if (flags.count("--normal-rings")) rule.normal_smoothing_rings = std::stoi(flags["--normal-rings"]);
   if (flags.count("--rings")) rule.ring_iterations = std::stoi(flags["--rings"]);
   if (flags.count("--truncate")) rule.truncate_normal_difference = std::stod(flags["--truncate"]);
   if (flags.count("--protect")) rule.protect_normal_difference = std::stod(flags["--protect"]);
@@ -100,6 +131,7 @@ int Quality(std::map<std::string, std::string>& flags) {
   const bool baseline = flags.count("--baseline") > 0;
   const std::string selected = flags.count("--cases") ? flags["--cases"] : "";
 
+  std::printf("normal smoothing rings %d\n", rule.normal_smoothing_rings);
   std::printf("reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
               "eps2 in [%g, %g], noise level %s\n",
               reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
@@ -117,6 +149,7 @@ int Quality(std::map<std::string, std::string>& flags) {
     if (!estimate) noise.noise_edge_multiple = c.k;
     const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
     SmoothOptions options;
+    if (flags.count("--beta")) options.prior_weight = std::stod(flags["--beta"]);
     double baseline_mae = std::nan("");
     if (baseline) baseline_mae = MeanAngularErrorDeg(Smooth(input, options), gt);
 
@@ -124,16 +157,62 @@ int Quality(std::map<std::string, std::string>& flags) {
     const auto start = std::chrono::steady_clock::now();
     AdaptiveEpsilonSummary rule_summary;
     double prepass_s = 0;
+    std::string ref_info;
     if (reference == "gt") {
       options.face_epsilon_squared = AdaptiveEpsilonSquared(gt, rule, &rule_summary);
     } else if (reference == "prepass") {
       options.face_epsilon_squared = AdaptiveEpsilonFromPrepass(input, options, rule, &rule_summary);
       prepass_s = Seconds(start);
+    } else if (reference == "auto") {
+      // AdaptiveEpsilonAuto exactly as `rangebayes smooth` uses it (the rule flags above are not applied;
+      // --gate changes the gate threshold for scans of it).
+      AutoAdaptiveEpsilonOptions automatic;
+      if (flags.count("--gate")) automatic.min_gate_median_epsilon_squared = std::stod(flags["--gate"]);
+      options.face_epsilon_squared = AdaptiveEpsilonAuto(input, options, automatic, &rule_summary);
+      prepass_s = Seconds(start);
+      ref_info = " gate median eps2 " + std::to_string(rule_summary.gate_median_epsilon_squared).substr(0, 7) +
+                 (rule_summary.per_face ? ": per-face eps2" : ": global eps2 kept");
+    } else if (reference == "smoothref") {
+      // The rule on a smoother reference (global --ref-eps2, or --ref-prior quadratic), protection read from the
+      // default fast pre-pass (--protect-from prepass) or from the reference itself.
+      SmoothOptions ref = options;
+      ref.tolerance = flags.count("--ref-tolerance") ? ParseSmoothTolerance(flags["--ref-tolerance"])
+                                                     : SmoothTolerance::kFast;
+      ref.sqrt_epsilon_squared = flags.count("--ref-eps2") ? std::stod(flags["--ref-eps2"]) : 0.05;
+      if (flags.count("--ref-prior")) ref.prior = ParsePriorKind(flags["--ref-prior"]);
+      if (flags.count("--ref-beta")) ref.prior_weight = std::stod(flags["--ref-beta"]);
+      const Mesh reference_mesh = Smooth(input, ref);
+      const auto [d50, d90] = PairDifferenceQuantiles(reference_mesh);
+      ref_info = "ref d50 " + std::to_string(d50).substr(0, 5) + " d90 " + std::to_string(d90).substr(0, 5) +
+                 " MAE " + std::to_string(MeanAngularErrorDeg(reference_mesh, gt)).substr(0, 5);
+      const std::string from = flags.count("--protect-from") ? flags["--protect-from"] : "prepass";
+      if (from == "prepass") {
+        SmoothOptions pre = options;
+        pre.tolerance = SmoothTolerance::kFast;
+        const Mesh prepass = Smooth(input, pre);
+        options.face_epsilon_squared = AdaptiveEpsilonSquared(reference_mesh, prepass, rule, &rule_summary);
+      } else {
+        options.face_epsilon_squared = AdaptiveEpsilonSquared(reference_mesh, rule, &rule_summary);
+      }
+      prepass_s = Seconds(start);
     } else if (reference == "twice") {
       // The --rule result (fast) as the reference of a second rule (the median rule, scale --second-scale).
       AdaptiveEpsilonOptions second;
       if (flags.count("--second-scale")) second.scale = std::stod(flags["--second-scale"]);
+      if (flags.count("--second-normal-rings")) second.normal_smoothing_rings = std::stoi(flags["--second-normal-rings"]);
+      if (flags.count("--second-rings")) second.ring_iterations = std::stoi(flags["--second-rings"]);
+      if (flags.count("--second-protect")) {
+        second.protect_normal_difference = std::stod(flags["--second-protect"]);
+        second.protect_rings = 1;
+        second.protect_min_crease_degree = 2;
+      }
       options.face_epsilon_squared = AdaptiveEpsilonTwoPass(input, options, rule, second, &rule_summary);
+      const int extra = flags.count("--extra-passes") ? std::stoi(flags["--extra-passes"]) : 0;
+      for (int pass = 0; pass < extra; ++pass) {
+        SmoothOptions fast = options;
+        fast.tolerance = SmoothTolerance::kFast;
+        options.face_epsilon_squared = AdaptiveEpsilonSquared(Smooth(input, fast), second, &rule_summary);
+      }
       prepass_s = Seconds(start);
     }
     const Mesh result = Smooth(input, options);
@@ -142,9 +221,9 @@ int Quality(std::map<std::string, std::string>& flags) {
     char base[32], target[32];
     std::snprintf(base, sizeof base, std::isnan(baseline_mae) ? "–" : "%.2f", baseline_mae);
     std::snprintf(target, sizeof target, std::isnan(c.target) ? "–" : "%.1f", c.target);
-    std::printf("| %s | %s | %s | %.3f | %.2g / %.2g / %.2g | %.2f | %.2f | %.2f |\n", c.name.c_str(), target, base,
+    std::printf("| %s | %s | %s | %.3f | %.2g / %.2g / %.2g | %.2f | %.2f | %.2f |%s\n", c.name.c_str(), target, base,
                 mae, rule_summary.p10_epsilon_squared, rule_summary.median_epsilon_squared,
-                rule_summary.p90_epsilon_squared, prepass_s, total_s, cpu);
+                rule_summary.p90_epsilon_squared, prepass_s, total_s, cpu, ref_info.c_str());
     std::fflush(stdout);
   }
   return 0;
