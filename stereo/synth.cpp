@@ -60,6 +60,10 @@ void SynthOptions::Check() const {
   RB_CHECK(optics_blur_px >= 0.0 && optics_blur_px <= 5.0, "optics_blur_px ", optics_blur_px, " is outside 0–5");
   RB_CHECK(ambient >= 0.0 && ambient <= 1.0, "ambient ", ambient, " is outside 0–1");
   RB_CHECK(supersample >= 1 && supersample <= 8, "supersample ", supersample, " is outside 1–8");
+  RB_CHECK(pixel_jitter_px >= 0.0 && pixel_jitter_px <= 2.0, "pixel_jitter_px ", pixel_jitter_px,
+           " is outside 0–2");
+  RB_CHECK(pixel_jitter_cell_px >= 1.0 && pixel_jitter_cell_px <= 256.0, "pixel_jitter_cell_px ",
+           pixel_jitter_cell_px, " is outside 1–256");
 }
 
 namespace {
@@ -252,16 +256,74 @@ struct Projector {
   double cos_roll = 1, sin_roll = 0;  // rotation of the projector image about its axis
 };
 
+// Smooth random pixel offsets δ(u, v) in left-image coordinates: N(0, σ²) values on a grid of `cell` pixels,
+// bilinearly interpolated with the weights renormalised by sqrt(Σ w²), so every point's δ is exactly
+// N(0, σ²) per component (plain interpolation would shrink the variance between the grid nodes).
+class JitterField {
+ public:
+  JitterField() = default;
+  JitterField(double sigma_px, double cell_px, int width, int height, std::uint64_t seed) : cell_(cell_px) {
+    gw_ = static_cast<int>(std::ceil(width / cell_px)) + 2;
+    gh_ = static_cast<int>(std::ceil(height / cell_px)) + 2;
+    std::mt19937_64 rng(seed * 0x2545F4914F6CDD1DULL + 0x5851F42D4C957F2DULL);
+    std::normal_distribution<double> gauss(0.0, sigma_px);
+    nodes_.resize(static_cast<size_t>(gw_) * gh_);
+    for (auto& n : nodes_) n = Eigen::Vector2d(gauss(rng), gauss(rng));
+  }
+  bool empty() const { return nodes_.empty(); }
+  Eigen::Vector2d At(double u, double v) const {
+    const double x = std::clamp(u / cell_, 0.0, gw_ - 1.001), y = std::clamp(v / cell_, 0.0, gh_ - 1.001);
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const double fx = x - x0, fy = y - y0;
+    const double w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
+    const Eigen::Vector2d* r0 = nodes_.data() + static_cast<size_t>(y0) * gw_ + x0;
+    const Eigen::Vector2d* r1 = r0 + gw_;
+    return (w00 * r0[0] + w10 * r0[1] + w01 * r1[0] + w11 * r1[1]) /
+           std::sqrt(w00 * w00 + w10 * w10 + w01 * w01 + w11 * w11);
+  }
+
+ private:
+  double cell_ = 1.0;
+  int gw_ = 0, gh_ = 0;
+  std::vector<Eigen::Vector2d> nodes_;
+};
+
+// The ray (origin, direction with z = 1) that camera sample (su, sv) is rendered from. Without jitter, the
+// ray through the sample. With jitter, the left camera's ray passes through (su, sv) + δ(su, sv); the right
+// camera's through (su, sv) + δ(ul, sv), where ul is the left-image position of the surface point it sees
+// (found by fixed-point iteration, since that point itself moves with δ): both cameras then see the point
+// with the same δ, so the correspondence keeps its true disparity.
+Vector3d SampleRay(const std::vector<Primitive>& scene, const JitterField& jitter, bool right_camera,
+                   const Vector3d& camera_center, double f, double cx, double cy, double su, double sv) {
+  Vector3d d((su - cx) / f, (sv - cy) / f, 1.0);
+  if (jitter.empty()) return d;
+  if (!right_camera) {
+    const Eigen::Vector2d delta = jitter.At(su, sv);
+    return Vector3d((su + delta.x() - cx) / f, (sv + delta.y() - cy) / f, 1.0);
+  }
+  Eigen::Vector2d delta = Eigen::Vector2d::Zero();
+  for (int iter = 0; iter < 4; ++iter) {
+    const Hit hit = CastRay(scene, camera_center, d, 1e-6);
+    if (!std::isfinite(hit.t)) return d;
+    const Vector3d p = camera_center + hit.t * d;
+    // Left-image position of p without jitter, minus the δ that the left camera adds there.
+    const double ul = f * p.x() / p.z() + cx - delta.x();
+    delta = jitter.At(ul, sv);
+    d = Vector3d((su + delta.x() - cx) / f, (sv + delta.y() - cy) / f, 1.0);
+  }
+  return d;
+}
+
 std::vector<Sample> GeometrySamples(const std::vector<Primitive>& scene, const Projector& proj,
                                    const Vector3d& camera_center, double f, double cx, double cy, int w, int h,
-                                   int ss) {
+                                   int ss, const JitterField& jitter, bool right_camera) {
   std::vector<Sample> samples(static_cast<size_t>(w) * h * ss * ss);
   tbb::parallel_for(0, h, [&](int v) {
     for (int u = 0; u < w; ++u) {
       for (int j = 0; j < ss; ++j) {
         for (int i = 0; i < ss; ++i) {
           const double su = u + (i + 0.5) / ss - 0.5, sv = v + (j + 0.5) / ss - 0.5;
-          const Vector3d d((su - cx) / f, (sv - cy) / f, 1.0);
+          const Vector3d d = SampleRay(scene, jitter, right_camera, camera_center, f, cx, cy, su, sv);
           Sample& s = samples[((static_cast<size_t>(v) * w + u) * ss + j) * ss + i];
           const Hit hit = CastRay(scene, camera_center, d, 1e-6);
           if (!std::isfinite(hit.t)) continue;
@@ -415,8 +477,13 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   proj.cx = 0.5 * pw;
   proj.cy = 0.5 * ph;
 
-  const std::vector<Sample> left = GeometrySamples(scene, proj, Vector3d::Zero(), f, cx, cy, w, h, ss);
-  const std::vector<Sample> right = GeometrySamples(scene, proj, Vector3d(B, 0, 0), f, cx, cy, w, h, ss);
+  const JitterField jitter = options.pixel_jitter_px > 0.0
+                                 ? JitterField(options.pixel_jitter_px, options.pixel_jitter_cell_px, w, h, options.seed)
+                                 : JitterField();
+  const std::vector<Sample> left =
+      GeometrySamples(scene, proj, Vector3d::Zero(), f, cx, cy, w, h, ss, jitter, /*right_camera=*/false);
+  const std::vector<Sample> right =
+      GeometrySamples(scene, proj, Vector3d(B, 0, 0), f, cx, cy, w, h, ss, jitter, /*right_camera=*/true);
   for (int t = 0; t < options.frames; ++t) {
     const PatternImage pattern(options.pattern, t, options.frames, pw, ph, options.seed);
     const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
@@ -429,9 +496,15 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   rec.depth_m.create(h, w, CV_32F);
   rec.disparity_px.create(h, w, CV_32F);
+  if (!jitter.empty()) rec.pixel_jitter_px.create(h, w, CV_32FC2);
   tbb::parallel_for(0, h, [&](int v) {
     for (int u = 0; u < w; ++u) {
-      const Hit hit = CastRay(scene, Vector3d::Zero(), Vector3d((u - cx) / f, (v - cy) / f, 1.0), 1e-6);
+      const Vector3d ray = SampleRay(scene, jitter, /*right_camera=*/false, Vector3d::Zero(), f, cx, cy, u, v);
+      if (!jitter.empty()) {
+        rec.pixel_jitter_px.at<cv::Vec2f>(v, u) =
+            cv::Vec2f(static_cast<float>(ray.x() * f + cx - u), static_cast<float>(ray.y() * f + cy - v));
+      }
+      const Hit hit = CastRay(scene, Vector3d::Zero(), ray, 1e-6);
       const bool ok = std::isfinite(hit.t) && hit.t > 0.0;
       rec.depth_m.at<float>(v, u) = ok ? static_cast<float>(hit.t) : nan;
       rec.disparity_px.at<float>(v, u) = ok ? static_cast<float>(f * B / hit.t) : nan;
@@ -451,6 +524,8 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   meta["seed"] = std::to_string(options.seed);
   meta["baseline_m"] = std::to_string(options.baseline_m);
   meta["focal_px"] = std::to_string(recording.intrinsics.fx_px);
+  meta["pixel_jitter_px"] = std::to_string(options.pixel_jitter_px);
+  meta["pixel_jitter_cell_px"] = std::to_string(options.pixel_jitter_cell_px);
   RecordingWriterOptions writer_options;
   writer_options.overwrite = write_options.overwrite;
   writer_options.png_compression = 9;
@@ -471,6 +546,19 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   RB_CHECK(!ec, gt.string(), ": cannot create folder (", ec.message(), ")");
   WritePfm(recording.depth_m, (gt / "depth_left_m.pfm").string());
   WritePfm(recording.disparity_px, (gt / "disparity_left_px.pfm").string());
+  if (!recording.pixel_jitter_px.empty()) {
+    // The true point of each left pixel's (jittered) ray: Z·((u + δu − cx)/f, (v + δv − cy)/f, 1).
+    const CameraIntrinsics& k = recording.intrinsics;
+    cv::Mat points(recording.depth_m.size(), CV_32FC3);
+    for (int v = 0; v < points.rows; ++v)
+      for (int u = 0; u < points.cols; ++u) {
+        const float z = recording.depth_m.at<float>(v, u);
+        const cv::Vec2f delta = recording.pixel_jitter_px.at<cv::Vec2f>(v, u);
+        points.at<cv::Vec3f>(v, u) = cv::Vec3f(static_cast<float>((u + delta[0] - k.cx_px) / k.fx_px * z),
+                                               static_cast<float>((v + delta[1] - k.cy_px) / k.fy_px * z), z);
+      }
+    WritePfm(points, (gt / "points_left_m.pfm").string());
+  }
 }
 
 }  // namespace rangebayes

@@ -47,6 +47,16 @@ struct SynthOptions {
   double optics_blur_px = 0.5;     // 0–5: σ of the lens blur (Gaussian), camera pixels
   double ambient = 0.08;           // 0–1: light not from the projector (share of full scale)
   int supersample = 3;             // 1–8: samples per pixel side (anti-aliased stripes and edges)
+  // Pixel localisation error (DESIGN.md §2, σ_px): 0–2 px, 0 off. The left pixel (u, v) is rendered from the
+  // ray through (u + δu, v + δv), δ ~ N(0, σ²) per component, fixed for the whole sequence: a residual
+  // distortion of the rectified rig that calibration did not capture. The field is smooth (random values
+  // on a grid of pixel_jitter_cell_px, interpolated with weights renormalised so each pixel's δ stays
+  // exactly N(0, σ²)), and the right camera sees each surface point with the same δ as the left camera,
+  // so the disparity stays exact and the reconstructed point errs only across the ray, by Z/f·|δ|: the
+  // lateral term of the stereo covariance. The ground truth (depth_m, disparity_px) is that of the
+  // jittered ray; pixel_jitter_px holds δ.
+  double pixel_jitter_px = 0.0;
+  double pixel_jitter_cell_px = 8.0;  // 1–256: correlation length of the jitter field, camera pixels
   void Check() const;
 };
 
@@ -57,6 +67,8 @@ struct SynthRecording {
   std::vector<int> pattern_ids;
   cv::Mat depth_m;                   // CV_32F ground truth in the left view (Z at the pixel centre), NaN none
   cv::Mat disparity_px;              // CV_32F f·B/Z, NaN none
+  cv::Mat pixel_jitter_px;           // CV_32FC2 (δu, δv) per left pixel: its ray passes through (u+δu, v+δv);
+                                     // empty when pixel_jitter_px is 0 (the ray through the pixel centre)
   StereoRig rig;                     // is_rectified, P1/P2 filled
   CameraIntrinsics intrinsics;
 };
@@ -66,7 +78,8 @@ struct SynthRecording {
 SynthRecording RenderSynthetic(const SynthOptions& options);
 
 // Writes the recording format of capture/recording.h into FOLDER (rig.yaml, meta.yaml, frames.csv,
-// left/ right/ PNGs) plus ground_truth/depth_left_m.pfm and ground_truth/disparity_left_px.pfm. Throws Error
+// left/ right/ PNGs) plus ground_truth/depth_left_m.pfm and ground_truth/disparity_left_px.pfm (and, with pixel
+// jitter, ground_truth/points_left_m.pfm: the true 3-D point of each left pixel's ray, 3-channel). Throws Error
 // when FOLDER already holds a recording and `overwrite` is false, or on a write failure.
 struct SynthWriteOptions {
   bool overwrite = false;

@@ -3,10 +3,12 @@
 
 #include <cmath>
 #include <filesystem>
+#include <vector>
 
 #include "capture/recording.h"
 #include "core/error.h"
 #include "stereo/pfm.h"
+#include "stereo/spacetime_matcher.h"
 #include "stereo/synth.h"
 
 namespace rangebayes {
@@ -88,12 +90,61 @@ TEST(Synth, WritesARecordingThatReadsBack) {
   EXPECT_NO_THROW(WriteSyntheticRecording(rec, o, folder, w));
 }
 
+// Pixel jitter: δ has the asked σ, the ground truth is that of the jittered ray (a fronto-parallel plane keeps
+// its depth, the point's x moves by Z/f·δu), the space-time disparity stays as exact as without jitter (both
+// cameras see each point with the same δ), and the true points are written beside the depth.
+TEST(Synth, PixelJitterMovesRaysButKeepsTheDisparity) {
+  SynthOptions o = Small(SynthScene::kPlane);
+  o.width = 160;
+  o.height = 120;
+  o.frames = 8;
+  o.pixel_jitter_px = 0.3;
+  o.pixel_jitter_cell_px = 4.0;
+  const SynthRecording rec = RenderSynthetic(o);
+  ASSERT_EQ(rec.pixel_jitter_px.type(), CV_32FC2);
+  cv::Scalar mean, dev;
+  cv::meanStdDev(rec.pixel_jitter_px, mean, dev);
+  // 41×31 grid nodes per component: the field's sample σ is within a few % of 0.3 (10% allowed).
+  EXPECT_NEAR(dev[0], 0.3, 0.03);
+  EXPECT_NEAR(dev[1], 0.3, 0.03);
+  for (int y = 0; y < rec.depth_m.rows; y += 7)
+    for (int x = 0; x < rec.depth_m.cols; x += 5) EXPECT_NEAR(rec.depth_m.at<float>(y, x), 1.0, 1e-6);
+  SpaceTimeMatcherOptions m;
+  m.min_disparity_px = 4;
+  m.num_disparities = 24;
+  const DisparityResult r = SpaceTimeMatcher(m).Match(rec.left, rec.right);
+  std::vector<float> err;
+  for (int y = 5; y < rec.depth_m.rows - 5; ++y)
+    for (int x = 30; x < rec.depth_m.cols - 5; ++x) {
+      const float d = r.disparity_px.at<float>(y, x);
+      if (std::isfinite(d)) err.push_back(std::abs(d - rec.disparity_px.at<float>(y, x)));
+    }
+  ASSERT_GT(err.size(), 1000u);
+  std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
+  // Without jitter the median error on this plane is ~0.02 px; a disparity that followed δu would be off by
+  // its median |δu| = 0.67·0.3 = 0.2 px.
+  EXPECT_LT(err[err.size() / 2], 0.05);
+  const std::string folder = (std::filesystem::temp_directory_path() / "rangebayes_synth_jitter_test").string();
+  std::filesystem::remove_all(folder);
+  WriteSyntheticRecording(rec, o, folder);
+  const cv::Mat points = ReadPfm(folder + "/ground_truth/points_left_m.pfm");
+  ASSERT_EQ(points.type(), CV_32FC3);
+  const int u = 37, v = 21;
+  const cv::Vec2f delta = rec.pixel_jitter_px.at<cv::Vec2f>(v, u);
+  EXPECT_NEAR(points.at<cv::Vec3f>(v, u)[0], (u + delta[0] - rec.intrinsics.cx_px) / rec.intrinsics.fx_px, 1e-6);
+  EXPECT_NEAR(points.at<cv::Vec3f>(v, u)[2], 1.0, 1e-6);
+  std::filesystem::remove_all(folder);
+}
+
 TEST(Synth, BadOptionsThrow) {
   SynthOptions o;
   o.frames = 0;
   EXPECT_THROW(RenderSynthetic(o), Error);
   EXPECT_THROW(ParseSynthScene("teapot"), Error);
   EXPECT_THROW(ParseSynthPattern("checker"), Error);
+  SynthOptions j;
+  j.pixel_jitter_px = 3.0;
+  EXPECT_THROW(RenderSynthetic(j), Error);
 }
 
 }  // namespace
