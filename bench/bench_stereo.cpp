@@ -18,6 +18,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -69,6 +70,7 @@ void BM_SpaceTime640(benchmark::State& state) {
   const std::vector<cv::Mat> right(rec.right.begin(), rec.right.begin() + T);
   rb::SpaceTimeMatcherOptions m = Options640();
   m.subpixel_iterations = static_cast<int>(state.range(1));
+  if (state.range(3) > 0) m.edge_reject_jump_px = 1.0;
   rb::SpaceTimeMatcher matcher(m);
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(2)));
   double valid = 0;
@@ -79,15 +81,19 @@ void BM_SpaceTime640(benchmark::State& state) {
   }
   state.counters["valid"] = valid;
 }
-// Args: frames T, Gauss–Newton sub-pixel iterations (0: parabola only), threads.
+// Args: frames T, Gauss–Newton sub-pixel iterations (0: parabola only), threads, edge rejection (1: on, as
+// `rangebayes spacetime`).
 BENCHMARK(BM_SpaceTime640)
-    ->ArgNames({"T", "gn", "threads"})
-    ->Args({8, 0, 1})
-    ->Args({8, 0, 2})
-    ->Args({8, 2, 1})
-    ->Args({8, 2, 2})
-    ->Args({16, 0, 2})
-    ->Args({1, 0, 2})
+    ->ArgNames({"T", "gn", "threads", "edge"})
+    ->Args({8, 0, 1, 0})
+    ->Args({8, 0, 2, 0})
+    ->Args({8, 2, 1, 0})
+    ->Args({8, 2, 2, 0})
+    ->Args({16, 0, 2, 0})
+    ->Args({1, 0, 2, 0})
+    ->Args({8, 1, 2, 1})
+    ->Args({16, 1, 1, 1})
+    ->Args({16, 1, 2, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime();
@@ -371,64 +377,125 @@ void QualityGrayCode(const std::string& data) {
   }
 }
 
+// Matcher configuration of the synthetic-scene table (command-line overrides, see main()).
+// Defaults: the configuration of `rangebayes spacetime` (1 Gauss–Newton step, edge rejection 1 px/px).
+struct SynthConfig {
+  std::vector<int> frames = {8, 16};
+  std::vector<int> windows = {5};
+  std::vector<double> noises = {2.0, 4.0};
+  int gn = 1;              // Gauss–Newton steps (−1: matcher default, parabola only)
+  double lr = -2.0;        // left-right max diff (−2: default)
+  double jump = -2.0;      // neighbour_jump_px (−2: default)
+  double max_sigma = -1;   // max_sigma_disparity_px (−1: default)
+  std::string scenes = "planes,box,sphere,cylinder,stairs";
+  double noise_free = -1;  // if ≥ 0: rendered noise override (the matcher still assumes `noise`)
+  std::string cost = "auto";  // auto, ssd, zncc-time, zncc-space
+  double edge = 1.0;          // edge_reject_jump_px (−2: matcher default, off)
+  int sigmafit_gn = 0;        // Gauss–Newton steps of the σ_d fit (--quality=sigmafit)
+};
+SynthConfig g_synth;
+
+std::vector<std::string> SplitCommas(const std::string& s) {
+  std::vector<std::string> out;
+  size_t a = 0;
+  while (a <= s.size()) {
+    const size_t b = std::min(s.find(',', a), s.size());
+    if (b > a) out.push_back(s.substr(a, b - a));
+    a = b + 1;
+  }
+  return out;
+}
+
 void QualitySynth() {
-  std::printf("Synthetic scenes 320x240, f = 320 px, B = 0.1 m, random pattern; depth and disparity RMS over pixels\n"
-              "both methods measured (depth-edge pixels included), frame 0 for SGBM\n");
-  std::printf("%-9s %5s %6s %22s %22s %8s %10s %10s %8s\n", "scene", "noise", "T", "SGBM rms d / Z (mm)",
-              "space-time d / Z (mm)", "ratio Z", "SGBM Z*", "ST Z*", "ratio*");
+  const SynthConfig& c = g_synth;
+  std::printf("Synthetic scenes 320x240, f = 320 px, B = 0.1 m, random pattern, seed 5; depth and disparity RMS over\n"
+              "pixels both methods measured (depth-edge pixels included), frame 0 for SGBM; coverage = valid share of\n"
+              "pixels with ground truth; bias = mean signed disparity error (measured - true) away from edges\n");
+  std::printf("%-9s %5s %3s %2s %20s %20s %7s %9s %9s %7s %7s %7s %8s %8s\n", "scene", "noise", "T", "w",
+              "SGBM rms d / Z (mm)", "ST rms d / Z (mm)", "ratioZ", "SGBM Z*", "ST Z*", "ratio*", "cov SG", "cov ST",
+              "bias SG", "bias ST");
   std::printf("(* = pixels at least 3 px from a depth edge)\n");
-  for (double noise : {2.0, 4.0}) {
-    for (const auto scene : {rb::SynthScene::kPlanes, rb::SynthScene::kBox, rb::SynthScene::kSphere,
-                             rb::SynthScene::kCylinder, rb::SynthScene::kStairs}) {
-      for (int T : {8, 16}) {
+  std::map<std::pair<int, int>, std::pair<double, double>> worst;  // (T, w) → worst ratio Z, Z*
+  std::printf("space-time: Gauss-Newton steps %d, edge rejection %.2f px/px, cost %s\n", c.gn, c.edge, c.cost.c_str());
+  for (double noise : c.noises) {
+    for (const std::string& scene_name : SplitCommas(c.scenes)) {
+      const rb::SynthScene scene = rb::ParseSynthScene(scene_name);
+      for (int T : c.frames) {
         rb::SynthOptions so;
         so.scene = scene;
         so.frames = T;
-        so.image_noise_gray = noise;
+        so.image_noise_gray = c.noise_free >= 0 ? c.noise_free : noise;
         so.seed = 5;
         const rb::SynthRecording rec = rb::RenderSynthetic(so);
         rb::SgbmMatcherOptions go;
         go.min_disparity_px = 8;
         go.num_disparities = 48;
         const auto rs = rb::SgbmMatcher(go).Match({rec.left[0]}, {rec.right[0]});
-        rb::SpaceTimeMatcherOptions mo;
-        mo.min_disparity_px = 8;
-        mo.num_disparities = 48;
-        mo.image_noise_gray = noise;
-        const auto rt = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
-        double sd_s = 0, sd_t = 0, sz_s = 0, sz_t = 0, ez_s = 0, ez_t = 0;
-        int n = 0, ne = 0;
-        const double fb = rec.intrinsics.fx_px * so.baseline_m;
-        for (int y = 0; y < rec.depth_m.rows; ++y)
-          for (int x = 0; x < rec.depth_m.cols; ++x) {
-            const float a = rs.disparity_px.at<float>(y, x), b = rt.disparity_px.at<float>(y, x);
-            const float g = rec.disparity_px.at<float>(y, x);
-            if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(g)) continue;
-            sd_s += (a - g) * (a - g);
-            sd_t += (b - g) * (b - g);
-            const double z = fb / g;
-            sz_s += std::pow(fb / a - z, 2);
-            sz_t += std::pow(fb / b - z, 2);
-            ++n;
-            // Away from depth edges: no ground-truth disparity jump > 0.5 px within 3 px.
-            bool edge = false;
-            for (int k = -3; k <= 3 && !edge; ++k)
-              for (int l = -3; l <= 3 && !edge; ++l) {
-                const int yy = std::clamp(y + k, 0, rec.depth_m.rows - 1), xx = std::clamp(x + l, 0, rec.depth_m.cols - 1);
-                edge = std::abs(rec.disparity_px.at<float>(yy, xx) - g) > 0.5 + 0.3 * (std::abs(k) + std::abs(l));
+        for (int w : c.windows) {
+          rb::SpaceTimeMatcherOptions mo;
+          mo.min_disparity_px = 8;
+          mo.num_disparities = 48;
+          mo.image_noise_gray = noise;
+          mo.window_px = w;
+          if (c.gn >= 0) mo.subpixel_iterations = c.gn;
+          if (c.cost == "ssd") mo.cost = rb::SpaceTimeCost::kSsd;
+          if (c.cost == "zncc-time") mo.cost = rb::SpaceTimeCost::kZnccTime;
+          if (c.cost == "zncc-space") mo.cost = rb::SpaceTimeCost::kZnccSpace;
+          if (c.lr > -2) mo.left_right_max_diff_px = c.lr;
+          if (c.jump > -2) mo.neighbour_jump_px = c.jump;
+          if (c.max_sigma >= 0) mo.max_sigma_disparity_px = c.max_sigma;
+          if (c.edge > -2) mo.edge_reject_jump_px = c.edge;
+          const auto rt = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
+          double sd_s = 0, sd_t = 0, sz_s = 0, sz_t = 0, ez_s = 0, ez_t = 0, bias_s = 0, bias_t = 0;
+          int n = 0, ne = 0, gt_n = 0, cov_s = 0, cov_t = 0;
+          const double fb = rec.intrinsics.fx_px * so.baseline_m;
+          for (int y = 0; y < rec.depth_m.rows; ++y)
+            for (int x = 0; x < rec.depth_m.cols; ++x) {
+              const float a = rs.disparity_px.at<float>(y, x), b = rt.disparity_px.at<float>(y, x);
+              const float g = rec.disparity_px.at<float>(y, x);
+              if (!std::isfinite(g)) continue;
+              ++gt_n;
+              cov_s += std::isfinite(a);
+              cov_t += std::isfinite(b);
+              if (!std::isfinite(a) || !std::isfinite(b)) continue;
+              sd_s += (a - g) * (a - g);
+              sd_t += (b - g) * (b - g);
+              const double z = fb / g;
+              sz_s += std::pow(fb / a - z, 2);
+              sz_t += std::pow(fb / b - z, 2);
+              ++n;
+              // Away from depth edges: no ground-truth disparity jump > 0.5 px within 3 px.
+              bool edge = false;
+              for (int k = -3; k <= 3 && !edge; ++k)
+                for (int l = -3; l <= 3 && !edge; ++l) {
+                  const int yy = std::clamp(y + k, 0, rec.depth_m.rows - 1), xx = std::clamp(x + l, 0, rec.depth_m.cols - 1);
+                  edge = std::abs(rec.disparity_px.at<float>(yy, xx) - g) > 0.5 + 0.3 * (std::abs(k) + std::abs(l));
+                }
+              if (!edge) {
+                ez_s += std::pow(fb / a - z, 2);
+                ez_t += std::pow(fb / b - z, 2);
+                bias_s += a - g;
+                bias_t += b - g;
+                ++ne;
               }
-            if (!edge) {
-              ez_s += std::pow(fb / a - z, 2);
-              ez_t += std::pow(fb / b - z, 2);
-              ++ne;
             }
-          }
-        std::printf("%-9s %5.1f %6d %10.3f / %8.2f %10.3f / %8.2f %8.2f %10.2f %10.2f %8.2f\n",
-                    rb::ToString(scene).c_str(), noise, T, std::sqrt(sd_s / n), 1000 * std::sqrt(sz_s / n),
-                    std::sqrt(sd_t / n), 1000 * std::sqrt(sz_t / n), std::sqrt(sz_t / sz_s),
-                    1000 * std::sqrt(ez_s / ne), 1000 * std::sqrt(ez_t / ne), std::sqrt(ez_t / ez_s));
+          const double ratio = std::sqrt(sz_t / sz_s), ratio_star = std::sqrt(ez_t / ez_s);
+          auto& wr = worst[{T, w}];
+          wr.first = std::max(wr.first, ratio);
+          wr.second = std::max(wr.second, ratio_star);
+          std::printf("%-9s %5.1f %3d %2d %8.3f / %8.2f %8.3f / %8.2f %7.2f %9.2f %9.2f %7.2f %6.1f%% %6.1f%% %8.3f %8.3f\n",
+                      rb::ToString(scene).c_str(), noise, T, w, std::sqrt(sd_s / n), 1000 * std::sqrt(sz_s / n),
+                      std::sqrt(sd_t / n), 1000 * std::sqrt(sz_t / n), ratio, 1000 * std::sqrt(ez_s / ne),
+                      1000 * std::sqrt(ez_t / ne), ratio_star, 100.0 * cov_s / gt_n, 100.0 * cov_t / gt_n,
+                      bias_s / ne, bias_t / ne);
+          std::fflush(stdout);
+        }
       }
     }
+  }
+  for (const auto& [key, value] : worst) {
+    std::printf("T=%2d w=%d: worst ratio Z %.3f, worst ratio Z* %.3f over all rows (target <= 0.333: %s)\n", key.first,
+                key.second, value.first, value.second, value.first <= 1.0 / 3.0 ? "met" : "missed");
   }
 }
 
@@ -437,7 +504,8 @@ void QualitySynth() {
 // maximum likelihood over a grid of floor and k, residuals beyond 5σ left out as outliers (re-cut after
 // each fit). Prints the fit and the mean normalised squared residual per σ_pred quintile.
 void QualitySigmaFit() {
-  std::printf("sigma_d model fit: sigma^2 = floor^2 + (k*pred)^2, synthetic scenes 320x240, noise 2, seeds 5-6\n");
+  std::printf("sigma_d model fit: sigma^2 = floor^2 + (k*pred)^2, synthetic scenes 320x240, noise 2, seeds 5-6, "
+              "Gauss-Newton steps %d\n", g_synth.sigmafit_gn);
   for (int T : {1, 8, 16}) {
     std::vector<double> pred, err;
     for (const auto scene : {rb::SynthScene::kPlanes, rb::SynthScene::kSphere, rb::SynthScene::kBox,
@@ -456,6 +524,7 @@ void QualitySigmaFit() {
         mo.sigma_floor_px = 0.0;
         mo.sigma_scale = 1.0;
         mo.neighbour_jump_px = -1.0;  // J is added outside the floor-plus-scale form
+        mo.subpixel_iterations = g_synth.sigmafit_gn;
         const auto r = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
         for (int y = 0; y < rec.depth_m.rows; ++y)
           for (int x = 0; x < rec.depth_m.cols; ++x) {
@@ -521,6 +590,24 @@ int main(int argc, char** argv) {
       quality = a.substr(10);
     } else if (a.rfind("--data=", 0) == 0) {
       data = a.substr(7);
+    } else if (a.rfind("--synth-", 0) == 0 && a.find('=') != std::string::npos) {
+      // --synth-frames=8,16 --synth-windows=3,5 --synth-noises=2,4 --synth-scenes=box,... --synth-gn=2
+      // --synth-lr=1 --synth-jump=1 --synth-max-sigma=0 --synth-render-noise=0
+      const std::string key = a.substr(8, a.find('=') - 8), value = a.substr(a.find('=') + 1);
+      auto ints = [&] { std::vector<int> v; for (const auto& t : SplitCommas(value)) v.push_back(std::stoi(t)); return v; };
+      if (key == "frames") g_synth.frames = ints();
+      else if (key == "windows") g_synth.windows = ints();
+      else if (key == "noises") { g_synth.noises.clear(); for (const auto& t : SplitCommas(value)) g_synth.noises.push_back(std::stod(t)); }
+      else if (key == "scenes") g_synth.scenes = value;
+      else if (key == "gn") g_synth.gn = std::stoi(value);
+      else if (key == "cost") g_synth.cost = value;
+      else if (key == "edge") g_synth.edge = std::stod(value);
+      else if (key == "sigmafit-gn") g_synth.sigmafit_gn = std::stoi(value);
+      else if (key == "lr") g_synth.lr = std::stod(value);
+      else if (key == "jump") g_synth.jump = std::stod(value);
+      else if (key == "max-sigma") g_synth.max_sigma = std::stod(value);
+      else if (key == "render-noise") g_synth.noise_free = std::stod(value);
+      else { std::fprintf(stderr, "bench_stereo: unknown option %s\n", a.c_str()); return 2; }
     } else {
       rest.push_back(argv[i]);
     }
