@@ -236,6 +236,13 @@ void RunLearn(const LearnArgs& args) {
               summary.initial_data_loss / std::max(1, summary.num_vertices), prior.training_mse_le2,
               100.0 * (summary.final_data_loss / summary.initial_data_loss - 1.0), summary.iterations,
               summary.total_time_s, summary.termination.c_str());
+  const SecondWell well = FindSecondWell(SplinePotential(options.spline, theta));
+  if (well.found) {
+    std::printf("second well: phi has a local minimum at d = %.3f (depth %.4f below the barrier at d = %.3f and "
+                "phi(1.8))\n", well.well_d, well.depth, well.barrier_d);
+  } else {
+    std::printf("second well: none (phi has no strict local minimum in d = [1.2, 1.6])\n");
+  }
   std::printf("wrote %s and %s\n", args.out.c_str(), plot.c_str());
 }
 

@@ -25,8 +25,31 @@ struct PairProblem {
   std::unique_ptr<SmoothingEnergy> energy;
   Eigen::VectorXd truth;
   double scale = 0;
+  double edge_length = 0;
+  Eigen::VectorXd weight;  // per coordinate (3 per vertex); empty: all 1
   IndexPairs face_pairs;
 };
+
+Eigen::Vector3d TruthNormal(const Mesh& mesh, int f) {
+  const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0));
+  const Eigen::Vector3d c =
+      (Eigen::Vector3d(mesh.V.row(mesh.F(f, 1))) - a).cross(Eigen::Vector3d(mesh.V.row(mesh.F(f, 2))) - a);
+  const double length = c.norm();
+  return length > 1e-300 ? (c / length).eval() : Eigen::Vector3d::Zero().eval();
+}
+
+// LearnPriorOptions::feature_vertex_weight: the vertices shared by face pairs across a crease of the truth.
+Eigen::VectorXd FeatureWeights(const Mesh& truth, const LearnPriorOptions& options) {
+  const std::vector<bool> feature = CreaseVertices(truth, options.feature_min_d);
+  const long long count = std::count(feature.begin(), feature.end(), true);
+  const double n = truth.num_vertices();
+  const double mean = (n + (options.feature_vertex_weight - 1) * count) / n;
+  Eigen::VectorXd weight(3 * truth.num_vertices());
+  for (int i = 0; i < truth.num_vertices(); ++i) {
+    weight.segment<3>(3 * i).setConstant((feature[i] ? options.feature_vertex_weight : 1.0) / mean);
+  }
+  return weight;
+}
 
 std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
                                  const Potential& potential) {
@@ -46,10 +69,14 @@ std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const L
     const double le = MeanEdgeLength(pair.truth);
     RB_CHECK(le > 0 && pair.truth.num_vertices() > 0, "learn prior: pair '", pair.name, "' has no edges");
     problems[p].scale = 1.0 / (le * le);
+    problems[p].edge_length = le;
     if (options.loss_weighting == LossWeighting::kPerObject) {
       problems[p].scale *= static_cast<double>(total_vertices) / (pairs.size() * pair.truth.num_vertices());
     }
     problems[p].face_pairs = ComputeFacePairs(pair.truth);
+    if (options.feature_vertex_weight != 1.0) {
+      problems[p].weight = FeatureWeights(pair.truth, options);
+    }
   }
   return problems;
 }
@@ -64,7 +91,8 @@ SmoothOptions SmoothOptionsFor(const LearnPriorOptions& options, const Potential
 }
 
 double PairDataLoss(const PairProblem& problem, const Eigen::VectorXd& x) {
-  return (x - problem.truth).squaredNorm() * problem.scale;
+  if (problem.weight.size() == 0) return (x - problem.truth).squaredNorm() * problem.scale;
+  return problem.weight.dot((x - problem.truth).cwiseAbs2()) * problem.scale;
 }
 
 // Unit normals and 1/|c_t| of every face at x (zero for degenerate faces).
@@ -239,6 +267,21 @@ int MinimiseFrom(const SmoothingEnergy& energy, double gradient_stop, int max_it
 
 }  // namespace
 
+std::vector<bool> CreaseVertices(const Mesh& truth, double min_d) {
+  const IndexPairs face_pairs = ComputeFacePairs(truth);
+  std::vector<bool> crease(truth.num_vertices(), false);
+  for (int k = 0; k < face_pairs.rows(); ++k) {
+    const int s = face_pairs(k, 0), t = face_pairs(k, 1);
+    if ((TruthNormal(truth, s) - TruthNormal(truth, t)).norm() <= min_d) continue;
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        if (truth.F(s, a) == truth.F(t, b)) crease[truth.F(s, a)] = true;
+      }
+    }
+  }
+  return crease;
+}
+
 LearnMethod ParseLearnMethod(const std::string& name) {
   if (name == "interleaved") return LearnMethod::kInterleaved;
   if (name == "implicit") return LearnMethod::kImplicit;
@@ -294,6 +337,9 @@ void LearnPriorOptions::Check() const {
            "learn prior: interleaved_rms_decay must be in [0, 1), got ", interleaved_rms_decay);
   RB_CHECK(interleaved_step_decay_iterations >= 0 && interleaved_step_decay_iterations <= 1e9,
            "learn prior: interleaved_step_decay_iterations must be in [0, 1e9], got ", interleaved_step_decay_iterations);
+  RB_CHECK(feature_vertex_weight >= 1 && feature_vertex_weight <= 1e6,
+           "learn prior: feature_vertex_weight must be in [1, 1e6], got ", feature_vertex_weight);
+  RB_CHECK(feature_min_d > 0 && feature_min_d < 2, "learn prior: feature_min_d must be in (0, 2), got ", feature_min_d);
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "learn prior: num_threads must be in [0, 1024], got ", num_threads);
 }
 
@@ -358,7 +404,7 @@ double WarmSolveAll(const std::vector<PairProblem>& problems, const LearnPriorOp
   for (size_t p = 0; p < problems.size(); ++p) {
     (*minima)[p] = from[p];
     *iterations += MinimiseFrom(*problems[p].energy, gradient_stop[p], options.warm_max_iterations,
-                                1.0 / std::sqrt(problems[p].scale), options.hessian_cg_iterations, &(*minima)[p]);
+                                problems[p].edge_length, options.hessian_cg_iterations, &(*minima)[p]);
     loss += PairDataLoss(problems[p], (*minima)[p]);
   }
   return loss;
@@ -370,8 +416,9 @@ Eigen::VectorXd GradientAtMinima(const std::vector<TrainingPair>& pairs, const s
   Eigen::VectorXd gradient = Eigen::VectorXd::Zero(spline.num_knots());
   for (size_t p = 0; p < pairs.size(); ++p) {
     const PairProblem& problem = problems[p];
-    const Eigen::VectorXd b = 2.0 * problem.scale * (minima[p] - problem.truth);
-    const double le = 1.0 / std::sqrt(problem.scale);
+    Eigen::VectorXd b = 2.0 * problem.scale * (minima[p] - problem.truth);
+    if (problem.weight.size() > 0) b = b.cwiseProduct(problem.weight);
+    const double le = problem.edge_length;
     const Eigen::VectorXd v = SolveHessian(*problem.energy, minima[p], b, le, options.hessian_cg_iterations,
                                            options.hessian_cg_tolerance);
     gradient -= options.prior_weight *

@@ -6,6 +6,7 @@
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
 //                     [--scaling fixed|rms] [--rms-decay 0.9] [--decay TAU] [--weighting vertex|object]
+//                     [--feature-weight 1]
 //                     [--init-theta FILE [--eval-only]] [--no-train-eval]
 //                     [--mesh NOISY GT K]...
 //
@@ -44,12 +45,30 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
              const LearnPriorOptions& options) {
   const SqrtPotential sqrt_potential(options.spline.epsilon_squared);
   const auto start = std::chrono::steady_clock::now();
-  const PriorEvaluation base = EvaluatePrior(pairs, sqrt_potential, options);
-  const PriorEvaluation mine = EvaluatePrior(pairs, learned, options);
+  const PriorEvaluation base = EvaluatePrior(pairs, sqrt_potential, options, true);
+  const PriorEvaluation mine = EvaluatePrior(pairs, learned, options, true);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("%-10s sqrt: MAE %.3f deg D %.5f | learned: MAE %.3f deg D %.5f | MAE change %+.1f%% (%.1f s)\n", label,
               base.mean_angular_error_deg, base.mean_squared_error_le2, mine.mean_angular_error_deg, mine.mean_squared_error_le2,
               100.0 * (mine.mean_angular_error_deg / base.mean_angular_error_deg - 1.0), seconds);
+  // The squared vertex error split into crease vertices (of an edge turning by d > 0.5 in the truth) and the
+  // rest, each the mean over all vertices of the set in units of l_e².
+  double crease_error[2] = {0, 0}, other_error[2] = {0, 0};
+  long long crease_count = 0, other_count = 0;
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const std::vector<bool> crease = CreaseVertices(pairs[p].truth, 0.5);
+    const double le2 = std::pow(MeanEdgeLength(pairs[p].truth), 2);
+    for (int i = 0; i < pairs[p].truth.num_vertices(); ++i) {
+      const double e0 = (base.smoothed[p].V.row(i) - pairs[p].truth.V.row(i)).squaredNorm() / le2;
+      const double e1 = (mine.smoothed[p].V.row(i) - pairs[p].truth.V.row(i)).squaredNorm() / le2;
+      (crease[i] ? crease_error : other_error)[0] += e0;
+      (crease[i] ? crease_error : other_error)[1] += e1;
+      ++(crease[i] ? crease_count : other_count);
+    }
+  }
+  std::printf("    D split: crease vertices (%lld) sqrt %.5f learned %.5f | others (%lld) sqrt %.5f learned %.5f\n",
+              crease_count, crease_error[0] / std::max(1LL, crease_count), crease_error[1] / std::max(1LL, crease_count),
+              other_count, other_error[0] / std::max(1LL, other_count), other_error[1] / std::max(1LL, other_count));
   for (size_t p = 0; p < pairs.size(); ++p) {
     std::printf("    %-28s sqrt %.3f  learned %.3f\n", pairs[p].name.c_str(), base.pair_mae_deg[p], mine.pair_mae_deg[p]);
   }
@@ -135,6 +154,7 @@ int main(int argc, char** argv) {
     else if (a == "--rms-decay") options.interleaved_rms_decay = std::stod(next());
     else if (a == "--decay") options.interleaved_step_decay_iterations = std::stod(next());
     else if (a == "--weighting") options.loss_weighting = ParseLossWeighting(next());
+    else if (a == "--feature-weight") options.feature_vertex_weight = std::stod(next());
     else if (a == "--tolerance") options.tolerance = ParseSmoothTolerance(next());
     else if (a == "--cold") options.warm_start = false;
     else if (a == "--warm-tolerance") options.warm_gradient_tolerance = std::stod(next());
@@ -157,12 +177,12 @@ int main(int argc, char** argv) {
   int vertices = 0;
   for (const auto& p : train) vertices += p.truth.num_vertices();
   std::printf("method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g "
-              "(%s, decay %g), loss per %s\n",
+              "(%s, decay %g), loss per %s, crease-vertex weight %g\n",
               LearnMethodName(options.method).c_str(), synth.noise.k,
               std::max(synth.noise.k, synth.noise_k_max), train.size(), vertices, test.size(),
               options.spline.num_knots, options.regularizer_weight, options.interleaved_step,
               KnotStepScalingName(options.interleaved_scaling).c_str(), options.interleaved_step_decay_iterations,
-              LossWeightingName(options.loss_weighting).c_str());
+              LossWeightingName(options.loss_weighting).c_str(), options.feature_vertex_weight);
   Eigen::VectorXd initial_theta;
   if (!theta_in.empty()) {
     std::ifstream in(theta_in);

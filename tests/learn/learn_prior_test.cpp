@@ -1,5 +1,6 @@
 #include "bayes/learn_prior.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include "bayes/noise_model.h"
@@ -105,6 +106,7 @@ TEST(LearnPrior, RmsScaledInterleavedReducesTheTrainingLoss) {
   options.interleaved_step = 0.003;
   options.interleaved_step_decay_iterations = 20;
   options.loss_weighting = LossWeighting::kPerObject;
+  options.feature_vertex_weight = 3;
   options.spline.num_knots = 8;
   options.max_iterations = 30;
   options.num_threads = 1;
@@ -114,6 +116,32 @@ TEST(LearnPrior, RmsScaledInterleavedReducesTheTrainingLoss) {
   EXPECT_LT(summary.final_data_loss, summary.initial_data_loss);
   EXPECT_THROW(ParseKnotStepScaling("adam"), Error);
   EXPECT_EQ(ParseLossWeighting(LossWeightingName(LossWeighting::kPerObject)), LossWeighting::kPerObject);
+}
+
+// On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
+TEST(LearnPrior, CreaseVerticesOfABox) {
+  RightAngledObjectOptions object;
+  object.min_cells = 4;
+  object.max_cells = 5;
+  const Mesh box = MakeRightAngledObject(object, 3);
+  const std::vector<bool> crease = CreaseVertices(box, 0.5);
+  std::vector<std::vector<Eigen::Vector3d>> normals(box.num_vertices());
+  for (int f = 0; f < box.F.rows(); ++f) {
+    const Eigen::Vector3d a = box.V.row(box.F(f, 0));
+    const Eigen::Vector3d n = (Eigen::Vector3d(box.V.row(box.F(f, 1))) - a)
+                                  .cross(Eigen::Vector3d(box.V.row(box.F(f, 2))) - a)
+                                  .normalized();
+    for (int c = 0; c < 3; ++c) normals[box.F(f, c)].push_back(n);
+  }
+  int count = 0;
+  for (int i = 0; i < box.num_vertices(); ++i) {
+    bool bends = false;
+    for (const Eigen::Vector3d& n : normals[i]) bends = bends || (n - normals[i][0]).norm() > 1e-6;
+    EXPECT_EQ(crease[i], bends) << i;
+    count += crease[i];
+  }
+  EXPECT_GT(count, 0);
+  EXPECT_LT(count, box.num_vertices());
 }
 
 // Learning on two tiny boxes must lower the training loss with either method (starting from the square root,
