@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Eigenvalues>
@@ -435,7 +436,7 @@ void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<i
   if (nv == 0) return;
   const Eigen::RowVector3d lo = mesh.V.colwise().minCoeff(), hi = mesh.V.colwise().maxCoeff();
   const Eigen::RowVector3d scale = (hi - lo).cwiseMax(1e-300).cwiseInverse() * 2097151.0;
-  std::vector<std::pair<uint64_t, int>> keys(static_cast<size_t>(std::max(nv, nf)));
+  std::vector<std::pair<uint64_t, int>> keys(static_cast<size_t>(nv));
   tbb::parallel_for(tbb::blocked_range<int>(0, nv, 4096), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i != r.end(); ++i) {
       uint64_t key = 0;
@@ -446,19 +447,25 @@ void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<i
       keys[static_cast<size_t>(i)] = {key, i};
     }
   });
-  std::sort(keys.begin(), keys.begin() + nv);  // (key, index) pairs are distinct: a unique order
+  // (key, index) pairs are distinct, so the sorted order is unique whatever the sort and thread count.
+  tbb::parallel_sort(keys.begin(), keys.begin() + nv);
   std::vector<int> new_index(static_cast<size_t>(nv));
   for (int n = 0; n < nv; ++n) {
     (*vertex_order)[static_cast<size_t>(n)] = keys[static_cast<size_t>(n)].second;
     new_index[static_cast<size_t>(keys[static_cast<size_t>(n)].second)] = n;
   }
+  std::vector<std::pair<uint64_t, int>>().swap(keys);
+  // Faces by (smallest new vertex, old index): a counting sort by the vertex, stable in the old index.
+  std::vector<int> first(static_cast<size_t>(nv) + 1, 0);
+  std::vector<int> smallest(static_cast<size_t>(nf));
   for (int f = 0; f < nf; ++f) {
     const int m = std::min({new_index[static_cast<size_t>(mesh.F(f, 0))], new_index[static_cast<size_t>(mesh.F(f, 1))],
                             new_index[static_cast<size_t>(mesh.F(f, 2))]});
-    keys[static_cast<size_t>(f)] = {static_cast<uint64_t>(m), f};
+    smallest[static_cast<size_t>(f)] = m;
+    ++first[static_cast<size_t>(m) + 1];
   }
-  std::sort(keys.begin(), keys.begin() + nf);
-  for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(f)] = keys[static_cast<size_t>(f)].second;
+  for (int v = 0; v < nv; ++v) first[static_cast<size_t>(v) + 1] += first[static_cast<size_t>(v)];
+  for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(first[static_cast<size_t>(smallest[static_cast<size_t>(f)])]++)] = f;
 }
 
 }  // namespace
@@ -623,17 +630,21 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
     {
       std::vector<int> new_index(static_cast<size_t>(nv));
       std::vector<Eigen::Matrix3d> ordered_information(information.size());
-      for (int n = 0; n < nv; ++n) {
-        const int i = vertex_order[static_cast<size_t>(n)];
-        ordered.V.row(n) = mesh.V.row(i);
-        new_index[static_cast<size_t>(i)] = n;
-        ordered_information[static_cast<size_t>(n)] = information[static_cast<size_t>(i)];
-      }
+      tbb::parallel_for(tbb::blocked_range<int>(0, nv, 4096), [&](const tbb::blocked_range<int>& r) {
+        for (int n = r.begin(); n != r.end(); ++n) {
+          const int i = vertex_order[static_cast<size_t>(n)];
+          ordered.V.row(n) = mesh.V.row(i);
+          new_index[static_cast<size_t>(i)] = n;
+          ordered_information[static_cast<size_t>(n)] = information[static_cast<size_t>(i)];
+        }
+      });
       information.swap(ordered_information);
-      for (int m = 0; m < nf; ++m) {
-        const int f = face_order[static_cast<size_t>(m)];
-        for (int k = 0; k < 3; ++k) ordered.F(m, k) = new_index[static_cast<size_t>(mesh.F(f, k))];
-      }
+      tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+        for (int m = r.begin(); m != r.end(); ++m) {
+          const int f = face_order[static_cast<size_t>(m)];
+          for (int k = 0; k < 3; ++k) ordered.F(m, k) = new_index[static_cast<size_t>(mesh.F(f, k))];
+        }
+      });
     }
     std::vector<double> face_epsilon_squared;
     if (!options.face_epsilon_squared.empty()) {

@@ -144,23 +144,43 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
       std::sort(out->begin(), out->end());
       out->erase(std::unique(out->begin(), out->end()), out->end());  // two faces sharing two edges: one pair
     };
+    // One search per face into three slots per face (every face of a manifold mesh has at most three
+    // neighbours), compacted in place; a second search only for faces with more (non-manifold edges).
     neighbour_offsets_.assign(static_cast<size_t>(nf) + 1, 0);
+    neighbours_.resize(3 * static_cast<size_t>(nf));
     tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
       std::vector<int> buffer;
       for (int t = r.begin(); t != r.end(); ++t) {
         collect(t, &buffer);
         neighbour_offsets_[static_cast<size_t>(t) + 1] = static_cast<int>(buffer.size());
+        std::copy_n(buffer.begin(), std::min<size_t>(buffer.size(), 3), neighbours_.begin() + 3 * static_cast<size_t>(t));
       }
     });
-    for (int f = 0; f < nf; ++f) neighbour_offsets_[f + 1] += neighbour_offsets_[f];
-    neighbours_.resize(static_cast<size_t>(neighbour_offsets_[nf]));
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
-      std::vector<int> buffer;
-      for (int t = r.begin(); t != r.end(); ++t) {
-        collect(t, &buffer);
-        std::copy(buffer.begin(), buffer.end(), neighbours_.begin() + neighbour_offsets_[static_cast<size_t>(t)]);
+    bool all_fit = true;
+    for (int f = 0; f < nf; ++f) {
+      all_fit = all_fit && neighbour_offsets_[f + 1] <= 3;
+      neighbour_offsets_[f + 1] += neighbour_offsets_[f];
+    }
+    if (all_fit) {
+      // offsets[f] ≤ 3f: moving left in increasing f never overwrites a slot not yet moved.
+      for (int f = 0; f < nf; ++f) {
+        const int count = neighbour_offsets_[f + 1] - neighbour_offsets_[f];
+        for (int k = 0; k < count; ++k) {
+          neighbours_[static_cast<size_t>(neighbour_offsets_[f] + k)] = neighbours_[3 * static_cast<size_t>(f) + k];
+        }
       }
-    });
+      neighbours_.resize(static_cast<size_t>(neighbour_offsets_[nf]));
+      neighbours_.shrink_to_fit();
+    } else {
+      neighbours_.assign(static_cast<size_t>(neighbour_offsets_[nf]), 0);
+      tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+        std::vector<int> buffer;
+        for (int t = r.begin(); t != r.end(); ++t) {
+          collect(t, &buffer);
+          std::copy(buffer.begin(), buffer.end(), neighbours_.begin() + neighbour_offsets_[static_cast<size_t>(t)]);
+        }
+      });
+    }
   }
   normals_.assign(3 * static_cast<size_t>(nf), 0.0);
   inverse_length_.assign(static_cast<size_t>(nf), 0.0);
@@ -471,26 +491,26 @@ double SmoothingEnergy::DataCurvature(const Eigen::VectorXd& p) const {
 
 Normals SmoothingEnergy::FaceNormals(const Eigen::VectorXd& x) const {
   Normals normals = Normals::Zero(num_faces(), 3);
-  for (int f = 0; f < num_faces(); ++f) {
-    if (!active_[static_cast<size_t>(f)]) continue;
-    const Eigen::Vector3d pa = Position(x.data(), faces_(f, 0));
-    const Eigen::Vector3d c = (Position(x.data(), faces_(f, 1)) - pa).cross(Position(x.data(), faces_(f, 2)) - pa);
-    const double length = c.norm();
-    if (length > 0 && std::isfinite(length)) normals.row(f) = c.transpose() / length;
-  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, num_faces(), kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int f = r.begin(); f != r.end(); ++f) {
+      if (!active_[static_cast<size_t>(f)]) continue;
+      const Eigen::Vector3d pa = Position(x.data(), faces_(f, 0));
+      const Eigen::Vector3d c = (Position(x.data(), faces_(f, 1)) - pa).cross(Position(x.data(), faces_(f, 2)) - pa);
+      const double length = c.norm();
+      if (length > 0 && std::isfinite(length)) normals.row(f) = c.transpose() / length;
+    }
+  });
   return normals;
 }
 
 int SmoothingEnergy::CountFoldedFaces(const Eigen::VectorXd& x) const {
   const Normals normals = FaceNormals(x);
-  int folded = 0;
-  for (int t = 0; t < num_faces(); ++t) {
-    if (neighbour_offsets_[t] == neighbour_offsets_[t + 1]) continue;
+  return static_cast<int>(DeterministicSum(num_faces(), [&](int t) {
+    if (neighbour_offsets_[t] == neighbour_offsets_[t + 1]) return 0.0;
     Eigen::RowVector3d sum = Eigen::RowVector3d::Zero();
     for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) sum += normals.row(neighbours_[static_cast<size_t>(q)]);
-    if (normals.row(t).dot(sum) < 0) ++folded;
-  }
-  return folded;
+    return normals.row(t).dot(sum) < 0 ? 1.0 : 0.0;
+  }));
 }
 
 }  // namespace rangebayes

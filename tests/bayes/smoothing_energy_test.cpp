@@ -7,6 +7,7 @@
 
 #include "bayes/potential.h"
 #include "core/error.h"
+#include "core/topology.h"
 #include "tests/bayes/test_meshes.h"
 
 namespace rangebayes {
@@ -126,6 +127,45 @@ TEST(SmoothingEnergy, PartsMatchDefinition) {
   parts = energy.Evaluate(x, nullptr);
   EXPECT_NEAR(parts.data, 2.0 * 0.01, 1e-12);
   EXPECT_EQ(energy.num_pairs(), 1);
+}
+
+// The face adjacency (built in one search per face, with a fallback for faces with more than three
+// neighbours) has exactly the pairs of ComputeFacePairs, on a manifold grid and with a fin that puts three
+// faces on one edge; the prior then equals the pair sum computed from that list.
+TEST(SmoothingEnergy, PairsMatchComputeFacePairs) {
+  for (bool fin : {false, true}) {
+    Mesh mesh = testing::NoisyRoof(5, 4, 0.05, 3);
+    if (fin) {
+      // On the edge of a pair in the middle of the roof, so that both its faces get four neighbours.
+      const IndexPairs before = ComputeFacePairs(mesh);
+      const int a = before(before.rows() / 2, 0), b = before(before.rows() / 2, 1);
+      std::vector<int> shared;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          if (mesh.F(a, i) == mesh.F(b, j)) shared.push_back(mesh.F(a, i));
+        }
+      }
+      ASSERT_EQ(shared.size(), 2u);
+      const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+      mesh.V.conservativeResize(nv + 1, 3);
+      mesh.V.row(nv) = 0.5 * (mesh.V.row(shared[0]) + mesh.V.row(shared[1])) + Eigen::RowVector3d(0, 0, 1);
+      mesh.F.conservativeResize(nf + 1, 3);
+      mesh.F.row(nf) << shared[0], shared[1], nv;
+    }
+    const QuadraticPotential quadratic;
+    const SmoothingEnergy energy(mesh, std::vector<Eigen::Matrix3d>(static_cast<size_t>(mesh.num_vertices()),
+                                                                    Eigen::Matrix3d::Identity()),
+                                 1.0, quadratic);
+    const IndexPairs pairs = ComputeFacePairs(mesh);
+    EXPECT_EQ(energy.num_pairs(), static_cast<int>(pairs.rows())) << "fin " << fin;
+    const Normals normals = energy.FaceNormals(energy.Measurements());
+    double expected = 0;
+    for (Eigen::Index k = 0; k < pairs.rows(); ++k) {
+      expected += (normals.row(pairs(k, 0)) - normals.row(pairs(k, 1))).squaredNorm();
+    }
+    EXPECT_NEAR(energy.Evaluate(energy.Measurements(), nullptr).prior, expected, 1e-12 * std::max(1.0, expected))
+        << "fin " << fin;
+  }
 }
 
 TEST(SmoothingEnergy, DegenerateFacesGiveFiniteValues) {
