@@ -7,7 +7,7 @@
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
 //                     [--scaling fixed|rms] [--rms-decay 0.9] [--decay TAU] [--weighting vertex|object]
 //                     [--feature-weight 1]
-//                     [--init-theta FILE [--eval-only]] [--no-train-eval]
+//                     [--init-theta FILE [--set-knot J VALUE]... [--eval-only]] [--no-train-eval]
 //                     [--mesh NOISY GT K]...
 //
 // Prints the training curve (time, loss) and a table of MAE (degrees) and D (mean squared vertex error / l_e²).
@@ -118,6 +118,7 @@ int main(int argc, char** argv) {
   SynthMeshSetOptions synth;
   std::string theta_out, theta_in;
   bool train_eval = true, eval_only = false;
+  std::vector<std::pair<int, double>> set_knots;  // applied to the --init-theta values
   struct External {
     std::string noisy, truth;
     double k;
@@ -150,6 +151,10 @@ int main(int argc, char** argv) {
     else if (a == "--init-theta") theta_in = next();
     else if (a == "--no-train-eval") train_eval = false;
     else if (a == "--eval-only") eval_only = true;
+    else if (a == "--set-knot") {
+      const int j = std::stoi(next());
+      set_knots.emplace_back(j, std::stod(next()));
+    }
     else if (a == "--scaling") options.interleaved_scaling = ParseKnotStepScaling(next());
     else if (a == "--rms-decay") options.interleaved_rms_decay = std::stod(next());
     else if (a == "--decay") options.interleaved_step_decay_iterations = std::stod(next());
@@ -189,7 +194,16 @@ int main(int argc, char** argv) {
     std::vector<double> values;
     for (double v; in >> v;) values.push_back(v);
     initial_theta = Eigen::Map<const Eigen::VectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
-    std::printf("starting from %s (%zu knots)\n", theta_in.c_str(), values.size());
+    std::printf("starting from %s (%zu knots)", theta_in.c_str(), values.size());
+    for (const auto& [j, value] : set_knots) {
+      if (j <= 0 || j + 1 >= initial_theta.size()) {
+        std::fprintf(stderr, "--set-knot %d: only interior knots 1..N-2\n", j);
+        return 2;
+      }
+      initial_theta[j] = value;
+      std::printf(", theta_%d = %g", j, value);
+    }
+    std::printf("\n");
   }
   PrintPairHistogram(train, EvaluatePrior(train, SqrtPotential(options.spline.epsilon_squared), options, true).smoothed,
                      options.spline.num_knots);
