@@ -38,6 +38,16 @@ SpaceTimeMatcher::SpaceTimeMatcher(const SpaceTimeMatcherOptions& options) : opt
 
 namespace {
 
+// The hot loops are compiled twice, for AVX2 and for the baseline ISA, and picked at load time (GCC
+// function multi-versioning): the default build targets plain x86-64 (SSE2), and AVX2 roughly halves the
+// time of the cost loops on machines that have it. Not under ThreadSanitizer: the ifunc resolver runs before
+// the TSan runtime is initialised and crashes the program at start-up.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_THREAD__)
+#define RB_MULTIVERSION __attribute__((target_clones("avx2", "default")))
+#else
+#define RB_MULTIVERSION
+#endif
+
 // Images as float grey levels, interleaved per row as [y][t][x] so that the T rows one cost row needs are
 // contiguous.
 struct Sequence {
@@ -66,6 +76,31 @@ Sequence Interleave(const std::vector<cv::Mat>& frames) {
     for (int y = 0; y < s.height; ++y) std::copy_n(f.ptr<float>(y), s.width, s.row(y) + t * s.width);
   }
   return s;
+}
+
+// The same images pixel-major, [y][x][t]: the T samples of one pixel are contiguous, which is what the
+// Gauss–Newton refinement reads (per window sample, all T frames at one right-image position).
+struct PixelMajor {
+  int width = 0, height = 0, frames = 0;
+  std::vector<float> data;
+  const float* at(int y, int x) const {
+    return data.data() + (static_cast<size_t>(y) * width + x) * static_cast<size_t>(frames);
+  }
+};
+
+PixelMajor ToPixelMajor(const Sequence& s) {
+  PixelMajor p;
+  p.width = s.width;
+  p.height = s.height;
+  p.frames = s.frames;
+  p.data.resize(s.data.size());
+  tbb::parallel_for(0, s.height, [&](int y) {
+    const float* in = s.row(y);
+    float* out = p.data.data() + static_cast<size_t>(y) * s.width * s.frames;
+    for (int t = 0; t < s.frames; ++t)
+      for (int x = 0; x < s.width; ++x) out[static_cast<size_t>(x) * s.frames + t] = in[static_cast<size_t>(t) * s.width + x];
+  });
+  return p;
 }
 
 // Replaces each pixel's temporal signal by (I − mean) / sqrt(var + σ_n²): the SSD of two such signals is
@@ -122,7 +157,35 @@ inline void CubicWeights(float f, float w[4], float g[4]) {
 // uncorrelated with that pixel's own e. The same sums give the error propagation
 // σ_pred² = Σ g²·(σ_L² + σ_R²) / (Σ g²)² (= 2σ_n²/Σg² = 4σ_n²/C″ for uniform noise, C″ the analytic cost
 // curvature). Returns false when the window has no gradient.
-bool RefineGaussNewton(const Sequence& L, const Sequence& R, const std::vector<float>& noise_left,
+// Σ_t g·e and Σ_t g² of one window sample: g = ½(L(x+1) − L(x−1)), e = L(x) − Σ_k w_k R(ir − 1 + k), all at
+// frame t; each pointer addresses T contiguous samples (PixelMajor). Eight partial sums, so the compiler
+// can keep them in one vector register.
+RB_MULTIVERSION void SampleSums(const float* lc, const float* lm, const float* lp, const float* r0, const float* r1,
+                                const float* r2, const float* r3, const float* w, int T, float* ge_out,
+                                float* gg_out) {
+  float ge[8] = {0, 0, 0, 0, 0, 0, 0, 0}, gg[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int t = 0;
+  for (; t + 8 <= T; t += 8) {
+    for (int k = 0; k < 8; ++k) {
+      const float rv = w[0] * r0[t + k] + w[1] * r1[t + k] + w[2] * r2[t + k] + w[3] * r3[t + k];
+      const float g = 0.5f * (lp[t + k] - lm[t + k]);
+      const float e = lc[t + k] - rv;
+      ge[k] += g * e;
+      gg[k] += g * g;
+    }
+  }
+  for (; t < T; ++t) {
+    const float rv = w[0] * r0[t] + w[1] * r1[t] + w[2] * r2[t] + w[3] * r3[t];
+    const float g = 0.5f * (lp[t] - lm[t]);
+    const float e = lc[t] - rv;
+    ge[0] += g * e;
+    gg[0] += g * g;
+  }
+  *ge_out = ((ge[0] + ge[1]) + (ge[2] + ge[3])) + ((ge[4] + ge[5]) + (ge[6] + ge[7]));
+  *gg_out = ((gg[0] + gg[1]) + (gg[2] + gg[3])) + ((gg[4] + gg[5]) + (gg[6] + gg[7]));
+}
+
+bool RefineGaussNewton(const PixelMajor& L, const PixelMajor& R, const std::vector<float>& noise_left,
                        const std::vector<float>& noise_right, int x, int y, int r, int iterations, double noise,
                        double slope_x, double slope_y, double* disparity, double* sigma_pred) {
   const int W = L.width, H = L.height, T = L.frames;
@@ -136,8 +199,6 @@ bool RefineGaussNewton(const Sequence& L, const Sequence& R, const std::vector<f
     samples = 0;
     for (int wy = -r; wy <= r; ++wy) {
       const int yy = std::clamp(y + wy, 0, H - 1);
-      const float* lrow = L.row(yy);
-      const float* rrow = R.row(yy);
       for (int wx = -r; wx <= r; ++wx) {
         const int xp = x + wx;
         if (xp < 0 || xp >= W) continue;
@@ -154,15 +215,9 @@ bool RefineGaussNewton(const Sequence& L, const Sequence& R, const std::vector<f
         float wr[4], gr[4];
         CubicWeights(static_cast<float>(pr - ir), wr, gr);
         float ge = 0.0f, gg = 0.0f;
-        for (int t = 0; t < T; ++t) {
-          const float* rt = rrow + t * W + ir - 1;
-          const float rv = wr[0] * rt[0] + wr[1] * rt[1] + wr[2] * rt[2] + wr[3] * rt[3];
-          const float* lt = lrow + t * W + xl;
-          const float g = 0.5f * (lt[1] - lt[-1]);
-          const float e = lrow[t * W + xp] - rv;
-          ge += g * e;
-          gg += g * g;
-        }
+        const float* rb = R.at(yy, ir - 1);
+        SampleSums(L.at(yy, xp), L.at(yy, xl - 1), L.at(yy, xl + 1), rb, rb + T, rb + 2 * T, rb + 3 * T, wr, T, &ge,
+                   &gg);
         sum_ge += ge;
         sum_gg += gg;
         ++samples;
@@ -255,15 +310,6 @@ void NormaliseSpatially(Sequence* s, int window, double noise_gray, std::vector<
   }
 }
 
-// The hot loops are compiled twice, for AVX2 and for the baseline ISA, and picked at load time (GCC
-// function multi-versioning): the default build targets plain x86-64 (SSE2), and AVX2 roughly halves the
-// time of the cost loops on machines that have it. Not under ThreadSanitizer: the ifunc resolver runs before
-// the TSan runtime is initialised and crashes the program at start-up.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_THREAD__)
-#define RB_MULTIVERSION __attribute__((target_clones("avx2", "default")))
-#else
-#define RB_MULTIVERSION
-#endif
 
 // Per-pixel temporal cost of one input row at disparity d: e[x] = Σ_t (L_t(x) − R_t(x − d))², for the
 // columns whose right pixel exists; the others repeat the nearest such column (so border windows are not
@@ -534,6 +580,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   });
   if (options_.subpixel_iterations > 0) {
     const cv::Mat coarse = result.disparity_px.clone();
+    const PixelMajor Lp = ToPixelMajor(L), Rp = ToPixelMajor(R);
     std::atomic<int> refined{0}, failed{0}, too_uncertain{0};
     tbb::parallel_for(0, H, [&](int y) {
       float* out_d = result.disparity_px.ptr<float>(y);
@@ -545,7 +592,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
         double slope_x = 0.0, slope_y = 0.0;
         WindowSlopes(coarse, x, y, r, &slope_x, &slope_y);
         double disparity = c[x], sigma_pred = 0.0;
-        if (!RefineGaussNewton(L, R, noise_left, noise_right, x, y, r, options_.subpixel_iterations,
+        if (!RefineGaussNewton(Lp, Rp, noise_left, noise_right, x, y, r, options_.subpixel_iterations,
                                options_.image_noise_gray, slope_x, slope_y, &disparity, &sigma_pred) ||
             std::abs(disparity - c[x]) > 1.0) {
           out_d[x] = nan;
