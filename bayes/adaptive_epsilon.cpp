@@ -66,8 +66,7 @@ void FaceNormals(const Mesh& reference, std::vector<Eigen::Vector3d>* normal, st
     const int a = reference.F(f, 0), b = reference.F(f, 1), c = reference.F(f, 2);
     if (a == b || b == c || a == c) continue;
     const Eigen::Vector3d pa = reference.V.row(a).transpose();
-    const Eigen::Vector3d cross =
-        (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
+    const Eigen::Vector3d cross = (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
     const double length = cross.norm();
     if (length > 0 && std::isfinite(length)) {
       (*normal)[static_cast<size_t>(f)] = cross / length;
@@ -344,8 +343,9 @@ void AutoAdaptiveEpsilonOptions::Check() const {
   gate.Check();
   detail.Check();
   RB_CHECK(min_gate_median_epsilon_squared > 0 && min_gate_median_epsilon_squared <= 4,
-           "adaptive epsilon: min_gate_median_epsilon_squared ", min_gate_median_epsilon_squared,
-           " is outside (0, 4]");
+           "adaptive epsilon: min_gate_median_epsilon_squared ", min_gate_median_epsilon_squared, " is outside (0, 4]");
+  RB_CHECK(prepass_max_iterations >= 0 && prepass_max_iterations <= 10000000,
+           "adaptive epsilon: prepass_max_iterations ", prepass_max_iterations, " is outside [0, 1e7]");
 }
 
 std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
@@ -356,7 +356,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
   const auto start = std::chrono::steady_clock::now();
   SmoothOptions pre = options;
   pre.tolerance = SmoothTolerance::kFast;
-  pre.max_iterations = 0;
+  pre.max_iterations = rule.prepass_max_iterations;
   pre.energy_tolerance = 0;
   pre.face_epsilon_squared.clear();
   pre.progress = nullptr;

@@ -1,7 +1,8 @@
 // Adaptive ε benchmark (BENCHMARKS.md "Bayesian smoothing" → "Adaptive ε"): the square-root prior with one ε²
 // per face from bayes/adaptive_epsilon.h, on every denoising case of the benchmark meshes.
 //
-//   bench_adaptive quality [--data DIR] [--reference gt|prepass|twice|auto|smoothref|none] [--rule scan] [--statistic median|mean]
+//   bench_adaptive quality [--data DIR] [--reference gt|prepass|twice|auto|smoothref|none] [--rule scan] [--statistic
+//   median|mean]
 //                          [--scale C] [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
 //                          [--max E2] [--cases a,b,...] [--estimate] [--baseline]
 //     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
@@ -132,14 +133,16 @@ int Quality(std::map<std::string, std::string>& flags) {
   const std::string selected = flags.count("--cases") ? flags["--cases"] : "";
 
   std::printf("normal smoothing rings %d\n", rule.normal_smoothing_rings);
-  std::printf("reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
-              "eps2 in [%g, %g], noise level %s\n",
-              reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
-              rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference,
-              rule.protect_rings, rule.protect_min_crease_degree, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
-              estimate ? "estimated" : "given");
-  std::printf("| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | "
-              "CPU (s) |\n");
+  std::printf(
+      "reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
+      "eps2 in [%g, %g], noise level %s\n",
+      reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
+      rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference, rule.protect_rings,
+      rule.protect_min_crease_degree, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
+      estimate ? "estimated" : "given");
+  std::printf(
+      "| case | target | default MAE | adaptive MAE | eps2 p10 / p50 / p90 | pre-pass (s) | total (s) | "
+      "CPU (s) |\n");
   std::printf("|---|---|---|---|---|---|---|---|\n");
   for (const Case& c : Cases()) {
     if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
@@ -168,6 +171,8 @@ int Quality(std::map<std::string, std::string>& flags) {
       // --gate changes the gate threshold for scans of it).
       AutoAdaptiveEpsilonOptions automatic;
       if (flags.count("--gate")) automatic.min_gate_median_epsilon_squared = std::stod(flags["--gate"]);
+      if (flags.count("--prepass-iterations"))
+        automatic.prepass_max_iterations = std::stoi(flags["--prepass-iterations"]);
       options.face_epsilon_squared = AdaptiveEpsilonAuto(input, options, automatic, &rule_summary);
       prepass_s = Seconds(start);
       ref_info = " gate median eps2 " + std::to_string(rule_summary.gate_median_epsilon_squared).substr(0, 7) +
@@ -176,15 +181,15 @@ int Quality(std::map<std::string, std::string>& flags) {
       // The rule on a smoother reference (global --ref-eps2, or --ref-prior quadratic), protection read from the
       // default fast pre-pass (--protect-from prepass) or from the reference itself.
       SmoothOptions ref = options;
-      ref.tolerance = flags.count("--ref-tolerance") ? ParseSmoothTolerance(flags["--ref-tolerance"])
-                                                     : SmoothTolerance::kFast;
+      ref.tolerance =
+          flags.count("--ref-tolerance") ? ParseSmoothTolerance(flags["--ref-tolerance"]) : SmoothTolerance::kFast;
       ref.sqrt_epsilon_squared = flags.count("--ref-eps2") ? std::stod(flags["--ref-eps2"]) : 0.05;
       if (flags.count("--ref-prior")) ref.prior = ParsePriorKind(flags["--ref-prior"]);
       if (flags.count("--ref-beta")) ref.prior_weight = std::stod(flags["--ref-beta"]);
       const Mesh reference_mesh = Smooth(input, ref);
       const auto [d50, d90] = PairDifferenceQuantiles(reference_mesh);
-      ref_info = "ref d50 " + std::to_string(d50).substr(0, 5) + " d90 " + std::to_string(d90).substr(0, 5) +
-                 " MAE " + std::to_string(MeanAngularErrorDeg(reference_mesh, gt)).substr(0, 5);
+      ref_info = "ref d50 " + std::to_string(d50).substr(0, 5) + " d90 " + std::to_string(d90).substr(0, 5) + " MAE " +
+                 std::to_string(MeanAngularErrorDeg(reference_mesh, gt)).substr(0, 5);
       const std::string from = flags.count("--protect-from") ? flags["--protect-from"] : "prepass";
       if (from == "prepass") {
         SmoothOptions pre = options;
@@ -199,7 +204,8 @@ int Quality(std::map<std::string, std::string>& flags) {
       // The --rule result (fast) as the reference of a second rule (the median rule, scale --second-scale).
       AdaptiveEpsilonOptions second;
       if (flags.count("--second-scale")) second.scale = std::stod(flags["--second-scale"]);
-      if (flags.count("--second-normal-rings")) second.normal_smoothing_rings = std::stoi(flags["--second-normal-rings"]);
+      if (flags.count("--second-normal-rings"))
+        second.normal_smoothing_rings = std::stoi(flags["--second-normal-rings"]);
       if (flags.count("--second-rings")) second.ring_iterations = std::stoi(flags["--second-rings"]);
       if (flags.count("--second-protect")) {
         second.protect_normal_difference = std::stod(flags["--second-protect"]);

@@ -35,8 +35,7 @@ TEST(SmoothCliAdaptive, KeepsTheGlobalEpsilonOnACadShape) {
 
   const RunResult adaptive = RunRangebayes("smooth " + noisy_path + " '" + adaptive_path + "' --noise 0.3 --quiet");
   ASSERT_EQ(adaptive.exit_code, 0) << adaptive.output;
-  EXPECT_NE(adaptive.output.find("adaptive:   global eps2 kept (piecewise flat"), std::string::npos)
-      << adaptive.output;
+  EXPECT_NE(adaptive.output.find("adaptive:   global eps2 kept (piecewise flat"), std::string::npos) << adaptive.output;
   const RunResult global =
       RunRangebayes("smooth " + noisy_path + " '" + global_path + "' --noise 0.3 --quiet --no-adaptive-eps");
   ASSERT_EQ(global.exit_code, 0) << global.output;
@@ -47,7 +46,7 @@ TEST(SmoothCliAdaptive, KeepsTheGlobalEpsilonOnACadShape) {
   const Mesh result = ReadMesh(adaptive_path);
   ASSERT_EQ(result.num_vertices(), noisy.num_vertices());
   EXPECT_TRUE(result.F == noisy.F);
-  EXPECT_LT(MaxMoveInEdges(result, noisy), 2.0);  // σ = 0.3 mean edges: vertices stay near their own input
+  EXPECT_LT(MaxMoveInEdges(result, noisy), 2.0);     // σ = 0.3 mean edges: vertices stay near their own input
   EXPECT_TRUE(result.V == ReadMesh(global_path).V);  // same solve, same bytes (the solver is deterministic)
   // The issue target for fandisk 0.3 (2.4°); measured with this command: 2.09°.
   EXPECT_LE(MeanAngularErrorDeg(result, gt), 2.4);
@@ -67,8 +66,8 @@ TEST(SmoothCliAdaptive, AppliesPerFaceEpsilonOnACurvedScan) {
   ASSERT_EQ(adaptive.exit_code, 0) << adaptive.output;
   // Measured: gate median ε² 0.032 (≥ 3e-3), per-face median ε² 0.06.
   EXPECT_NE(adaptive.output.find("adaptive:   per-face eps2"), std::string::npos) << adaptive.output;
-  const RunResult global = RunRangebayes("smooth " + noisy_path + " '" + global_path +
-                                         "' --tolerance fast --quiet --no-adaptive-eps");
+  const RunResult global =
+      RunRangebayes("smooth " + noisy_path + " '" + global_path + "' --tolerance fast --quiet --no-adaptive-eps");
   ASSERT_EQ(global.exit_code, 0) << global.output;
 
   const Mesh noisy = ReadMesh(RB_SOURCE_DIR "/" + noisy_path);
