@@ -71,6 +71,7 @@ void BM_SpaceTime640(benchmark::State& state) {
   rb::SpaceTimeMatcherOptions m = Options640();
   m.subpixel_iterations = static_cast<int>(state.range(1));
   if (state.range(3) > 0) m.edge_reject_jump_px = 1.0;
+  m.window_px = static_cast<int>(state.range(4));
   rb::SpaceTimeMatcher matcher(m);
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(2)));
   double valid = 0;
@@ -82,18 +83,18 @@ void BM_SpaceTime640(benchmark::State& state) {
   state.counters["valid"] = valid;
 }
 // Args: frames T, Gauss–Newton sub-pixel iterations (0: parabola only), threads, edge rejection (1: on, as
-// `rangebayes spacetime`).
+// `rangebayes spacetime`), window w. The last three rows are the configurations of `rangebayes spacetime`.
 BENCHMARK(BM_SpaceTime640)
-    ->ArgNames({"T", "gn", "threads", "edge"})
-    ->Args({8, 0, 1, 0})
-    ->Args({8, 0, 2, 0})
-    ->Args({8, 2, 1, 0})
-    ->Args({8, 2, 2, 0})
-    ->Args({16, 0, 2, 0})
-    ->Args({1, 0, 2, 0})
-    ->Args({8, 1, 2, 1})
-    ->Args({16, 1, 1, 1})
-    ->Args({16, 1, 2, 1})
+    ->ArgNames({"T", "gn", "threads", "edge", "w"})
+    ->Args({8, 0, 1, 0, 5})
+    ->Args({8, 0, 2, 0, 5})
+    ->Args({8, 2, 1, 0, 5})
+    ->Args({8, 2, 2, 0, 5})
+    ->Args({16, 0, 2, 0, 5})
+    ->Args({1, 0, 2, 0, 5})
+    ->Args({8, 1, 2, 1, 7})
+    ->Args({16, 1, 1, 1, 5})
+    ->Args({16, 1, 2, 1, 5})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime();
@@ -378,10 +379,11 @@ void QualityGrayCode(const std::string& data) {
 }
 
 // Matcher configuration of the synthetic-scene table (command-line overrides, see main()).
-// Defaults: the configuration of `rangebayes spacetime` (1 Gauss–Newton step, edge rejection 1 px/px).
+// Defaults: the configuration of `rangebayes spacetime` (1 Gauss–Newton step, edge rejection 1 px/px, window
+// by T).
 struct SynthConfig {
   std::vector<int> frames = {8, 16};
-  std::vector<int> windows = {5};
+  std::vector<int> windows = {0};  // 0: w = 7 for T < 16, 5 for T ≥ 16 (as `rangebayes spacetime`)
   std::vector<double> noises = {2.0, 4.0};
   int gn = 1;              // Gauss–Newton steps (−1: matcher default, parabola only)
   double lr = -2.0;        // left-right max diff (−2: default)
@@ -431,7 +433,8 @@ void QualitySynth() {
         go.min_disparity_px = 8;
         go.num_disparities = 48;
         const auto rs = rb::SgbmMatcher(go).Match({rec.left[0]}, {rec.right[0]});
-        for (int w : c.windows) {
+        for (int window : c.windows) {
+          const int w = window > 0 ? window : (T >= 16 ? 5 : 7);  // 0: the rule of `rangebayes spacetime`
           rb::SpaceTimeMatcherOptions mo;
           mo.min_disparity_px = 8;
           mo.num_disparities = 48;
