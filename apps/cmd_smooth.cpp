@@ -219,9 +219,9 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
-                "sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes (scans), the global "
-                "--eps2 on piecewise-flat ones (CAD); costs one fast smoothing run (BENCHMARKS.md 'Adaptive eps'). "
-                "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
+                "on by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
+                "(scans), the global --eps2 on piecewise-flat ones (CAD); costs one fast smoothing run "
+                "(BENCHMARKS.md 'Adaptive eps'). --no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")
