@@ -128,8 +128,8 @@ void Line(RgbImage* image, double x0, double y0, double x1, double y1, const std
 RgbImage PlotPotential(const SplinePotential& learned) {
   const int width = 720, height = 560, margin = 30;
   RgbImage image(width, height, 255);
-  const std::uint8_t grey[3] = {150, 150, 150}, blue[3] = {20, 70, 200}, red[3] = {210, 40, 40},
-                     black[3] = {0, 0, 0}, light[3] = {225, 225, 225};
+  const std::uint8_t grey[3] = {150, 150, 150}, blue[3] = {20, 70, 200}, red[3] = {210, 40, 40}, black[3] = {0, 0, 0},
+                     light[3] = {225, 225, 225};
   const int top_height = 340, bottom_top = 380, bottom_height = height - margin - bottom_top;
   const double x_scale = (width - 2.0 * margin) / 2.0;
   double y_max = 0, residual_max = 1e-3;
@@ -139,13 +139,16 @@ RgbImage PlotPotential(const SplinePotential& learned) {
   }
   auto px = [&](double d) { return margin + d * x_scale; };
   auto top_y = [&](double v) { return margin + top_height - v / y_max * (top_height - 10); };
-  auto bottom_y = [&](double v) { return bottom_top + bottom_height / 2.0 - v / residual_max * (bottom_height / 2.0 - 5); };
+  auto bottom_y = [&](double v) {
+    return bottom_top + bottom_height / 2.0 - v / residual_max * (bottom_height / 2.0 - 5);
+  };
   for (int i = 0; i <= 8; ++i) Line(&image, px(0.25 * i), margin, px(0.25 * i), height - margin, light);
   Line(&image, px(0), top_y(0), px(2), top_y(0), black);
   Line(&image, px(0), margin, px(0), top_y(0), black);
   Line(&image, px(0), bottom_y(0), px(2), bottom_y(0), grey);
   Line(&image, px(0), bottom_top, px(0), height - margin, black);
-  for (double y = margin; y < height - margin; y += 12) Line(&image, px(std::sqrt(2.0)), y, px(std::sqrt(2.0)), y + 5, red);
+  for (double y = margin; y < height - margin; y += 12)
+    Line(&image, px(std::sqrt(2.0)), y, px(std::sqrt(2.0)), y + 5, red);
   const double step = 0.005;
   for (double d = 0; d + step <= 2.0 + 1e-9; d += step) {
     Line(&image, px(d), top_y(learned.Base(d)), px(d + step), top_y(learned.Base(d + step)), grey);
@@ -165,7 +168,8 @@ RgbImage PlotPotential(const SplinePotential& learned) {
 std::string DefaultPlotPath(const std::string& out) {
   const size_t dot = out.find_last_of('.');
   const size_t slash = out.find_last_of('/');
-  const std::string stem = (dot != std::string::npos && (slash == std::string::npos || dot > slash)) ? out.substr(0, dot) : out;
+  const std::string stem =
+      (dot != std::string::npos && (slash == std::string::npos || dot > slash)) ? out.substr(0, dot) : out;
   return stem + ".png";
 }
 
@@ -181,8 +185,8 @@ void RunLearn(const LearnArgs& args) {
     pair.name = list.noisy[i];
     pair.noisy = ReadNoisyMesh(list.noisy[i]);
     pair.truth = ReadMesh(list.truth[i]);
-    RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F,
-             "pair ", i + 1, ": '", list.noisy[i], "' and '", list.truth[i], "' differ in vertices or faces");
+    RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F, "pair ",
+             i + 1, ": '", list.noisy[i], "' and '", list.truth[i], "' differ in vertices or faces");
     if (!pair.noisy.has_covariance()) {
       GenericNoiseOptions noise;
       noise.noise_edge_multiple = k;  // NaN: estimated from the mesh
@@ -230,16 +234,19 @@ void RunLearn(const LearnArgs& args) {
   WriteLearnedPrior(prior, args.out);
   const std::string plot = args.plot.empty() ? DefaultPlotPath(args.out) : args.plot;
   WritePng(PlotPotential(SplinePotential(options.spline, theta)), plot);
-  std::printf("learned %d knots by %s on %zu pairs (%d vertices): mean squared vertex error %.5f -> %.5f l_e^2 "
-              "(%+.1f%%), %d iterations, %.1f s (%s)\n",
-              options.spline.num_knots, prior.method.c_str(), pairs.size(), summary.num_vertices,
-              summary.initial_data_loss / std::max(1, summary.num_vertices), prior.training_mse_le2,
-              100.0 * (summary.final_data_loss / summary.initial_data_loss - 1.0), summary.iterations,
-              summary.total_time_s, summary.termination.c_str());
+  std::printf(
+      "learned %d knots by %s on %zu pairs (%d vertices): mean squared vertex error %.5f -> %.5f l_e^2 "
+      "(%+.1f%%), %d iterations, %.1f s (%s)\n",
+      options.spline.num_knots, prior.method.c_str(), pairs.size(), summary.num_vertices,
+      summary.initial_data_loss / std::max(1, summary.num_vertices), prior.training_mse_le2,
+      100.0 * (summary.final_data_loss / summary.initial_data_loss - 1.0), summary.iterations, summary.total_time_s,
+      summary.termination.c_str());
   const SecondWell well = FindSecondWell(SplinePotential(options.spline, theta));
   if (well.found) {
-    std::printf("second well: phi has a local minimum at d = %.3f (depth %.4f below the barrier at d = %.3f and "
-                "phi(1.8))\n", well.well_d, well.depth, well.barrier_d);
+    std::printf(
+        "second well: phi has a local minimum at d = %.3f (depth %.4f below the barrier at d = %.3f and "
+        "phi(1.8))\n",
+        well.well_d, well.depth, well.barrier_d);
   } else {
     std::printf("second well: none (phi has no strict local minimum in d = [1.2, 1.6])\n");
   }
@@ -288,8 +295,9 @@ void AddCommands(CLI::App& app) {
                     "writes one)")
         ->required();
     sub->add_option("--out", args->out, "Output prior (YAML), for 'rangebayes smooth --prior'")->required();
-    sub->add_option("--plot", args->plot, "PNG plot of the learned potential beside the square root (default: --out "
-                                          "with .png)");
+    sub->add_option("--plot", args->plot,
+                    "PNG plot of the learned potential beside the square root (default: --out "
+                    "with .png)");
     sub->add_option("--knots", args->knots, "Number of spline knots N over d in [0, 2], [3, 256]")
         ->check(CLI::Range(3, 256));
     sub->add_option("--method", args->method,
@@ -303,8 +311,7 @@ void AddCommands(CLI::App& app) {
                     "'# noise:' line, else estimated per mesh)");
     sub->add_option("--prior-weight", args->prior_weight, "Prior weight beta of the smoother, (0, 1e6]")
         ->check(CLI::Range(1e-12, 1e6));
-    sub->add_option("--iterations", args->iterations,
-                    "Outer iterations (0: 400 interleaved, 40 implicit), [0, 1e6]")
+    sub->add_option("--iterations", args->iterations, "Outer iterations (0: 400 interleaved, 40 implicit), [0, 1e6]")
         ->check(CLI::Range(0, 1000000));
     sub->add_option("--time-limit", args->time_limit_s, "Stop learning after this many seconds (0: no limit)")
         ->check(CLI::Range(0.0, 1e9));

@@ -62,7 +62,8 @@ std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const L
     RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F,
              "learn prior: pair '", pair.name, "': the ground truth and the noisy mesh differ in connectivity");
     std::vector<Eigen::Matrix3d> information(pair.noisy.covariance.size());
-    for (size_t i = 0; i < information.size(); ++i) information[i] = InformationFromCovariance(pair.noisy.covariance[i]);
+    for (size_t i = 0; i < information.size(); ++i)
+      information[i] = InformationFromCovariance(pair.noisy.covariance[i]);
     problems[p].energy =
         std::make_unique<SmoothingEnergy>(pair.noisy.mesh, information, options.prior_weight, potential);
     problems[p].truth = Flatten(pair.truth.V);
@@ -186,7 +187,7 @@ Eigen::VectorXd SolveHessian(const SmoothingEnergy& energy, const Eigen::VectorX
 // interleaved scheme: the paper runs its learning inside the smoother's CG iterations.
 struct CgState {
   Eigen::VectorXd x;
-  Eigen::VectorXd gradient;   // at x, under the θ of the last step
+  Eigen::VectorXd gradient;  // at x, under the θ of the last step
   Eigen::VectorXd direction;
   double step = 0;
 };
@@ -314,9 +315,10 @@ std::string LossWeightingName(LossWeighting weighting) {
 
 void LearnPriorOptions::Check() const {
   spline.Check();
-  RB_CHECK(regularizer_weight >= 0 && regularizer_weight <= 1e6, "learn prior: regularizer weight must be in [0, 1e6], got ",
-           regularizer_weight);
-  RB_CHECK(prior_weight > 0 && prior_weight <= 1e6, "learn prior: prior weight must be in (0, 1e6], got ", prior_weight);
+  RB_CHECK(regularizer_weight >= 0 && regularizer_weight <= 1e6,
+           "learn prior: regularizer weight must be in [0, 1e6], got ", regularizer_weight);
+  RB_CHECK(prior_weight > 0 && prior_weight <= 1e6, "learn prior: prior weight must be in (0, 1e6], got ",
+           prior_weight);
   RB_CHECK(max_iterations >= 0 && max_iterations <= 1000000, "learn prior: max_iterations must be in [0, 1e6], got ",
            max_iterations);
   RB_CHECK(time_limit_s >= 0, "learn prior: time limit must be ≥ 0, got ", time_limit_s);
@@ -327,16 +329,17 @@ void LearnPriorOptions::Check() const {
            "learn prior: warm_max_iterations must be in [1, 1e6], got ", warm_max_iterations);
   RB_CHECK(hessian_cg_iterations >= 1 && hessian_cg_iterations <= 100000,
            "learn prior: hessian_cg_iterations must be in [1, 1e5], got ", hessian_cg_iterations);
-  RB_CHECK(hessian_cg_tolerance > 0 && hessian_cg_tolerance < 1, "learn prior: hessian_cg_tolerance must be in (0, 1), got ",
-           hessian_cg_tolerance);
+  RB_CHECK(hessian_cg_tolerance > 0 && hessian_cg_tolerance < 1,
+           "learn prior: hessian_cg_tolerance must be in (0, 1), got ", hessian_cg_tolerance);
   RB_CHECK(interleaved_step > 0 && interleaved_step <= 1e6, "learn prior: interleaved step must be in (0, 1e6], got ",
            interleaved_step);
-  RB_CHECK(interleaved_epsilon > 0 && interleaved_epsilon <= 1, "learn prior: interleaved epsilon must be in (0, 1], got ",
-           interleaved_epsilon);
+  RB_CHECK(interleaved_epsilon > 0 && interleaved_epsilon <= 1,
+           "learn prior: interleaved epsilon must be in (0, 1], got ", interleaved_epsilon);
   RB_CHECK(interleaved_rms_decay >= 0 && interleaved_rms_decay < 1,
            "learn prior: interleaved_rms_decay must be in [0, 1), got ", interleaved_rms_decay);
   RB_CHECK(interleaved_step_decay_iterations >= 0 && interleaved_step_decay_iterations <= 1e9,
-           "learn prior: interleaved_step_decay_iterations must be in [0, 1e9], got ", interleaved_step_decay_iterations);
+           "learn prior: interleaved_step_decay_iterations must be in [0, 1e9], got ",
+           interleaved_step_decay_iterations);
   RB_CHECK(feature_vertex_weight >= 1 && feature_vertex_weight <= 1e6,
            "learn prior: feature_vertex_weight must be in [1, 1e6], got ", feature_vertex_weight);
   RB_CHECK(feature_min_d > 0 && feature_min_d < 2, "learn prior: feature_min_d must be in (0, 2), got ", feature_min_d);
@@ -383,7 +386,8 @@ namespace {
 
 // Smooths every pair under the spline's current θ; returns D and keeps the minima.
 double SmoothAll(const std::vector<TrainingPair>& pairs, const std::vector<PairProblem>& problems,
-                 const SplinePotential& spline, const LearnPriorOptions& options, std::vector<Eigen::VectorXd>* minima) {
+                 const SplinePotential& spline, const LearnPriorOptions& options,
+                 std::vector<Eigen::VectorXd>* minima) {
   const SmoothOptions smooth = SmoothOptionsFor(options, spline);
   minima->resize(pairs.size());
   double loss = 0;
@@ -419,10 +423,10 @@ Eigen::VectorXd GradientAtMinima(const std::vector<TrainingPair>& pairs, const s
     Eigen::VectorXd b = 2.0 * problem.scale * (minima[p] - problem.truth);
     if (problem.weight.size() > 0) b = b.cwiseProduct(problem.weight);
     const double le = problem.edge_length;
-    const Eigen::VectorXd v = SolveHessian(*problem.energy, minima[p], b, le, options.hessian_cg_iterations,
-                                           options.hessian_cg_tolerance);
-    gradient -= options.prior_weight *
-                BasisDirectionalDerivatives(problem, pairs[p].noisy.mesh.F, minima[p], v, spline);
+    const Eigen::VectorXd v =
+        SolveHessian(*problem.energy, minima[p], b, le, options.hessian_cg_iterations, options.hessian_cg_tolerance);
+    gradient -=
+        options.prior_weight * BasisDirectionalDerivatives(problem, pairs[p].noisy.mesh.F, minima[p], v, spline);
   }
   return gradient;
 }
@@ -470,9 +474,8 @@ Eigen::VectorXd LearnImplicit(const std::vector<TrainingPair>& pairs, const Lear
   }
   auto solve = [&](std::vector<Eigen::VectorXd>* out) {
     ++summary->smoothing_runs;
-    return options.warm_start
-               ? WarmSolveAll(problems, options, gradient_stop, minima, out, &summary->warm_iterations)
-               : SmoothAll(pairs, problems, *spline, options, out);
+    return options.warm_start ? WarmSolveAll(problems, options, gradient_stop, minima, out, &summary->warm_iterations)
+                              : SmoothAll(pairs, problems, *spline, options, out);
   };
   Eigen::VectorXd regularizer_gradient;
   double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight, &regularizer_gradient);
@@ -511,7 +514,8 @@ Eigen::VectorXd LearnImplicit(const std::vector<TrainingPair>& pairs, const Lear
       }
       q *= options.initial_step / largest;
     }
-    for (size_t k = 0; k < m; ++k) q += s_history[k] * (alpha[k] - y_history[k].dot(q) / y_history[k].dot(s_history[k]));
+    for (size_t k = 0; k < m; ++k)
+      q += s_history[k] * (alpha[k] - y_history[k].dot(q) / y_history[k].dot(s_history[k]));
     Eigen::VectorXd direction = -q;
     direction[0] = 0;
     direction[n - 1] = 0;
@@ -531,8 +535,8 @@ Eigen::VectorXd LearnImplicit(const std::vector<TrainingPair>& pairs, const Lear
       std::vector<Eigen::VectorXd> candidate_minima;
       const double candidate_data = solve(&candidate_minima);
       Eigen::VectorXd candidate_regularizer_gradient;
-      const double candidate_loss = candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight,
-                                                                          &candidate_regularizer_gradient);
+      const double candidate_loss =
+          candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight, &candidate_regularizer_gradient);
       if (candidate_loss <= loss + 1e-4 * t * slope) {
         accepted = true;
         minima = std::move(candidate_minima);
@@ -684,8 +688,8 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
   options.Check();
   RB_CHECK(!pairs.empty(), "learn prior: no training pairs");
   const auto start = std::chrono::steady_clock::now();
-  SplinePotential spline(options.spline, initial_theta.size() == 0 ? SplinePotential::SquareRootTheta(options.spline)
-                                                                    : initial_theta);
+  SplinePotential spline(options.spline,
+                         initial_theta.size() == 0 ? SplinePotential::SquareRootTheta(options.spline) : initial_theta);
   const std::vector<PairProblem> problems = Prepare(pairs, options, spline);
   LearnPriorSummary summary;
   for (const TrainingPair& pair : pairs) summary.num_vertices += pair.truth.num_vertices();

@@ -63,13 +63,13 @@ LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "impli
 std::string LearnMethodName(LearnMethod method);
 
 struct LearnPriorOptions {
-  LearnMethod method = LearnMethod::kInterleaved;  // measured faster and better (BENCHMARKS.md)
-  SplinePotentialOptions spline;     // N knots, ε² of the square-root base
-  double regularizer_weight = 1.0;   // w of eq. 19; [0, 1e6]
+  LearnMethod method = LearnMethod::kInterleaved;      // measured faster and better (BENCHMARKS.md)
+  SplinePotentialOptions spline;                       // N knots, ε² of the square-root base
+  double regularizer_weight = 1.0;                     // w of eq. 19; [0, 1e6]
   double prior_weight = SmoothOptions{}.prior_weight;  // β the smoother multiplies φ by (its default rule); (0, 1e6]
   SmoothTolerance tolerance = SmoothTolerance::kDefault;  // inner smoothing (implicit method)
-  int max_iterations = 0;            // outer iterations; 0: 40 implicit, 400 interleaved; else [1, 1e6]
-  double time_limit_s = 0;           // stop after this much wall time (checked per iteration); 0: none; ≥ 0
+  int max_iterations = 0;   // outer iterations; 0: 40 implicit, 400 interleaved; else [1, 1e6]
+  double time_limit_s = 0;  // stop after this much wall time (checked per iteration); 0: none; ≥ 0
   // Implicit: the first step's largest θ_j change, in knot-value units; (0, 1].
   double initial_step = 0.02;
   // Implicit: re-solve every pair from its previous minimum (nonlinear CG to warm_gradient_tolerance) instead
@@ -80,13 +80,13 @@ struct LearnPriorOptions {
   // Warm solves are truncated Newton (H p = −∇E by CG with finite-difference Hessian products).
   double warm_gradient_tolerance = 1e-7;  // warm solves stop at ‖∇E‖ ≤ this × ‖∇E(z)‖ (at the start); (0, 1)
   int warm_max_iterations = 50;           // Newton steps per warm solve; [1, 1e6]
-  int hessian_cg_iterations = 200;   // implicit: CG iterations for H v = ∂D/∂x per pair; [1, 1e5]
+  int hessian_cg_iterations = 200;        // implicit: CG iterations for H v = ∂D/∂x per pair; [1, 1e5]
   double hessian_cg_tolerance = 1e-3;  // implicit: relative residual; (0, 1)
   // Interleaved: fixed step α of eq. 22 and finite-difference increment ε of eq. 21.
-  double interleaved_step = 0.01;    // (0, 1e6]; measured on the synthetic set (BENCHMARKS.md)
-  double interleaved_epsilon = 1e-3; // (0, 1]
+  double interleaved_step = 0.01;     // (0, 1e6]; measured on the synthetic set (BENCHMARKS.md)
+  double interleaved_epsilon = 1e-3;  // (0, 1]
   KnotStepScaling interleaved_scaling = KnotStepScaling::kFixed;  // the paper's fixed step by default
-  double interleaved_rms_decay = 0.9;  // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
+  double interleaved_rms_decay = 0.9;                             // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
   // Step schedule α_t = α · τ / (τ + t) at iteration t; 0: constant α. [0, 1e9]
   double interleaved_step_decay_iterations = 0;
   LossWeighting loss_weighting = LossWeighting::kPerVertex;
@@ -97,23 +97,23 @@ struct LearnPriorOptions {
   // training set, so the plain sum is dominated by them. [1, 1e6]
   double feature_vertex_weight = 1.0;
   double feature_min_d = 0.5;  // (0, 2)
-  int num_threads = 0;               // smoother threads; 0: all cores
-  ProgressCallback progress;         // stage names the iteration and the current loss
+  int num_threads = 0;         // smoother threads; 0: all cores
+  ProgressCallback progress;   // stage names the iteration and the current loss
   void Check() const;
 };
 
 struct LearnPriorSummary {
-  std::vector<double> loss;          // L after each outer iteration (on the training pairs)
-  std::vector<double> data_loss;     // D after each outer iteration
-  int num_vertices = 0;              // training vertices (D / num_vertices: mean squared error in l_e²)
-  std::vector<double> time_s;        // wall time at each entry
-  double initial_data_loss = 0;      // D of the square-root potential (θ at the start)
-  double final_data_loss = 0;        // D of the returned θ with full smoothing
+  std::vector<double> loss;       // L after each outer iteration (on the training pairs)
+  std::vector<double> data_loss;  // D after each outer iteration
+  int num_vertices = 0;           // training vertices (D / num_vertices: mean squared error in l_e²)
+  std::vector<double> time_s;     // wall time at each entry
+  double initial_data_loss = 0;   // D of the square-root potential (θ at the start)
+  double final_data_loss = 0;     // D of the returned θ with full smoothing
   int iterations = 0;
-  int smoothing_runs = 0;            // smoothing of every pair (cold or warm)
-  long long warm_iterations = 0;     // implicit with warm starts: Newton steps over all warm solves
+  int smoothing_runs = 0;         // smoothing of every pair (cold or warm)
+  long long warm_iterations = 0;  // implicit with warm starts: Newton steps over all warm solves
   double total_time_s = 0;
-  std::string termination;           // "max iterations", "time limit", "no progress", "converged"
+  std::string termination;  // "max iterations", "time limit", "no progress", "converged"
 };
 
 // Learns θ from `pairs`, starting at `initial_theta` (empty: the square root). Returns N knot values.
@@ -130,11 +130,11 @@ std::vector<bool> CreaseVertices(const Mesh& truth, double min_d);
 double CurvatureRegularizer(const Eigen::VectorXd& theta, double weight, Eigen::VectorXd* gradient = nullptr);
 
 struct PriorEvaluation {
-  double mean_squared_error_le2 = 0;    // mean over pairs of Σ_i ‖x̂_i − y_i‖² / (#V l_e²)
-  double mean_angular_error_deg = 0;    // mean over pairs of the mean face-normal angle to the truth
+  double mean_squared_error_le2 = 0;  // mean over pairs of Σ_i ‖x̂_i − y_i‖² / (#V l_e²)
+  double mean_angular_error_deg = 0;  // mean over pairs of the mean face-normal angle to the truth
   std::vector<double> pair_mse_le2;
   std::vector<double> pair_mae_deg;
-  std::vector<Mesh> smoothed;           // only when requested
+  std::vector<Mesh> smoothed;  // only when requested
 };
 
 // Smooths every pair under `potential` (β, tolerance and threads from options) and scores it.

@@ -10,8 +10,8 @@ namespace rangebayes {
 
 void SplinePotentialOptions::Check() const {
   RB_CHECK(num_knots >= 3 && num_knots <= 256, "spline potential: num_knots must be in [3, 256], got ", num_knots);
-  RB_CHECK(epsilon_squared > 0.0 && epsilon_squared <= 1.0,
-           "spline potential: epsilon_squared must be in (0, 1], got ", epsilon_squared);
+  RB_CHECK(epsilon_squared > 0.0 && epsilon_squared <= 1.0, "spline potential: epsilon_squared must be in (0, 1], got ",
+           epsilon_squared);
 }
 
 SplinePotential::SplinePotential(const SplinePotentialOptions& options)
@@ -155,8 +155,8 @@ void SplinePotential::ParameterGradient(double d, Eigen::VectorXd* dvalue_dtheta
 void SecondWellOptions::Check() const {
   RB_CHECK(shoulder_min_d >= 0 && shoulder_min_d <= well_min_d && well_min_d > 0 && well_min_d < well_max_d &&
                well_max_d < right_d && right_d <= 2,
-           "second well: need 0 <= shoulder_min_d <= well_min_d < well_max_d < right_d <= 2, got ", shoulder_min_d, ", ",
-           well_min_d, ", ", well_max_d, ", ", right_d);
+           "second well: need 0 <= shoulder_min_d <= well_min_d < well_max_d < right_d <= 2, got ", shoulder_min_d,
+           ", ", well_min_d, ", ", well_max_d, ", ", right_d);
   RB_CHECK(min_depth >= 0, "second well: min_depth must be >= 0, got ", min_depth);
   RB_CHECK(sample_step > 0 && sample_step <= 0.1, "second well: sample_step must be in (0, 0.1], got ", sample_step);
 }

@@ -9,8 +9,8 @@
 namespace rangebayes {
 
 struct SplinePotentialOptions {
-  int num_knots = 16;              // N, knots equally spaced over [0, 2]; range [3, 256]
-  double epsilon_squared = 1e-4;   // ε² of the square-root base sqrt(d² + ε²) (the paper's offset); range (0, 1]
+  int num_knots = 16;             // N, knots equally spaced over [0, 2]; range [3, 256]
+  double epsilon_squared = 1e-4;  // ε² of the square-root base sqrt(d² + ε²) (the paper's offset); range (0, 1]
   void Check() const;
 };
 
@@ -62,9 +62,9 @@ class SplinePotential final : public Potential {
   SplinePotentialOptions options_;
   double spacing_ = 0.0;
   Eigen::VectorXd theta_;
-  Eigen::VectorXd residual_;          // r_j = θ_j − b(t_j)
-  Eigen::VectorXd second_derivative_; // M = G r
-  Eigen::MatrixXd residual_to_m_;     // G, N×N: knot second derivatives of S from the residuals
+  Eigen::VectorXd residual_;           // r_j = θ_j − b(t_j)
+  Eigen::VectorXd second_derivative_;  // M = G r
+  Eigen::MatrixXd residual_to_m_;      // G, N×N: knot second derivatives of S from the residuals
 };
 
 // The "second well near d = √2" of the paper's learned potential for right angles, as a test on the curve.
@@ -76,9 +76,9 @@ struct SecondWellOptions {
   double shoulder_min_d = 0.9;  // left end of the barrier search; [0, well_min_d]
   double well_min_d = 1.2;      // window of the well; 0 < well_min_d < well_max_d < right_d ≤ 2
   double well_max_d = 1.6;
-  double right_d = 1.8;         // φ must be higher here than at the well
-  double min_depth = 1e-6;      // strictness margin in φ units (rounding); ≥ 0
-  double sample_step = 1e-3;    // sampling of d; (0, 0.1]
+  double right_d = 1.8;       // φ must be higher here than at the well
+  double min_depth = 1e-6;    // strictness margin in φ units (rounding); ≥ 0
+  double sample_step = 1e-3;  // sampling of d; (0, 0.1]
   void Check() const;
 };
 

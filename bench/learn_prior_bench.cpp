@@ -49,8 +49,9 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
   const PriorEvaluation mine = EvaluatePrior(pairs, learned, options, true);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("%-10s sqrt: MAE %.3f deg D %.5f | learned: MAE %.3f deg D %.5f | MAE change %+.1f%% (%.1f s)\n", label,
-              base.mean_angular_error_deg, base.mean_squared_error_le2, mine.mean_angular_error_deg, mine.mean_squared_error_le2,
-              100.0 * (mine.mean_angular_error_deg / base.mean_angular_error_deg - 1.0), seconds);
+              base.mean_angular_error_deg, base.mean_squared_error_le2, mine.mean_angular_error_deg,
+              mine.mean_squared_error_le2, 100.0 * (mine.mean_angular_error_deg / base.mean_angular_error_deg - 1.0),
+              seconds);
   // The squared vertex error split into crease vertices (of an edge turning by d > 0.5 in the truth) and the
   // rest, each the mean over all vertices of the set in units of l_e².
   double crease_error[2] = {0, 0}, other_error[2] = {0, 0};
@@ -67,10 +68,12 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
     }
   }
   std::printf("    D split: crease vertices (%lld) sqrt %.5f learned %.5f | others (%lld) sqrt %.5f learned %.5f\n",
-              crease_count, crease_error[0] / std::max(1LL, crease_count), crease_error[1] / std::max(1LL, crease_count),
-              other_count, other_error[0] / std::max(1LL, other_count), other_error[1] / std::max(1LL, other_count));
+              crease_count, crease_error[0] / std::max(1LL, crease_count),
+              crease_error[1] / std::max(1LL, crease_count), other_count, other_error[0] / std::max(1LL, other_count),
+              other_error[1] / std::max(1LL, other_count));
   for (size_t p = 0; p < pairs.size(); ++p) {
-    std::printf("    %-28s sqrt %.3f  learned %.3f\n", pairs[p].name.c_str(), base.pair_mae_deg[p], mine.pair_mae_deg[p]);
+    std::printf("    %-28s sqrt %.3f  learned %.3f\n", pairs[p].name.c_str(), base.pair_mae_deg[p],
+                mine.pair_mae_deg[p]);
   }
 }
 
@@ -102,9 +105,10 @@ void PrintPairHistogram(const std::vector<TrainingPair>& pairs, const std::vecto
       }
     }
   }
-  std::printf("face pairs: %lld, %lld (%.2f%%) at right angles in the truth; d after square-root smoothing per knot interval "
-              "[t_j, t_j+1): all (right-angle ones)\n  ",
-              total, right_angles, 100.0 * right_angles / std::max<long long>(1, total));
+  std::printf(
+      "face pairs: %lld, %lld (%.2f%%) at right angles in the truth; d after square-root smoothing per knot interval "
+      "[t_j, t_j+1): all (right-angle ones)\n  ",
+      total, right_angles, 100.0 * right_angles / std::max<long long>(1, total));
   for (int j = 0; j + 1 < num_knots; ++j) {
     std::printf(" %.2f:%lld(%lld)", j * spacing, noisy_count[j], right_angle_noisy[j]);
   }
@@ -133,36 +137,61 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--method") options.method = ParseLearnMethod(next());
-    else if (a == "--k") synth.noise.k = std::stod(next());
-    else if (a == "--k-max") synth.noise_k_max = std::stod(next());
-    else if (a == "--copies") synth.copies = std::stoi(next());
-    else if (a == "--min-cells") synth.object.min_cells = std::stoi(next());
-    else if (a == "--max-cells") synth.object.max_cells = std::stoi(next());
-    else if (a == "--train") synth.num_train = std::stoi(next());
-    else if (a == "--test") synth.num_test = std::stoi(next());
-    else if (a == "--seed") synth.seed = std::stoull(next());
-    else if (a == "--iterations") options.max_iterations = std::stoi(next());
-    else if (a == "--time-limit") options.time_limit_s = std::stod(next());
-    else if (a == "--knots") options.spline.num_knots = std::stoi(next());
-    else if (a == "--w") options.regularizer_weight = std::stod(next());
-    else if (a == "--step") options.interleaved_step = options.initial_step = std::stod(next());
-    else if (a == "--theta-out") theta_out = next();
-    else if (a == "--init-theta") theta_in = next();
-    else if (a == "--no-train-eval") train_eval = false;
-    else if (a == "--eval-only") eval_only = true;
+    if (a == "--method")
+      options.method = ParseLearnMethod(next());
+    else if (a == "--k")
+      synth.noise.k = std::stod(next());
+    else if (a == "--k-max")
+      synth.noise_k_max = std::stod(next());
+    else if (a == "--copies")
+      synth.copies = std::stoi(next());
+    else if (a == "--min-cells")
+      synth.object.min_cells = std::stoi(next());
+    else if (a == "--max-cells")
+      synth.object.max_cells = std::stoi(next());
+    else if (a == "--train")
+      synth.num_train = std::stoi(next());
+    else if (a == "--test")
+      synth.num_test = std::stoi(next());
+    else if (a == "--seed")
+      synth.seed = std::stoull(next());
+    else if (a == "--iterations")
+      options.max_iterations = std::stoi(next());
+    else if (a == "--time-limit")
+      options.time_limit_s = std::stod(next());
+    else if (a == "--knots")
+      options.spline.num_knots = std::stoi(next());
+    else if (a == "--w")
+      options.regularizer_weight = std::stod(next());
+    else if (a == "--step")
+      options.interleaved_step = options.initial_step = std::stod(next());
+    else if (a == "--theta-out")
+      theta_out = next();
+    else if (a == "--init-theta")
+      theta_in = next();
+    else if (a == "--no-train-eval")
+      train_eval = false;
+    else if (a == "--eval-only")
+      eval_only = true;
     else if (a == "--set-knot") {
       const int j = std::stoi(next());
       set_knots.emplace_back(j, std::stod(next()));
-    }
-    else if (a == "--scaling") options.interleaved_scaling = ParseKnotStepScaling(next());
-    else if (a == "--rms-decay") options.interleaved_rms_decay = std::stod(next());
-    else if (a == "--decay") options.interleaved_step_decay_iterations = std::stod(next());
-    else if (a == "--weighting") options.loss_weighting = ParseLossWeighting(next());
-    else if (a == "--feature-weight") options.feature_vertex_weight = std::stod(next());
-    else if (a == "--tolerance") options.tolerance = ParseSmoothTolerance(next());
-    else if (a == "--cold") options.warm_start = false;
-    else if (a == "--warm-tolerance") options.warm_gradient_tolerance = std::stod(next());
+    } else if (a == "--scaling")
+      options.interleaved_scaling = ParseKnotStepScaling(next());
+    else if (a == "--rms-decay")
+      options.interleaved_rms_decay = std::stod(next());
+    else if (a == "--decay")
+      options.interleaved_step_decay_iterations = std::stod(next());
+    else if (a == "--weighting")
+      options.loss_weighting = ParseLossWeighting(next());
+    else if (a == "--feature-weight")
+      options.feature_vertex_weight = std::stod(next());
+    else if (a == "--tolerance")
+      options.tolerance = ParseSmoothTolerance(next());
+    else if (a == "--cold")
+      options.warm_start = false;
+    else if (a == "--warm-tolerance")
+      options.warm_gradient_tolerance = std::stod(next());
     else if (a == "--mesh") {
       External e;
       e.noisy = next();
@@ -181,13 +210,13 @@ int main(int argc, char** argv) {
   for (const auto& p : set.test) test.push_back(MakePair(p.name, p.noisy.mesh, p.clean, p.k));
   int vertices = 0;
   for (const auto& p : train) vertices += p.truth.num_vertices();
-  std::printf("method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g "
-              "(%s, decay %g), loss per %s, crease-vertex weight %g\n",
-              LearnMethodName(options.method).c_str(), synth.noise.k,
-              std::max(synth.noise.k, synth.noise_k_max), train.size(), vertices, test.size(),
-              options.spline.num_knots, options.regularizer_weight, options.interleaved_step,
-              KnotStepScalingName(options.interleaved_scaling).c_str(), options.interleaved_step_decay_iterations,
-              LossWeightingName(options.loss_weighting).c_str(), options.feature_vertex_weight);
+  std::printf(
+      "method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g "
+      "(%s, decay %g), loss per %s, crease-vertex weight %g\n",
+      LearnMethodName(options.method).c_str(), synth.noise.k, std::max(synth.noise.k, synth.noise_k_max), train.size(),
+      vertices, test.size(), options.spline.num_knots, options.regularizer_weight, options.interleaved_step,
+      KnotStepScalingName(options.interleaved_scaling).c_str(), options.interleaved_step_decay_iterations,
+      LossWeightingName(options.loss_weighting).c_str(), options.feature_vertex_weight);
   Eigen::VectorXd initial_theta;
   if (!theta_in.empty()) {
     std::ifstream in(theta_in);
@@ -218,11 +247,12 @@ int main(int argc, char** argv) {
   const Eigen::VectorXd theta = eval_only ? initial_theta : LearnPrior(train, options, initial_theta, &summary);
   options.progress = nullptr;
   if (!eval_only) {
-    std::printf("training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
-                "%.1f s, %s\n",
-                summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
-                summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
-                summary.termination.c_str());
+    std::printf(
+        "training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
+        "%.1f s, %s\n",
+        summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
+        summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
+        summary.termination.c_str());
     std::printf("curve (s, D/vertex):");
     for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
       std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);
@@ -237,10 +267,11 @@ int main(int argc, char** argv) {
   for (double d = 0.0; d <= 2.0001; d += 0.1) std::printf(" %.2f:%+.3f", d, learned.Value(d) - learned.Base(d));
   std::printf("\n");
   const SecondWell well = FindSecondWell(learned);
-  std::printf("second well (min of phi on [1.2, 1.6] below the max on [0.9, d*] and below phi(1.8)): %s; d* %.3f "
-              "phi %.4f, barrier d %.3f phi %.4f, phi(1.8) %.4f, depth %+.4f\n",
-              well.found ? "FOUND" : "none", well.well_d, well.well_value, well.barrier_d, well.barrier_value,
-              well.right_value, well.depth);
+  std::printf(
+      "second well (min of phi on [1.2, 1.6] below the max on [0.9, d*] and below phi(1.8)): %s; d* %.3f "
+      "phi %.4f, barrier d %.3f phi %.4f, phi(1.8) %.4f, depth %+.4f\n",
+      well.found ? "FOUND" : "none", well.well_d, well.well_value, well.barrier_d, well.barrier_value, well.right_value,
+      well.depth);
   if (!theta_out.empty()) {
     std::ofstream out(theta_out);
     out.precision(17);

@@ -1,7 +1,8 @@
 #include "bayes/learn_prior.h"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 
 #include "bayes/noise_model.h"
 #include "bayes/synth_meshes.h"
@@ -128,9 +129,8 @@ TEST(LearnPrior, CreaseVerticesOfABox) {
   std::vector<std::vector<Eigen::Vector3d>> normals(box.num_vertices());
   for (int f = 0; f < box.F.rows(); ++f) {
     const Eigen::Vector3d a = box.V.row(box.F(f, 0));
-    const Eigen::Vector3d n = (Eigen::Vector3d(box.V.row(box.F(f, 1))) - a)
-                                  .cross(Eigen::Vector3d(box.V.row(box.F(f, 2))) - a)
-                                  .normalized();
+    const Eigen::Vector3d n =
+        (Eigen::Vector3d(box.V.row(box.F(f, 1))) - a).cross(Eigen::Vector3d(box.V.row(box.F(f, 2))) - a).normalized();
     for (int c = 0; c < 3; ++c) normals[box.F(f, c)].push_back(n);
   }
   int count = 0;
