@@ -96,6 +96,7 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
   std::vector<char> valid, crease_valid;
   FaceNormals(reference, &normal, &valid);
   if (&crease_reference != &reference) {
+    CheckFaces(crease_reference);  // same faces, but its vertex count may differ
     FaceNormals(crease_reference, &crease_normal, &crease_valid);
   } else {
     crease_normal = normal;

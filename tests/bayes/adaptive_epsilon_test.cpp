@@ -217,6 +217,9 @@ TEST(AdaptiveEpsilon, CreaseProtectionFromAnotherMesh) {
   for (double v : protected_e2) EXPECT_DOUBLE_EQ(v, 1e-4);
   Mesh other = Grid(20, 19);
   EXPECT_THROW(AdaptiveEpsilonSquared(roof, other, blurred), Error);
+  Mesh fewer_vertices = roof;
+  fewer_vertices.V.conservativeResize(roof.num_vertices() - 5, 3);
+  EXPECT_THROW(AdaptiveEpsilonSquared(roof, fewer_vertices, blurred), Error);
 }
 
 // The gate of AdaptiveEpsilonAuto (what `rangebayes smooth` runs): a noisy roof (two planes) is read as
