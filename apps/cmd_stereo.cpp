@@ -63,8 +63,10 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
       ->check(CLI::Range(o->window_px == 0 ? 0 : 1, 31));
   sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
   sub->add_option("--sigma-floor", o->sigma_floor_px,
-                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03");
-  sub->add_option("--sigma-scale", o->sigma_scale, "Disparity sigma scale k (unitless); < 0: fitted default 1.7");
+                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03 (0.01 "
+                  "with Gauss-Newton steps, spacetime)");
+  sub->add_option("--sigma-scale", o->sigma_scale,
+                  "Disparity sigma scale k (unitless); < 0: fitted default 1.7 (1.8 with Gauss-Newton steps, spacetime)");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--subpixel-iterations", o->subpixel_iterations,
                   "Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)")
@@ -268,6 +270,10 @@ void AddSpaceTime(CLI::App& app) {
     }
     SpaceTimeMatcherOptions m = BlockOptions(o->m);
     if (o->m.window_px == 0) m.window_px = T >= 16 ? 5 : 7;
+    if (m.subpixel_iterations > 0 && o->m.noise_model.empty()) {
+      if (o->m.sigma_floor_px < 0.0) m.sigma_floor_px = kGaussNewtonSigmaFloorPx;
+      if (o->m.sigma_scale < 0.0) m.sigma_scale = kGaussNewtonSigmaScale;
+    }
     SpaceTimeMatcher matcher(m);
     const DisparityResult result = matcher.Match(left, right);
     WriteOutputs(result, rectifier, id, timestamp, o->out, o->m);

@@ -393,7 +393,8 @@ struct SynthConfig {
   double noise_free = -1;  // if ≥ 0: rendered noise override (the matcher still assumes `noise`)
   std::string cost = "auto";  // auto, ssd, zncc-time, zncc-space
   double edge = 1.0;          // edge_reject_jump_px (−2: matcher default, off)
-  int sigmafit_gn = 0;        // Gauss–Newton steps of the σ_d fit (--quality=sigmafit)
+  int sigmafit_gn = 0;        // Gauss–Newton steps of the σ_d fit (--quality=sigmafit); > 0: also edge
+                              // rejection and the window by T, as `rangebayes spacetime`
 };
 SynthConfig g_synth;
 
@@ -528,6 +529,10 @@ void QualitySigmaFit() {
         mo.sigma_scale = 1.0;
         mo.neighbour_jump_px = -1.0;  // J is added outside the floor-plus-scale form
         mo.subpixel_iterations = g_synth.sigmafit_gn;
+        if (g_synth.sigmafit_gn > 0) {  // the configuration of `rangebayes spacetime`
+          mo.edge_reject_jump_px = 1.0;
+          mo.window_px = T >= 16 ? 5 : 7;
+        }
         const auto r = rb::SpaceTimeMatcher(mo).Match(rec.left, rec.right);
         for (int y = 0; y < rec.depth_m.rows; ++y)
           for (int x = 0; x < rec.depth_m.cols; ++x) {

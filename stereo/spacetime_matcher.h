@@ -63,6 +63,14 @@ struct SpaceTimeMatcherOptions {
   void Check() const;
 };
 
+// σ_d model for the Gauss–Newton path (subpixel_iterations > 0, with edge rejection): the parabola's floor
+// (its pixel-locking bias) is gone, so the defaults above overstate σ_d there (along-ray normalised residual
+// 0.4–0.5 instead of 1 on the synthetic scenes). Fitted like the defaults (`bench_stereo --quality=sigmafit
+// --synth-sigmafit-gn=1`): T = 8, w = 7: floor 0.00 px, scale 1.9; T = 16, w = 5: 0.01 px, 1.7. Used by
+// `rangebayes spacetime` unless --sigma-floor/--sigma-scale/--noise-model are given.
+inline constexpr double kGaussNewtonSigmaFloorPx = 0.01;
+inline constexpr double kGaussNewtonSigmaScale = 1.8;
+
 struct SpaceTimeMatchSummary {
   SpaceTimeCost cost_used = SpaceTimeCost::kSsd;
   int frames = 0;
