@@ -160,7 +160,7 @@ inline void CubicWeights(float f, float w[4], float g[4]) {
 // Σ_t g·e and Σ_t g² of one window sample: g = ½(L(x+1) − L(x−1)), e = L(x) − Σ_k w_k R(ir − 1 + k), all at
 // frame t; each pointer addresses T contiguous samples (PixelMajor). Eight partial sums, so the compiler
 // can keep them in one vector register.
-RB_MULTIVERSION void SampleSums(const float* lc, const float* lm, const float* lp, const float* r0, const float* r1,
+inline __attribute__((always_inline)) void SampleSums(const float* lc, const float* lm, const float* lp, const float* r0, const float* r1,
                                 const float* r2, const float* r3, const float* w, int T, float* ge_out,
                                 float* gg_out) {
   float ge[8] = {0, 0, 0, 0, 0, 0, 0, 0}, gg[8] = {0, 0, 0, 0, 0, 0, 0, 0};
@@ -185,7 +185,7 @@ RB_MULTIVERSION void SampleSums(const float* lc, const float* lm, const float* l
   *gg_out = ((gg[0] + gg[1]) + (gg[2] + gg[3])) + ((gg[4] + gg[5]) + (gg[6] + gg[7]));
 }
 
-bool RefineGaussNewton(const PixelMajor& L, const PixelMajor& R, const std::vector<float>& noise_left,
+RB_MULTIVERSION bool RefineGaussNewton(const PixelMajor& L, const PixelMajor& R, const std::vector<float>& noise_left,
                        const std::vector<float>& noise_right, int x, int y, int r, int iterations, double noise,
                        double slope_x, double slope_y, double* disparity, double* sigma_pred) {
   const int W = L.width, H = L.height, T = L.frames;
@@ -221,7 +221,7 @@ bool RefineGaussNewton(const PixelMajor& L, const PixelMajor& R, const std::vect
         sum_ge += ge;
         sum_gg += gg;
         ++samples;
-        if (!noise_left.empty()) {
+        if (!noise_left.empty() && iter + 1 == iterations) {
           const double sl = noise_left[static_cast<size_t>(yy) * W + xp];
           const double sr = noise_right[static_cast<size_t>(yy) * W + ir];
           sum_var += sl * sl + sr * sr;
