@@ -51,13 +51,14 @@ struct SpaceTimeMatcherOptions {
   // disparity differs by more than this per pixel of (chessboard) distance within r + 1 = w/2 + 1 of it
   // becomes NaN: its window mixes two surfaces (depth edge, occlusion border, a grazing face), which drags the
   // match to the other surface. `rangebayes spacetime` uses 1.0; on the synthetic scenes it removes the gross
-  // edge errors that dominate the depth RMS (box, T = 16, noise 4: 4.7 → 2.2 mm) for 1–3% of coverage.
+  // edge errors that dominate the depth RMS (box, T = 16, w = 5, noise 4, 1 GN step: 26.5 → 2.3 mm over the
+  // pixels both it and SGBM measured) for 2–6% of coverage.
   double edge_reject_jump_px = -1.0;
   // 0–5: Gauss–Newton steps after the parabola on the pixels that passed the checks, with the planar window
   // and the left image's gradient (see RefineGaussNewton). 0: parabola only, the library default (the speed
   // case; 0.051 px about the Gray-code plane at T = 16 against 0.050 px with 2 steps). The parabola's pixel
-  // locking (±0.03 px, by fractional disparity) leaves depth RMS 0.35–0.36 of SGBM's at noise 4 away from
-  // edges on the synthetic scenes at T = 16; one step gives 0.21–0.25 (`rangebayes spacetime` uses 1).
+  // locking (±0.03 px, by fractional disparity) leaves depth RMS up to 0.37 of SGBM's away from edges on
+  // the synthetic scenes at T = 16, w = 5; one step: up to 0.25 (`rangebayes spacetime` uses 1).
   int subpixel_iterations = 0;
   int rows_per_task = 32;            // 1–1024: rows per parallel task (each band recomputes w − 1 rows above it)
   void Check() const;
