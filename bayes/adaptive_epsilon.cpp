@@ -75,6 +75,16 @@ void FaceNormals(const Mesh& reference, std::vector<Eigen::Vector3d>* normal, st
   }
 }
 
+// The options of a fast pre-pass (no per-face ε, no progress) on which a rule reads the shape.
+SmoothOptions FastPrepassOptions(const SmoothOptions& options, int max_iterations) {
+  SmoothOptions pre = options;
+  pre.tolerance = SmoothTolerance::kFast;
+  pre.max_iterations = max_iterations;
+  pre.face_epsilon_squared.clear();
+  pre.progress = nullptr;
+  return pre;
+}
+
 }  // namespace
 
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
@@ -298,12 +308,7 @@ std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const Smo
            "adaptive epsilon: needs the square-root prior (--prior sqrt)");
   rule.Check();
   const auto start = std::chrono::steady_clock::now();
-  SmoothOptions pre = options;
-  pre.tolerance = SmoothTolerance::kFast;
-  pre.max_iterations = 0;
-  pre.face_epsilon_squared.clear();
-  pre.progress = nullptr;
-  const Mesh smoothed = Smooth(noisy, pre);
+  const Mesh smoothed = Smooth(noisy, FastPrepassOptions(options, 0));
   std::vector<double> epsilon_squared = AdaptiveEpsilonSquared(smoothed, rule, summary);
   if (summary != nullptr) {
     summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -316,11 +321,8 @@ std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothO
                                            AdaptiveEpsilonSummary* summary) {
   second.Check();
   const auto start = std::chrono::steady_clock::now();
-  SmoothOptions pass = options;
+  SmoothOptions pass = FastPrepassOptions(options, 0);
   pass.face_epsilon_squared = AdaptiveEpsilonFromPrepass(noisy, options, first);
-  pass.tolerance = SmoothTolerance::kFast;
-  pass.max_iterations = 0;
-  pass.progress = nullptr;
   const Mesh smoothed = Smooth(noisy, pass);
   std::vector<double> epsilon_squared = AdaptiveEpsilonSquared(smoothed, second, summary);
   if (summary != nullptr) {
@@ -355,12 +357,8 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
            "adaptive epsilon: needs the square-root prior (--prior sqrt)");
   rule.Check();
   const auto start = std::chrono::steady_clock::now();
-  SmoothOptions pre = options;
-  pre.tolerance = SmoothTolerance::kFast;
-  pre.max_iterations = rule.prepass_max_iterations;
+  SmoothOptions pre = FastPrepassOptions(options, rule.prepass_max_iterations);
   pre.energy_tolerance = 0;
-  pre.face_epsilon_squared.clear();
-  pre.progress = nullptr;
   const Mesh smoothed = Smooth(noisy, pre);
 
   AdaptiveEpsilonSummary gate_summary;
