@@ -343,6 +343,10 @@ void LearnPriorOptions::Check() const {
   RB_CHECK(feature_vertex_weight >= 1 && feature_vertex_weight <= 1e6,
            "learn prior: feature_vertex_weight must be in [1, 1e6], got ", feature_vertex_weight);
   RB_CHECK(feature_min_d > 0 && feature_min_d < 2, "learn prior: feature_min_d must be in (0, 2), got ", feature_min_d);
+  RB_CHECK(pattern_search_sweeps >= 0 && pattern_search_sweeps <= 1000,
+           "learn prior: pattern_search_sweeps must be in [0, 1000], got ", pattern_search_sweeps);
+  RB_CHECK(pattern_search_step > 0 && pattern_search_step <= 1,
+           "learn prior: pattern_search_step must be in (0, 1], got ", pattern_search_step);
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "learn prior: num_threads must be in [0, 1024], got ", num_threads);
 }
 
@@ -650,6 +654,48 @@ Eigen::VectorXd LearnInterleaved(const std::vector<TrainingPair>& pairs, const L
   return theta;
 }
 
+// LearnPriorOptions::pattern_search_sweeps. Starts from the spline's θ; summary->final_data_loss must hold D there.
+Eigen::VectorXd PatternSearch(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                              SplinePotential* spline, const std::vector<PairProblem>& problems, Report* report) {
+  LearnPriorSummary* summary = report->summary;
+  Eigen::VectorXd theta = spline->theta();
+  std::vector<Eigen::VectorXd> minima;
+  double data_loss = summary->final_data_loss;
+  double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight);
+  double step = options.pattern_search_step;
+  for (int sweep = 0; sweep < options.pattern_search_sweeps && !report->OutOfTime(); ++sweep) {
+    bool moved = false;
+    for (Eigen::Index j = 1; j + 1 < theta.size() && !report->OutOfTime(); ++j) {
+      for (const double sign : {1.0, -1.0}) {
+        Eigen::VectorXd candidate = theta;
+        candidate[j] += sign * step;
+        spline->SetTheta(candidate);
+        const double candidate_data = SmoothAll(pairs, problems, *spline, options, &minima);
+        ++summary->smoothing_runs;
+        const double candidate_loss = candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight);
+        if (candidate_loss < loss) {
+          theta = candidate;
+          data_loss = candidate_data;
+          loss = candidate_loss;
+          moved = true;
+          ++summary->pattern_search_moves;
+          break;
+        }
+      }
+      spline->SetTheta(theta);
+    }
+    report->Record(data_loss, loss);
+    if (options.progress) {
+      options.progress(1.0,
+                       StrCat("pattern sweep ", sweep + 1, ": loss ", loss, " (data ", data_loss, "), step ", step));
+    }
+    if (!moved) step *= 0.5;
+  }
+  spline->SetTheta(theta);
+  summary->final_data_loss = data_loss;
+  return theta;
+}
+
 }  // namespace
 
 double ImplicitDataGradient(const std::vector<TrainingPair>& pairs, const Eigen::VectorXd& theta,
@@ -706,6 +752,7 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
     summary.final_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
     summary.smoothing_runs += 2;
   }
+  if (options.pattern_search_sweeps > 0) theta = PatternSearch(pairs, options, &spline, problems, &report);
   summary.total_time_s = Seconds(start);
   if (summary_out != nullptr) *summary_out = std::move(summary);
   return theta;

@@ -85,6 +85,12 @@ struct LearnPriorOptions {
   // Interleaved: fixed step α of eq. 22 and finite-difference increment ε of eq. 21.
   double interleaved_step = 0.01;     // (0, 1e6]; measured on the synthetic set (BENCHMARKS.md)
   double interleaved_epsilon = 1e-3;  // (0, 1]
+  // After either method: a pattern (coordinate) search on the true loss L = D + regulariser, D from a cold
+  // Smooth() of every pair as at run time: each sweep tries θ_j ± δ for every free knot and keeps a move that
+  // lowers L; δ halves after a sweep without any accepted move. No gradient, so it is not misled by the
+  // interleaved scheme's one-CG-step gradient or by the roughness of D(θ). 0 sweeps: off. [0, 1000]
+  int pattern_search_sweeps = 0;
+  double pattern_search_step = 0.04;                              // initial δ in knot-value units; (0, 1]
   KnotStepScaling interleaved_scaling = KnotStepScaling::kFixed;  // the paper's fixed step by default
   double interleaved_rms_decay = 0.9;                             // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
   // Step schedule α_t = α · τ / (τ + t) at iteration t; 0: constant α. [0, 1e9]
@@ -110,8 +116,10 @@ struct LearnPriorSummary {
   double initial_data_loss = 0;   // D of the square-root potential (θ at the start)
   double final_data_loss = 0;     // D of the returned θ with full smoothing
   int iterations = 0;
-  int smoothing_runs = 0;         // smoothing of every pair (cold or warm)
-  long long warm_iterations = 0;  // implicit with warm starts: Newton steps over all warm solves
+  int smoothing_runs = 0;  // smoothing of every pair (cold or warm)
+  long long warm_iterations = 0;
+  int pattern_search_moves =
+      0;  // accepted pattern-search moves  // implicit with warm starts: Newton steps over all warm solves
   double total_time_s = 0;
   std::string termination;  // "max iterations", "time limit", "no progress", "converged"
 };

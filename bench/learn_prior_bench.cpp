@@ -171,6 +171,10 @@ int main(int argc, char** argv) {
       theta_in = next();
     else if (a == "--no-train-eval")
       train_eval = false;
+    else if (a == "--pattern-sweeps")
+      options.pattern_search_sweeps = std::stoi(next());
+    else if (a == "--pattern-step")
+      options.pattern_search_step = std::stod(next());
     else if (a == "--eval-only")
       eval_only = true;
     else if (a == "--set-knot") {
@@ -249,10 +253,10 @@ int main(int argc, char** argv) {
   if (!eval_only) {
     std::printf(
         "training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
-        "%.1f s, %s\n",
+        "%.1f s, %s, %d pattern-search moves\n",
         summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
         summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
-        summary.termination.c_str());
+        summary.termination.c_str(), summary.pattern_search_moves);
     std::printf("curve (s, D/vertex):");
     for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
       std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);

@@ -119,6 +119,22 @@ TEST(LearnPrior, RmsScaledInterleavedReducesTheTrainingLoss) {
   EXPECT_EQ(ParseLossWeighting(LossWeightingName(LossWeighting::kPerObject)), LossWeighting::kPerObject);
 }
 
+// The pattern search after the interleaved scheme only accepts moves that lower the cold-smoothing loss.
+TEST(LearnPrior, PatternSearchNeverRaisesTheLoss) {
+  const std::vector<TrainingPair> pairs = TinyBoxes(2, 0.2);
+  LearnPriorOptions options;
+  options.spline.num_knots = 8;
+  options.max_iterations = 10;
+  options.num_threads = 1;
+  LearnPriorSummary plain, searched;
+  const Eigen::VectorXd start = LearnPrior(pairs, options, {}, &plain);
+  options.pattern_search_sweeps = 2;
+  const Eigen::VectorXd theta = LearnPrior(pairs, options, {}, &searched);
+  EXPECT_LE(searched.final_data_loss + CurvatureRegularizer(theta, options.regularizer_weight),
+            plain.final_data_loss + CurvatureRegularizer(start, options.regularizer_weight) + 1e-12);
+  EXPECT_EQ(theta != start, searched.pattern_search_moves > 0);
+}
+
 // On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
 TEST(LearnPrior, CreaseVerticesOfABox) {
   RightAngledObjectOptions object;
