@@ -666,6 +666,9 @@ Eigen::VectorXd PatternSearch(const std::vector<TrainingPair>& pairs, const Lear
   for (int sweep = 0; sweep < options.pattern_search_sweeps && !report->OutOfTime(); ++sweep) {
     bool moved = false;
     for (Eigen::Index j = 1; j + 1 < theta.size() && !report->OutOfTime(); ++j) {
+      // Both directions, the better one kept (trying one first and stopping there biases the search).
+      Eigen::VectorXd best;
+      double best_data = 0, best_loss = loss;
       for (const double sign : {1.0, -1.0}) {
         Eigen::VectorXd candidate = theta;
         candidate[j] += sign * step;
@@ -673,14 +676,18 @@ Eigen::VectorXd PatternSearch(const std::vector<TrainingPair>& pairs, const Lear
         const double candidate_data = SmoothAll(pairs, problems, *spline, options, &minima);
         ++summary->smoothing_runs;
         const double candidate_loss = candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight);
-        if (candidate_loss < loss) {
-          theta = candidate;
-          data_loss = candidate_data;
-          loss = candidate_loss;
-          moved = true;
-          ++summary->pattern_search_moves;
-          break;
+        if (candidate_loss < best_loss) {
+          best = candidate;
+          best_data = candidate_data;
+          best_loss = candidate_loss;
         }
+      }
+      if (best.size() > 0) {
+        theta = best;
+        data_loss = best_data;
+        loss = best_loss;
+        moved = true;
+        ++summary->pattern_search_moves;
       }
       spline->SetTheta(theta);
     }

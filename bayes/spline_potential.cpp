@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 #include "core/error.h"
 
@@ -163,31 +165,40 @@ void SecondWellOptions::Check() const {
 
 SecondWell FindSecondWell(const Potential& potential, const SecondWellOptions& options) {
   options.Check();
-  SecondWell well;
-  const int samples = static_cast<int>(std::ceil((options.well_max_d - options.well_min_d) / options.sample_step));
-  well.well_d = options.well_min_d;
-  well.well_value = potential.Value(well.well_d);
-  for (int i = 1; i <= samples; ++i) {
-    const double d = std::min(options.well_max_d, options.well_min_d + i * options.sample_step);
-    const double value = potential.Value(d);
-    if (value < well.well_value) {
-      well.well_value = value;
-      well.well_d = d;
-    }
+  const double h = options.sample_step;
+  const int count = static_cast<int>(std::ceil((2.0 - options.shoulder_min_d) / h)) + 1;
+  std::vector<double> d(count), value(count);
+  for (int i = 0; i < count; ++i) {
+    d[i] = std::min(2.0, options.shoulder_min_d + i * h);
+    value[i] = potential.Value(d[i]);
   }
-  well.barrier_d = well.well_d;
-  well.barrier_value = well.well_value;
-  for (double d = options.shoulder_min_d; d < well.well_d; d += options.sample_step) {
-    const double value = potential.Value(d);
-    if (value > well.barrier_value) {
-      well.barrier_value = value;
-      well.barrier_d = d;
+  const double right_value = potential.Value(options.right_d);
+  // The deepest strict local minimum of the samples in the window, and (reported when there is none) the
+  // window's lowest point, e.g. its left end for a monotone φ.
+  SecondWell deepest, lowest;
+  deepest.depth = -std::numeric_limits<double>::infinity();
+  lowest.well_value = std::numeric_limits<double>::infinity();
+  double barrier_value = -std::numeric_limits<double>::infinity(), barrier_d = options.shoulder_min_d;
+  for (int i = 0; i < count; ++i) {
+    if (value[i] > barrier_value) {
+      barrier_value = value[i];
+      barrier_d = d[i];
     }
+    if (d[i] < options.well_min_d - 1e-12 || d[i] > options.well_max_d + 1e-12) continue;
+    SecondWell here;
+    here.well_d = d[i];
+    here.well_value = value[i];
+    here.barrier_d = barrier_d;
+    here.barrier_value = barrier_value;
+    here.right_value = right_value;
+    here.depth = std::min(barrier_value, right_value) - value[i];
+    const bool local_minimum = i > 0 && i + 1 < count && value[i] < value[i - 1] && value[i] <= value[i + 1];
+    if (local_minimum && here.depth > deepest.depth) deepest = here;
+    if (value[i] < lowest.well_value) lowest = here;
   }
-  well.right_value = potential.Value(options.right_d);
-  well.depth = std::min(well.barrier_value, well.right_value) - well.well_value;
-  well.found = well.depth > options.min_depth;
-  return well;
+  SecondWell result = std::isfinite(deepest.depth) ? deepest : lowest;
+  result.found = std::isfinite(deepest.depth) && deepest.depth > options.min_depth;
+  return result;
 }
 
 }  // namespace rangebayes

@@ -68,10 +68,10 @@ class SplinePotential final : public Potential {
 };
 
 // The "second well near d = √2" of the paper's learned potential for right angles, as a test on the curve.
-// φ is sampled every sample_step; d* = argmin φ on [well_min_d, well_max_d]. A well is found when φ(d*) lies
-// strictly below (by more than min_depth) both the maximum of φ on [shoulder_min_d, d*] (a barrier on its
-// left, so φ has a local maximum below d*) and φ(right_d) (it rises again to the right). A monotone φ never
-// passes: its minimum on the window is at the window's left end, where the left maximum equals it.
+// φ is sampled every sample_step on [shoulder_min_d, 2]. A well is a strict local minimum d* of the samples in
+// [well_min_d, well_max_d] whose value lies below (by more than min_depth) both the maximum of φ on
+// [shoulder_min_d, d*] (a barrier on its left) and φ(right_d) (it rises again to the right); the deepest one is
+// reported. A monotone φ never passes (it has no local minimum).
 struct SecondWellOptions {
   double shoulder_min_d = 0.9;  // left end of the barrier search; [0, well_min_d]
   double well_min_d = 1.2;      // window of the well; 0 < well_min_d < well_max_d < right_d ≤ 2
@@ -84,7 +84,7 @@ struct SecondWellOptions {
 
 struct SecondWell {
   bool found = false;
-  double well_d = 0, well_value = 0;        // d* and φ(d*)
+  double well_d = 0, well_value = 0;        // d* and φ(d*) (no local minimum: the window's lowest point)
   double barrier_d = 0, barrier_value = 0;  // argmax and max of φ on [shoulder_min_d, d*]
   double right_value = 0;                   // φ(right_d)
   double depth = 0;                         // min(barrier_value, right_value) − well_value (> min_depth: found)

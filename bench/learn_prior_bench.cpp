@@ -272,7 +272,8 @@ int main(int argc, char** argv) {
   std::printf("\n");
   const SecondWell well = FindSecondWell(learned);
   std::printf(
-      "second well (min of phi on [1.2, 1.6] below the max on [0.9, d*] and below phi(1.8)): %s; d* %.3f "
+      "second well (a strict local minimum d* of phi in [1.2, 1.6] below the max on [0.9, d*] and phi(1.8)): %s; d* "
+      "%.3f "
       "phi %.4f, barrier d %.3f phi %.4f, phi(1.8) %.4f, depth %+.4f\n",
       well.found ? "FOUND" : "none", well.well_d, well.well_value, well.barrier_d, well.barrier_value, well.right_value,
       well.depth);

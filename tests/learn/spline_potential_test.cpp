@@ -133,6 +133,23 @@ TEST(SecondWell, FindsADipNearRoot2) {
   EXPECT_FALSE(FindSecondWell(SplinePotential(options, theta), SecondWellOptions{.min_depth = 1.0}).found);
 }
 
+// A local well whose bottom lies above φ(1.2) still counts: φ rises to a barrier at 1.33, falls to a minimum
+// near 1.45 and rises again.
+TEST(SecondWell, FindsALocalWellAboveTheWindowStart) {
+  const SplinePotentialOptions options;
+  Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
+  theta[10] = 1.45;  // d = 1.333
+  theta[11] = 1.30;  // d = 1.467
+  const SplinePotential phi(options, theta);
+  const SecondWell well = FindSecondWell(phi);
+  EXPECT_TRUE(well.found);
+  EXPECT_GT(well.well_d, 1.35);
+  EXPECT_LT(well.well_d, 1.55);
+  EXPECT_GT(well.well_value, phi.Value(1.2));
+  EXPECT_GT(well.barrier_d, 1.25);
+  EXPECT_LT(well.barrier_d, well.well_d);
+}
+
 TEST(SecondWell, IgnoresAWellElsewhere) {
   const SplinePotentialOptions options;
   Eigen::VectorXd theta = SplinePotential::SquareRootTheta(options);
