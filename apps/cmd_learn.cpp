@@ -103,6 +103,8 @@ struct LearnArgs {
   int iterations = 0;
   double time_limit_s = 0;
   double step = 0;
+  int pattern_sweeps = 0;
+  double pattern_step = LearnPriorOptions{}.pattern_search_step;
   int threads = 0;
   bool quiet = false;
 };
@@ -210,6 +212,8 @@ void RunLearn(const LearnArgs& args) {
     options.initial_step = std::min(args.step, 1.0);
     options.interleaved_step = args.step;
   }
+  options.pattern_search_sweeps = args.pattern_sweeps;
+  options.pattern_search_step = args.pattern_step;
   options.progress = [&progress](double fraction, std::string_view stage) {
     progress.Update(0.02 + 0.98 * fraction, stage);
   };
@@ -319,6 +323,13 @@ void AddCommands(CLI::App& app) {
                     "Step: interleaved fixed step alpha (default 0.01); implicit first step in knot units "
                     "(default 0.02); 0: default")
         ->check(CLI::Range(0.0, 1e6));
+    sub->add_option("--pattern-sweeps", args->pattern_sweeps,
+                    "After learning: sweeps of a pattern search on the cold-smoothing loss (each tries theta_j +- "
+                    "step for every knot; BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
+        ->check(CLI::Range(0, 1000));
+    sub->add_option("--pattern-step", args->pattern_step,
+                    "Pattern search: initial step in knot-value units, halved after a sweep without a move, (0, 1]")
+        ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--threads", args->threads, "Smoother threads (0: all cores)")->check(CLI::Range(0, 1024));
     sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");
     sub->callback([args] { RunLearn(*args); });
