@@ -7,9 +7,20 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+// AVX-512 kernels, chosen at run time (the default build targets baseline x86-64). GCC only: its
+// optimize("fp-contract=off") keeps every multiply and add separately rounded as in the portable code, which
+// is what makes both paths give the same bytes (clang would contract them into FMAs).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define RB_SMOOTHING_AVX512 1
+#include <immintrin.h>
+#define RB_AVX512_KERNEL __attribute__((target("avx512f,avx512vl,avx512dq"), optimize("fp-contract=off")))
+#else
+#define RB_SMOOTHING_AVX512 0
 #endif
 
 #include "core/error.h"
@@ -33,7 +44,194 @@ double DeterministicSum(int n, const Body& body) {
 
 inline Eigen::Vector3d Position(const double* x, int v) { return Eigen::Vector3d(x[3 * v], x[3 * v + 1], x[3 * v + 2]); }
 
+SmoothingKernel g_kernel = SmoothingKernel::kAuto;
+
+#if RB_SMOOTHING_AVX512
+bool CpuHasAvx512() {
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                          __builtin_cpu_supports("avx512dq");
+  return has;
+}
+
+// The square-root face pass (Evaluate's pass 2) over faces [begin, end), eight faces per step in the lanes of
+// a zmm register: the neighbours' normals come in by gathers, slot k of the eight faces at once (masked where
+// a face has fewer than k + 1 neighbours). Each lane performs exactly the portable loop's operations in its
+// order (no FMA), and the eight ½Σφ are added to `sum` one face after another, so the result has the same
+// bytes as the portable pass. face_e2 null: the global e2.
+struct SqrtFacePassInput {
+  const double* x;
+  const int* faces;  // #F×3 row-major
+  const double* normals;
+  const double* inverse_length;
+  const int* offsets;
+  const int* neighbours;
+  const double* face_e2;
+  double e2;
+  double beta;
+  double* h;  // null: no gradient
+};
+
+RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begin, int end, double sum) {
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
+  const __m512d beta = _mm512_set1_pd(in.beta), global_e2 = _mm512_set1_pd(in.e2);
+  alignas(64) double energy[8];
+  alignas(32) int count_lanes[8];
+  for (int t0 = begin; t0 < end; t0 += 8) {
+    const int n = std::min(8, end - t0);
+    const __mmask8 valid = static_cast<__mmask8>((1u << n) - 1u);
+    const __m256i t = _mm256_add_epi32(_mm256_set1_epi32(t0), lanes);
+    const __m256i t3 = _mm256_add_epi32(t, _mm256_add_epi32(t, t));
+    const __m256i lo = _mm256_maskz_loadu_epi32(valid, in.offsets + t0);
+    const __m256i count = _mm256_sub_epi32(_mm256_maskz_loadu_epi32(valid, in.offsets + t0 + 1), lo);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(count_lanes), count);
+    int max_count = 0;
+    for (int l = 0; l < n; ++l) max_count = std::max(max_count, count_lanes[l]);
+    const __m512d ntx = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals, 8);
+    const __m512d nty = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals + 1, 8);
+    const __m512d ntz = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals + 2, 8);
+    const __m512d e2t = in.face_e2 != nullptr ? _mm512_maskz_loadu_pd(valid, in.face_e2 + t0) : zero;
+    __m512d e = zero, gx = zero, gy = zero, gz = zero;
+    for (int k = 0; k < max_count; ++k) {
+      const __mmask8 m = _mm256_cmpgt_epi32_mask(count, _mm256_set1_epi32(k));
+      const __m256i s = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), m, _mm256_add_epi32(lo, _mm256_set1_epi32(k)),
+                                                     in.neighbours, 4);
+      const __m256i s3 = _mm256_add_epi32(s, _mm256_add_epi32(s, s));
+      const __m512d dx = _mm512_sub_pd(ntx, _mm512_mask_i32gather_pd(zero, m, s3, in.normals, 8));
+      const __m512d dy = _mm512_sub_pd(nty, _mm512_mask_i32gather_pd(zero, m, s3, in.normals + 1, 8));
+      const __m512d dz = _mm512_sub_pd(ntz, _mm512_mask_i32gather_pd(zero, m, s3, in.normals + 2, 8));
+      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      __m512d a;
+      if (in.face_e2 != nullptr) {
+        const __m512d e2s = _mm512_mask_i32gather_pd(zero, m, s, in.face_e2, 8);
+        a = _mm512_add_pd(d2, _mm512_mul_pd(half, _mm512_add_pd(e2t, e2s)));
+      } else {
+        a = _mm512_add_pd(d2, global_e2);
+      }
+      const __m512d v = _mm512_maskz_sqrt_pd(m, a);  // (the unmasked form trips -Wmaybe-uninitialized in GCC 12)
+      const __m512d w = _mm512_div_pd(one, v);
+      e = _mm512_mask_add_pd(e, m, e, v);
+      gx = _mm512_mask_add_pd(gx, m, gx, _mm512_mul_pd(w, dx));
+      gy = _mm512_mask_add_pd(gy, m, gy, _mm512_mul_pd(w, dy));
+      gz = _mm512_mask_add_pd(gz, m, gz, _mm512_mul_pd(w, dz));
+    }
+    if (in.h != nullptr) {
+      const __m512d inv = _mm512_mul_pd(_mm512_maskz_loadu_pd(valid, in.inverse_length + t0), beta);
+      const __mmask8 live = _mm512_mask_cmp_pd_mask(valid, inv, zero, _CMP_NEQ_UQ);
+      const __m512d ng = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ntx, gx), _mm512_mul_pd(nty, gy)), _mm512_mul_pd(ntz, gz));
+      const __m512d hx = _mm512_mul_pd(_mm512_sub_pd(gx, _mm512_mul_pd(ntx, ng)), inv);
+      const __m512d hy = _mm512_mul_pd(_mm512_sub_pd(gy, _mm512_mul_pd(nty, ng)), inv);
+      const __m512d hz = _mm512_mul_pd(_mm512_sub_pd(gz, _mm512_mul_pd(ntz, ng)), inv);
+      __m512d px[3], py[3], pz[3];
+      for (int k = 0; k < 3; ++k) {
+        const __m256i v = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), live, t3, in.faces + k, 4);
+        const __m256i v3 = _mm256_add_epi32(v, _mm256_add_epi32(v, v));
+        px[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x, 8);
+        py[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x + 1, 8);
+        pz[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x + 2, 8);
+      }
+      const __m256i t9 = _mm256_add_epi32(t3, _mm256_add_epi32(t3, t3));
+      for (int k = 0; k < 3; ++k) {
+        const int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
+        const __m512d ex = _mm512_sub_pd(px[k2], px[k1]), ey = _mm512_sub_pd(py[k2], py[k1]), ez = _mm512_sub_pd(pz[k2], pz[k1]);
+        const __m512d ox = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hy, ez), _mm512_mul_pd(hz, ey)));
+        const __m512d oy = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hz, ex), _mm512_mul_pd(hx, ez)));
+        const __m512d oz = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hx, ey), _mm512_mul_pd(hy, ex)));
+        _mm512_mask_i32scatter_pd(in.h + 3 * k, valid, t9, ox, 8);
+        _mm512_mask_i32scatter_pd(in.h + 3 * k + 1, valid, t9, oy, 8);
+        _mm512_mask_i32scatter_pd(in.h + 3 * k + 2, valid, t9, oz, 8);
+      }
+    }
+    _mm512_store_pd(energy, _mm512_mul_pd(half, e));
+    for (int l = 0; l < n; ++l) sum += energy[l];
+  }
+  return sum;
+}
+
+// ComputeNormals over faces [begin, end), eight faces per step; the portable loop's operations per lane.
+RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const char* active, int begin, int end,
+                                    double* normals, double* inverse_length) {
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
+  const __m512d infinity = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  for (int t0 = begin; t0 < end; t0 += 8) {
+    const int n = std::min(8, end - t0);
+    __mmask8 valid = static_cast<__mmask8>((1u << n) - 1u);
+    const __m256i t = _mm256_add_epi32(_mm256_set1_epi32(t0), lanes);
+    const __m256i t3 = _mm256_add_epi32(t, _mm256_add_epi32(t, t));
+    __mmask8 on = 0;
+    for (int l = 0; l < n; ++l) on = static_cast<__mmask8>(on | (active[t0 + l] ? 1u << l : 0u));
+    __m512d px[3], py[3], pz[3];
+    for (int k = 0; k < 3; ++k) {
+      const __m256i v = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), on, t3, faces + k, 4);
+      const __m256i v3 = _mm256_add_epi32(v, _mm256_add_epi32(v, v));
+      px[k] = _mm512_mask_i32gather_pd(zero, on, v3, x, 8);
+      py[k] = _mm512_mask_i32gather_pd(zero, on, v3, x + 1, 8);
+      pz[k] = _mm512_mask_i32gather_pd(zero, on, v3, x + 2, 8);
+    }
+    const __m512d ax = _mm512_sub_pd(px[1], px[0]), ay = _mm512_sub_pd(py[1], py[0]), az = _mm512_sub_pd(pz[1], pz[0]);
+    const __m512d bx = _mm512_sub_pd(px[2], px[0]), by = _mm512_sub_pd(py[2], py[0]), bz = _mm512_sub_pd(pz[2], pz[0]);
+    const __m512d cx = _mm512_sub_pd(_mm512_mul_pd(ay, bz), _mm512_mul_pd(az, by));
+    const __m512d cy = _mm512_sub_pd(_mm512_mul_pd(az, bx), _mm512_mul_pd(ax, bz));
+    const __m512d cz = _mm512_sub_pd(_mm512_mul_pd(ax, by), _mm512_mul_pd(ay, bx));
+    const __m512d length2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cx, cx), _mm512_mul_pd(cy, cy)), _mm512_mul_pd(cz, cz));
+    const __m512d length = _mm512_maskz_sqrt_pd(on, length2);
+    // length > 0 and finite (false for NaN), as the portable test.
+    const __mmask8 good = _mm512_mask_cmp_pd_mask(on, length, zero, _CMP_GT_OQ) &
+                          _mm512_mask_cmp_pd_mask(on, length, infinity, _CMP_LT_OQ);
+    const __m512d inv = _mm512_maskz_div_pd(good, one, length);
+    const __m512d nx = _mm512_mul_pd(cx, inv), ny = _mm512_mul_pd(cy, inv), nz = _mm512_mul_pd(cz, inv);
+    _mm512_mask_i32scatter_pd(normals, valid, t3, _mm512_maskz_mov_pd(good, nx), 8);
+    _mm512_mask_i32scatter_pd(normals + 1, valid, t3, _mm512_maskz_mov_pd(good, ny), 8);
+    _mm512_mask_i32scatter_pd(normals + 2, valid, t3, _mm512_maskz_mov_pd(good, nz), 8);
+    _mm512_mask_storeu_pd(inverse_length + t0, valid, inv);
+  }
+}
+
+// Pass 3's gather for vertices [begin, end): the three components of a corner contribution in one ymm lane
+// group (one masked load and one add per corner instead of three each), in corner order; the data term as
+// the portable loop computes it. Returns `sum` plus the vertices' data terms added one after another.
+RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const double* information, bool isotropic,
+                                     const int* corner_offsets, const int* corners, const double* contributions,
+                                     int begin, int end, double* grad, double sum) {
+  const __mmask8 xyz = 0x7;
+  for (int i = begin; i < end; ++i) {
+    double w[6];
+    if (isotropic) {
+      w[0] = w[3] = w[5] = information[i];
+      w[1] = w[2] = w[4] = 0;
+    } else {
+      for (int k = 0; k < 6; ++k) w[k] = information[6 * static_cast<size_t>(i) + k];
+    }
+    const double rx = x[3 * i] - z[3 * i], ry = x[3 * i + 1] - z[3 * i + 1], rz = x[3 * i + 2] - z[3 * i + 2];
+    const double wx = w[0] * rx + w[1] * ry + w[2] * rz;
+    const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
+    const double wz = w[2] * rx + w[4] * ry + w[5] * rz;
+    if (grad != nullptr) {
+      __m256d s = _mm256_setr_pd(2 * wx, 2 * wy, 2 * wz, 0.0);
+      const int q_end = corner_offsets[i + 1];
+      for (int q = corner_offsets[i]; q < q_end; ++q) {
+        s = _mm256_add_pd(s, _mm256_maskz_loadu_pd(xyz, contributions + 3 * static_cast<size_t>(corners[q])));
+      }
+      _mm256_mask_storeu_pd(grad + 3 * static_cast<size_t>(i), xyz, s);
+    }
+    sum += rx * wx + ry * wy + rz * wz;
+  }
+  return sum;
+}
+#endif
+
 }  // namespace
+
+void SetSmoothingKernel(SmoothingKernel kernel) { g_kernel = kernel; }
+
+bool SmoothingSimdActive() {
+#if RB_SMOOTHING_AVX512
+  return g_kernel == SmoothingKernel::kAuto && CpuHasAvx512();
+#else
+  return false;
+#endif
+}
 
 SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::Matrix3d>& information,
                                  double prior_weight, const Potential& potential,
@@ -204,6 +402,14 @@ size_t SmoothingEnergy::MemoryBytes() const {
 // Unit normal and 1/|c_t| per active face into normals_ / inverse_length_.
 void SmoothingEnergy::ComputeNormals(const double* x) const {
   const int nf = num_faces();
+#if RB_SMOOTHING_AVX512
+  if (SmoothingSimdActive()) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+      NormalsAvx512(x, faces_.data(), active_.data(), r.begin(), r.end(), normals_.data(), inverse_length_.data());
+    });
+    return;
+  }
+#endif
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
     for (int f = r.begin(); f != r.end(); ++f) {
       double* n = &normals_[3 * static_cast<size_t>(f)];
@@ -331,6 +537,25 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   };
   double prior_sum;
   const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+#if RB_SMOOTHING_AVX512
+  if ((sqrt_potential != nullptr || !face_epsilon_squared_.empty()) && SmoothingSimdActive()) {
+    const SqrtFacePassInput input{x,
+                                  faces_.data(),
+                                  normals_.data(),
+                                  inverse_length_.data(),
+                                  neighbour_offsets_.data(),
+                                  neighbours_.data(),
+                                  face_epsilon_squared_.empty() ? nullptr : face_epsilon_squared_.data(),
+                                  sqrt_potential != nullptr ? sqrt_potential->epsilon_squared() : 0.0,
+                                  beta,
+                                  want_gradient ? h_.data() : nullptr};
+    // Same range tree as DeterministicSum, same order inside each range: the same bytes.
+    prior_sum = tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<int>(0, nf, kGrain), 0.0,
+        [&](const tbb::blocked_range<int>& r, double sum) { return SqrtFacePassAvx512(input, r.begin(), r.end(), sum); },
+        [](double a, double b) { return a + b; });
+  } else
+#endif
   if (!face_epsilon_squared_.empty()) {
     const double* face_e2 = face_epsilon_squared_.data();
     prior_sum = face_pass(square_root([face_e2](int t, int s, double d2) { return d2 + 0.5 * (face_e2[t] + face_e2[s]); }));
@@ -350,6 +575,18 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   if (want_gradient) gradient->resize(z_.size());
   double* grad = want_gradient ? gradient->data() : nullptr;
   const double* contributions = h_.data();
+#if RB_SMOOTHING_AVX512
+  if (SmoothingSimdActive()) {
+    const double data_sum = tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<int>(0, nv, kGrain), 0.0,
+        [&](const tbb::blocked_range<int>& r, double sum) {
+          return GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(), corners_.data(),
+                              contributions, r.begin(), r.end(), grad, sum);
+        },
+        [](double a, double b) { return a + b; });
+    return EnergyParts{data_sum, beta * prior_sum};
+  }
+#endif
   const double data_sum = DeterministicSum(nv, [&](int i) {
     double w[6];
     Information(i, w);

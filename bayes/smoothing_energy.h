@@ -29,6 +29,14 @@ struct EnergyParts {
   double total() const { return data + prior; }
 };
 
+// Which kernels SmoothingEnergy::Evaluate runs. kAuto: the AVX-512 ones where the CPU has them (GCC x86-64
+// builds), else the portable ones; kPortable: always the portable ones. Both give the same bytes; the switch
+// is for tests and benchmarks and must not be flipped while an evaluation runs.
+enum class SmoothingKernel { kAuto, kPortable };
+void SetSmoothingKernel(SmoothingKernel kernel);
+// Whether Evaluate currently runs the AVX-512 kernels.
+bool SmoothingSimdActive();
+
 class SmoothingEnergy {
  public:
   // measured: z and faces (indices checked; throws Error); referenced, not copied: it must outlive this

@@ -6,7 +6,7 @@
 //       mean angular error (degrees) beside DESIGN.md §4's reference points.
 //   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K] [--minimiser M]
 //                      [--repeat R] [--gt GT] [--file-covariance] [--preconditioner none|data|block-jacobi]
-//                      [--precondition-every N] [--energy-tolerance E]
+//                      [--precondition-every N] [--energy-tolerance E] [--portable-kernel]
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
@@ -25,6 +25,7 @@
 
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
+#include "bayes/smoothing_energy.h"
 #include "core/mesh_io.h"
 #include "core/normal_error.h"
 #include "core/topology.h"
@@ -118,6 +119,8 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   if (flags.count("--preconditioner")) options.preconditioner = ParseSmoothPreconditioner(flags["--preconditioner"]);
   if (flags.count("--precondition-every")) options.preconditioner_every = std::stoi(flags["--precondition-every"]);
   if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
+  // --portable-kernel: the energy's portable kernels even where the CPU has wider ones (same bytes; A/B timing).
+  if (flags.count("--portable-kernel")) SetSmoothingKernel(SmoothingKernel::kPortable);
   return options;
 }
 
