@@ -105,6 +105,9 @@ struct LearnArgs {
   double step = 0;
   int pattern_sweeps = 0;
   double pattern_step = LearnPriorOptions{}.pattern_search_step;
+  int bump_sweeps = LearnPriorOptions{}.bump_search_sweeps;
+  double bump_step = LearnPriorOptions{}.bump_search_step;
+  double bump_width = LearnPriorOptions{}.bump_search_width_d;
   int threads = 0;
   bool quiet = false;
 };
@@ -214,6 +217,10 @@ void RunLearn(const LearnArgs& args) {
   }
   options.pattern_search_sweeps = args.pattern_sweeps;
   options.pattern_search_step = args.pattern_step;
+  options.bump_search_sweeps = args.bump_sweeps;
+  options.bump_search_step = args.bump_step;
+  options.bump_search_min_step = std::min(options.bump_search_min_step, args.bump_step);
+  options.bump_search_width_d = args.bump_width;
   options.progress = [&progress](double fraction, std::string_view stage) {
     progress.Update(0.02 + 0.98 * fraction, stage);
   };
@@ -329,6 +336,17 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(0, 1000));
     sub->add_option("--pattern-step", args->pattern_step,
                     "Pattern search: initial step in knot-value units, halved after a sweep without a move, (0, 1]")
+        ->check(CLI::Range(1e-9, 1.0));
+    sub->add_option("--bump-sweeps", args->bump_sweeps,
+                    "After learning: sweeps of a search on the cold-smoothing loss along smooth Gaussian bumps of "
+                    "the knot values centred at d = 0.8, 1.0, ..., 1.8, each with its own adaptive step "
+                    "(BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
+        ->check(CLI::Range(0, 1000));
+    sub->add_option("--bump-step", args->bump_step,
+                    "Bump search: initial bump height in knot-value units (grown x1.5 after a move, halved after a "
+                    "failure), (0, 1]")
+        ->check(CLI::Range(1e-9, 1.0));
+    sub->add_option("--bump-width", args->bump_width, "Bump search: sigma of the bumps in d, (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--threads", args->threads, "Smoother threads (0: all cores)")->check(CLI::Range(0, 1024));
     sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");

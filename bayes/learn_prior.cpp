@@ -286,11 +286,20 @@ std::vector<bool> CreaseVertices(const Mesh& truth, double min_d) {
 LearnMethod ParseLearnMethod(const std::string& name) {
   if (name == "interleaved") return LearnMethod::kInterleaved;
   if (name == "implicit") return LearnMethod::kImplicit;
-  RB_FAIL("unknown learning method '", name, "' (expected interleaved or implicit)");
+  if (name == "none") return LearnMethod::kNone;
+  RB_FAIL("unknown learning method '", name, "' (expected interleaved, implicit or none)");
 }
 
 std::string LearnMethodName(LearnMethod method) {
-  return method == LearnMethod::kInterleaved ? "interleaved" : "implicit";
+  switch (method) {
+    case LearnMethod::kInterleaved:
+      return "interleaved";
+    case LearnMethod::kImplicit:
+      return "implicit";
+    case LearnMethod::kNone:
+      break;
+  }
+  return "none";
 }
 
 KnotStepScaling ParseKnotStepScaling(const std::string& name) {
@@ -301,6 +310,16 @@ KnotStepScaling ParseKnotStepScaling(const std::string& name) {
 
 std::string KnotStepScalingName(KnotStepScaling scaling) {
   return scaling == KnotStepScaling::kFixed ? "fixed" : "rms";
+}
+
+BumpSearchMethod ParseBumpSearchMethod(const std::string& name) {
+  if (name == "coordinate") return BumpSearchMethod::kCoordinate;
+  if (name == "filtering") return BumpSearchMethod::kImplicitFiltering;
+  RB_FAIL("unknown bump search method '", name, "' (expected coordinate or filtering)");
+}
+
+std::string BumpSearchMethodName(BumpSearchMethod method) {
+  return method == BumpSearchMethod::kCoordinate ? "coordinate" : "filtering";
 }
 
 LossWeighting ParseLossWeighting(const std::string& name) {
@@ -347,6 +366,17 @@ void LearnPriorOptions::Check() const {
            "learn prior: pattern_search_sweeps must be in [0, 1000], got ", pattern_search_sweeps);
   RB_CHECK(pattern_search_step > 0 && pattern_search_step <= 1,
            "learn prior: pattern_search_step must be in (0, 1], got ", pattern_search_step);
+  RB_CHECK(bump_search_sweeps >= 0 && bump_search_sweeps <= 1000,
+           "learn prior: bump_search_sweeps must be in [0, 1000], got ", bump_search_sweeps);
+  for (const double c : bump_search_centres_d) {
+    RB_CHECK(c > 0 && c < 2, "learn prior: bump_search_centres_d must be in (0, 2), got ", c);
+  }
+  RB_CHECK(bump_search_width_d > 0 && bump_search_width_d <= 1,
+           "learn prior: bump_search_width_d must be in (0, 1], got ", bump_search_width_d);
+  RB_CHECK(bump_search_step > 0 && bump_search_step <= 1, "learn prior: bump_search_step must be in (0, 1], got ",
+           bump_search_step);
+  RB_CHECK(bump_search_min_step > 0 && bump_search_min_step <= bump_search_step,
+           "learn prior: bump_search_min_step must be in (0, bump_search_step], got ", bump_search_min_step);
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "learn prior: num_threads must be in [0, 1024], got ", num_threads);
 }
 
@@ -703,6 +733,136 @@ Eigen::VectorXd PatternSearch(const std::vector<TrainingPair>& pairs, const Lear
   return theta;
 }
 
+// LearnPriorOptions::bump_search_sweeps. Starts from the spline's θ; summary->final_data_loss must hold D there.
+Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPriorOptions& options,
+                           SplinePotential* spline, const std::vector<PairProblem>& problems, Report* report) {
+  LearnPriorSummary* summary = report->summary;
+  Eigen::VectorXd theta = spline->theta();
+  const Eigen::Index n = theta.size();
+  const size_t count = options.bump_search_centres_d.size();
+  std::vector<Eigen::VectorXd> bumps(count, Eigen::VectorXd::Zero(n));
+  for (size_t c = 0; c < count; ++c) {
+    const double sigma = options.bump_search_width_d;
+    for (Eigen::Index j = 1; j + 1 < n; ++j) {
+      const double offset = spline->KnotPosition(static_cast<int>(j)) - options.bump_search_centres_d[c];
+      bumps[c][j] = std::exp(-offset * offset / (2 * sigma * sigma));
+    }
+  }
+  std::vector<double> step(count, options.bump_search_step);
+  std::vector<Eigen::VectorXd> minima;
+  double data_loss = summary->final_data_loss;
+  double loss = data_loss + CurvatureRegularizer(theta, options.regularizer_weight);
+  auto try_theta = [&](const Eigen::VectorXd& candidate, double* candidate_data) {
+    spline->SetTheta(candidate);
+    *candidate_data = SmoothAll(pairs, problems, *spline, options, &minima);
+    ++summary->smoothing_runs;
+    return *candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight);
+  };
+  if (options.bump_search_method == BumpSearchMethod::kImplicitFiltering) {
+    double h = options.bump_search_step;
+    for (int sweep = 0; sweep < options.bump_search_sweeps && h >= options.bump_search_min_step &&
+                        !report->OutOfTime();
+         ++sweep) {
+      Eigen::VectorXd gradient(static_cast<Eigen::Index>(count));
+      Eigen::VectorXd best;
+      double best_data = 0, best_loss = loss;
+      auto consider = [&](const Eigen::VectorXd& candidate) {
+        double candidate_data = 0;
+        const double candidate_loss = try_theta(candidate, &candidate_data);
+        if (candidate_loss < best_loss) {
+          best = candidate;
+          best_data = candidate_data;
+          best_loss = candidate_loss;
+        }
+        return candidate_loss;
+      };
+      for (size_t c = 0; c < count; ++c) {
+        const double plus = consider(theta + h * bumps[c]);
+        const double minus = consider(theta - h * bumps[c]);
+        gradient[static_cast<Eigen::Index>(c)] = (plus - minus) / (2 * h);
+      }
+      const bool stencil_failure = best.size() == 0;
+      const double largest = gradient.cwiseAbs().maxCoeff();
+      if (!stencil_failure && largest > 0) {
+        // Line search along −g, the largest bump moving by 2h first, then halving (down to h/4).
+        Eigen::VectorXd direction = Eigen::VectorXd::Zero(n);
+        for (size_t c = 0; c < count; ++c) direction -= gradient[static_cast<Eigen::Index>(c)] / largest * bumps[c];
+        for (double t = 2 * h; t >= 0.25 * h - 1e-15; t *= 0.5) {
+          const double before = best_loss;
+          consider(theta + t * direction);
+          if (best_loss < before && best_loss < loss) break;
+        }
+      }
+      if (stencil_failure) {
+        h *= 0.5;
+      } else {
+        theta = best;
+        data_loss = best_data;
+        loss = best_loss;
+        ++summary->bump_search_moves;
+      }
+      spline->SetTheta(theta);
+      report->Record(data_loss, loss);
+      if (options.progress) {
+        options.progress(1.0, StrCat("bump sweep ", sweep + 1, ": loss ", loss, " (data ", data_loss, "), stencil ", h));
+      }
+    }
+    spline->SetTheta(theta);
+    summary->final_data_loss = data_loss;
+    return theta;
+  }
+  for (int sweep = 0; sweep < options.bump_search_sweeps && !report->OutOfTime(); ++sweep) {
+    if (*std::max_element(step.begin(), step.end()) < options.bump_search_min_step) break;
+    for (size_t c = 0; c < count && !report->OutOfTime(); ++c) {
+      if (step[c] < options.bump_search_min_step) continue;
+      // Both signs, the better kept; then, while accepted, a step 1.5 times longer in the same direction.
+      double sign = 0, best_data = 0, best_loss = loss;
+      Eigen::VectorXd best;
+      for (const double s : {1.0, -1.0}) {
+        const Eigen::VectorXd candidate = theta + s * step[c] * bumps[c];
+        double candidate_data = 0;
+        const double candidate_loss = try_theta(candidate, &candidate_data);
+        if (candidate_loss < best_loss) {
+          best = candidate;
+          best_data = candidate_data;
+          best_loss = candidate_loss;
+          sign = s;
+        }
+      }
+      if (best.size() == 0) {
+        step[c] *= 0.5;
+        continue;
+      }
+      while (best.size() > 0) {
+        theta = best;
+        data_loss = best_data;
+        loss = best_loss;
+        ++summary->bump_search_moves;
+        step[c] = std::min(1.0, 1.5 * step[c]);
+        best.resize(0);
+        if (report->OutOfTime()) break;
+        const Eigen::VectorXd candidate = theta + sign * step[c] * bumps[c];
+        double candidate_data = 0;
+        const double candidate_loss = try_theta(candidate, &candidate_data);
+        if (candidate_loss < loss) {
+          best = candidate;
+          best_data = candidate_data;
+          best_loss = candidate_loss;
+        }
+      }
+    }
+    spline->SetTheta(theta);
+    report->Record(data_loss, loss);
+    if (options.progress) {
+      options.progress(1.0, StrCat("bump sweep ", sweep + 1, ": loss ", loss, " (data ", data_loss, "), largest step ",
+                                   *std::max_element(step.begin(), step.end())));
+    }
+  }
+  spline->SetTheta(theta);
+  summary->final_data_loss = data_loss;
+  return theta;
+}
+
 }  // namespace
 
 double ImplicitDataGradient(const std::vector<TrainingPair>& pairs, const Eigen::VectorXd& theta,
@@ -752,6 +912,11 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
   Eigen::VectorXd theta;
   if (options.method == LearnMethod::kImplicit) {
     theta = LearnImplicit(pairs, options, &spline, problems, &report);
+  } else if (options.method == LearnMethod::kNone) {
+    std::vector<Eigen::VectorXd> minima;
+    summary.initial_data_loss = summary.final_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
+    ++summary.smoothing_runs;
+    theta = spline.theta();
   } else {
     std::vector<Eigen::VectorXd> minima;
     summary.initial_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
@@ -759,6 +924,8 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
     summary.final_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
     summary.smoothing_runs += 2;
   }
+  summary.learned_data_loss = summary.final_data_loss;
+  if (options.bump_search_sweeps > 0) theta = BumpSearch(pairs, options, &spline, problems, &report);
   if (options.pattern_search_sweeps > 0) theta = PatternSearch(pairs, options, &spline, problems, &report);
   summary.total_time_s = Seconds(start);
   if (summary_out != nullptr) *summary_out = std::move(summary);

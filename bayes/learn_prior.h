@@ -46,11 +46,15 @@ struct TrainingPair {
   Mesh truth;
 };
 
-enum class LearnMethod { kInterleaved, kImplicit };
+// kNone: no gradient method, only the searches below from the initial θ (to study them from a saved θ).
+enum class LearnMethod { kInterleaved, kImplicit, kNone };
 // Interleaved scheme, how each knot's step is scaled: kFixed the paper's θ_j −= α g_j; kRms a diagonal
 // preconditioner θ_j −= α g_j / sqrt(v_j), v_j a running mean of g_j² (RMSprop), so that the sparsely populated
 // knots (few face pairs at their d) move at the same rate as the crowded ones.
 enum class KnotStepScaling { kFixed, kRms };
+enum class BumpSearchMethod { kCoordinate, kImplicitFiltering };  // LearnPriorOptions::bump_search_method
+BumpSearchMethod ParseBumpSearchMethod(const std::string& name);  // "coordinate", "filtering"; Error otherwise
+std::string BumpSearchMethodName(BumpSearchMethod method);
 KnotStepScaling ParseKnotStepScaling(const std::string& name);  // "fixed", "rms"; Error otherwise
 std::string KnotStepScalingName(KnotStepScaling scaling);
 // How the pairs' squared vertex errors are summed into D: kPerVertex (every training vertex alike, the paper's
@@ -59,7 +63,7 @@ std::string KnotStepScalingName(KnotStepScaling scaling);
 enum class LossWeighting { kPerVertex, kPerObject };
 LossWeighting ParseLossWeighting(const std::string& name);  // "vertex", "object"; Error otherwise
 std::string LossWeightingName(LossWeighting weighting);
-LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "implicit"; Error otherwise
+LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "implicit", "none"; Error otherwise
 std::string LearnMethodName(LearnMethod method);
 
 struct LearnPriorOptions {
@@ -91,6 +95,25 @@ struct LearnPriorOptions {
   // interleaved scheme's one-CG-step gradient or by the roughness of D(θ). 0 sweeps: off. [0, 1000]
   int pattern_search_sweeps = 0;
   double pattern_search_step = 0.04;                              // initial δ in knot-value units; (0, 1]
+  // After either method (and before the knot pattern search): a search on the same cold-smoothing loss L along
+  // smooth bumps g_c(t_j) = exp(−(t_j − c)² / (2σ²)) over the knot values, c in bump_search_centres_d (the free
+  // knots only), so that groups of neighbouring knots move together and the curve stays smooth. Each bump has
+  // its own step δ_c, adapted: a sweep tries θ ± δ_c g_c, keeps the better if it lowers L and then grows δ_c by
+  // 1.5 (and tries again in the same direction while L keeps falling), else halves it; the search stops after
+  // bump_search_sweeps sweeps or when every δ_c < bump_search_min_step. 0 sweeps: off. [0, 1000]
+  int bump_search_sweeps = 0;
+  // kCoordinate: the per-bump adaptive steps above. kImplicitFiltering (Kelley's implicit filtering): each sweep
+  // takes a central-difference gradient of L over the bump heights with stencil size h (2 smoothings per bump),
+  // then a backtracking line search along its negative from a step of 2h on the largest bump, keeping the best of
+  // the line search and the stencil points; h halves on a stencil failure (no stencil point below L). The large
+  // stencil averages over the roughness of L(θ) (the cold minimum jumps between nearby minima as θ moves),
+  // and the gradient direction moves several bumps at once (a dip beside a rise) where one bump alone does not
+  // lower L. h starts at bump_search_step and the search stops below bump_search_min_step.
+  BumpSearchMethod bump_search_method = BumpSearchMethod::kCoordinate;
+  std::vector<double> bump_search_centres_d = {0.8, 1.0, 1.2, 1.4, 1.6, 1.8};  // bump centres in d; each in (0, 2)
+  double bump_search_width_d = 0.1;      // σ of the bumps in d; (0, 1]
+  double bump_search_step = 0.1;         // initial δ_c in knot-value units (the bump's height); (0, 1]
+  double bump_search_min_step = 0.005;   // stop when every δ_c is below this; (0, bump_search_step]
   KnotStepScaling interleaved_scaling = KnotStepScaling::kFixed;  // the paper's fixed step by default
   double interleaved_rms_decay = 0.9;                             // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
   // Step schedule α_t = α · τ / (τ + t) at iteration t; 0: constant α. [0, 1e9]
@@ -117,9 +140,10 @@ struct LearnPriorSummary {
   double final_data_loss = 0;     // D of the returned θ with full smoothing
   int iterations = 0;
   int smoothing_runs = 0;  // smoothing of every pair (cold or warm)
-  long long warm_iterations = 0;
-  int pattern_search_moves =
-      0;  // accepted pattern-search moves  // implicit with warm starts: Newton steps over all warm solves
+  long long warm_iterations = 0;  // implicit with warm starts: Newton steps over all warm solves
+  int pattern_search_moves = 0;  // accepted pattern-search moves
+  int bump_search_moves = 0;     // accepted bump-search moves
+  double learned_data_loss = 0;  // D (cold smoothing) after the gradient method, before any search
   double total_time_s = 0;
   std::string termination;  // "max iterations", "time limit", "no progress", "converged"
 };

@@ -252,6 +252,8 @@ void SynthNoiseOptions::Check() const {
 void SynthMeshSetOptions::Check() const {
   RB_CHECK(num_train >= 0 && num_train <= 10000, "synth meshes: num_train must be in [0, 10000], got ", num_train);
   RB_CHECK(num_test >= 0 && num_test <= 10000, "synth meshes: num_test must be in [0, 10000], got ", num_test);
+  RB_CHECK(num_validation >= 0 && num_validation <= 10000, "synth meshes: num_validation must be in [0, 10000], got ",
+           num_validation);
   RB_CHECK(copies >= 1 && copies <= 100, "synth meshes: copies must be in [1, 100], got ", copies);
   noise.Check();
   object.Check();
@@ -316,7 +318,10 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
   std::uint64_t draw = 0;
   const bool mixture = options.noise_k_max > options.noise.k;
   int pair_index = 0;  // over train and test separately (reset below), for the mixture's level sequence
+  std::set<std::vector<int>> test_objects;
+  // is_test: a held-out (true) or validation object; neither equals an earlier set's object.
   auto add = [&](const std::string& prefix, int index, bool is_test, std::vector<SynthPair>* out) {
+    const bool is_validation = prefix == "validation";
     RightAngledObjectOptions object = options.object;
     object.shape = static_cast<RightAngledShape>(index % 4);
     Mesh clean;
@@ -324,9 +329,13 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
     // A held-out object whose kind and dimensions equal a training object's is drawn again.
     for (int attempt = 0; attempt < 1000; ++attempt) {
       clean = BuildObject(object, MixSeed(options.seed, draw++), &signature);
-      if (!is_test || train_objects.count(signature) == 0) break;
+      if (!is_test || (train_objects.count(signature) == 0 &&
+                       (!is_validation || test_objects.count(signature) == 0))) {
+        break;
+      }
     }
     if (!is_test) train_objects.insert(signature);
+    if (is_test && !is_validation) test_objects.insert(signature);
     for (int c = 0; c < options.copies; ++c) {
       SynthPair pair;
       char name[96];
@@ -354,6 +363,8 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
   for (int i = 0; i < options.num_train; ++i) add("train", i, false, &set.train);
   pair_index = 0;
   for (int i = 0; i < options.num_test; ++i) add("test", i, true, &set.test);
+  pair_index = 0;
+  for (int i = 0; i < options.num_validation; ++i) add("validation", i, true, &set.validation);
   return set;
 }
 

@@ -48,6 +48,9 @@ struct SynthMeshSetOptions {
   std::uint64_t seed = 1;
   int num_train = 8;         // training objects; [0, 10000]
   int num_test = 4;          // held-out objects (never among the training objects); [0, 10000]
+  // Validation objects, for choosing hyper-parameters: drawn after the training and held-out objects (so those
+  // stay the same draws whatever this is) and equal to none of them. [0, 10000]
+  int num_validation = 0;
   int copies = 1;            // noisy copies per object; [1, 100]
   SynthNoiseOptions noise;
   // A mixture of noise levels when above noise.k: the noisy copies' k are spread evenly over
@@ -70,10 +73,11 @@ struct SynthPair {
 struct SynthMeshSet {
   std::vector<SynthPair> train;
   std::vector<SynthPair> test;
+  std::vector<SynthPair> validation;
 };
 
-// Objects are drawn from independent per-object seeds; train and test objects are distinct draws, so the two
-// sets share no object.
+// Objects are drawn from independent per-object seeds; train, test and validation objects are distinct draws, so
+// the three sets share no object.
 SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options);
 
 }  // namespace rangebayes

@@ -7,6 +7,10 @@
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
 //                     [--scaling fixed|rms] [--rms-decay 0.9] [--decay TAU] [--weighting vertex|object]
 //                     [--feature-weight 1]
+//                     [--pattern-sweeps 0] [--pattern-step 0.04] [--bump-sweeps 0] [--bump-method coordinate|filtering]
+//                     [--bump-step 0.1]
+//                     [--bump-min-step 0.005] [--bump-width 0.1] [--bump-centres 0.8,1.0,1.2,1.4,1.6,1.8]
+//                     [--validation 0] [--no-test]
 //                     [--init-theta FILE [--set-knot J VALUE]... [--eval-only]] [--no-train-eval]
 //                     [--mesh NOISY GT K]...
 //
@@ -121,7 +125,7 @@ int main(int argc, char** argv) {
   LearnPriorOptions options;
   SynthMeshSetOptions synth;
   std::string theta_out, theta_in;
-  bool train_eval = true, eval_only = false;
+  bool train_eval = true, eval_only = false, test_eval = true;
   std::vector<std::pair<int, double>> set_knots;  // applied to the --init-theta values
   struct External {
     std::string noisy, truth;
@@ -175,6 +179,28 @@ int main(int argc, char** argv) {
       options.pattern_search_sweeps = std::stoi(next());
     else if (a == "--pattern-step")
       options.pattern_search_step = std::stod(next());
+    else if (a == "--bump-sweeps")
+      options.bump_search_sweeps = std::stoi(next());
+    else if (a == "--bump-method")
+      options.bump_search_method = ParseBumpSearchMethod(next());
+    else if (a == "--bump-step")
+      options.bump_search_step = std::stod(next());
+    else if (a == "--bump-min-step")
+      options.bump_search_min_step = std::stod(next());
+    else if (a == "--bump-width")
+      options.bump_search_width_d = std::stod(next());
+    else if (a == "--bump-centres") {
+      options.bump_search_centres_d.clear();
+      std::string list = next();
+      for (size_t start = 0; start < list.size();) {
+        const size_t end = std::min(list.find(',', start), list.size());
+        options.bump_search_centres_d.push_back(std::stod(list.substr(start, end - start)));
+        start = end + 1;
+      }
+    } else if (a == "--validation")
+      synth.num_validation = std::stoi(next());
+    else if (a == "--no-test")
+      test_eval = false;
     else if (a == "--eval-only")
       eval_only = true;
     else if (a == "--set-knot") {
@@ -208,10 +234,11 @@ int main(int argc, char** argv) {
     }
   }
   const SynthMeshSet set = MakeSynthMeshSet(synth);
-  std::vector<TrainingPair> train, test;
+  std::vector<TrainingPair> train, test, validation;
   // Each pair smoothed with the generic model at its own noise level (a mixture when --k-max is given).
   for (const auto& p : set.train) train.push_back(MakePair(p.name, p.noisy.mesh, p.clean, p.k));
   for (const auto& p : set.test) test.push_back(MakePair(p.name, p.noisy.mesh, p.clean, p.k));
+  for (const auto& p : set.validation) validation.push_back(MakePair(p.name, p.noisy.mesh, p.clean, p.k));
   int vertices = 0;
   for (const auto& p : train) vertices += p.truth.num_vertices();
   std::printf(
@@ -253,10 +280,11 @@ int main(int argc, char** argv) {
   if (!eval_only) {
     std::printf(
         "training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
-        "%.1f s, %s, %d pattern-search moves\n",
+        "%.1f s, %s, D/vertex after the gradient method %.5f, %d bump-search moves, %d pattern-search moves\n",
         summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
         summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
-        summary.termination.c_str(), summary.pattern_search_moves);
+        summary.termination.c_str(), summary.learned_data_loss / summary.num_vertices, summary.bump_search_moves,
+        summary.pattern_search_moves);
     std::printf("curve (s, D/vertex):");
     for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
       std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);
@@ -283,7 +311,8 @@ int main(int argc, char** argv) {
     for (int j = 0; j < theta.size(); ++j) out << theta[j] << "\n";
   }
   if (train_eval) Compare("train", train, learned, options);
-  Compare("test", test, learned, options);
+  if (!validation.empty()) Compare("validation", validation, learned, options);
+  if (test_eval) Compare("test", test, learned, options);
   for (const External& e : externals) {
     const Mesh noisy = ReadMesh(e.noisy);
     const Mesh truth = ReadMesh(e.truth);

@@ -135,6 +135,46 @@ TEST(LearnPrior, PatternSearchNeverRaisesTheLoss) {
   EXPECT_EQ(theta != start, searched.pattern_search_moves > 0);
 }
 
+// The bump search moves smooth groups of knots: it only accepts moves that lower the cold-smoothing loss, and
+// what it adds to θ is a combination of the bumps (zero at the fixed ends, smooth in between).
+TEST(LearnPrior, BumpSearchLowersTheLossWithSmoothMoves) {
+  const std::vector<TrainingPair> pairs = TinyBoxes(2, 0.2);
+  LearnPriorOptions options;
+  options.spline.num_knots = 16;
+  options.max_iterations = 10;
+  options.num_threads = 1;
+  LearnPriorSummary plain, searched;
+  const Eigen::VectorXd start = LearnPrior(pairs, options, {}, &plain);
+  options.bump_search_sweeps = 2;
+  options.bump_search_centres_d = {1.0, 1.4};
+  options.bump_search_width_d = 0.15;
+  const Eigen::VectorXd theta = LearnPrior(pairs, options, {}, &searched);
+  EXPECT_GT(searched.bump_search_moves, 0);
+  EXPECT_LT(searched.final_data_loss + CurvatureRegularizer(theta, options.regularizer_weight),
+            plain.final_data_loss + CurvatureRegularizer(start, options.regularizer_weight));
+  // The change lies in the span of the two bumps: fit it by least squares at the free knots, residual ~0.
+  const SplinePotential spline(options.spline);
+  Eigen::MatrixXd basis(14, 2);
+  for (int j = 1; j <= 14; ++j) {
+    for (int c = 0; c < 2; ++c) {
+      const double offset = spline.KnotPosition(j) - options.bump_search_centres_d[c];
+      basis(j - 1, c) = std::exp(-offset * offset / (2 * 0.15 * 0.15));
+    }
+  }
+  const Eigen::VectorXd change = (theta - start).segment(1, 14);
+  const Eigen::VectorXd fit = basis.colPivHouseholderQr().solve(change);
+  EXPECT_LT((basis * fit - change).norm(), 1e-9 + 1e-9 * change.norm());
+  EXPECT_EQ(theta[0], start[0]);
+  EXPECT_EQ(theta[15], start[15]);
+  // The gradient method can be skipped: the search alone from a given θ.
+  options.method = LearnMethod::kNone;
+  LearnPriorSummary alone;
+  const Eigen::VectorXd from_start = LearnPrior(pairs, options, start, &alone);
+  EXPECT_LE(alone.final_data_loss, alone.initial_data_loss);
+  EXPECT_EQ(alone.iterations, 0);
+  EXPECT_EQ(ParseLearnMethod("none"), LearnMethod::kNone);
+}
+
 // On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
 TEST(LearnPrior, CreaseVerticesOfABox) {
   RightAngledObjectOptions object;

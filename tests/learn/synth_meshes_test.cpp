@@ -81,6 +81,30 @@ TEST(SynthMeshes, DeterministicAndDisjoint) {
   EXPECT_FALSE(c0.V.rows() == a0.V.rows() && c0.V == a0.V);
 }
 
+// A validation set (for choosing hyper-parameters) leaves the training and held-out draws as they were and shares
+// no object with either.
+TEST(SynthMeshes, ValidationSetIsDisjointAndLeavesTheOthers) {
+  SynthMeshSetOptions options;
+  options.num_train = 4;
+  options.num_test = 2;
+  const SynthMeshSet plain = MakeSynthMeshSet(options);
+  options.num_validation = 4;
+  const SynthMeshSet set = MakeSynthMeshSet(options);
+  ASSERT_EQ(set.validation.size(), 4u);
+  EXPECT_TRUE(plain.validation.empty());
+  for (size_t i = 0; i < set.train.size(); ++i) EXPECT_EQ(set.train[i].noisy.mesh.V, plain.train[i].noisy.mesh.V);
+  for (size_t i = 0; i < set.test.size(); ++i) EXPECT_EQ(set.test[i].noisy.mesh.V, plain.test[i].noisy.mesh.V);
+  for (const auto& v : set.validation) {
+    EXPECT_EQ(v.name.rfind("validation_", 0), 0u) << v.name;
+    for (const auto* others : {&set.train, &set.test}) {
+      for (const auto& o : *others) {
+        EXPECT_FALSE(v.clean.num_vertices() == o.clean.num_vertices() && v.clean.F == o.clean.F)
+            << v.name << " " << o.name;
+      }
+    }
+  }
+}
+
 TEST(SynthMeshes, NoiseHasTheRequestedSize) {
   RightAngledObjectOptions object;
   object.min_cells = object.max_cells = 20;
