@@ -112,25 +112,31 @@ void RunSmooth(const SmoothArgs& args) {
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
   std::fflush(stdout);
 
-  if (args.adaptive_epsilon && !learned && options.prior == PriorKind::kSqrt) {
-    AdaptiveEpsilonSummary adaptive;
-    const AutoAdaptiveEpsilonOptions rule;
-    options.face_epsilon_squared = AdaptiveEpsilonAuto(noisy, options, rule, &adaptive);
-    if (adaptive.per_face) {
-      std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g >= %.3g; fast "
-                  "pre-pass %.3f s)\n",
-                  adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
-                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, adaptive.time_s);
-    } else {
-      std::printf("adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %.3f s)\n",
-                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, adaptive.time_s);
-    }
-  }
   ProgressPrinter progress(args.quiet);
   options.progress = progress.callback();
   SmoothSummary summary;
-  const Mesh result = Smooth(noisy, options, &summary);
-  progress.Finish();
+  Mesh result;
+  if (args.adaptive_epsilon && !learned && options.prior == PriorKind::kSqrt) {
+    AdaptiveEpsilonSummary adaptive;
+    const AutoAdaptiveEpsilonOptions rule;
+    result = SmoothAdaptiveEpsilon(noisy, options, rule, &adaptive, &summary);
+    progress.Finish();
+    const std::string prepass = std::to_string(adaptive.prepass_iterations) + " iterations, " +
+                                std::to_string(adaptive.prepass_evaluations) + " evaluations, " +
+                                std::to_string(adaptive.prepass_time_s).substr(0, 5) + " s";
+    if (adaptive.per_face) {
+      std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
+                  "final solve started from it)\n",
+                  adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
+                  adaptive.gate_median_epsilon_squared, prepass.c_str());
+    } else {
+      std::printf("adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %s)\n",
+                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, prepass.c_str());
+    }
+  } else {
+    result = Smooth(noisy, options, &summary);
+    progress.Finish();
+  }
   WriteMesh(result, args.output);
   std::printf("result:     %s\n", args.output.c_str());
   std::printf("summary:    %d iterations, %d evaluations, %.3f s (setup %.3f s), %s\n", summary.iterations,
@@ -220,8 +226,9 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
                 "on by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
-                "(scans), the global --eps2 on piecewise-flat ones (CAD); costs one fast smoothing run "
-                "(BENCHMARKS.md 'Adaptive eps'). --no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
+                "(scans), the global --eps2 on piecewise-flat ones (CAD); costs a pre-pass of 40-80 fast "
+                "iterations, from which a curved mesh's final solve starts (BENCHMARKS.md 'Adaptive eps'). "
+                "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")

@@ -349,23 +349,50 @@ void AutoAdaptiveEpsilonOptions::Check() const {
            "adaptive epsilon: min_gate_median_epsilon_squared ", min_gate_median_epsilon_squared, " is outside (0, 4]");
   RB_CHECK(prepass_max_iterations >= 0 && prepass_max_iterations <= 10000000,
            "adaptive epsilon: prepass_max_iterations ", prepass_max_iterations, " is outside [0, 1e7]");
+  RB_CHECK(prepass_early_iterations >= 0 &&
+               (prepass_max_iterations == 0 || prepass_early_iterations <= prepass_max_iterations),
+           "adaptive epsilon: prepass_early_iterations ", prepass_early_iterations, " is outside [0, ",
+           prepass_max_iterations, "]");
+  RB_CHECK(early_curved_gate_median_epsilon_squared > 0 && early_curved_gate_median_epsilon_squared <= 4,
+           "adaptive epsilon: early_curved_gate_median_epsilon_squared ", early_curved_gate_median_epsilon_squared,
+           " is outside (0, 4]");
 }
 
 std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
-                                        const AutoAdaptiveEpsilonOptions& rule, AdaptiveEpsilonSummary* summary) {
+                                        const AutoAdaptiveEpsilonOptions& rule, AdaptiveEpsilonSummary* summary,
+                                        Mesh* prepass_result) {
   RB_CHECK(options.potential == nullptr && options.prior == PriorKind::kSqrt,
            "adaptive epsilon: needs the square-root prior (--prior sqrt)");
   rule.Check();
   const auto start = std::chrono::steady_clock::now();
-  SmoothOptions pre = FastPrepassOptions(options, rule.prepass_max_iterations);
+  const bool early = rule.prepass_early_iterations > 0 && rule.prepass_early_iterations != rule.prepass_max_iterations;
+  SmoothOptions pre = FastPrepassOptions(options, early ? rule.prepass_early_iterations : rule.prepass_max_iterations);
   pre.energy_tolerance = 0;
-  const Mesh smoothed = Smooth(noisy, pre);
+  pre.initial_positions = nullptr;
+  SmoothSummary pre_summary;
+  Mesh smoothed = Smooth(noisy, pre, &pre_summary);
+  int prepass_iterations = pre_summary.iterations, prepass_evaluations = pre_summary.evaluations;
+  double prepass_time_s = pre_summary.time_s;
 
   AdaptiveEpsilonSummary gate_summary;
   AdaptiveEpsilonSquared(smoothed, rule.gate, &gate_summary);
+  bool curved = gate_summary.median_epsilon_squared >= rule.early_curved_gate_median_epsilon_squared;
+  if (early && !curved && pre_summary.termination == SmoothTermination::kMaxIterations) {
+    // Undecided: continue the same pre-pass (same energy, CG restarted) to the full cap.
+    const int cap = rule.prepass_max_iterations > 0 ? rule.prepass_max_iterations : 300;
+    pre.max_iterations = std::max(1, cap - pre_summary.iterations);
+    const Vertices start_positions = smoothed.V;
+    pre.initial_positions = &start_positions;
+    smoothed = Smooth(noisy, pre, &pre_summary);
+    prepass_iterations += pre_summary.iterations;
+    prepass_evaluations += pre_summary.evaluations;
+    prepass_time_s += pre_summary.time_s;
+    AdaptiveEpsilonSquared(smoothed, rule.gate, &gate_summary);
+  }
+  if (!curved) curved = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
   std::vector<double> epsilon_squared;
   AdaptiveEpsilonSummary s = gate_summary;
-  s.per_face = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
+  s.per_face = curved;
   if (s.per_face) {
     // The global ε² (the user's --eps2) stays the floor, so a flat face is treated as without the rule.
     AdaptiveEpsilonOptions detail = rule.detail;
@@ -375,9 +402,24 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     s.per_face = true;
   }
   s.gate_median_epsilon_squared = gate_summary.median_epsilon_squared;
+  s.prepass_iterations = prepass_iterations;
+  s.prepass_evaluations = prepass_evaluations;
+  s.prepass_time_s = prepass_time_s;
   s.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (summary != nullptr) *summary = s;
+  if (prepass_result != nullptr) *prepass_result = std::move(smoothed);
   return epsilon_squared;
+}
+
+Mesh SmoothAdaptiveEpsilon(const NoisyMesh& noisy, const SmoothOptions& options, const AutoAdaptiveEpsilonOptions& rule,
+                           AdaptiveEpsilonSummary* summary, SmoothSummary* smooth_summary) {
+  Mesh prepass;
+  SmoothOptions final_options = options;
+  final_options.initial_positions = nullptr;
+  final_options.face_epsilon_squared = AdaptiveEpsilonAuto(noisy, options, rule, summary, &prepass);
+  const bool curved = !final_options.face_epsilon_squared.empty();
+  if (curved && rule.final_from_prepass) final_options.initial_positions = &prepass.V;
+  return Smooth(noisy, final_options, smooth_summary);
 }
 
 }  // namespace rangebayes

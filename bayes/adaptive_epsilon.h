@@ -81,6 +81,10 @@ struct AdaptiveEpsilonSummary {
   double p90_epsilon_squared = 0;
   int faces_at_minimum = 0;  // faces clamped to min_epsilon_squared (flat or beside a crease)
   double time_s = 0;         // the whole call (with the pre-pass for AdaptiveEpsilonFromPrepass)
+  // AdaptiveEpsilonAuto / SmoothAdaptiveEpsilon: the pre-pass's CG iterations, evaluations and time.
+  int prepass_iterations = 0;
+  int prepass_evaluations = 0;
+  double prepass_time_s = 0;
 };
 
 // One ε² per face of `reference` (#F values in [min, max]). Faces without a normal (zero area, repeated
@@ -134,10 +138,26 @@ struct AutoAdaptiveEpsilonOptions {
   // benchmark meshes (BENCHMARKS.md "Adaptive ε"): CAD shapes 1.4e-4–1.0e-3, scans 9.7e-3–1.8e-2, noise level
   // given or estimated; 3e-3 sits between them (a factor ≥ 3 from each side).
   double min_gate_median_epsilon_squared = 3e-3;
-  // Iteration cap of the pre-pass (fast tolerance); 0: the preset's. [0, 1e7]. Capping is NOT advised: the gate
-  // needs a converged pre-pass (at 40 iterations fandisk 0.6 / 0.7 still carry noise creases, read as curved,
-  // gate 4.2e-3 / 5.3e-3, and lose 5.5–6.4°; the detail rule itself did as well on 20–80 iterations).
-  int prepass_max_iterations = 0;
+  // Iteration cap of the pre-pass (fast tolerance); 0: the preset's (300). [0, 1e7]. 80 (fourth session; was 0):
+  // the gate only needs the noise creases of a CAD shape gone, not a converged pre-pass. Its median ε² falls fast
+  // on CAD shapes while they resolve (fandisk 0.7: 9.7e-3 / 5.3e-3 / 7.9e-4 / 1.2e-4 at 30 / 40 / 80 / 227
+  // iterations) and slowly on scans (child: 1.6e-2 / 1.3e-2 / 1.06e-2 / 9.7e-3 at 30 / 40 / 80 / 131); at 80
+  // every benchmark CAD case is ≤ 1.1e-3 and every scan ≥ 1.06e-2 (noise level given or estimated), ≥ 2.8× from
+  // the threshold on either side. At 40 alone CAD reached 5.9e-3 and at 20 2.2e-2: too early for the threshold.
+  int prepass_max_iterations = 80;
+  // Early decision: the gate is first read after this many pre-pass iterations, [0, prepass_max_iterations] (0:
+  // not), and a median ε² ≥ early_curved_gate_median_epsilon_squared there ends the pre-pass as curved (the
+  // detail rule reads a 40-iteration pre-pass as well as a converged one). Below it the pre-pass continues (from
+  // where it stopped) to prepass_max_iterations and the threshold above decides. 1.2e-2 = 4× the threshold: at 40
+  // iterations the benchmark CAD cases are ≤ 5.9e-3 (2× below), the scans 1.34e-2–2.9e-2 (a scan below it only
+  // pays the longer pre-pass; the decision is then the 80-iteration one).
+  int prepass_early_iterations = 40;
+  double early_curved_gate_median_epsilon_squared = 1.2e-2;  // (0, 4]
+  // SmoothAdaptiveEpsilon on a curved mesh: start the final solve from the pre-pass result instead of the
+  // measurements (child 0.3: 53 instead of 82 iterations after a 40-iteration pre-pass, MAE within 0.05°). A
+  // piecewise-flat mesh always gets the plain default solve (from the measurements: the same bytes as without
+  // the rule).
+  bool final_from_prepass = true;
   void Check() const;
 };
 
@@ -152,6 +172,15 @@ struct AutoAdaptiveEpsilonOptions {
 // square-root prior (Error otherwise); options.face_epsilon_squared is ignored.
 std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
                                         const AutoAdaptiveEpsilonOptions& rule = {},
-                                        AdaptiveEpsilonSummary* summary = nullptr);
+                                        AdaptiveEpsilonSummary* summary = nullptr,
+                                        Mesh* prepass_result = nullptr);
+
+// The whole default of `rangebayes smooth` for the square-root prior: AdaptiveEpsilonAuto, then Smooth(noisy,
+// options with its ε²) started from the pre-pass result when rule.final_from_prepass (same energy and minimum as
+// a start from the measurements; fewer iterations). `smooth_summary` is the final solve's. options.
+// face_epsilon_squared and options.initial_positions are ignored.
+Mesh SmoothAdaptiveEpsilon(const NoisyMesh& noisy, const SmoothOptions& options,
+                           const AutoAdaptiveEpsilonOptions& rule = {}, AdaptiveEpsilonSummary* summary = nullptr,
+                           SmoothSummary* smooth_summary = nullptr);
 
 }  // namespace rangebayes

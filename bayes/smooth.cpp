@@ -216,7 +216,8 @@ struct MinimiseResult {
   EnergyParts parts;
 };
 
-MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSummary* summary) {
+MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSummary* summary,
+                        const Eigen::VectorXd* start = nullptr) {
   Preset preset = PresetFor(options.tolerance);
   if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
   const int max_iterations = options.max_iterations > 0 ? options.max_iterations : preset.max_iterations;
@@ -225,7 +226,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(energy.num_vertices());
   const int restart_every = options.restart_every > 0 ? options.restart_every : std::max(50, static_cast<int>(n));
 
-  Eigen::VectorXd x = energy.Measurements();
+  Eigen::VectorXd x = start != nullptr ? *start : energy.Measurements();
   Eigen::VectorXd g(n), g_new(n), x_new(n), p(n);
   EnergyParts parts = problem.Evaluate(x, &g);
   double e = parts.total();
@@ -593,6 +594,10 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
                static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
            "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
            mesh.num_faces(), " faces");
+  RB_CHECK(options.initial_positions == nullptr ||
+               (options.initial_positions->rows() == mesh.num_vertices() && options.initial_positions->cols() == 3 &&
+                options.initial_positions->allFinite()),
+           "smooth: initial_positions must be a finite ", mesh.num_vertices(), " x 3 matrix");
 
   Mesh result;
   arena.execute([&] {
@@ -669,8 +674,16 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
       summary.termination = SmoothTermination::kNothingToDo;
       return;
     }
+    Eigen::VectorXd start_x;  // the caller's start in the solver order
+    if (options.initial_positions != nullptr) {
+      start_x.resize(3 * static_cast<Eigen::Index>(nv));
+      const Vertices& initial = *options.initial_positions;
+      for (int n = 0; n < nv; ++n) {
+        for (int k = 0; k < 3; ++k) start_x[3 * n + k] = initial(vertex_order[static_cast<size_t>(n)], k);
+      }
+    }
     Problem problem(energy);
-    MinimiseResult minimum = Minimise(problem, options, &summary);
+    MinimiseResult minimum = Minimise(problem, options, &summary, start_x.size() > 0 ? &start_x : nullptr);
     summary.evaluations = problem.evaluations;
     summary.data_energy = minimum.parts.data;
     summary.prior_energy = minimum.parts.prior;

@@ -67,6 +67,10 @@ struct SmoothOptions {
   int preconditioner_every = 10;  // kBlockJacobi rebuild period (iterations), [1, 1e6]
   int restart_every = 0;    // CG restart to steepest descent every N iterations; 0: every 3·#V (i.e. rarely)
   int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
+  // Optional start of the minimiser (#V×3 positions in the caller's vertex order, finite; null: the measured
+  // positions noisy.mesh.V). Not owned, must outlive the call. The energy is unchanged; used by the adaptive-ε
+  // default of `rangebayes smooth` to continue from its pre-pass (bayes/adaptive_epsilon.h).
+  const Vertices* initial_positions = nullptr;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 
   void Check() const;

@@ -187,8 +187,24 @@ int Quality(std::map<std::string, std::string>& flags) {
       if (flags.count("--gate")) automatic.min_gate_median_epsilon_squared = std::stod(flags["--gate"]);
       if (flags.count("--prepass-iterations"))
         automatic.prepass_max_iterations = std::stoi(flags["--prepass-iterations"]);
-      options.face_epsilon_squared = AdaptiveEpsilonAuto(input, options, automatic, &rule_summary);
-      prepass_s = Seconds(start);
+      if (flags.count("--warm")) automatic.final_from_prepass = flags["--warm"] != "0";
+      if (flags.count("--early-iterations"))
+        automatic.prepass_early_iterations = std::stoi(flags["--early-iterations"]);
+      if (flags.count("--early-gate"))
+        automatic.early_curved_gate_median_epsilon_squared = std::stod(flags["--early-gate"]);
+      SmoothSummary final_summary;
+      const Mesh result = SmoothAdaptiveEpsilon(input, options, automatic, &rule_summary, &final_summary);
+      const double total_s = Seconds(start), cpu = CpuSeconds() - cpu_start;
+      std::printf("| %s | %s | %s | %.3f | gate %.2e %s | pre-pass %d it / %d ev | final %d it / %d ev | total %d ev "
+                  "| %.2f s | CPU %.2f s |\n",
+                  c.name.c_str(), std::isnan(c.target) ? "–" : std::to_string(c.target).substr(0, 4).c_str(),
+                  std::isnan(baseline_mae) ? "–" : std::to_string(baseline_mae).substr(0, 5).c_str(),
+                  MeanAngularErrorDeg(result, gt), rule_summary.gate_median_epsilon_squared,
+                  rule_summary.per_face ? "curved" : "flat", rule_summary.prepass_iterations,
+                  rule_summary.prepass_evaluations, final_summary.iterations, final_summary.evaluations,
+                  rule_summary.prepass_evaluations + final_summary.evaluations, total_s, cpu);
+      std::fflush(stdout);
+      continue;
       ref_info = " gate median eps2 " + std::to_string(rule_summary.gate_median_epsilon_squared).substr(0, 7) +
                  (rule_summary.per_face ? ": per-face eps2" : ": global eps2 kept");
     } else if (reference == "smoothref") {
@@ -249,10 +265,58 @@ int Quality(std::map<std::string, std::string>& flags) {
   return 0;
 }
 
+// Gate statistics on pre-passes capped at several iteration counts (0: the noisy input itself): the scan rule's
+// median ε² (the gate of AdaptiveEpsilonAuto) and the detail rule's median / p25 ε², per case.
+int Gates(std::map<std::string, std::string>& flags) {
+  const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
+  const bool estimate = flags.count("--estimate") > 0;
+  const std::string selected = flags.count("--cases") ? flags["--cases"] : "";
+  std::vector<int> caps = {0, 10, 20, 40, 80, -1};
+  if (flags.count("--caps")) {
+    caps.clear();
+    std::string list = flags["--caps"];
+    size_t pos = 0;
+    while (pos <= list.size()) {
+      const size_t comma = std::min(list.find(',', pos), list.size());
+      caps.push_back(std::stoi(list.substr(pos, comma - pos)));
+      pos = comma + 1;
+    }
+  }
+  std::printf("| case | pre-pass iterations (evaluations) | scan gate median eps2 | detail median eps2 | detail p25 |\n");
+  std::printf("|---|---|---|---|---|\n");
+  for (const Case& c : flags.count("--held-out") ? HeldOutCases() : Cases()) {
+    if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
+    const Mesh noisy = ReadMesh(data + "/" + c.noisy);
+    GenericNoiseOptions noise;
+    if (!estimate) noise.noise_edge_multiple = c.k;
+    const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
+    for (int cap : caps) {
+      Mesh reference = input.mesh;
+      SmoothSummary summary;
+      if (cap != 0) {
+        SmoothOptions pre;
+        pre.tolerance = SmoothTolerance::kFast;
+        pre.max_iterations = std::max(cap, 0);
+        reference = Smooth(input, pre, &summary);
+      }
+      AdaptiveEpsilonSummary gate, detail;
+      AdaptiveEpsilonSquared(reference, ScanAdaptiveEpsilonOptions(), &gate);
+      const std::vector<double> e2 = AdaptiveEpsilonSquared(reference, DetailAdaptiveEpsilonOptions(), &detail);
+      std::vector<double> sorted = e2;
+      std::sort(sorted.begin(), sorted.end());
+      const double p25 = sorted.empty() ? 0 : sorted[sorted.size() / 4];
+      std::printf("| %s | %d (%d) | %.2e | %.2e | %.2e |\n", c.name.c_str(), summary.iterations, summary.evaluations,
+                  gate.median_epsilon_squared, detail.median_epsilon_squared, p25);
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || std::string(argv[1]) != "quality") {
+  if (argc < 2 || (std::string(argv[1]) != "quality" && std::string(argv[1]) != "gates")) {
     std::fprintf(stderr, "usage: bench_adaptive quality [--reference gt|prepass|none] [options]\n");
     return 2;
   }
@@ -270,7 +334,7 @@ int main(int argc, char** argv) {
     }
   }
   try {
-    return Quality(flags);
+    return std::string(argv[1]) == "gates" ? Gates(flags) : Quality(flags);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_adaptive: %s\n", e.what());
     return 1;
