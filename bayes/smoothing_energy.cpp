@@ -68,7 +68,7 @@ struct SqrtFacePassInput {
   const double* face_e2;
   double e2;
   double beta;
-  double* h;  // null: no gradient
+  double* h;  // 3 per face (h_t); null: no gradient
 };
 
 RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begin, int end, double sum) {
@@ -122,25 +122,10 @@ RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begi
       const __m512d hx = _mm512_mul_pd(_mm512_sub_pd(gx, _mm512_mul_pd(ntx, ng)), inv);
       const __m512d hy = _mm512_mul_pd(_mm512_sub_pd(gy, _mm512_mul_pd(nty, ng)), inv);
       const __m512d hz = _mm512_mul_pd(_mm512_sub_pd(gz, _mm512_mul_pd(ntz, ng)), inv);
-      __m512d px[3], py[3], pz[3];
-      for (int k = 0; k < 3; ++k) {
-        const __m256i v = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), live, t3, in.faces + k, 4);
-        const __m256i v3 = _mm256_add_epi32(v, _mm256_add_epi32(v, v));
-        px[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x, 8);
-        py[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x + 1, 8);
-        pz[k] = _mm512_mask_i32gather_pd(zero, live, v3, in.x + 2, 8);
-      }
-      const __m256i t9 = _mm256_add_epi32(t3, _mm256_add_epi32(t3, t3));
-      for (int k = 0; k < 3; ++k) {
-        const int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
-        const __m512d ex = _mm512_sub_pd(px[k2], px[k1]), ey = _mm512_sub_pd(py[k2], py[k1]), ez = _mm512_sub_pd(pz[k2], pz[k1]);
-        const __m512d ox = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hy, ez), _mm512_mul_pd(hz, ey)));
-        const __m512d oy = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hz, ex), _mm512_mul_pd(hx, ez)));
-        const __m512d oz = _mm512_maskz_mov_pd(live, _mm512_sub_pd(_mm512_mul_pd(hx, ey), _mm512_mul_pd(hy, ex)));
-        _mm512_mask_i32scatter_pd(in.h + 3 * k, valid, t9, ox, 8);
-        _mm512_mask_i32scatter_pd(in.h + 3 * k + 1, valid, t9, oy, 8);
-        _mm512_mask_i32scatter_pd(in.h + 3 * k + 2, valid, t9, oz, 8);
-      }
+      // Only h_t (zero where the face has no normal); the vertex gather forms h_t × e_k.
+      _mm512_mask_i32scatter_pd(in.h, valid, t3, _mm512_maskz_mov_pd(live, hx), 8);
+      _mm512_mask_i32scatter_pd(in.h + 1, valid, t3, _mm512_maskz_mov_pd(live, hy), 8);
+      _mm512_mask_i32scatter_pd(in.h + 2, valid, t3, _mm512_maskz_mov_pd(live, hz), 8);
     }
     _mm512_store_pd(energy, _mm512_mul_pd(half, e));
     for (int l = 0; l < n; ++l) sum += energy[l];
@@ -188,12 +173,13 @@ RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const cha
   }
 }
 
-// Pass 3's gather for vertices [begin, end): the three components of a corner contribution in one ymm lane
-// group (one masked load and one add per corner instead of three each), in corner order; the data term as
-// the portable loop computes it. Returns `sum` plus the vertices' data terms added one after another.
+// Pass 3's gather for vertices [begin, end): per corner the contribution h_t × e_k formed from the face's h_t
+// (3 doubles, where the portable pass stores the three products: 9) and two positions, its three components
+// in one ymm register, added in corner order; the data term as the portable loop computes it. Returns `sum`
+// plus the vertices' data terms added one after another.
 RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const double* information, bool isotropic,
-                                     const int* corner_offsets, const int* corners, const double* contributions,
-                                     int begin, int end, double* grad, double sum) {
+                                     const int* corner_offsets, const int* corners, const int* corner_edges,
+                                     const double* h_t, int begin, int end, double* grad, double sum) {
   const __mmask8 xyz = 0x7;
   for (int i = begin; i < end; ++i) {
     double w[6];
@@ -211,7 +197,16 @@ RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const dou
       __m256d s = _mm256_setr_pd(2 * wx, 2 * wy, 2 * wz, 0.0);
       const int q_end = corner_offsets[i + 1];
       for (int q = corner_offsets[i]; q < q_end; ++q) {
-        s = _mm256_add_pd(s, _mm256_maskz_loadu_pd(xyz, contributions + 3 * static_cast<size_t>(corners[q])));
+        // Corner k of face t: h_t × (p_(k+2) − p_(k+1)), the portable face pass's operations, in ymm lanes
+        // (x y z) as a·b − c·d with a = h.yzx, b = e.zxy, c = h.zxy, d = e.yzx.
+        const int t = corners[q] / 3;
+        const int v1 = corner_edges[2 * static_cast<size_t>(q)], v2 = corner_edges[2 * static_cast<size_t>(q) + 1];
+        const __m256d h = _mm256_maskz_loadu_pd(xyz, h_t + 3 * static_cast<size_t>(t));
+        const __m256d e = _mm256_sub_pd(_mm256_maskz_loadu_pd(xyz, x + 3 * static_cast<size_t>(v2)),
+                                        _mm256_maskz_loadu_pd(xyz, x + 3 * static_cast<size_t>(v1)));
+        const __m256d c = _mm256_sub_pd(_mm256_mul_pd(_mm256_permute4x64_pd(h, 0xC9), _mm256_permute4x64_pd(e, 0xD2)),
+                                        _mm256_mul_pd(_mm256_permute4x64_pd(h, 0xD2), _mm256_permute4x64_pd(e, 0xC9)));
+        s = _mm256_add_pd(s, c);
       }
       _mm256_mask_storeu_pd(grad + 3 * static_cast<size_t>(i), xyz, s);
     }
@@ -386,14 +381,31 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   }
   normals_.assign(3 * static_cast<size_t>(nf), 0.0);
   inverse_length_.assign(static_cast<size_t>(nf), 0.0);
-  h_.assign(9 * static_cast<size_t>(nf), 0.0);
+  // 3 per face for the wide square-root path; Evaluate grows it to 9 when it runs the portable one.
+  h_.assign((WideSquareRoot() ? 3 : 9) * static_cast<size_t>(nf), 0.0);
+  if (WideSquareRoot()) BuildCornerEdges();
+}
+
+void SmoothingEnergy::BuildCornerEdges() const {
+  // Per corner 3t + k, the vertices p_(k+1), p_(k+2) of its opposite edge, in the corner order of corners_.
+  corner_edges_.resize(2 * corners_.size());
+  for (size_t q = 0; q < corners_.size(); ++q) {
+    const int t = corners_[q] / 3, k = corners_[q] % 3;
+    corner_edges_[2 * q] = faces_(t, k == 2 ? 0 : k + 1);
+    corner_edges_[2 * q + 1] = faces_(t, k == 0 ? 2 : k - 1);
+  }
+}
+
+bool SmoothingEnergy::WideSquareRoot() const {
+  return SmoothingSimdActive() &&
+         (!face_epsilon_squared_.empty() || dynamic_cast<const SqrtPotential*>(potential_) != nullptr);
 }
 
 Eigen::VectorXd SmoothingEnergy::Measurements() const { return z_; }
 
 size_t SmoothingEnergy::MemoryBytes() const {
   return sizeof(int) * (neighbour_offsets_.size() + neighbours_.size() + corner_offsets_.size() +
-                        corners_.size()) +
+                        corners_.size() + corner_edges_.size()) +
          sizeof(double) * (information_.size() + normals_.size() +
                            inverse_length_.size() + h_.size() + face_epsilon_squared_.size()) +
          active_.size();
@@ -537,8 +549,11 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   };
   double prior_sum;
   const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+  // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
+  const bool wide = WideSquareRoot();
+  if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
 #if RB_SMOOTHING_AVX512
-  if ((sqrt_potential != nullptr || !face_epsilon_squared_.empty()) && SmoothingSimdActive()) {
+  if (wide) {
     const SqrtFacePassInput input{x,
                                   faces_.data(),
                                   normals_.data(),
@@ -576,12 +591,13 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   double* grad = want_gradient ? gradient->data() : nullptr;
   const double* contributions = h_.data();
 #if RB_SMOOTHING_AVX512
-  if (SmoothingSimdActive()) {
+  if (wide) {
+    if (corner_edges_.size() != 2 * corners_.size()) BuildCornerEdges();  // the kernel switched after construction
     const double data_sum = tbb::parallel_deterministic_reduce(
         tbb::blocked_range<int>(0, nv, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
           return GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(), corners_.data(),
-                              contributions, r.begin(), r.end(), grad, sum);
+                              corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum);
         },
         [](double a, double b) { return a + b; });
     return EnergyParts{data_sum, beta * prior_sum};

@@ -92,6 +92,9 @@ class SmoothingEnergy {
 
  private:
   void ComputeNormals(const double* x) const;
+  // Evaluate runs the AVX-512 square-root kernels (h_ then holds h_t, 3 per face).
+  bool WideSquareRoot() const;
+  void BuildCornerEdges() const;
 
   int num_vertices_ = 0;
   const Faces& faces_;
@@ -122,7 +125,10 @@ class SmoothingEnergy {
   // Per vertex, its corners 3·f + k in ascending order (the fixed gather order).
   std::vector<int> corner_offsets_;
   std::vector<int> corners_;
-  // Scratch: unit normals and 1/|c_t| per face, then the gradient's three corner contributions per face (9).
+  // Wide path only: per corner (same order) the two vertices of the edge opposite it.
+  mutable std::vector<int> corner_edges_;
+  // Scratch: unit normals and 1/|c_t| per face, then the gradient's three corner contributions per face (9),
+  // or h_t alone (3) on the wide path.
   mutable std::vector<double> normals_;
   mutable std::vector<double> inverse_length_;
   mutable std::vector<double> h_;
