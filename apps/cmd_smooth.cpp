@@ -123,7 +123,8 @@ void RunSmooth(const SmoothArgs& args) {
     progress.Finish();
     const std::string prepass = std::to_string(adaptive.prepass_iterations) + " iterations, " +
                                 std::to_string(adaptive.prepass_evaluations) + " evaluations, " +
-                                std::to_string(adaptive.prepass_time_s).substr(0, 5) + " s";
+                                std::to_string(adaptive.prepass_time_s).substr(0, 5) + " s, rules " +
+                                std::to_string(adaptive.time_s - adaptive.prepass_time_s).substr(0, 5) + " s";
     if (adaptive.per_face) {
       std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
                   "final solve started from it)\n",

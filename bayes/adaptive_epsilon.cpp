@@ -6,6 +6,10 @@
 #include <chrono>
 #include <cmath>
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include "core/error.h"
 #include "core/topology.h"
 
@@ -87,6 +91,128 @@ SmoothOptions FastPrepassOptions(const SmoothOptions& options, int max_iteration
 
 }  // namespace
 
+namespace {
+
+// The topology every rule reads (it depends on the faces only, so one copy serves the gate and the detail rule
+// of AdaptiveEpsilonAuto): the face pairs, the faces of each vertex, and per face the faces that share a vertex
+// with it (itself included), each once, in the order of first occurrence over its corners' vertex-face lists.
+struct RuleTopology {
+  IndexPairs pairs;
+  Adjacency vertex_faces;
+  Adjacency rings;
+};
+
+// Appends the faces sharing a vertex with f, each once, in first-occurrence order, to `out`; `marks` (one int per
+// face, never equal to f + 1 before this call for f) remembers which were taken.
+void GatherRing(const Mesh& mesh, const Adjacency& vertex_faces, int f, std::vector<int>* marks,
+                std::vector<int>* out) {
+  for (int k = 0; k < 3; ++k) {
+    const int v = mesh.F(f, k);
+    for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) {
+      int& mark = (*marks)[static_cast<size_t>(*g)];
+      if (mark == f + 1) continue;
+      mark = f + 1;
+      out->push_back(*g);
+    }
+  }
+}
+
+// ComputeVertexFaces (core/topology.h) by a counting sort: per vertex its faces ascending, each once. Same
+// result, without the O(n log n) sort of (vertex, face) pairs. Face indices must be valid.
+Adjacency VertexFaces(const Mesh& mesh) {
+  const int nf = mesh.num_faces(), nv = mesh.num_vertices();
+  auto repeated = [&](int f, int k) {  // corner k repeats an earlier corner's vertex
+    return (k >= 1 && mesh.F(f, k) == mesh.F(f, 0)) || (k == 2 && mesh.F(f, 2) == mesh.F(f, 1));
+  };
+  Adjacency adjacency;
+  adjacency.offsets.assign(static_cast<size_t>(nv) + 1, 0);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (!repeated(f, k)) ++adjacency.offsets[static_cast<size_t>(mesh.F(f, k)) + 1];
+    }
+  }
+  for (int v = 0; v < nv; ++v) adjacency.offsets[static_cast<size_t>(v) + 1] += adjacency.offsets[static_cast<size_t>(v)];
+  adjacency.items.resize(static_cast<size_t>(adjacency.offsets.back()));
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (!repeated(f, k)) adjacency.items[static_cast<size_t>(fill[static_cast<size_t>(mesh.F(f, k))]++)] = f;
+    }
+  }
+  return adjacency;
+}
+
+// ComputeFacePairs (core/topology.h) from the vertex-face lists: (s, t), s < t, sharing an edge, sorted, each
+// pair once. Same rows; a triangle holds an edge {a, b} (a ≠ b) exactly when it holds both vertices.
+IndexPairs FacePairs(const Mesh& mesh, const Adjacency& vertex_faces) {
+  const int nf = mesh.num_faces();
+  std::vector<int> flat;
+  flat.reserve(static_cast<size_t>(nf) * 3);
+  std::vector<int> partners;
+  for (int s = 0; s < nf; ++s) {
+    partners.clear();
+    for (int k = 0; k < 3; ++k) {
+      const int a = mesh.F(s, k), b = mesh.F(s, (k + 1) % 3);
+      if (a == b) continue;
+      for (const int* t = vertex_faces.begin(a); t != vertex_faces.end(a); ++t) {
+        if (*t <= s) continue;
+        if (mesh.F(*t, 0) == b || mesh.F(*t, 1) == b || mesh.F(*t, 2) == b) partners.push_back(*t);
+      }
+    }
+    std::sort(partners.begin(), partners.end());
+    partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
+    for (int t : partners) {
+      flat.push_back(s);
+      flat.push_back(t);
+    }
+  }
+  IndexPairs pairs(static_cast<Eigen::Index>(flat.size() / 2), 2);
+  std::copy(flat.begin(), flat.end(), pairs.data());
+  return pairs;
+}
+
+RuleTopology MakeRuleTopology(const Mesh& mesh) {
+  RuleTopology topology;
+  topology.vertex_faces = VertexFaces(mesh);
+  topology.pairs = FacePairs(mesh, topology.vertex_faces);
+  const int nf = mesh.num_faces();
+  std::vector<int> counts(static_cast<size_t>(nf) + 1, 0);
+  {
+    tbb::enumerable_thread_specific<std::vector<int>> marks(std::vector<int>(static_cast<size_t>(nf), 0));
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+      std::vector<int>& mark = marks.local();
+      std::vector<int> buffer;
+      for (int f = r.begin(); f != r.end(); ++f) {
+        buffer.clear();
+        GatherRing(mesh, topology.vertex_faces, f, &mark, &buffer);
+        counts[static_cast<size_t>(f) + 1] = static_cast<int>(buffer.size());
+      }
+    });
+  }
+  for (int f = 0; f < nf; ++f) counts[static_cast<size_t>(f) + 1] += counts[static_cast<size_t>(f)];
+  topology.rings.items.resize(static_cast<size_t>(counts.back()));
+  {
+    tbb::enumerable_thread_specific<std::vector<int>> marks(std::vector<int>(static_cast<size_t>(nf), 0));
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+      std::vector<int>& mark = marks.local();
+      std::vector<int> buffer;
+      for (int f = r.begin(); f != r.end(); ++f) {
+        buffer.clear();
+        GatherRing(mesh, topology.vertex_faces, f, &mark, &buffer);
+        std::copy(buffer.begin(), buffer.end(), topology.rings.items.begin() + counts[static_cast<size_t>(f)]);
+      }
+    });
+  }
+  topology.rings.offsets = std::move(counts);
+  return topology;
+}
+
+std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_reference,
+                                     const AdaptiveEpsilonOptions& options, const RuleTopology& topology,
+                                     AdaptiveEpsilonSummary* summary);
+
+}  // namespace
+
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
                                            AdaptiveEpsilonSummary* summary) {
   return AdaptiveEpsilonSquared(reference, reference, options, summary);
@@ -97,23 +223,36 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
   const auto start = std::chrono::steady_clock::now();
   options.Check();
   CheckFaces(reference);
-  const int nf = reference.num_faces(), nv = reference.num_vertices();
   RB_CHECK(&crease_reference == &reference || crease_reference.F == reference.F,
            "adaptive epsilon: the crease reference has other faces than the reference (", crease_reference.num_faces(),
-           " vs ", nf, ")");
+           " vs ", reference.num_faces(), ")");
+  if (&crease_reference != &reference) CheckFaces(crease_reference);  // same faces, but its vertex count may differ
+  std::vector<double> epsilon_squared =
+      EpsilonSquaredOn(reference, crease_reference, options, MakeRuleTopology(reference), summary);
+  if (summary != nullptr) {
+    summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return epsilon_squared;
+}
 
+namespace {
+
+std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_reference,
+                                     const AdaptiveEpsilonOptions& options, const RuleTopology& topology,
+                                     AdaptiveEpsilonSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  const int nf = reference.num_faces(), nv = reference.num_vertices();
   std::vector<Eigen::Vector3d> normal, crease_normal;
   std::vector<char> valid, crease_valid;
   FaceNormals(reference, &normal, &valid);
   if (&crease_reference != &reference) {
-    CheckFaces(crease_reference);  // same faces, but its vertex count may differ
     FaceNormals(crease_reference, &crease_normal, &crease_valid);
   } else {
     crease_normal = normal;
     crease_valid = valid;
   }
-  const Adjacency vertex_faces = ComputeVertexFaces(reference);
-  std::vector<int> stamp(static_cast<size_t>(nf), -1);
+  const Adjacency& vertex_faces = topology.vertex_faces;
+  const Adjacency& rings = topology.rings;
 
   // Step 0: area-weighted averages of the face normals over the faces sharing a vertex, normal_smoothing_rings
   // times. The total turning of a surface survives averaging (a smoothly curved region keeps the gradient of
@@ -129,33 +268,32 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
     }
     std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
     for (int iteration = 0; iteration < options.normal_smoothing_rings; ++iteration) {
-      for (int f = 0; f < nf; ++f) {
-        next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
-        if (!valid[static_cast<size_t>(f)]) continue;
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (int k = 0; k < 3; ++k) {
-          const int v = reference.F(f, k);
-          for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) {
-            if (stamp[static_cast<size_t>(*g)] == f || !valid[static_cast<size_t>(*g)]) continue;
-            stamp[static_cast<size_t>(*g)] = f;
+      tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
+        for (int f = r.begin(); f != r.end(); ++f) {
+          next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
+          if (!valid[static_cast<size_t>(f)]) continue;
+          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+          for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
+            if (!valid[static_cast<size_t>(*g)]) continue;
             sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
           }
+          const double length = sum.norm();
+          if (length > 0) next[static_cast<size_t>(f)] = sum / length;
         }
-        const double length = sum.norm();
-        if (length > 0) next[static_cast<size_t>(f)] = sum / length;
-      }
+      });
       normal.swap(next);
-      std::fill(stamp.begin(), stamp.end(), -1);
     }
   }
 
   // Step 1: median (or mean) normal difference to the edge neighbours; crease pairs from the unsmoothed
   // normals (of crease_reference).
   const bool use_median = options.statistic == AdaptiveEpsilonStatistic::kMedian;
-  const IndexPairs pairs = ComputeFacePairs(reference);
+  const IndexPairs& pairs = topology.pairs;
   std::vector<char> crease(static_cast<size_t>(nf), 0);
   std::vector<Eigen::Index> crease_pairs;
-  std::vector<std::vector<double>> differences(static_cast<size_t>(nf));
+  // Per face the d of its valid pairs, in pair order (a CSR list: offsets, then values).
+  std::vector<int> offsets(static_cast<size_t>(nf) + 1, 0);
+  std::vector<double> pair_d(static_cast<size_t>(pairs.rows()), -1.0);
   for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
     const int s = pairs(p, 0), t = pairs(p, 1);
     if (crease_valid[static_cast<size_t>(s)] && crease_valid[static_cast<size_t>(t)] &&
@@ -164,56 +302,69 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
       crease_pairs.push_back(p);
     }
     if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
-    const double d = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
-    differences[static_cast<size_t>(s)].push_back(d);
-    differences[static_cast<size_t>(t)].push_back(d);
+    pair_d[static_cast<size_t>(p)] = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
+    ++offsets[static_cast<size_t>(s) + 1];
+    ++offsets[static_cast<size_t>(t) + 1];
   }
+  for (int f = 0; f < nf; ++f) offsets[static_cast<size_t>(f) + 1] += offsets[static_cast<size_t>(f)];
+  std::vector<double> differences(static_cast<size_t>(offsets.back()));
+  {
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
+      const double d = pair_d[static_cast<size_t>(p)];
+      if (d < 0) continue;
+      differences[static_cast<size_t>(fill[static_cast<size_t>(pairs(p, 0))]++)] = d;
+      differences[static_cast<size_t>(fill[static_cast<size_t>(pairs(p, 1))]++)] = d;
+    }
+  }
+  std::vector<double>().swap(pair_d);
   std::vector<double> typical(static_cast<size_t>(nf), 0.0);
   std::vector<char> has_value(static_cast<size_t>(nf), 0);
-  for (int f = 0; f < nf; ++f) {
-    std::vector<double>& d = differences[static_cast<size_t>(f)];
-    if (d.empty()) continue;
-    if (use_median) {
-      typical[static_cast<size_t>(f)] = LowerMedian(&d);
-    } else {
-      double sum = 0;
-      for (double x : d) sum += x;
-      typical[static_cast<size_t>(f)] = sum / static_cast<double>(d.size());
-    }
-    has_value[static_cast<size_t>(f)] = 1;
-  }
-  std::vector<std::vector<double>>().swap(differences);
-
-  // Step 2: median filter (or truncated mean) over the faces sharing a vertex (each face once).
-  std::vector<double> window, next(static_cast<size_t>(nf));
-  for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
-    for (int f = 0; f < nf; ++f) {
-      next[static_cast<size_t>(f)] = typical[static_cast<size_t>(f)];
-      if (!has_value[static_cast<size_t>(f)]) continue;
-      window.clear();
-      for (int k = 0; k < 3; ++k) {
-        const int v = reference.F(f, k);
-        for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) {
-          if (stamp[static_cast<size_t>(*g)] == f || !has_value[static_cast<size_t>(*g)]) continue;
-          stamp[static_cast<size_t>(*g)] = f;
-          window.push_back(typical[static_cast<size_t>(*g)]);
-        }
-      }
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+    std::vector<double> d;
+    for (int f = r.begin(); f != r.end(); ++f) {
+      const int begin = offsets[static_cast<size_t>(f)], end = offsets[static_cast<size_t>(f) + 1];
+      if (begin == end) continue;
       if (use_median) {
-        next[static_cast<size_t>(f)] = LowerMedian(&window);
+        d.assign(differences.begin() + begin, differences.begin() + end);
+        typical[static_cast<size_t>(f)] = LowerMedian(&d);
       } else {
         double sum = 0;
-        int count = 0;
-        for (double x : window) {
-          if (x > options.truncate_normal_difference) continue;
-          sum += x;
-          ++count;
-        }
-        next[static_cast<size_t>(f)] = count > 0 ? sum / count : 0.0;
+        for (int i = begin; i < end; ++i) sum += differences[static_cast<size_t>(i)];
+        typical[static_cast<size_t>(f)] = sum / static_cast<double>(end - begin);
       }
+      has_value[static_cast<size_t>(f)] = 1;
     }
+  });
+  std::vector<double>().swap(differences);
+
+  // Step 2: median filter (or truncated mean) over the faces sharing a vertex (each face once).
+  std::vector<double> next(static_cast<size_t>(nf));
+  for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
+      std::vector<double> window;
+      for (int f = r.begin(); f != r.end(); ++f) {
+        next[static_cast<size_t>(f)] = typical[static_cast<size_t>(f)];
+        if (!has_value[static_cast<size_t>(f)]) continue;
+        window.clear();
+        for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
+          if (has_value[static_cast<size_t>(*g)]) window.push_back(typical[static_cast<size_t>(*g)]);
+        }
+        if (use_median) {
+          next[static_cast<size_t>(f)] = LowerMedian(&window);
+        } else {
+          double sum = 0;
+          int count = 0;
+          for (double x : window) {
+            if (x > options.truncate_normal_difference) continue;
+            sum += x;
+            ++count;
+          }
+          next[static_cast<size_t>(f)] = count > 0 ? sum / count : 0.0;
+        }
+      }
+    });
     typical.swap(next);
-    std::fill(stamp.begin(), stamp.end(), -1);
   }
 
   // Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings.
@@ -278,8 +429,11 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
     s.faces_at_minimum = at_minimum;
     if (nf > 0) {
       std::vector<double> sorted = epsilon_squared;
-      std::sort(sorted.begin(), sorted.end());
-      auto quantile = [&](double q) { return sorted[static_cast<size_t>(q * (sorted.size() - 1) + 0.5)]; };
+      auto quantile = [&](double q) {
+        const auto at = sorted.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(sorted.size() - 1) + 0.5);
+        std::nth_element(sorted.begin(), at, sorted.end());
+        return *at;
+      };
       s.p10_epsilon_squared = quantile(0.1);
       s.median_epsilon_squared = quantile(0.5);
       s.p90_epsilon_squared = quantile(0.9);
@@ -289,6 +443,8 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
   }
   return epsilon_squared;
 }
+
+}  // namespace
 
 AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions() {
   AdaptiveEpsilonOptions options;
@@ -374,8 +530,10 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
   int prepass_iterations = pre_summary.iterations, prepass_evaluations = pre_summary.evaluations;
   double prepass_time_s = pre_summary.time_s;
 
+  // Smooth() has checked the face indices; the gate and the detail rule share one topology.
+  const RuleTopology topology = MakeRuleTopology(noisy.mesh);
   AdaptiveEpsilonSummary gate_summary;
-  AdaptiveEpsilonSquared(smoothed, rule.gate, &gate_summary);
+  EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
   bool curved = gate_summary.median_epsilon_squared >= rule.early_curved_gate_median_epsilon_squared;
   if (early && !curved && pre_summary.termination == SmoothTermination::kMaxIterations) {
     // Undecided: continue the same pre-pass (same energy, CG restarted) to the full cap.
@@ -387,7 +545,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     prepass_iterations += pre_summary.iterations;
     prepass_evaluations += pre_summary.evaluations;
     prepass_time_s += pre_summary.time_s;
-    AdaptiveEpsilonSquared(smoothed, rule.gate, &gate_summary);
+    EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
   }
   if (!curved) curved = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
   std::vector<double> epsilon_squared;
@@ -398,7 +556,8 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     AdaptiveEpsilonOptions detail = rule.detail;
     detail.min_epsilon_squared = options.sqrt_epsilon_squared;
     detail.max_epsilon_squared = std::max(detail.max_epsilon_squared, detail.min_epsilon_squared);
-    epsilon_squared = AdaptiveEpsilonSquared(smoothed, detail, &s);
+    detail.Check();
+    epsilon_squared = EpsilonSquaredOn(smoothed, smoothed, detail, topology, &s);
     s.per_face = true;
   }
   s.gate_median_epsilon_squared = gate_summary.median_epsilon_squared;
