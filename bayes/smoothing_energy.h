@@ -29,13 +29,13 @@ struct EnergyParts {
   double total() const { return data + prior; }
 };
 
-// Which kernels SmoothingEnergy::Evaluate runs. kAuto: the AVX-512 ones where the CPU has them (GCC x86-64
-// builds), else the portable ones; kPortable: always the portable ones. Both give the same bytes; the switch
-// is for tests and benchmarks and must not be flipped while an evaluation runs.
-enum class SmoothingKernel { kAuto, kPortable };
+// Which kernels SmoothingEnergy::Evaluate runs. kAuto: the widest the CPU has (GCC x86-64 builds: AVX-512,
+// else AVX2, else portable); kPortable: always the portable ones; kAvx2: AVX2 where the CPU has it. All give
+// the same bytes; the switch is for tests and benchmarks and must not be flipped while an evaluation runs.
+enum class SmoothingKernel { kAuto, kPortable, kAvx2 };
 void SetSmoothingKernel(SmoothingKernel kernel);
-// Whether Evaluate currently runs the AVX-512 kernels.
-bool SmoothingSimdActive();
+// The kernels Evaluate runs now: "avx512", "avx2" or "portable".
+const char* SmoothingKernelName();
 
 class SmoothingEnergy {
  public:
@@ -92,7 +92,7 @@ class SmoothingEnergy {
 
  private:
   void ComputeNormals(const double* x) const;
-  // Evaluate runs the AVX-512 square-root kernels (h_ then holds h_t, 3 per face).
+  // Evaluate runs the wide square-root kernels (h_ then holds h_t, 3 per face).
   bool WideSquareRoot() const;
   void BuildCornerEdges() const;
 

@@ -6,7 +6,7 @@
 //       mean angular error (degrees) beside DESIGN.md §4's reference points.
 //   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K] [--minimiser M]
 //                      [--repeat R] [--gt GT] [--file-covariance] [--preconditioner none|data|block-jacobi]
-//                      [--precondition-every N] [--energy-tolerance E] [--portable-kernel]
+//                      [--precondition-every N] [--energy-tolerance E] [--kernel portable|avx2]
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
@@ -20,6 +20,7 @@
 #include <map>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -119,8 +120,15 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   if (flags.count("--preconditioner")) options.preconditioner = ParseSmoothPreconditioner(flags["--preconditioner"]);
   if (flags.count("--precondition-every")) options.preconditioner_every = std::stoi(flags["--precondition-every"]);
   if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
-  // --portable-kernel: the energy's portable kernels even where the CPU has wider ones (same bytes; A/B timing).
-  if (flags.count("--portable-kernel")) SetSmoothingKernel(SmoothingKernel::kPortable);
+  // --kernel portable|avx2: the energy's portable or AVX2 kernels even where the CPU has wider ones (same
+  // bytes; for A/B timing). Default: the widest the CPU has.
+  if (flags.count("--kernel")) {
+    const std::string kernel = flags["--kernel"];
+    if (kernel != "portable" && kernel != "avx2" && kernel != "auto") throw std::runtime_error("--kernel: " + kernel);
+    SetSmoothingKernel(kernel == "portable" ? SmoothingKernel::kPortable
+                       : kernel == "avx2"   ? SmoothingKernel::kAvx2
+                                            : SmoothingKernel::kAuto);
+  }
   return options;
 }
 
@@ -228,11 +236,11 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
     std::printf("final energy %.6e (data %.4e prior %.4e) | ", summary.data_energy + summary.prior_energy,
                 summary.data_energy, summary.prior_energy);
     std::printf(
-        "%s: V=%d F=%d threads=%d minimiser=%s preconditioner=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
+        "%s: V=%d F=%d threads=%d kernels=%s minimiser=%s preconditioner=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
         "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/iteration, %.1f ns/face/evaluation | "
         "termination: %s | "
         "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
-        name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads,
+        name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads, SmoothingKernelName(),
         SmoothMinimiserName(options.minimiser).c_str(), SmoothPreconditionerName(options.preconditioner).c_str(),
         SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
         cpu, summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
