@@ -107,6 +107,7 @@ struct LearnArgs {
   double pattern_step = LearnPriorOptions{}.pattern_search_step;
   int bump_sweeps = LearnPriorOptions{}.bump_search_sweeps;
   double bump_step = LearnPriorOptions{}.bump_search_step;
+  std::string bump_method = BumpSearchMethodName(LearnPriorOptions{}.bump_search_method);
   double bump_width = LearnPriorOptions{}.bump_search_width_d;
   int threads = 0;
   bool quiet = false;
@@ -219,6 +220,7 @@ void RunLearn(const LearnArgs& args) {
   options.pattern_search_step = args.pattern_step;
   options.bump_search_sweeps = args.bump_sweeps;
   options.bump_search_step = args.bump_step;
+  options.bump_search_method = ParseBumpSearchMethod(args.bump_method);
   options.bump_search_min_step = std::min(options.bump_search_min_step, args.bump_step);
   options.bump_search_width_d = args.bump_width;
   options.progress = [&progress](double fraction, std::string_view stage) {
@@ -239,6 +241,13 @@ void RunLearn(const LearnArgs& args) {
   prior.training_set = std::filesystem::absolute(args.pairs).lexically_normal().string();
   prior.training_pairs = static_cast<int>(pairs.size());
   prior.method = LearnMethodName(options.method);
+  if (options.bump_search_sweeps > 0) {
+    prior.method += StrCat(" + bump search (", BumpSearchMethodName(options.bump_search_method), ", ",
+                           summary.bump_search_moves, " moves)");
+  }
+  if (options.pattern_search_sweeps > 0) {
+    prior.method += StrCat(" + pattern search (", summary.pattern_search_moves, " moves)");
+  }
   prior.regularizer_weight = options.regularizer_weight;
   prior.training_mse_le2 = summary.final_data_loss / std::max(1, summary.num_vertices);
   prior.date = UtcNowIso8601();
@@ -339,12 +348,17 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-sweeps", args->bump_sweeps,
                     "After learning: sweeps of a search on the cold-smoothing loss along smooth Gaussian bumps of "
-                    "the knot values centred at d = 0.8, 1.0, ..., 1.8, each with its own adaptive step "
+                    "the knot values (sigma --bump-width) centred at d = 16/15, 18/15, ..., 26/15 "
                     "(BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
         ->check(CLI::Range(0, 1000));
+    sub->add_option("--bump-method", args->bump_method,
+                    "Bump search: filtering (implicit filtering: central-difference gradient over the bump heights "
+                    "with a stencil that halves on failure, then a line search) or coordinate (one bump at a time)")
+        ->check(CLI::IsMember({"filtering", "coordinate"}));
     sub->add_option("--bump-step", args->bump_step,
-                    "Bump search: initial bump height in knot-value units (grown x1.5 after a move, halved after a "
-                    "failure), (0, 1]")
+                    "Bump search: initial bump height in knot-value units (filtering: the stencil size, halved "
+                    "after a stencil failure, the search ends below 0.005; coordinate: grown x1.5 after a move, "
+                    "halved after a failure), (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-width", args->bump_width, "Bump search: sigma of the bumps in d, (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));

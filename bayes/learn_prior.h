@@ -109,8 +109,10 @@ struct LearnPriorOptions {
   // stencil averages over the roughness of L(θ) (the cold minimum jumps between nearby minima as θ moves),
   // and the gradient direction moves several bumps at once (a dip beside a rise) where one bump alone does not
   // lower L. h starts at bump_search_step and the search stops below bump_search_min_step.
-  BumpSearchMethod bump_search_method = BumpSearchMethod::kCoordinate;
-  std::vector<double> bump_search_centres_d = {0.8, 1.0, 1.2, 1.4, 1.6, 1.8};  // bump centres in d; each in (0, 2)
+  BumpSearchMethod bump_search_method = BumpSearchMethod::kImplicitFiltering;
+  // Bump centres in d, each in (0, 2); by default the knots 8–13 of 16 (d = 16/15 … 26/15), where the
+  // right-angle face pairs and the paper's second well lie.
+  std::vector<double> bump_search_centres_d = {16.0 / 15, 18.0 / 15, 20.0 / 15, 22.0 / 15, 24.0 / 15, 26.0 / 15};
   double bump_search_width_d = 0.1;      // σ of the bumps in d; (0, 1]
   double bump_search_step = 0.1;         // initial δ_c in knot-value units (the bump's height); (0, 1]
   double bump_search_min_step = 0.005;   // stop when every δ_c is below this; (0, bump_search_step]

@@ -148,10 +148,15 @@ TEST(LearnPrior, BumpSearchLowersTheLossWithSmoothMoves) {
   options.bump_search_sweeps = 2;
   options.bump_search_centres_d = {1.0, 1.4};
   options.bump_search_width_d = 0.15;
-  const Eigen::VectorXd theta = LearnPrior(pairs, options, {}, &searched);
-  EXPECT_GT(searched.bump_search_moves, 0);
-  EXPECT_LT(searched.final_data_loss + CurvatureRegularizer(theta, options.regularizer_weight),
-            plain.final_data_loss + CurvatureRegularizer(start, options.regularizer_weight));
+  Eigen::VectorXd theta;
+  for (const BumpSearchMethod method : {BumpSearchMethod::kCoordinate, BumpSearchMethod::kImplicitFiltering}) {
+    options.bump_search_method = method;
+    theta = LearnPrior(pairs, options, {}, &searched);
+    EXPECT_GT(searched.bump_search_moves, 0) << BumpSearchMethodName(method);
+    EXPECT_LT(searched.final_data_loss + CurvatureRegularizer(theta, options.regularizer_weight),
+              plain.final_data_loss + CurvatureRegularizer(start, options.regularizer_weight))
+        << BumpSearchMethodName(method);
+  }
   // The change lies in the span of the two bumps: fit it by least squares at the free knots, residual ~0.
   const SplinePotential spline(options.spline);
   Eigen::MatrixXd basis(14, 2);
@@ -173,6 +178,8 @@ TEST(LearnPrior, BumpSearchLowersTheLossWithSmoothMoves) {
   EXPECT_LE(alone.final_data_loss, alone.initial_data_loss);
   EXPECT_EQ(alone.iterations, 0);
   EXPECT_EQ(ParseLearnMethod("none"), LearnMethod::kNone);
+  EXPECT_EQ(ParseBumpSearchMethod("filtering"), BumpSearchMethod::kImplicitFiltering);
+  EXPECT_THROW(ParseBumpSearchMethod("random"), Error);
 }
 
 // On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
