@@ -559,11 +559,13 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
 void SmoothingEnergy::BuildCornerEdges() const {
   // Per corner 3t + k, the vertices p_(k+1), p_(k+2) of its opposite edge, in the corner order of corners_.
   corner_edges_.resize(2 * corners_.size());
-  for (size_t q = 0; q < corners_.size(); ++q) {
-    const int t = corners_[q] / 3, k = corners_[q] % 3;
-    corner_edges_[2 * q] = faces_(t, k == 2 ? 0 : k + 1);
-    corner_edges_[2 * q + 1] = faces_(t, k == 0 ? 2 : k - 1);
-  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, corners_.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t q = r.begin(); q != r.end(); ++q) {
+      const int t = corners_[q] / 3, k = corners_[q] % 3;
+      corner_edges_[2 * q] = faces_(t, k == 2 ? 0 : k + 1);
+      corner_edges_[2 * q + 1] = faces_(t, k == 0 ? 2 : k - 1);
+    }
+  });
 }
 
 bool SmoothingEnergy::WideSquareRoot() const {
