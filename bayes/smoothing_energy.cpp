@@ -728,7 +728,7 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
   // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
   const bool wide = WideSquareRoot();
-  const bool avx512 = ActiveIsa() == Isa::kAvx512;
+  [[maybe_unused]] const bool avx512 = ActiveIsa() == Isa::kAvx512;
   if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
 #if RB_SMOOTHING_AVX512
   if (wide) {
