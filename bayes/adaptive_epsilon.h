@@ -19,12 +19,13 @@
 //      protect_rings around crease pairs (d > protect_normal_difference) when protection is on.
 // Cost: O(#F · ring_iterations · 13 log 13), ≈ 10–50 ms at 100k faces, plus the pre-pass when there is one.
 //
-// What `rangebayes smooth` uses (its default for the square-root prior): AdaptiveEpsilonAuto below — one fast
-// pre-pass, a gate that tells a curved mesh from a piecewise-flat one, and on curved meshes the detail rule (the
-// pre-pass's normals averaged over 4 rings before d is read). Measured (BENCHMARKS.md "Adaptive ε"): every issue
-// target met with the true noise level (igea 0.3 9.92°, child 0.3 6.87°, CAD cases identical to the global ε²),
-// within 10% with the level estimated, for ≈ 1.4× the CPU time of a default run on child. The library's Smooth()
-// and the pipeline keep the global ε² (the live path has a time budget).
+// What `rangebayes smooth` uses (its default for the square-root prior): SmoothAdaptiveEpsilon below — a fast
+// pre-pass of 40–80 iterations, a gate that tells a curved mesh from a piecewise-flat one, on curved meshes the
+// detail rule (the pre-pass's normals averaged over 4 rings before d is read) and a final solve started from the
+// pre-pass. Measured (BENCHMARKS.md "Adaptive ε", fourth session): every issue target met with the true noise
+// level (igea 0.3 9.89°, child 0.3 6.84°, CAD cases identical to the global ε²), within 10% with the level
+// estimated; on child 166 evaluations in all against 276 for the global ε² alone. The library's Smooth() and the
+// pipeline keep the global ε² (the live path has a time budget).
 //
 // History of the rules (all kept, all measured in BENCHMARKS.md): with the ground truth as reference (median,
 // scale 4: an upper bound) every target is met (igea 9.70°, child 6.85°). On the default pre-pass the raw d is
@@ -161,15 +162,17 @@ struct AutoAdaptiveEpsilonOptions {
   void Check() const;
 };
 
-// What `rangebayes smooth` uses for the square-root prior (its default; --no-adaptive-eps turns it off): one
-// fast pre-pass Smooth(noisy, options with the fast tolerance and the global ε²), then two O(#F) rules on its
+// The ε² part of what `rangebayes smooth` uses for the square-root prior (its default; --no-adaptive-eps turns
+// it off; the command calls SmoothAdaptiveEpsilon below): a fast pre-pass Smooth(noisy, options with the fast
+// tolerance, the global ε² and at most rule.prepass_max_iterations iterations), then two O(#F) rules on its
 // result. The gate rule (ScanAdaptiveEpsilonOptions) tells a piecewise-flat shape from a curved one: on a
 // smoothed CAD shape nearly every face is flat (median ε² ≈ the minimum), on a smoothed scan the faces are
 // small facets of a curved surface. Piecewise flat: returns an empty vector (keep the global ε², the paper's
 // sharp prior: CAD results are those of the default); curved: the detail rule's ε² (#F values in [min(the
-// global ε², 1), 1]). With the true noise level every issue target is met (igea 0.3 9.92°, child 0.3 6.87°);
-// cost: one fast smoothing run on top of the main run (≈ 0.3–0.6× its CPU time). `options` must use the
-// square-root prior (Error otherwise); options.face_epsilon_squared is ignored.
+// global ε², 1), 1]). The pre-pass stops early as curved (see AutoAdaptiveEpsilonOptions); cost: 40–80 fast
+// iterations plus two O(#F) rules (child: 72 evaluations, rules ≈ 0.1 s). `prepass_result` (optional) receives
+// the pre-pass mesh. `options` must use the square-root prior (Error otherwise); options.face_epsilon_squared is
+// ignored.
 std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
                                         const AutoAdaptiveEpsilonOptions& rule = {},
                                         AdaptiveEpsilonSummary* summary = nullptr,

@@ -23,6 +23,15 @@
 //     --rule scan          start from ScanAdaptiveEpsilonOptions() (the gate rule of auto)
 //     --baseline           also run the default smoother and print its MAE beside
 //     --held-out           the held-out meshes (trim-star 0.5, buste, impulsive nicolo) instead of the table
+//     with --reference auto (SmoothAdaptiveEpsilon, as `rangebayes smooth`; prints pre-pass and final iterations /
+//     evaluations): --prepass-iterations N (cap, 0: the fast preset's), --early-iterations N (0: no early
+//     decision), --early-gate E, --gate E, --warm 0|1 (final solve of a curved mesh from the pre-pass)
+//
+//   bench_adaptive gates [--data DIR] [--caps 0,10,20,40,80,-1] [--estimate] [--held-out] [--cases a,b]
+//                        [--resynth K [--seed S]]
+//     the gate rule's and the detail rule's median ε² on pre-passes capped at each count (0: the noisy input,
+//     -1: the fast preset, i.e. converged), with the rules' time; --resynth K smooths new noisy copies of the
+//     ground truths (Gaussian noise of K mean edges along the vertex normals) instead of the files
 #include <sys/resource.h>
 
 #include <Eigen/Geometry>
