@@ -267,6 +267,34 @@ Mesh NoisyBowl(int n, double sigma, unsigned seed) {
   return bowl;
 }
 
+// The pre-pass of AdaptiveEpsilonAuto: a clearly curved mesh is decided after prepass_early_iterations (40);
+// without the early decision the same mesh runs on (to the cap or the fast tolerance) and is still curved; the
+// piecewise-flat roof is never decided early (it runs past 40 iterations unless its pre-pass converges first).
+TEST(AdaptiveEpsilon, EarlyDecisionEndsTheCurvedPrepass) {
+  GenericNoiseOptions noise;
+  noise.noise_edge_multiple = 0.3;
+  const NoisyMesh curved = MakeGenericNoisyMesh(NoisyBowl(24, 0.3, 13), noise);
+  AdaptiveEpsilonSummary early, late;
+  AdaptiveEpsilonAuto(curved, SmoothOptions{}, {}, &early);
+  AutoAdaptiveEpsilonOptions no_early;
+  no_early.prepass_early_iterations = 0;
+  AdaptiveEpsilonAuto(curved, SmoothOptions{}, no_early, &late);
+  EXPECT_TRUE(early.per_face) << early.gate_median_epsilon_squared;
+  EXPECT_TRUE(late.per_face) << late.gate_median_epsilon_squared;
+  EXPECT_LE(early.prepass_iterations, 40);
+  EXPECT_GT(late.prepass_iterations, early.prepass_iterations);
+  EXPECT_GE(early.gate_median_epsilon_squared, AutoAdaptiveEpsilonOptions{}.early_curved_gate_median_epsilon_squared);
+
+  const NoisyMesh roof = MakeGenericNoisyMesh(testing::NoisyRoof(24, 24, 0.3, 17), noise);
+  AdaptiveEpsilonSummary flat;
+  AdaptiveEpsilonAuto(roof, SmoothOptions{}, {}, &flat);
+  EXPECT_FALSE(flat.per_face) << flat.gate_median_epsilon_squared;
+  EXPECT_GT(flat.prepass_iterations, 40);
+  EXPECT_LE(flat.prepass_iterations, 80);
+  // Measured: bowl gate 1.65e-2 after 40 iterations (early threshold 1.2e-2), 1.59e-2 after 80 without the early
+  // decision; roof 3.6e-4 after 80 (threshold 3e-3).
+}
+
 // SmoothOptions::initial_positions (added for the warm start of the adaptive default): starting at the
 // measurements is the plain solve, byte for byte; starting at a tight minimum stays there; a wrong size is an
 // Error, not a crash.
