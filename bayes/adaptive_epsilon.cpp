@@ -9,6 +9,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "core/error.h"
 #include "core/topology.h"
@@ -175,34 +176,30 @@ RuleTopology MakeRuleTopology(const Mesh& mesh) {
   RuleTopology topology;
   topology.vertex_faces = VertexFaces(mesh);
   topology.pairs = FacePairs(mesh, topology.vertex_faces);
+  // One gathering pass per block of faces into the block's own list, then the lists joined in block order.
   const int nf = mesh.num_faces();
+  constexpr int kBlock = 4096;
+  const int blocks = (nf + kBlock - 1) / kBlock;
+  std::vector<std::vector<int>> block_items(static_cast<size_t>(blocks));
   std::vector<int> counts(static_cast<size_t>(nf) + 1, 0);
   {
     tbb::enumerable_thread_specific<std::vector<int>> marks(std::vector<int>(static_cast<size_t>(nf), 0));
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+    tbb::parallel_for(0, blocks, [&](int b) {
       std::vector<int>& mark = marks.local();
-      std::vector<int> buffer;
-      for (int f = r.begin(); f != r.end(); ++f) {
-        buffer.clear();
-        GatherRing(mesh, topology.vertex_faces, f, &mark, &buffer);
-        counts[static_cast<size_t>(f) + 1] = static_cast<int>(buffer.size());
+      std::vector<int>& items = block_items[static_cast<size_t>(b)];
+      for (int f = b * kBlock; f < std::min(nf, (b + 1) * kBlock); ++f) {
+        const size_t before = items.size();
+        GatherRing(mesh, topology.vertex_faces, f, &mark, &items);
+        counts[static_cast<size_t>(f) + 1] = static_cast<int>(items.size() - before);
       }
     });
   }
   for (int f = 0; f < nf; ++f) counts[static_cast<size_t>(f) + 1] += counts[static_cast<size_t>(f)];
   topology.rings.items.resize(static_cast<size_t>(counts.back()));
-  {
-    tbb::enumerable_thread_specific<std::vector<int>> marks(std::vector<int>(static_cast<size_t>(nf), 0));
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
-      std::vector<int>& mark = marks.local();
-      std::vector<int> buffer;
-      for (int f = r.begin(); f != r.end(); ++f) {
-        buffer.clear();
-        GatherRing(mesh, topology.vertex_faces, f, &mark, &buffer);
-        std::copy(buffer.begin(), buffer.end(), topology.rings.items.begin() + counts[static_cast<size_t>(f)]);
-      }
-    });
-  }
+  tbb::parallel_for(0, blocks, [&](int b) {
+    const std::vector<int>& items = block_items[static_cast<size_t>(b)];
+    std::copy(items.begin(), items.end(), topology.rings.items.begin() + counts[static_cast<size_t>(b) * kBlock]);
+  });
   topology.rings.offsets = std::move(counts);
   return topology;
 }
@@ -530,10 +527,15 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
   int prepass_iterations = pre_summary.iterations, prepass_evaluations = pre_summary.evaluations;
   double prepass_time_s = pre_summary.time_s;
 
-  // Smooth() has checked the face indices; the gate and the detail rule share one topology.
-  const RuleTopology topology = MakeRuleTopology(noisy.mesh);
+  // Smooth() has checked the face indices; the gate and the detail rule share one topology. The rules run on
+  // options.num_threads threads like the solver (their result does not depend on it).
+  tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
+  RuleTopology topology;
   AdaptiveEpsilonSummary gate_summary;
-  EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
+  arena.execute([&] {
+    topology = MakeRuleTopology(noisy.mesh);
+    EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
+  });
   bool curved = gate_summary.median_epsilon_squared >= rule.early_curved_gate_median_epsilon_squared;
   if (early && !curved && pre_summary.termination == SmoothTermination::kMaxIterations) {
     // Undecided: continue the same pre-pass (same energy, CG restarted) to the full cap.
@@ -545,7 +547,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     prepass_iterations += pre_summary.iterations;
     prepass_evaluations += pre_summary.evaluations;
     prepass_time_s += pre_summary.time_s;
-    EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
+    arena.execute([&] { EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary); });
   }
   if (!curved) curved = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
   std::vector<double> epsilon_squared;
@@ -557,7 +559,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     detail.min_epsilon_squared = options.sqrt_epsilon_squared;
     detail.max_epsilon_squared = std::max(detail.max_epsilon_squared, detail.min_epsilon_squared);
     detail.Check();
-    epsilon_squared = EpsilonSquaredOn(smoothed, smoothed, detail, topology, &s);
+    arena.execute([&] { epsilon_squared = EpsilonSquaredOn(smoothed, smoothed, detail, topology, &s); });
     s.per_face = true;
   }
   s.gate_median_epsilon_squared = gate_summary.median_epsilon_squared;
