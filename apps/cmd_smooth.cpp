@@ -106,8 +106,9 @@ void RunSmooth(const SmoothArgs& args) {
     }
   }
   std::printf("prior:      %s, beta %.4g%s\n", args.prior.c_str(), options.prior_weight,
-              !learned && options.prior == PriorKind::kSqrt ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
-                                                 : "");
+              !learned && options.prior == PriorKind::kSqrt
+                  ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
+                  : "");
   std::printf("minimiser:  %s, tolerance %s, threads %s\n", args.minimiser.c_str(), args.tolerance.c_str(),
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
   std::fflush(stdout);
@@ -126,10 +127,11 @@ void RunSmooth(const SmoothArgs& args) {
                                 std::to_string(adaptive.prepass_time_s).substr(0, 5) + " s, rules " +
                                 std::to_string(adaptive.time_s - adaptive.prepass_time_s).substr(0, 5) + " s";
     if (adaptive.per_face) {
-      std::printf("adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
-                  "final solve started from it)\n",
-                  adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
-                  adaptive.gate_median_epsilon_squared, prepass.c_str());
+      std::printf(
+          "adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
+          "final solve started from it)\n",
+          adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
+          adaptive.gate_median_epsilon_squared, prepass.c_str());
     } else {
       std::printf("adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %s)\n",
                   adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, prepass.c_str());

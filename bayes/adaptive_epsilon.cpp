@@ -1,15 +1,15 @@
 #include "bayes/adaptive_epsilon.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
-
-#include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "core/error.h"
 #include "core/topology.h"
@@ -67,17 +67,19 @@ void FaceNormals(const Mesh& reference, std::vector<Eigen::Vector3d>* normal, st
   const int nf = reference.num_faces();
   normal->assign(static_cast<size_t>(nf), Eigen::Vector3d::Zero());
   valid->assign(static_cast<size_t>(nf), 0);
-  for (int f = 0; f < nf; ++f) {
-    const int a = reference.F(f, 0), b = reference.F(f, 1), c = reference.F(f, 2);
-    if (a == b || b == c || a == c) continue;
-    const Eigen::Vector3d pa = reference.V.row(a).transpose();
-    const Eigen::Vector3d cross = (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
-    const double length = cross.norm();
-    if (length > 0 && std::isfinite(length)) {
-      (*normal)[static_cast<size_t>(f)] = cross / length;
-      (*valid)[static_cast<size_t>(f)] = 1;
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+    for (int f = r.begin(); f != r.end(); ++f) {
+      const int a = reference.F(f, 0), b = reference.F(f, 1), c = reference.F(f, 2);
+      if (a == b || b == c || a == c) continue;
+      const Eigen::Vector3d pa = reference.V.row(a).transpose();
+      const Eigen::Vector3d cross = (reference.V.row(b).transpose() - pa).cross(reference.V.row(c).transpose() - pa);
+      const double length = cross.norm();
+      if (length > 0 && std::isfinite(length)) {
+        (*normal)[static_cast<size_t>(f)] = cross / length;
+        (*valid)[static_cast<size_t>(f)] = 1;
+      }
     }
-  }
+  });
 }
 
 // The options of a fast pre-pass (no per-face ε, no progress) on which a rule reads the shape.
@@ -132,7 +134,8 @@ Adjacency VertexFaces(const Mesh& mesh) {
       if (!repeated(f, k)) ++adjacency.offsets[static_cast<size_t>(mesh.F(f, k)) + 1];
     }
   }
-  for (int v = 0; v < nv; ++v) adjacency.offsets[static_cast<size_t>(v) + 1] += adjacency.offsets[static_cast<size_t>(v)];
+  for (int v = 0; v < nv; ++v)
+    adjacency.offsets[static_cast<size_t>(v) + 1] += adjacency.offsets[static_cast<size_t>(v)];
   adjacency.items.resize(static_cast<size_t>(adjacency.offsets.back()));
   std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
   for (int f = 0; f < nf; ++f) {
@@ -146,29 +149,38 @@ Adjacency VertexFaces(const Mesh& mesh) {
 // ComputeFacePairs (core/topology.h) from the vertex-face lists: (s, t), s < t, sharing an edge, sorted, each
 // pair once. Same rows; a triangle holds an edge {a, b} (a ≠ b) exactly when it holds both vertices.
 IndexPairs FacePairs(const Mesh& mesh, const Adjacency& vertex_faces) {
+  // Blocks of faces in parallel, each into its own list (s ascending within a block, blocks in order).
   const int nf = mesh.num_faces();
-  std::vector<int> flat;
-  flat.reserve(static_cast<size_t>(nf) * 3);
-  std::vector<int> partners;
-  for (int s = 0; s < nf; ++s) {
-    partners.clear();
-    for (int k = 0; k < 3; ++k) {
-      const int a = mesh.F(s, k), b = mesh.F(s, (k + 1) % 3);
-      if (a == b) continue;
-      for (const int* t = vertex_faces.begin(a); t != vertex_faces.end(a); ++t) {
-        if (*t <= s) continue;
-        if (mesh.F(*t, 0) == b || mesh.F(*t, 1) == b || mesh.F(*t, 2) == b) partners.push_back(*t);
+  constexpr int kBlock = 4096;
+  const int blocks = (nf + kBlock - 1) / kBlock;
+  std::vector<std::vector<int>> block_flat(static_cast<size_t>(blocks));
+  tbb::parallel_for(0, blocks, [&](int block) {
+    std::vector<int>& flat = block_flat[static_cast<size_t>(block)];
+    flat.reserve(static_cast<size_t>(kBlock) * 3);
+    std::vector<int> partners;
+    for (int s = block * kBlock; s < std::min(nf, (block + 1) * kBlock); ++s) {
+      partners.clear();
+      for (int k = 0; k < 3; ++k) {
+        const int a = mesh.F(s, k), b = mesh.F(s, (k + 1) % 3);
+        if (a == b) continue;
+        for (const int* t = vertex_faces.begin(a); t != vertex_faces.end(a); ++t) {
+          if (*t <= s) continue;
+          if (mesh.F(*t, 0) == b || mesh.F(*t, 1) == b || mesh.F(*t, 2) == b) partners.push_back(*t);
+        }
+      }
+      std::sort(partners.begin(), partners.end());
+      partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
+      for (int t : partners) {
+        flat.push_back(s);
+        flat.push_back(t);
       }
     }
-    std::sort(partners.begin(), partners.end());
-    partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
-    for (int t : partners) {
-      flat.push_back(s);
-      flat.push_back(t);
-    }
-  }
-  IndexPairs pairs(static_cast<Eigen::Index>(flat.size() / 2), 2);
-  std::copy(flat.begin(), flat.end(), pairs.data());
+  });
+  size_t total = 0;
+  for (const std::vector<int>& flat : block_flat) total += flat.size();
+  IndexPairs pairs(static_cast<Eigen::Index>(total / 2), 2);
+  int* out = pairs.data();
+  for (const std::vector<int>& flat : block_flat) out = std::copy(flat.begin(), flat.end(), out);
   return pairs;
 }
 
@@ -291,17 +303,24 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_r
   // Per face the d of its valid pairs, in pair order (a CSR list: offsets, then values).
   std::vector<int> offsets(static_cast<size_t>(nf) + 1, 0);
   std::vector<double> pair_d(static_cast<size_t>(pairs.rows()), -1.0);
+  std::vector<char> is_crease(static_cast<size_t>(pairs.rows()), 0);
+  tbb::parallel_for(
+      tbb::blocked_range<Eigen::Index>(0, pairs.rows(), 8192), [&](const tbb::blocked_range<Eigen::Index>& r) {
+        for (Eigen::Index p = r.begin(); p != r.end(); ++p) {
+          const int s = pairs(p, 0), t = pairs(p, 1);
+          is_crease[static_cast<size_t>(p)] =
+              crease_valid[static_cast<size_t>(s)] && crease_valid[static_cast<size_t>(t)] &&
+              (crease_normal[static_cast<size_t>(s)] - crease_normal[static_cast<size_t>(t)]).norm() >
+                  options.protect_normal_difference;
+          if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
+          pair_d[static_cast<size_t>(p)] = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
+        }
+      });
   for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
-    const int s = pairs(p, 0), t = pairs(p, 1);
-    if (crease_valid[static_cast<size_t>(s)] && crease_valid[static_cast<size_t>(t)] &&
-        (crease_normal[static_cast<size_t>(s)] - crease_normal[static_cast<size_t>(t)]).norm() >
-            options.protect_normal_difference) {
-      crease_pairs.push_back(p);
-    }
-    if (!valid[static_cast<size_t>(s)] || !valid[static_cast<size_t>(t)]) continue;
-    pair_d[static_cast<size_t>(p)] = (normal[static_cast<size_t>(s)] - normal[static_cast<size_t>(t)]).norm();
-    ++offsets[static_cast<size_t>(s) + 1];
-    ++offsets[static_cast<size_t>(t) + 1];
+    if (is_crease[static_cast<size_t>(p)]) crease_pairs.push_back(p);
+    if (pair_d[static_cast<size_t>(p)] < 0) continue;
+    ++offsets[static_cast<size_t>(pairs(p, 0)) + 1];
+    ++offsets[static_cast<size_t>(pairs(p, 1)) + 1];
   }
   for (int f = 0; f < nf; ++f) offsets[static_cast<size_t>(f) + 1] += offsets[static_cast<size_t>(f)];
   std::vector<double> differences(static_cast<size_t>(offsets.back()));

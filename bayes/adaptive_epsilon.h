@@ -175,8 +175,7 @@ struct AutoAdaptiveEpsilonOptions {
 // ignored.
 std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOptions& options,
                                         const AutoAdaptiveEpsilonOptions& rule = {},
-                                        AdaptiveEpsilonSummary* summary = nullptr,
-                                        Mesh* prepass_result = nullptr);
+                                        AdaptiveEpsilonSummary* summary = nullptr, Mesh* prepass_result = nullptr);
 
 // The whole default of `rangebayes smooth` for the square-root prior: AdaptiveEpsilonAuto, then Smooth(noisy,
 // options with its ε²) started from the pre-pass result when rule.final_from_prepass (same energy and minimum as

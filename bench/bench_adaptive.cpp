@@ -206,14 +206,15 @@ int Quality(std::map<std::string, std::string>& flags) {
       SmoothSummary final_summary;
       const Mesh result = SmoothAdaptiveEpsilon(input, options, automatic, &rule_summary, &final_summary);
       const double total_s = Seconds(start), cpu = CpuSeconds() - cpu_start;
-      std::printf("| %s | %s | %s | %.3f | gate %.2e %s | pre-pass %d it / %d ev | final %d it / %d ev | total %d ev "
-                  "| %.2f s | CPU %.2f s |\n",
-                  c.name.c_str(), std::isnan(c.target) ? "–" : std::to_string(c.target).substr(0, 4).c_str(),
-                  std::isnan(baseline_mae) ? "–" : std::to_string(baseline_mae).substr(0, 5).c_str(),
-                  MeanAngularErrorDeg(result, gt), rule_summary.gate_median_epsilon_squared,
-                  rule_summary.per_face ? "curved" : "flat", rule_summary.prepass_iterations,
-                  rule_summary.prepass_evaluations, final_summary.iterations, final_summary.evaluations,
-                  rule_summary.prepass_evaluations + final_summary.evaluations, total_s, cpu);
+      std::printf(
+          "| %s | %s | %s | %.3f | gate %.2e %s | pre-pass %d it / %d ev | final %d it / %d ev | total %d ev "
+          "| %.2f s | CPU %.2f s |\n",
+          c.name.c_str(), std::isnan(c.target) ? "–" : std::to_string(c.target).substr(0, 4).c_str(),
+          std::isnan(baseline_mae) ? "–" : std::to_string(baseline_mae).substr(0, 5).c_str(),
+          MeanAngularErrorDeg(result, gt), rule_summary.gate_median_epsilon_squared,
+          rule_summary.per_face ? "curved" : "flat", rule_summary.prepass_iterations, rule_summary.prepass_evaluations,
+          final_summary.iterations, final_summary.evaluations,
+          rule_summary.prepass_evaluations + final_summary.evaluations, total_s, cpu);
       std::fflush(stdout);
       continue;
       ref_info = " gate median eps2 " + std::to_string(rule_summary.gate_median_epsilon_squared).substr(0, 7) +
@@ -293,7 +294,8 @@ int Gates(std::map<std::string, std::string>& flags) {
       pos = comma + 1;
     }
   }
-  std::printf("| case | pre-pass iterations (evaluations) | scan gate median eps2 | detail median eps2 | detail p25 |\n");
+  std::printf(
+      "| case | pre-pass iterations (evaluations) | scan gate median eps2 | detail median eps2 | detail p25 |\n");
   std::printf("|---|---|---|---|---|\n");
   for (const Case& c : flags.count("--held-out") ? HeldOutCases() : Cases()) {
     if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;
@@ -330,8 +332,7 @@ int Gates(std::map<std::string, std::string>& flags) {
       const double p25 = sorted.empty() ? 0 : sorted[sorted.size() / 4];
       std::printf("| %s | %d (%d) | %.2e | %.2e | %.2e | rules %.3f / %.3f s, pre-pass %.3f s (setup %.3f s) |\n",
                   c.name.c_str(), summary.iterations, summary.evaluations, gate.median_epsilon_squared,
-                  detail.median_epsilon_squared, p25, gate.time_s, detail.time_s, summary.time_s,
-                  summary.setup_time_s);
+                  detail.median_epsilon_squared, p25, gate.time_s, detail.time_s, summary.time_s, summary.setup_time_s);
       std::fflush(stdout);
     }
   }
