@@ -84,8 +84,40 @@ struct SqrtFacePassInput {
   double* h;  // 3 per face (h_t); null: no gradient
 };
 
+// Eight 3-vectors stored x y z x y z … (24 doubles from p; the first 3n, n ≤ 8, are read) into x, y, z
+// registers, and back: permutes instead of stride-3 gathers and scatters.
+RB_AVX512_KERNEL inline void LoadXyz8(const double* p, int n, __m512d* x, __m512d* y, __m512d* z) {
+  const unsigned bits = 3u * static_cast<unsigned>(n);
+  const __mmask8 ma = static_cast<__mmask8>(bits >= 8 ? 0xFFu : (1u << bits) - 1u);
+  const __mmask8 mb = static_cast<__mmask8>(bits >= 16 ? 0xFFu : bits <= 8 ? 0u : (1u << (bits - 8)) - 1u);
+  const __mmask8 mc = static_cast<__mmask8>(bits <= 16 ? 0u : (1u << (bits - 16)) - 1u);
+  const __m512d a = _mm512_maskz_loadu_pd(ma, p), b = _mm512_maskz_loadu_pd(mb, p + 8), c = _mm512_maskz_loadu_pd(mc, p + 16);
+  *x = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), b),
+                              _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13), c);
+  *y = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), b),
+                              _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14), c);
+  *z = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), b),
+                              _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15), c);
+}
+
+RB_AVX512_KERNEL inline void StoreXyz8(double* p, int n, __m512d x, __m512d y, __m512d z) {
+  const unsigned bits = 3u * static_cast<unsigned>(n);
+  const __mmask8 ma = static_cast<__mmask8>(bits >= 8 ? 0xFFu : (1u << bits) - 1u);
+  const __mmask8 mb = static_cast<__mmask8>(bits >= 16 ? 0xFFu : bits <= 8 ? 0u : (1u << (bits - 8)) - 1u);
+  const __mmask8 mc = static_cast<__mmask8>(bits <= 16 ? 0u : (1u << (bits - 16)) - 1u);
+  // a = x0 y0 z0 x1 y1 z1 x2 y2, b = z2 x3 y3 z3 x4 y4 z4 x5, c = y5 z5 x6 y6 z6 x7 y7 z7.
+  const __m512d xy_a = _mm512_permutex2var_pd(x, _mm512_setr_epi64(0, 8, 0, 1, 9, 0, 2, 10), y);
+  const __m512d a = _mm512_permutex2var_pd(xy_a, _mm512_setr_epi64(0, 1, 8, 3, 4, 9, 6, 7), z);
+  const __m512d xz_b = _mm512_permutex2var_pd(x, _mm512_setr_epi64(10, 3, 0, 11, 4, 0, 12, 5), z);
+  const __m512d b = _mm512_permutex2var_pd(xz_b, _mm512_setr_epi64(0, 1, 11, 3, 4, 12, 6, 7), y);
+  const __m512d yz_c = _mm512_permutex2var_pd(y, _mm512_setr_epi64(5, 13, 0, 6, 14, 0, 7, 15), z);
+  const __m512d c = _mm512_permutex2var_pd(yz_c, _mm512_setr_epi64(0, 1, 14, 3, 4, 15, 6, 7), x);
+  _mm512_mask_storeu_pd(p, ma, a);
+  _mm512_mask_storeu_pd(p + 8, mb, b);
+  _mm512_mask_storeu_pd(p + 16, mc, c);
+}
+
 RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begin, int end, double sum) {
-  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
   const __m512d beta = _mm512_set1_pd(in.beta), global_e2 = _mm512_set1_pd(in.e2);
   alignas(64) double energy[8];
@@ -93,16 +125,13 @@ RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begi
   for (int t0 = begin; t0 < end; t0 += 8) {
     const int n = std::min(8, end - t0);
     const __mmask8 valid = static_cast<__mmask8>((1u << n) - 1u);
-    const __m256i t = _mm256_add_epi32(_mm256_set1_epi32(t0), lanes);
-    const __m256i t3 = _mm256_add_epi32(t, _mm256_add_epi32(t, t));
     const __m256i lo = _mm256_maskz_loadu_epi32(valid, in.offsets + t0);
     const __m256i count = _mm256_sub_epi32(_mm256_maskz_loadu_epi32(valid, in.offsets + t0 + 1), lo);
     _mm256_store_si256(reinterpret_cast<__m256i*>(count_lanes), count);
     int max_count = 0;
     for (int l = 0; l < n; ++l) max_count = std::max(max_count, count_lanes[l]);
-    const __m512d ntx = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals, 8);
-    const __m512d nty = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals + 1, 8);
-    const __m512d ntz = _mm512_mask_i32gather_pd(zero, valid, t3, in.normals + 2, 8);
+    __m512d ntx, nty, ntz;
+    LoadXyz8(in.normals + 3 * static_cast<size_t>(t0), n, &ntx, &nty, &ntz);
     const __m512d e2t = in.face_e2 != nullptr ? _mm512_maskz_loadu_pd(valid, in.face_e2 + t0) : zero;
     __m512d e = zero, gx = zero, gy = zero, gz = zero;
     for (int k = 0; k < max_count; ++k) {
@@ -136,9 +165,8 @@ RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begi
       const __m512d hy = _mm512_mul_pd(_mm512_sub_pd(gy, _mm512_mul_pd(nty, ng)), inv);
       const __m512d hz = _mm512_mul_pd(_mm512_sub_pd(gz, _mm512_mul_pd(ntz, ng)), inv);
       // Only h_t (zero where the face has no normal); the vertex gather forms h_t × e_k.
-      _mm512_mask_i32scatter_pd(in.h, valid, t3, _mm512_maskz_mov_pd(live, hx), 8);
-      _mm512_mask_i32scatter_pd(in.h + 1, valid, t3, _mm512_maskz_mov_pd(live, hy), 8);
-      _mm512_mask_i32scatter_pd(in.h + 2, valid, t3, _mm512_maskz_mov_pd(live, hz), 8);
+      StoreXyz8(in.h + 3 * static_cast<size_t>(t0), n, _mm512_maskz_mov_pd(live, hx), _mm512_maskz_mov_pd(live, hy),
+                _mm512_maskz_mov_pd(live, hz));
     }
     _mm512_store_pd(energy, _mm512_mul_pd(half, e));
     for (int l = 0; l < n; ++l) sum += energy[l];
@@ -179,9 +207,8 @@ RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const cha
                           _mm512_mask_cmp_pd_mask(on, length, infinity, _CMP_LT_OQ);
     const __m512d inv = _mm512_maskz_div_pd(good, one, length);
     const __m512d nx = _mm512_mul_pd(cx, inv), ny = _mm512_mul_pd(cy, inv), nz = _mm512_mul_pd(cz, inv);
-    _mm512_mask_i32scatter_pd(normals, valid, t3, _mm512_maskz_mov_pd(good, nx), 8);
-    _mm512_mask_i32scatter_pd(normals + 1, valid, t3, _mm512_maskz_mov_pd(good, ny), 8);
-    _mm512_mask_i32scatter_pd(normals + 2, valid, t3, _mm512_maskz_mov_pd(good, nz), 8);
+    StoreXyz8(normals + 3 * static_cast<size_t>(t0), n, _mm512_maskz_mov_pd(good, nx), _mm512_maskz_mov_pd(good, ny),
+              _mm512_maskz_mov_pd(good, nz));
     _mm512_mask_storeu_pd(inverse_length + t0, valid, inv);
   }
 }
