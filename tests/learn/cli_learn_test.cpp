@@ -23,7 +23,7 @@ TEST(LearnCli, SynthThenLearn) {
 
   const std::string prior = (dir / "prior.yaml").string();
   const RunResult learn = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" +
-                                        prior + "' --knots 8 --iterations 3 --threads 1 --quiet");
+                                        prior + "' --knots 8 --iterations 3 --bump-sweeps 1 --threads 1 --quiet");
   ASSERT_EQ(learn.exit_code, 0) << learn.output;
   EXPECT_TRUE(std::filesystem::exists(dir / "prior.png"));
   const LearnedPrior read = ReadLearnedPrior(prior);
@@ -32,6 +32,7 @@ TEST(LearnCli, SynthThenLearn) {
   EXPECT_DOUBLE_EQ(read.noise_k, 0.3);
   EXPECT_EQ(read.training_pairs, 2);
   EXPECT_FALSE(read.date.empty());
+  EXPECT_NE(read.method.find("interleaved + bump search (filtering"), std::string::npos) << read.method;
 
   // The learned prior plugs into the smoother.
   const RunResult smooth = RunRangebayes("smooth '" + list.noisy[0] + "' '" + (dir / "smoothed.ply").string() +
