@@ -117,6 +117,18 @@ RB_AVX512_KERNEL inline void StoreXyz8(double* p, int n, __m512d x, __m512d y, _
   _mm512_mask_storeu_pd(p + 16, mc, c);
 }
 
+// Column k of eight rows of three ints stored contiguously (24 ints from p, all read).
+RB_AVX512_KERNEL inline void LoadColumns8(const int* p, __m256i* columns) {
+  const __m512i a = _mm512_loadu_si512(p);
+  const __m512i b = _mm512_maskz_loadu_epi32(static_cast<__mmask16>(0x00FF), p + 16);
+  for (int k = 0; k < 3; ++k) {
+    const __m512i index = _mm512_add_epi32(_mm512_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21, 0, 0, 0, 0, 0, 0, 0, 0),
+                                           _mm512_set1_epi32(k));
+    // (masked extract: the plain cast trips -Wmaybe-uninitialized in GCC 12)
+    columns[k] = _mm512_maskz_extracti32x8_epi32(static_cast<__mmask8>(0xFF), _mm512_permutex2var_epi32(a, index, b), 0);
+  }
+}
+
 RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begin, int end, double sum) {
   const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
   const __m512d beta = _mm512_set1_pd(in.beta), global_e2 = _mm512_set1_pd(in.e2);
@@ -134,10 +146,16 @@ RB_AVX512_KERNEL double SqrtFacePassAvx512(const SqrtFacePassInput& in, int begi
     LoadXyz8(in.normals + 3 * static_cast<size_t>(t0), n, &ntx, &nty, &ntz);
     const __m512d e2t = in.face_e2 != nullptr ? _mm512_maskz_loadu_pd(valid, in.face_e2 + t0) : zero;
     __m512d e = zero, gx = zero, gy = zero, gz = zero;
+    // The common case, eight faces with three neighbours each: their 24 neighbour indices are contiguous.
+    __m256i slots[3];
+    const bool three_each = n == 8 && _mm256_cmpeq_epi32_mask(count, _mm256_set1_epi32(3)) == 0xFF;
+    if (three_each) LoadColumns8(in.neighbours + in.offsets[t0], slots);
     for (int k = 0; k < max_count; ++k) {
       const __mmask8 m = _mm256_cmpgt_epi32_mask(count, _mm256_set1_epi32(k));
-      const __m256i s = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), m, _mm256_add_epi32(lo, _mm256_set1_epi32(k)),
-                                                     in.neighbours, 4);
+      const __m256i s = three_each ? slots[k]
+                                   : _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), m,
+                                                                  _mm256_add_epi32(lo, _mm256_set1_epi32(k)),
+                                                                  in.neighbours, 4);
       const __m256i s3 = _mm256_add_epi32(s, _mm256_add_epi32(s, s));
       const __m512d dx = _mm512_sub_pd(ntx, _mm512_mask_i32gather_pd(zero, m, s3, in.normals, 8));
       const __m512d dy = _mm512_sub_pd(nty, _mm512_mask_i32gather_pd(zero, m, s3, in.normals + 1, 8));
@@ -186,10 +204,18 @@ RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const cha
     const __m256i t = _mm256_add_epi32(_mm256_set1_epi32(t0), lanes);
     const __m256i t3 = _mm256_add_epi32(t, _mm256_add_epi32(t, t));
     __mmask8 on = 0;
-    for (int l = 0; l < n; ++l) on = static_cast<__mmask8>(on | (active[t0 + l] ? 1u << l : 0u));
+    __m256i corners[3];
+    if (n == 8) {
+      on = static_cast<__mmask8>(~_mm_movemask_epi8(_mm_cmpeq_epi8(
+          _mm_loadl_epi64(reinterpret_cast<const __m128i*>(active + t0)), _mm_setzero_si128())));
+      LoadColumns8(faces + 3 * static_cast<size_t>(t0), corners);
+    } else {
+      for (int l = 0; l < n; ++l) on = static_cast<__mmask8>(on | (active[t0 + l] ? 1u << l : 0u));
+      for (int k = 0; k < 3; ++k) corners[k] = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), on, t3, faces + k, 4);
+    }
     __m512d px[3], py[3], pz[3];
     for (int k = 0; k < 3; ++k) {
-      const __m256i v = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), on, t3, faces + k, 4);
+      const __m256i v = corners[k];
       const __m256i v3 = _mm256_add_epi32(v, _mm256_add_epi32(v, v));
       px[k] = _mm512_mask_i32gather_pd(zero, on, v3, x, 8);
       py[k] = _mm512_mask_i32gather_pd(zero, on, v3, x + 1, 8);
