@@ -109,6 +109,7 @@ struct LearnArgs {
   double bump_step = LearnPriorOptions{}.bump_search_step;
   std::string bump_method = BumpSearchMethodName(LearnPriorOptions{}.bump_search_method);
   double bump_width = LearnPriorOptions{}.bump_search_width_d;
+  std::vector<double> bump_centres = LearnPriorOptions{}.bump_search_centres_d;
   int threads = 0;
   bool quiet = false;
 };
@@ -223,6 +224,7 @@ void RunLearn(const LearnArgs& args) {
   options.bump_search_method = ParseBumpSearchMethod(args.bump_method);
   options.bump_search_min_step = std::min(options.bump_search_min_step, args.bump_step);
   options.bump_search_width_d = args.bump_width;
+  options.bump_search_centres_d = args.bump_centres;
   options.progress = [&progress](double fraction, std::string_view stage) {
     progress.Update(0.02 + 0.98 * fraction, stage);
   };
@@ -320,10 +322,12 @@ void AddCommands(CLI::App& app) {
                     "with .png)");
     sub->add_option("--knots", args->knots, "Number of spline knots N over d in [0, 2], [3, 256]")
         ->check(CLI::Range(3, 256));
-    sub->add_option("--method", args->method,
-                    "interleaved: the paper's finite differences beside the CG iterations (measured faster and "
-                    "better, BENCHMARKS.md); implicit: exact gradient at the optimum by implicit differentiation")
-        ->check(CLI::IsMember({"interleaved", "implicit"}));
+    sub->add_option(
+           "--method", args->method,
+           "interleaved: the paper's finite differences beside the CG iterations (measured faster and "
+           "better, BENCHMARKS.md); implicit: exact gradient at the optimum by implicit differentiation; none: "
+           "only the searches (--bump-sweeps, --pattern-sweeps), from the square root")
+        ->check(CLI::IsMember({"interleaved", "implicit", "none"}));
     sub->add_option("--w", args->w, "Weight w of the curvature regulariser on the knots (paper eq. 19), [0, 1e6]")
         ->check(CLI::Range(0.0, 1e6));
     sub->add_option("--noise", args->noise_k,
@@ -362,6 +366,11 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-width", args->bump_width, "Bump search: sigma of the bumps in d, (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));
+    sub->add_option("--bump-centres", args->bump_centres,
+                    "Bump search: the bump centres in d, comma-separated, each in (0, 2) (default: the knots 8-13 "
+                    "of 16)")
+        ->delimiter(',')
+        ->check(CLI::Range(1e-9, 2.0 - 1e-9));
     sub->add_option("--threads", args->threads, "Smoother threads (0: all cores)")->check(CLI::Range(0, 1024));
     sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");
     sub->callback([args] { RunLearn(*args); });

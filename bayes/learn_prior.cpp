@@ -760,8 +760,7 @@ Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPr
   };
   if (options.bump_search_method == BumpSearchMethod::kImplicitFiltering) {
     double h = options.bump_search_step;
-    for (int sweep = 0; sweep < options.bump_search_sweeps && h >= options.bump_search_min_step &&
-                        !report->OutOfTime();
+    for (int sweep = 0; sweep < options.bump_search_sweeps && h >= options.bump_search_min_step && !report->OutOfTime();
          ++sweep) {
       Eigen::VectorXd gradient(static_cast<Eigen::Index>(count));
       Eigen::VectorXd best;
@@ -804,7 +803,8 @@ Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPr
       spline->SetTheta(theta);
       report->Record(data_loss, loss);
       if (options.progress) {
-        options.progress(1.0, StrCat("bump sweep ", sweep + 1, ": loss ", loss, " (data ", data_loss, "), stencil ", h));
+        options.progress(1.0,
+                         StrCat("bump sweep ", sweep + 1, ": loss ", loss, " (data ", data_loss, "), stencil ", h));
       }
     }
     spline->SetTheta(theta);

@@ -94,7 +94,7 @@ struct LearnPriorOptions {
   // lowers L; δ halves after a sweep without any accepted move. No gradient, so it is not misled by the
   // interleaved scheme's one-CG-step gradient or by the roughness of D(θ). 0 sweeps: off. [0, 1000]
   int pattern_search_sweeps = 0;
-  double pattern_search_step = 0.04;                              // initial δ in knot-value units; (0, 1]
+  double pattern_search_step = 0.04;  // initial δ in knot-value units; (0, 1]
   // After either method (and before the knot pattern search): a search on the same cold-smoothing loss L along
   // smooth bumps g_c(t_j) = exp(−(t_j − c)² / (2σ²)) over the knot values, c in bump_search_centres_d (the free
   // knots only), so that groups of neighbouring knots move together and the curve stays smooth. Each bump has
@@ -113,9 +113,9 @@ struct LearnPriorOptions {
   // Bump centres in d, each in (0, 2); by default the knots 8–13 of 16 (d = 16/15 … 26/15), where the
   // right-angle face pairs and the paper's second well lie.
   std::vector<double> bump_search_centres_d = {16.0 / 15, 18.0 / 15, 20.0 / 15, 22.0 / 15, 24.0 / 15, 26.0 / 15};
-  double bump_search_width_d = 0.1;      // σ of the bumps in d; (0, 1]
-  double bump_search_step = 0.1;         // initial δ_c in knot-value units (the bump's height); (0, 1]
-  double bump_search_min_step = 0.005;   // stop when every δ_c is below this; (0, bump_search_step]
+  double bump_search_width_d = 0.1;     // σ of the bumps in d; (0, 1]
+  double bump_search_step = 0.1;        // initial δ_c in knot-value units (the bump's height); (0, 1]
+  double bump_search_min_step = 0.005;  // stop when every δ_c is below this; (0, bump_search_step]
   KnotStepScaling interleaved_scaling = KnotStepScaling::kFixed;  // the paper's fixed step by default
   double interleaved_rms_decay = 0.9;                             // kRms: v_j ← ρ v_j + (1 − ρ) g_j²; [0, 1)
   // Step schedule α_t = α · τ / (τ + t) at iteration t; 0: constant α. [0, 1e9]
@@ -141,11 +141,11 @@ struct LearnPriorSummary {
   double initial_data_loss = 0;   // D of the square-root potential (θ at the start)
   double final_data_loss = 0;     // D of the returned θ with full smoothing
   int iterations = 0;
-  int smoothing_runs = 0;  // smoothing of every pair (cold or warm)
+  int smoothing_runs = 0;         // smoothing of every pair (cold or warm)
   long long warm_iterations = 0;  // implicit with warm starts: Newton steps over all warm solves
-  int pattern_search_moves = 0;  // accepted pattern-search moves
-  int bump_search_moves = 0;     // accepted bump-search moves
-  double learned_data_loss = 0;  // D (cold smoothing) after the gradient method, before any search
+  int pattern_search_moves = 0;   // accepted pattern-search moves
+  int bump_search_moves = 0;      // accepted bump-search moves
+  double learned_data_loss = 0;   // D (cold smoothing) after the gradient method, before any search
   double total_time_s = 0;
   std::string termination;  // "max iterations", "time limit", "no progress", "converged"
 };

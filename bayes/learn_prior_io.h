@@ -13,19 +13,19 @@
 namespace rangebayes {
 
 struct LearnedPrior {
-  SplinePotentialOptions spline;   // N and ε² of the square-root base
-  Eigen::VectorXd theta;           // N knot values φ(t_j), t_j = 2j/(N−1)
-  double prior_weight = 0;         // β the potential was trained with (use the same β when smoothing); 0: not recorded
-  std::string noise_kind;          // "normal", "scanner", or what the pairs list said; may be empty
+  SplinePotentialOptions spline;  // N and ε² of the square-root base
+  Eigen::VectorXd theta;          // N knot values φ(t_j), t_j = 2j/(N−1)
+  double prior_weight = 0;        // β the potential was trained with (use the same β when smoothing); 0: not recorded
+  std::string noise_kind;         // "normal", "scanner", or what the pairs list said; may be empty
   double noise_k = std::numeric_limits<double>::quiet_NaN();  // σ / l_e of the training noise; NaN: unknown
   // A mixture of levels: the training noise spans [noise_k, noise_k_max]; NaN: a single level.
   double noise_k_max = std::numeric_limits<double>::quiet_NaN();
-  std::string training_set;        // the pairs list it was trained on
+  std::string training_set;  // the pairs list it was trained on
   int training_pairs = 0;
-  std::string method;              // "implicit" or "interleaved", and the searches after it
-  double regularizer_weight = 1.0; // w
+  std::string method;               // "implicit" or "interleaved", and the searches after it
+  double regularizer_weight = 1.0;  // w
   double training_mse_le2 = std::numeric_limits<double>::quiet_NaN();  // D per vertex at the end
-  std::string date;                // UTC, ISO 8601
+  std::string date;                                                    // UTC, ISO 8601
 };
 
 // Throws Error naming the file on I/O failure.
@@ -41,8 +41,8 @@ LearnedPrior ReadLearnedPrior(const std::string& path);
 struct PairsList {
   std::vector<std::string> noisy;
   std::vector<std::string> truth;
-  std::string noise_kind;                                      // empty when the list does not say
-  double noise_k = std::numeric_limits<double>::quiet_NaN();   // NaN when the list does not say
+  std::string noise_kind;                                         // empty when the list does not say
+  double noise_k = std::numeric_limits<double>::quiet_NaN();      // NaN when the list does not say
   double noise_k_max = std::numeric_limits<double>::quiet_NaN();  // NaN unless a mixture of levels
 };
 // Throws Error naming the file and line on a malformed line or an empty list.

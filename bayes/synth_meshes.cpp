@@ -221,10 +221,14 @@ Mesh BuildObject(const RightAngledObjectOptions& options, std::uint64_t seed, st
 
 std::string RightAngledShapeName(RightAngledShape shape) {
   switch (shape) {
-    case RightAngledShape::kBox: return "box";
-    case RightAngledShape::kStairs: return "stairs";
-    case RightAngledShape::kLShape: return "lshape";
-    case RightAngledShape::kSlottedBlock: return "slotted";
+    case RightAngledShape::kBox:
+      return "box";
+    case RightAngledShape::kStairs:
+      return "stairs";
+    case RightAngledShape::kLShape:
+      return "lshape";
+    case RightAngledShape::kSlottedBlock:
+      return "slotted";
   }
   return "?";
 }
@@ -329,8 +333,7 @@ SynthMeshSet MakeSynthMeshSet(const SynthMeshSetOptions& options) {
     // A held-out object whose kind and dimensions equal a training object's is drawn again.
     for (int attempt = 0; attempt < 1000; ++attempt) {
       clean = BuildObject(object, MixSeed(options.seed, draw++), &signature);
-      if (!is_test || (train_objects.count(signature) == 0 &&
-                       (!is_validation || test_objects.count(signature) == 0))) {
+      if (!is_test || (train_objects.count(signature) == 0 && (!is_validation || test_objects.count(signature) == 0))) {
         break;
       }
     }

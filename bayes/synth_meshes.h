@@ -22,11 +22,11 @@ std::string SynthNoiseName(SynthNoise noise);
 
 struct RightAngledObjectOptions {
   RightAngledShape shape = RightAngledShape::kBox;
-  double edge_length = 1.0;  // side of the grid squares the faces are cut into, model units; (0, 1e6]
-  int min_cells = 6;         // smallest overall extent in grid cells; [4, 200]
-  int max_cells = 14;        // largest overall extent in grid cells; [min_cells, 200]
-  double jitter = 0.2;       // in-plane vertex jitter, fraction of edge_length, so the triangulation is
-                             // irregular while the surface stays exact; [0, 0.25]
+  double edge_length = 1.0;     // side of the grid squares the faces are cut into, model units; (0, 1e6]
+  int min_cells = 6;            // smallest overall extent in grid cells; [4, 200]
+  int max_cells = 14;           // largest overall extent in grid cells; [min_cells, 200]
+  double jitter = 0.2;          // in-plane vertex jitter, fraction of edge_length, so the triangulation is
+                                // irregular while the surface stays exact; [0, 0.25]
   bool random_rotation = true;  // rotate the object uniformly at random
   void Check() const;
 };
@@ -46,12 +46,12 @@ NoisyMesh AddSynthNoise(const Mesh& clean, const SynthNoiseOptions& options, std
 
 struct SynthMeshSetOptions {
   std::uint64_t seed = 1;
-  int num_train = 8;         // training objects; [0, 10000]
-  int num_test = 4;          // held-out objects (never among the training objects); [0, 10000]
+  int num_train = 8;  // training objects; [0, 10000]
+  int num_test = 4;   // held-out objects (never among the training objects); [0, 10000]
   // Validation objects, for choosing hyper-parameters: drawn after the training and held-out objects (so those
   // stay the same draws whatever this is) and equal to none of them. [0, 10000]
   int num_validation = 0;
-  int copies = 1;            // noisy copies per object; [1, 100]
+  int copies = 1;  // noisy copies per object; [1, 100]
   SynthNoiseOptions noise;
   // A mixture of noise levels when above noise.k: the noisy copies' k are spread evenly over
   // [noise.k, noise_k_max] (a low-discrepancy sequence over the pairs in order, so that any prefix of the set

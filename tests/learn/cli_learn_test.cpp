@@ -40,8 +40,8 @@ TEST(LearnCli, SynthThenLearn) {
   ASSERT_EQ(smooth.exit_code, 0) << smooth.output;
   EXPECT_NE(smooth.output.find("prior.yaml"), std::string::npos) << smooth.output;
   EXPECT_TRUE(std::filesystem::exists(dir / "smoothed.ply"));
-  const RunResult not_a_prior = RunRangebayes("smooth '" + list.noisy[0] + "' x.ply --prior '" +
-                                              (dir / "train_pairs.txt").string() + "'");
+  const RunResult not_a_prior =
+      RunRangebayes("smooth '" + list.noisy[0] + "' x.ply --prior '" + (dir / "train_pairs.txt").string() + "'");
   EXPECT_EQ(not_a_prior.exit_code, 2) << not_a_prior.output;
 
   const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");

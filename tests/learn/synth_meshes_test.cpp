@@ -46,8 +46,9 @@ TEST(SynthMeshes, EveryShapeIsAClosedOutwardManifold) {
                                      .normalized();
       for (int f = 0; f < mesh.num_faces(); ++f) {
         const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0));
-        const Eigen::Vector3d n =
-            (Eigen::Vector3d(mesh.V.row(mesh.F(f, 1))) - a).cross(Eigen::Vector3d(mesh.V.row(mesh.F(f, 2))) - a).normalized();
+        const Eigen::Vector3d n = (Eigen::Vector3d(mesh.V.row(mesh.F(f, 1))) - a)
+                                      .cross(Eigen::Vector3d(mesh.V.row(mesh.F(f, 2))) - a)
+                                      .normalized();
         const double c = std::abs(n.dot(n0));
         ASSERT_TRUE(c < 1e-9 || c > 1 - 1e-9) << f;
       }
@@ -69,8 +70,7 @@ TEST(SynthMeshes, DeterministicAndDisjoint) {
   }
   for (const auto& test : a.test) {
     for (const auto& train : a.train) {
-      EXPECT_FALSE(test.clean.num_vertices() == train.clean.num_vertices() &&
-                   test.clean.F == train.clean.F)
+      EXPECT_FALSE(test.clean.num_vertices() == train.clean.num_vertices() && test.clean.F == train.clean.F)
           << test.name << " " << train.name;
     }
   }
