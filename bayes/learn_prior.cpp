@@ -916,6 +916,7 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
     std::vector<Eigen::VectorXd> minima;
     summary.initial_data_loss = summary.final_data_loss = SmoothAll(pairs, problems, spline, options, &minima);
     ++summary.smoothing_runs;
+    summary.termination = "searches only";
     theta = spline.theta();
   } else {
     std::vector<Eigen::VectorXd> minima;

@@ -147,7 +147,7 @@ struct LearnPriorSummary {
   int bump_search_moves = 0;      // accepted bump-search moves
   double learned_data_loss = 0;   // D (cold smoothing) after the gradient method, before any search
   double total_time_s = 0;
-  std::string termination;  // "max iterations", "time limit", "no progress", "converged"
+  std::string termination;  // "max iterations", "time limit", "no progress", "converged", "searches only"
 };
 
 // Learns θ from `pairs`, starting at `initial_theta` (empty: the square root). Returns N knot values.
