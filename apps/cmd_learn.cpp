@@ -96,7 +96,9 @@ struct LearnArgs {
   std::string out;
   std::string plot;
   int knots = 16;
-  std::string method = "interleaved";
+  // The default training (BENCHMARKS.md "Learned priors"): no gradient method, the bump search from the square
+  // root (implicit filtering, 30 sweeps at most, stencil 0.2, bumps at the knots 7–14 of 16).
+  std::string method = "none";
   double w = 1.0;
   double noise_k = std::numeric_limits<double>::quiet_NaN();
   double prior_weight = SmoothOptions{}.prior_weight;
@@ -105,7 +107,7 @@ struct LearnArgs {
   double step = 0;
   int pattern_sweeps = 0;
   double pattern_step = LearnPriorOptions{}.pattern_search_step;
-  int bump_sweeps = LearnPriorOptions{}.bump_search_sweeps;
+  int bump_sweeps = 30;
   double bump_step = LearnPriorOptions{}.bump_search_step;
   std::string bump_method = BumpSearchMethodName(LearnPriorOptions{}.bump_search_method);
   double bump_width = LearnPriorOptions{}.bump_search_width_d;
@@ -324,9 +326,9 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(3, 256));
     sub->add_option(
            "--method", args->method,
-           "interleaved: the paper's finite differences beside the CG iterations (measured faster and "
-           "better, BENCHMARKS.md); implicit: exact gradient at the optimum by implicit differentiation; none: "
-           "only the searches (--bump-sweeps, --pattern-sweeps), from the square root")
+           "none (default): only the searches (--bump-sweeps, --pattern-sweeps), from the square root (learns "
+           "the second well near sqrt(2), BENCHMARKS.md); interleaved: the paper's finite differences beside the "
+           "CG iterations; implicit: exact gradient at the optimum by implicit differentiation")
         ->check(CLI::IsMember({"interleaved", "implicit", "none"}));
     sub->add_option("--w", args->w, "Weight w of the curvature regulariser on the knots (paper eq. 19), [0, 1e6]")
         ->check(CLI::Range(0.0, 1e6));
@@ -352,7 +354,7 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-sweeps", args->bump_sweeps,
                     "After learning: sweeps of a search on the cold-smoothing loss along smooth Gaussian bumps of "
-                    "the knot values (sigma --bump-width) centred at d = 16/15, 18/15, ..., 26/15 "
+                    "the knot values (sigma --bump-width) centred at d = 14/15, 16/15, ..., 28/15 "
                     "(BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
         ->check(CLI::Range(0, 1000));
     sub->add_option("--bump-method", args->bump_method,

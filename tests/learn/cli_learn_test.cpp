@@ -22,8 +22,9 @@ TEST(LearnCli, SynthThenLearn) {
   EXPECT_EQ(list.noise_kind, "normal");
 
   const std::string prior = (dir / "prior.yaml").string();
-  const RunResult learn = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" +
-                                        prior + "' --knots 8 --iterations 3 --bump-sweeps 1 --threads 1 --quiet");
+  const RunResult learn =
+      RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" + prior +
+                    "' --knots 8 --method interleaved --iterations 3 --bump-sweeps 1 --threads 1 --quiet");
   ASSERT_EQ(learn.exit_code, 0) << learn.output;
   EXPECT_TRUE(std::filesystem::exists(dir / "prior.png"));
   const LearnedPrior read = ReadLearnedPrior(prior);

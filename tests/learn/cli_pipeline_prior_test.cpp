@@ -21,18 +21,20 @@ TEST(LearnCli, ScannerPriorPlugsIntoReplay) {
                                         "--scanner-noise --quiet");
   ASSERT_EQ(synth.exit_code, 0) << synth.output;
   const std::string prior = (dir / "prior.yaml").string();
-  const RunResult learn = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" +
-                                        prior + "' --knots 8 --iterations 3 --threads 1 --quiet");
+  const RunResult learn =
+      RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" + prior +
+                    "' --knots 8 --method interleaved --iterations 3 --bump-sweeps 0 --threads 1 --quiet");
   ASSERT_EQ(learn.exit_code, 0) << learn.output;
   const LearnedPrior read = ReadLearnedPrior(prior);
   EXPECT_EQ(read.noise_kind, "scanner");
   ASSERT_GT(read.prior_weight, 0);
 
   // One frame, coarse triangulation, no decimation: the smoothing stage is what this checks.
-  const std::string common = " recordings/synth_planes_320x240 --count 1 --downsample 4 --tolerance fast "
-                             "--no-decimate --no-previews --quiet --out ";
-  const RunResult learned = RunRangebayes("replay" + common + "'" + (dir / "learned").string() + "' --prior '" +
-                                          prior + "'");
+  const std::string common =
+      " recordings/synth_planes_320x240 --count 1 --downsample 4 --tolerance fast "
+      "--no-decimate --no-previews --quiet --out ";
+  const RunResult learned =
+      RunRangebayes("replay" + common + "'" + (dir / "learned").string() + "' --prior '" + prior + "'");
   ASSERT_EQ(learned.exit_code, 0) << learned.output;
   const RunResult square_root = RunRangebayes("replay" + common + "'" + (dir / "sqrt").string() + "'");
   ASSERT_EQ(square_root.exit_code, 0) << square_root.output;
