@@ -67,7 +67,9 @@ LearnMethod ParseLearnMethod(const std::string& name);  // "interleaved", "impli
 std::string LearnMethodName(LearnMethod method);
 
 struct LearnPriorOptions {
-  LearnMethod method = LearnMethod::kInterleaved;      // measured faster and better (BENCHMARKS.md)
+  // The library's default; the learn-prior command's default is kNone with the bump search (30 sweeps), which
+  // learns the paper's second well near √2 (BENCHMARKS.md "Learned priors").
+  LearnMethod method = LearnMethod::kInterleaved;
   SplinePotentialOptions spline;                       // N knots, ε² of the square-root base
   double regularizer_weight = 1.0;                     // w of eq. 19; [0, 1e6]
   double prior_weight = SmoothOptions{}.prior_weight;  // β the smoother multiplies φ by (its default rule); (0, 1e6]
