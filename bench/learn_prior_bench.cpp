@@ -1,7 +1,7 @@
 // Learned-prior benchmark: trains φ_θ on synthetic right-angled meshes and compares it with the square root on
 // the held-out synthetic set and on real benchmark meshes (BENCHMARKS.md "Learned priors").
 //
-//   learn_prior_bench [--method implicit|interleaved] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
+//   learn_prior_bench [--method implicit|interleaved|none] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
 //                     [--copies 1] [--min-cells 6] [--max-cells 14]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
 //                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
