@@ -353,9 +353,9 @@ void AddCommands(CLI::App& app) {
                     "Pattern search: initial step in knot-value units, halved after a sweep without a move, (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-sweeps", args->bump_sweeps,
-                    "After learning: sweeps of a search on the cold-smoothing loss along smooth Gaussian bumps of "
-                    "the knot values (sigma --bump-width) centred at d = 14/15, 16/15, ..., 28/15 "
-                    "(BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
+                    "After the --method (none by default): sweeps of a search on the cold-smoothing loss along "
+                    "smooth Gaussian bumps of the knot values (sigma --bump-width) centred at d = 14/15, 16/15, "
+                    "..., 28/15 (BENCHMARKS.md 'Learned priors'), [0, 1000]; 0: off")
         ->check(CLI::Range(0, 1000));
     sub->add_option("--bump-method", args->bump_method,
                     "Bump search: filtering (implicit filtering: central-difference gradient over the bump heights "
@@ -369,7 +369,7 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--bump-width", args->bump_width, "Bump search: sigma of the bumps in d, (0, 1]")
         ->check(CLI::Range(1e-9, 1.0));
     sub->add_option("--bump-centres", args->bump_centres,
-                    "Bump search: the bump centres in d, comma-separated, each in (0, 2) (default: the knots 8-13 "
+                    "Bump search: the bump centres in d, comma-separated, each in (0, 2) (default: the knots 7-14 "
                     "of 16)")
         ->delimiter(',')
         ->check(CLI::Range(1e-9, 2.0 - 1e-9));
