@@ -85,23 +85,24 @@ void RunSmooth(const SmoothArgs& args) {
   for (const std::string& notice : read_summary.notices) Notice(args.quiet, args.input + ": " + notice);
   std::printf("input:      %s (%d vertices, %d faces)\n", args.input.c_str(), noisy.mesh.num_vertices(),
               noisy.mesh.num_faces());
-  const bool given = !std::isnan(args.noise) || !std::isnan(args.sigma);
-  if (noisy.has_covariance() && !given && !args.ignore_covariance) {
+  GenericNoiseOptions noise;
+  noise.noise_edge_multiple = args.noise;
+  noise.sigma = args.sigma;
+  noise.across_ratio = args.across_ratio;
+  NoiseModelChoice choice;
+  noisy = ChooseNoiseModel(noisy, noise, args.ignore_covariance ? CovarianceSource::kGeneric : CovarianceSource::kAuto,
+                           &choice);
+  if (choice.from_file) {
     std::printf("noise:      per-vertex covariances from the file\n");
   } else {
-    if (noisy.has_covariance()) {
+    if (choice.replaced_file) {
       Notice(args.quiet, "the file's per-vertex covariances are replaced by the generic noise model");
     }
-    GenericNoiseOptions noise;
-    noise.noise_edge_multiple = args.noise;
-    noise.sigma = args.sigma;
-    noise.across_ratio = args.across_ratio;
-    GenericNoiseSummary noise_summary;
-    noisy = MakeGenericNoisyMesh(noisy.mesh, noise, &noise_summary);
+    const GenericNoiseSummary& g = choice.generic;
     std::printf("noise:      k = %.4g x mean edge %.6g = sigma %.6g model units (%s), across ratio %.3g\n",
-                noise_summary.noise_edge_multiple, noise_summary.mean_edge_length, noise_summary.sigma,
-                noise_summary.estimated ? "estimated from the mesh" : "given", args.across_ratio);
-    if (noise_summary.estimated && !(noise_summary.noise_edge_multiple > 0)) {
+                g.noise_edge_multiple, g.mean_edge_length, g.sigma, g.estimated ? "estimated from the mesh" : "given",
+                args.across_ratio);
+    if (g.estimated && !(g.noise_edge_multiple > 0)) {
       Notice(false, "warning: no noise measurable in this mesh; give --noise or --sigma");
     }
   }
@@ -115,43 +116,13 @@ void RunSmooth(const SmoothArgs& args) {
 
   ProgressPrinter progress(args.quiet);
   options.progress = progress.callback();
+  options.adaptive_epsilon = args.adaptive_epsilon;
   SmoothSummary summary;
-  Mesh result;
-  if (args.adaptive_epsilon && !learned && options.prior == PriorKind::kSqrt) {
-    AdaptiveEpsilonSummary adaptive;
-    const AutoAdaptiveEpsilonOptions rule;
-    result = SmoothAdaptiveEpsilon(noisy, options, rule, &adaptive, &summary);
-    progress.Finish();
-    const std::string prepass = std::to_string(adaptive.prepass_iterations) + " iterations, " +
-                                std::to_string(adaptive.prepass_evaluations) + " evaluations, " +
-                                std::to_string(adaptive.prepass_time_s).substr(0, 5) + " s, rules " +
-                                std::to_string(adaptive.time_s - adaptive.prepass_time_s).substr(0, 5) + " s";
-    if (adaptive.per_face) {
-      std::printf(
-          "adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
-          "final solve started from it)\n",
-          adaptive.p10_epsilon_squared, adaptive.median_epsilon_squared, adaptive.p90_epsilon_squared,
-          adaptive.gate_median_epsilon_squared, prepass.c_str());
-    } else {
-      std::printf("adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %s)\n",
-                  adaptive.gate_median_epsilon_squared, rule.min_gate_median_epsilon_squared, prepass.c_str());
-    }
-  } else {
-    result = Smooth(noisy, options, &summary);
-    progress.Finish();
-  }
+  const Mesh result = Smooth(noisy, options, &summary);
+  progress.Finish();
   WriteMesh(result, args.output);
   std::printf("result:     %s\n", args.output.c_str());
-  std::printf("summary:    %d iterations, %d evaluations, %.3f s (setup %.3f s), %s\n", summary.iterations,
-              summary.evaluations, summary.time_s, summary.setup_time_s,
-              SmoothTerminationName(summary.termination).c_str());
-  if (!summary.energy.empty()) {
-    std::printf("energy:     %.6g -> %.6g (data %.6g, prior %.6g)\n", summary.energy.front(), summary.energy.back(),
-                summary.data_energy, summary.prior_energy);
-  }
-  if (summary.inactive_faces > 0) {
-    std::printf("degenerate: %d zero-area faces left out of the prior\n", summary.inactive_faces);
-  }
+  std::fputs(summary.BriefReport().c_str(), stdout);
   if (summary.flipped_faces > 0) {
     Notice(false, "warning: " + std::to_string(summary.flipped_faces) +
                       " faces flipped in the result (folded against their neighbours; the input had " +

@@ -89,6 +89,7 @@ SmoothOptions FastPrepassOptions(const SmoothOptions& options, int max_iteration
   pre.max_iterations = max_iterations;
   pre.face_epsilon_squared.clear();
   pre.progress = nullptr;
+  pre.adaptive_epsilon = false;
   return pre;
 }
 
@@ -596,6 +597,7 @@ Mesh SmoothAdaptiveEpsilon(const NoisyMesh& noisy, const SmoothOptions& options,
   Mesh prepass;
   SmoothOptions final_options = options;
   final_options.initial_positions = nullptr;
+  final_options.adaptive_epsilon = false;
   final_options.face_epsilon_squared = AdaptiveEpsilonAuto(noisy, options, rule, summary, &prepass);
   const bool curved = !final_options.face_epsilon_squared.empty();
   if (curved && rule.final_from_prepass) final_options.initial_positions = &prepass.V;

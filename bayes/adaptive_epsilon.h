@@ -72,21 +72,7 @@ struct AdaptiveEpsilonOptions {
   void Check() const;
 };
 
-struct AdaptiveEpsilonSummary {
-  // AdaptiveEpsilonAuto only: the gate rule's median ε² on the pre-pass, and whether the mesh got per-face ε²
-  // (false: read as piecewise flat, the global ε² kept; the quantiles below are then the gate rule's).
-  double gate_median_epsilon_squared = 0;
-  bool per_face = true;
-  double median_epsilon_squared = 0;  // over faces
-  double p10_epsilon_squared = 0;
-  double p90_epsilon_squared = 0;
-  int faces_at_minimum = 0;  // faces clamped to min_epsilon_squared (flat or beside a crease)
-  double time_s = 0;         // the whole call (with the pre-pass for AdaptiveEpsilonFromPrepass)
-  // AdaptiveEpsilonAuto / SmoothAdaptiveEpsilon: the pre-pass's CG iterations, evaluations and time.
-  int prepass_iterations = 0;
-  int prepass_evaluations = 0;
-  double prepass_time_s = 0;
-};
+// AdaptiveEpsilonSummary is declared in bayes/smooth.h (SmoothSummary carries one).
 
 // One ε² per face of `reference` (#F values in [min, max]). Faces without a normal (zero area, repeated
 // index) and faces without edge neighbours get min_epsilon_squared and are skipped as neighbours. Throws

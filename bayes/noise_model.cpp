@@ -131,4 +131,21 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
   return noisy;
 }
 
+NoisyMesh ChooseNoiseModel(const NoisyMesh& input, const GenericNoiseOptions& options, CovarianceSource source,
+                           NoiseModelChoice* choice) {
+  options.Check();
+  NoiseModelChoice c;
+  const bool given = !std::isnan(options.noise_edge_multiple) || !std::isnan(options.sigma);
+  NoisyMesh out;
+  if (input.has_covariance() && !given && source == CovarianceSource::kAuto) {
+    c.from_file = true;
+    out = input;
+  } else {
+    c.replaced_file = input.has_covariance();
+    out = MakeGenericNoisyMesh(input.mesh, options, &c.generic);
+  }
+  if (choice != nullptr) *choice = c;
+  return out;
+}
+
 }  // namespace rangebayes

@@ -39,4 +39,21 @@ double EstimateNoiseLevel(const Mesh& mesh);
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options = {},
                                GenericNoiseSummary* summary = nullptr);
 
+// Which noise model smoothing uses for a mesh as read from a file (what `rangebayes smooth` does).
+enum class CovarianceSource {
+  kAuto,     // the file's covariances when it has them and no noise level is given, else the generic model
+  kGeneric,  // always the generic model (the file's covariances, if any, are replaced)
+};
+
+struct NoiseModelChoice {
+  bool from_file = false;          // the input's own covariances were kept
+  bool replaced_file = false;      // the input had covariances and they were replaced by the generic model
+  GenericNoiseSummary generic;     // when !from_file
+};
+
+// The NoisyMesh to smooth: `input` itself when it has covariances, source is kAuto and neither
+// options.noise_edge_multiple nor options.sigma is given; else MakeGenericNoisyMesh(input.mesh, options).
+NoisyMesh ChooseNoiseModel(const NoisyMesh& input, const GenericNoiseOptions& options = {},
+                           CovarianceSource source = CovarianceSource::kAuto, NoiseModelChoice* choice = nullptr);
+
 }  // namespace rangebayes

@@ -10,12 +10,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <utility>
 #include <cmath>
 #include <deque>
 #include <limits>
 #include <memory>
 
+#include "bayes/adaptive_epsilon.h"
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
 
@@ -554,6 +556,43 @@ void SmoothOptions::Check() const {
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");
 }
 
+std::string SmoothSummary::BriefReport() const {
+  std::string out;
+  char line[512];
+  if (adaptive_epsilon_used) {
+    const AdaptiveEpsilonSummary& a = adaptive;
+    std::snprintf(line, sizeof(line), "%d iterations, %d evaluations, %.3f s, rules %.3f s", a.prepass_iterations,
+                  a.prepass_evaluations, a.prepass_time_s, a.time_s - a.prepass_time_s);
+    const std::string prepass = line;
+    if (a.per_face) {
+      std::snprintf(line, sizeof(line),
+                    "adaptive:   per-face eps2 p10 %.3g, median %.3g, p90 %.3g (curved: gate %.3g; fast pre-pass %s; "
+                    "final solve started from it)\n",
+                    a.p10_epsilon_squared, a.median_epsilon_squared, a.p90_epsilon_squared,
+                    a.gate_median_epsilon_squared, prepass.c_str());
+    } else {
+      std::snprintf(line, sizeof(line),
+                    "adaptive:   global eps2 kept (piecewise flat: gate %.3g < %.3g; fast pre-pass %s)\n",
+                    a.gate_median_epsilon_squared, AutoAdaptiveEpsilonOptions{}.min_gate_median_epsilon_squared,
+                    prepass.c_str());
+    }
+    out += line;
+  }
+  std::snprintf(line, sizeof(line), "summary:    %d iterations, %d evaluations, %.3f s (setup %.3f s), %s\n",
+                iterations, evaluations, time_s, setup_time_s, SmoothTerminationName(termination).c_str());
+  out += line;
+  if (!energy.empty()) {
+    std::snprintf(line, sizeof(line), "energy:     %.6g -> %.6g (data %.6g, prior %.6g)\n", energy.front(),
+                  energy.back(), data_energy, prior_energy);
+    out += line;
+  }
+  if (inactive_faces > 0) {
+    std::snprintf(line, sizeof(line), "degenerate: %d zero-area faces left out of the prior\n", inactive_faces);
+    out += line;
+  }
+  return out;
+}
+
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
   const Eigen::Matrix3d symmetric = 0.5 * (covariance + covariance.transpose());
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(symmetric);
@@ -567,6 +606,19 @@ Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary* summary_out) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
+  if (options.adaptive_epsilon && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
+      options.face_epsilon_squared.empty() && options.initial_positions == nullptr) {
+    SmoothOptions plain = options;
+    plain.adaptive_epsilon = false;
+    AdaptiveEpsilonSummary adaptive;
+    SmoothSummary summary;
+    Mesh result = SmoothAdaptiveEpsilon(noisy, plain, AutoAdaptiveEpsilonOptions{}, &adaptive, &summary);
+    summary.adaptive_epsilon_used = true;
+    summary.adaptive = adaptive;
+    summary.time_s = Seconds(start);
+    if (summary_out != nullptr) *summary_out = std::move(summary);
+    return result;
+  }
   const Mesh& mesh = noisy.mesh;
   RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ", noisy.covariance.size(), " covariances for ",
            mesh.num_vertices(), " vertices (use MakeGenericNoisyMesh for a plain mesh)");

@@ -71,6 +71,11 @@ struct SmoothOptions {
   // positions noisy.mesh.V). Not owned, must outlive the call. The energy is unchanged; used by the adaptive-ε
   // default of `rangebayes smooth` to continue from its pre-pass (bayes/adaptive_epsilon.h).
   const Vertices* initial_positions = nullptr;
+  // Per-face ε² read from a fast pre-pass on curved meshes (SmoothAdaptiveEpsilon, bayes/adaptive_epsilon.h,
+  // with its default rule); piecewise-flat meshes keep the global ε². On by default: this is what `rangebayes
+  // smooth` runs. Applies only to the built-in square-root prior with no face_epsilon_squared and no
+  // initial_positions given; ignored otherwise.
+  bool adaptive_epsilon = true;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 
   void Check() const;
@@ -84,6 +89,23 @@ enum class SmoothTermination {
   kNothingToDo,        // no vertices
 };
 std::string SmoothTerminationName(SmoothTermination termination);
+
+// What the adaptive-ε default did (bayes/adaptive_epsilon.h).
+struct AdaptiveEpsilonSummary {
+  // AdaptiveEpsilonAuto only: the gate rule's median ε² on the pre-pass, and whether the mesh got per-face ε²
+  // (false: read as piecewise flat, the global ε² kept; the quantiles below are then the gate rule's).
+  double gate_median_epsilon_squared = 0;
+  bool per_face = true;
+  double median_epsilon_squared = 0;  // over faces
+  double p10_epsilon_squared = 0;
+  double p90_epsilon_squared = 0;
+  int faces_at_minimum = 0;  // faces clamped to min_epsilon_squared (flat or beside a crease)
+  double time_s = 0;         // the whole call (with the pre-pass for AdaptiveEpsilonFromPrepass)
+  // AdaptiveEpsilonAuto / SmoothAdaptiveEpsilon: the pre-pass's CG iterations, evaluations and time.
+  int prepass_iterations = 0;
+  int prepass_evaluations = 0;
+  double prepass_time_s = 0;
+};
 
 struct SmoothSummary {
   int iterations = 0;
@@ -103,6 +125,12 @@ struct SmoothSummary {
   int num_threads = 0;
   std::string potential_name;
   size_t memory_bytes = 0;         // solver memory beyond the input mesh (energy buffers + minimiser vectors)
+  bool adaptive_epsilon_used = false;  // the adaptive-ε default ran (then `adaptive` says what it did)
+  AdaptiveEpsilonSummary adaptive;
+
+  // A few lines for people (what `rangebayes smooth` prints): iterations, evaluations, time, termination,
+  // energies, the adaptive-ε decision and warnings (flipped faces).
+  std::string BriefReport() const;
 };
 
 // Smooths `noisy`: same vertex count and order, same faces. Requires noisy.has_covariance() with symmetric

@@ -402,6 +402,8 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
     run.Stage(q_triangulated, q_smoothed, t_smooth, [&](Item& item) {
       if (!options.smooth) return;
       SmoothOptions smoothing = options.smoothing;
+      // Per frame the pipeline runs the plain solve: the adaptive-ε pre-pass is not part of a frame's budget.
+      smoothing.adaptive_epsilon = false;
       const double vertices = static_cast<double>(std::max(1, item.result.raw_mesh.mesh.num_vertices()));
       if (options.smooth_budget_ms > 0.0) {
         smoothing.max_iterations =
