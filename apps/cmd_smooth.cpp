@@ -30,11 +30,12 @@ struct SmoothArgs {
   double sigma = std::nan("");
   std::string prior = "sqrt";
   std::string tolerance = "default";
-  std::string minimiser = "cg";
   double beta = SmoothOptions{}.prior_weight;
   bool beta_given = false;  // --beta on the command line (else a learned prior's own beta is used)
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
-  bool adaptive_epsilon = true;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
+  bool adaptive_epsilon = true;
+  bool multilevel = SmoothOptions{}.multilevel;
+  int continuation = SmoothOptions{}.epsilon_continuation_stages;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
   std::string png;
@@ -73,7 +74,6 @@ void RunSmooth(const SmoothArgs& args) {
     options.prior = ParsePriorKind(args.prior);
   }
   options.tolerance = ParseSmoothTolerance(args.tolerance);
-  options.minimiser = ParseSmoothMinimiser(args.minimiser);
   options.prior_weight = args.beta;
   if (learned && !args.beta_given && learned_beta > 0) options.prior_weight = learned_beta;
   options.sqrt_epsilon_squared = args.epsilon_squared;
@@ -110,13 +110,15 @@ void RunSmooth(const SmoothArgs& args) {
               !learned && options.prior == PriorKind::kSqrt
                   ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
                   : "");
-  std::printf("minimiser:  %s, tolerance %s, threads %s\n", args.minimiser.c_str(), args.tolerance.c_str(),
+  std::printf("minimiser:  CG, tolerance %s, threads %s\n", args.tolerance.c_str(),
               args.threads > 0 ? std::to_string(args.threads).c_str() : "all");
   std::fflush(stdout);
 
   ProgressPrinter progress(args.quiet);
   options.progress = progress.callback();
   options.adaptive_epsilon = args.adaptive_epsilon;
+  options.multilevel = args.multilevel;
+  options.epsilon_continuation_stages = args.continuation;
   SmoothSummary summary;
   const Mesh result = Smooth(noisy, options, &summary);
   progress.Finish();
@@ -194,8 +196,6 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       });
   sub->add_option("--tolerance", args->tolerance, "stopping preset: fast, default, tight")
       ->check(CLI::IsMember({"fast", "default", "tight"}));
-  sub->add_option("--minimiser", args->minimiser, "cg (Polak-Ribiere+, the paper's) or lbfgs")
-      ->check(CLI::IsMember({"cg", "lbfgs"}));
   sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
@@ -203,6 +203,13 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                 "(scans), the global --eps2 on piecewise-flat ones (CAD); costs a pre-pass of 40-80 fast "
                 "iterations, from which a curved mesh's final solve starts (BENCHMARKS.md 'Adaptive eps'). "
                 "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
+  sub->add_flag("--multilevel,!--no-multilevel", args->multilevel,
+                "on by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
+                "over the pixel grid. --no-multilevel: one level");
+  sub->add_option("--continuation", args->continuation,
+                  "sqrt prior: epsilon continuation stages before the final solve (eps2 x 10^s, s = N..1), [-1, 6]; "
+                  "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")
+      ->check(CLI::Range(-1, 6));
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")

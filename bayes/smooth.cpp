@@ -18,6 +18,7 @@
 #include <memory>
 
 #include "bayes/adaptive_epsilon.h"
+#include "bayes/grid_hierarchy.h"
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
 
@@ -25,7 +26,8 @@ namespace rangebayes {
 namespace {
 
 struct Preset {
-  double energy;    // relative energy decrease over kWindow iterations, divided by kWindow
+  double energy;    // relative energy decrease over kWindow iterations, divided by kWindow; 0: off
+  double gap;       // optimality gap bound ½ gᵀM⁻¹g relative to |E|; 0: off
   double gradient;  // ‖g‖ / ‖g_0‖
   int max_iterations;
 };
@@ -34,13 +36,13 @@ constexpr int kWindow = 5;
 Preset PresetFor(SmoothTolerance tolerance) {
   switch (tolerance) {
     case SmoothTolerance::kFast:
-      return {1e-4, 1e-2, 300};
+      return {1e-4, 0, 1e-2, 300};
     case SmoothTolerance::kDefault:
-      return {3e-5, 1e-3, 2000};
+      return {0, 1e-4, 0, 2000};
     case SmoothTolerance::kTight:
-      return {1e-9, 1e-6, 20000};
+      return {0, 1e-9, 0, 20000};
   }
-  return {3e-5, 1e-3, 2000};
+  return {0, 1e-4, 0, 2000};
 }
 
 double Seconds(std::chrono::steady_clock::time_point since) {
@@ -213,6 +215,23 @@ double ProgressFraction(double first_decrease, double decrease, double tolerance
   return std::clamp(std::max(by_energy, by_iterations), 0.0, 0.99);
 }
 
+// The energy still to lose, E − E*, extrapolated from the last 2·kRateWindow iterations: with the mean decrease
+// per iteration Δ over the last window and Δ' over the one before, a linear rate ρ = (Δ/Δ')^(1/kRateWindow) leaves
+// Δ·ρ/(1 − ρ). A slow plateau (ρ → 1) reads as far from the optimum, not as converged, which is what a rule on the
+// decrease per iteration gets wrong. Infinity until 2·kRateWindow iterations have run; 0 when the energy stopped
+// falling.
+constexpr int kRateWindow = 10;
+double RemainingDecrease(const std::vector<double>& energy) {
+  const int k = static_cast<int>(energy.size()) - 1;
+  if (k < 2 * kRateWindow) return std::numeric_limits<double>::infinity();
+  const double recent = energy[static_cast<size_t>(k - kRateWindow)] - energy[static_cast<size_t>(k)];
+  const double older = energy[static_cast<size_t>(k - 2 * kRateWindow)] - energy[static_cast<size_t>(k - kRateWindow)];
+  if (!(recent > 0)) return 0.0;
+  const double ratio = older > 0 ? std::min(recent / older, 1.0) : 1.0;
+  const double rho = std::min(std::pow(ratio, 1.0 / kRateWindow), 0.9999);
+  return recent / kRateWindow * rho / (1 - rho);
+}
+
 struct MinimiseResult {
   Eigen::VectorXd x;
   EnergyParts parts;
@@ -222,11 +241,11 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
                         const Eigen::VectorXd* start = nullptr) {
   Preset preset = PresetFor(options.tolerance);
   if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
+  if (options.gap_tolerance > 0) preset.gap = options.gap_tolerance;
   const int max_iterations = options.max_iterations > 0 ? options.max_iterations : preset.max_iterations;
   const SmoothingEnergy& energy = problem.energy();
-  const bool lbfgs = options.minimiser == SmoothMinimiser::kLbfgs;
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(energy.num_vertices());
-  const int restart_every = options.restart_every > 0 ? options.restart_every : std::max(50, static_cast<int>(n));
+  const int restart_every = std::max(50, static_cast<int>(n));
 
   Eigen::VectorXd x = start != nullptr ? *start : energy.Measurements();
   Eigen::VectorXd g(n), g_new(n), x_new(n), p(n);
@@ -239,42 +258,26 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
   summary->initial_gradient_norm = std::sqrt(gg);
   summary->final_gradient_norm = summary->initial_gradient_norm;
   summary->termination = SmoothTermination::kMaxIterations;
+  // The preconditioner M = blockdiag(2 W_i), the data term's Hessian (exact and constant). It removes the
+  // conditioning that anisotropic stereo covariances add; when every W_i is the same multiple of I it is a
+  // global scale, which CG does not need (then z = M⁻¹ g is kept implicit).
+  const bool precondition = !energy.uniform_isotropic();
+  const double scale = precondition ? 0.0 : energy.UniformDataInverseScale();
+  Eigen::VectorXd z;
+  if (precondition) energy.ApplyDataInverse(g, &z);
+  const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
+  double zg_old = precondition ? Dot(z, g) : scale * gg;
   if (!(summary->initial_gradient_norm > 0)) {
     summary->termination = SmoothTermination::kGradientConverged;
     return {x, parts};
   }
   const double gradient_stop = preset.gradient * summary->initial_gradient_norm;
 
-  // L-BFGS history.
-  std::deque<Eigen::VectorXd> s_history, y_history;
-  std::deque<double> rho_history;
-
-  // Preconditioner M⁻¹ (3×3 blocks) and z = M⁻¹ g.
-  // Preconditioner M⁻¹ and z = M⁻¹ g (see SmoothOptions::preconditioner).
-  const bool block_jacobi = options.preconditioner == SmoothPreconditioner::kBlockJacobi;
-  const bool precondition =
-      block_jacobi || (options.preconditioner == SmoothPreconditioner::kData && !energy.uniform_isotropic());
-  std::vector<double> blocks;
-  auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
-    if (block_jacobi) {
-      energy.ApplyBlocks(blocks, v, out);
-    } else {
-      energy.ApplyDataInverse(v, out);
-    }
-  };
-  Eigen::VectorXd z;
-  if (block_jacobi) energy.BlockJacobiInverse(x, &blocks);
-  if (precondition) apply(g, &z);
-  const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
-  // After a (re)start a block-Jacobi step of length 1 is the Newton guess.
-  bool unit_step = block_jacobi;
-
   p = -zg;
   double alpha_prev = 0, slope_prev = 0;
   bool slope_known = false;
   double known_slope = 0;
-  double zg_old = precondition ? Dot(z, g) : 0.0;
-  double first_decrease = -1;
+  double first_remaining = -1;
   int since_restart = 0;
   for (int iteration = 1; iteration <= max_iterations; ++iteration) {
     // g·p comes from the pass that built p (ScaleSubtractDot) when there was one.
@@ -283,24 +286,17 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     if (!(slope < 0)) {
       p = -zg;
       slope = -Dot(g, zg);
-      unit_step = block_jacobi;
       ++summary->restarts;
       since_restart = 0;
-      s_history.clear();
-      y_history.clear();
-      rho_history.clear();
     }
     double alpha_init;
-    if ((lbfgs && !s_history.empty()) || unit_step) {
-      alpha_init = 1.0;
-    } else if (alpha_prev > 0 && slope_prev < 0) {
+    if (alpha_prev > 0 && slope_prev < 0) {
       alpha_init = alpha_prev * std::min(slope_prev / slope, 10.0);
     } else {
       const double curvature = energy.DataCurvature(p);
       alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
     }
-    LineSearchResult step =
-        LineSearch(problem, x, p, e, slope, alpha_init, lbfgs ? 0.9 : options.line_search_c2, &x_new, &g_new);
+    LineSearchResult step = LineSearch(problem, x, p, e, slope, alpha_init, options.line_search_c2, &x_new, &g_new);
     if (!step.success) {
       if (since_restart == 0) {
         summary->termination = SmoothTermination::kNoProgress;
@@ -308,48 +304,30 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       }
       // Retry once from (preconditioned) steepest descent before giving up.
       p = -zg;
-      unit_step = block_jacobi;
       since_restart = 0;
       alpha_prev = 0;
       ++summary->restarts;
-      s_history.clear();
-      y_history.clear();
-      rho_history.clear();
       --iteration;
       continue;
     }
     const double e_new = step.energy;
     summary->iterations = iteration;
-    if (lbfgs) {
-      Eigen::VectorXd s = x_new - x, y = g_new - g;
-      const double sy = s.dot(y);
-      if (sy > 1e-12 * s.norm() * y.norm()) {
-        s_history.push_back(std::move(s));
-        y_history.push_back(std::move(y));
-        rho_history.push_back(1.0 / sy);
-        if (static_cast<int>(s_history.size()) > options.lbfgs_memory) {
-          s_history.pop_front();
-          y_history.pop_front();
-          rho_history.pop_front();
-        }
-      }
-    }
     x.swap(x_new);
-    unit_step = false;
     // PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner).
-    double beta_pr;
+    double beta_pr, zg_new;
     if (precondition) {
-      if (block_jacobi && iteration % options.preconditioner_every == 0) energy.BlockJacobiInverse(x, &blocks);
-      apply(g_new, &z);
-      const auto [zg_new, zg_cross] = DotPair(z, g_new, g);
-      beta_pr = (zg_new - zg_cross) / zg_old;
-      zg_old = zg_new;
+      energy.ApplyDataInverse(g_new, &z);
+      const auto [zg_next, zg_cross] = DotPair(z, g_new, g);
+      beta_pr = (zg_next - zg_cross) / zg_old;
+      zg_new = zg_next;
       gg = Dot(g_new, g_new);
     } else {
       const auto [gg_new, gg_cross] = DotPair(g_new, g_new, g);
       beta_pr = (gg_new - gg_cross) / gg;
       gg = gg_new;
+      zg_new = scale * gg;
     }
+    zg_old = zg_new;
     g.swap(g_new);
     alpha_prev = step.alpha;
     slope_prev = slope;
@@ -359,51 +337,35 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
     summary->final_gradient_norm = std::sqrt(gg);
     ++since_restart;
 
+    const double remaining = RemainingDecrease(summary->energy);
+    summary->remaining_decrease = remaining;
+    const double relative_remaining = remaining / std::max(std::abs(e), 1e-300);
+    if (first_remaining < 0 && std::isfinite(relative_remaining)) first_remaining = relative_remaining;
     const int count = static_cast<int>(summary->energy.size());
+    double decrease = -1;
     if (count > kWindow) {
       const double old = summary->energy[static_cast<size_t>(count - 1 - kWindow)];
-      const double decrease = (old - e) / std::max(std::abs(e), 1e-300) / kWindow;
-      if (first_decrease < 0) first_decrease = decrease;
-      if (options.progress) {
-        options.progress(ProgressFraction(first_decrease, decrease, preset.energy, iteration, max_iterations),
-                         "smoothing");
-      }
-      if (decrease < preset.energy) {
-        summary->termination = SmoothTermination::kEnergyConverged;
-        break;
-      }
+      decrease = (old - e) / std::max(std::abs(e), 1e-300) / kWindow;
+    }
+    if (options.progress) {
+      options.progress(ProgressFraction(first_remaining, relative_remaining, preset.gap > 0 ? preset.gap : preset.energy,
+                                        iteration, max_iterations),
+                       "smoothing");
+    }
+    if (preset.gap > 0 && relative_remaining <= preset.gap) {
+      summary->termination = SmoothTermination::kOptimalityGapConverged;
+      break;
+    }
+    if (preset.energy > 0 && decrease >= 0 && decrease < preset.energy) {
+      summary->termination = SmoothTermination::kEnergyConverged;
+      break;
     }
     if (summary->final_gradient_norm <= gradient_stop) {
       summary->termination = SmoothTermination::kGradientConverged;
       break;
     }
-
-    if (lbfgs) {
-      // Two-loop recursion with H0 = (sᵀy / yᵀy) I.
-      Eigen::VectorXd q = g;
-      const int m = static_cast<int>(s_history.size());
-      std::vector<double> a(static_cast<size_t>(m));
-      for (int j = m - 1; j >= 0; --j) {
-        a[static_cast<size_t>(j)] = rho_history[static_cast<size_t>(j)] * s_history[static_cast<size_t>(j)].dot(q);
-        q -= a[static_cast<size_t>(j)] * y_history[static_cast<size_t>(j)];
-      }
-      if (precondition) {
-        // H0 = M⁻¹ (the block-Jacobi inverse) instead of a scaled identity.
-        Eigen::VectorXd r;
-        apply(q, &r);
-        q.swap(r);
-      } else if (m > 0) {
-        const Eigen::VectorXd& y = y_history.back();
-        q *= 1.0 / (rho_history.back() * y.squaredNorm());
-      }
-      for (int j = 0; j < m; ++j) {
-        const double b = rho_history[static_cast<size_t>(j)] * y_history[static_cast<size_t>(j)].dot(q);
-        q += (a[static_cast<size_t>(j)] - b) * s_history[static_cast<size_t>(j)];
-      }
-      p = -q;
-    } else if (since_restart >= restart_every) {
+    if (since_restart >= restart_every) {
       p = -zg;
-      unit_step = block_jacobi;
       since_restart = 0;
       ++summary->restarts;
     } else {
@@ -411,8 +373,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, SmoothSu
       slope_known = true;
     }
   }
-  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * (lbfgs ? 5 + 2 * options.lbfgs_memory : 5) +
-                           sizeof(double) * (blocks.size() + static_cast<size_t>(z.size()));
+  summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * 5 + sizeof(double) * static_cast<size_t>(z.size());
   return {x, parts};
 }
 
@@ -471,6 +432,40 @@ void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<i
   for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(first[static_cast<size_t>(smallest[static_cast<size_t>(f)])]++)] = f;
 }
 
+// Coarse-to-fine over `levels` (coarsest solved from its measurements), then the input started from the
+// prolongation of levels[0]'s result.
+Mesh SmoothCoarseToFine(const NoisyMesh& noisy, const std::vector<GridLevel>& levels, const SmoothOptions& options,
+                        SmoothSummary* summary_out) {
+  const auto start = std::chrono::steady_clock::now();
+  Vertices x;
+  double coarse_work = 0;
+  const double fine_vertices = std::max(1, noisy.mesh.num_vertices());
+  for (int k = static_cast<int>(levels.size()) - 1; k >= 0; --k) {
+    SmoothOptions coarse = options;
+    coarse.multilevel = false;
+    coarse.adaptive_epsilon = false;
+    coarse.progress = nullptr;
+    coarse.face_epsilon_squared.clear();
+    coarse.initial_positions = k + 1 == static_cast<int>(levels.size()) ? nullptr : &x;
+    SmoothSummary s;
+    const Mesh r = Smooth(levels[static_cast<size_t>(k)].mesh, coarse, &s);
+    coarse_work += s.evaluations * levels[static_cast<size_t>(k)].mesh.mesh.num_vertices() / fine_vertices;
+    const NoisyMesh& finer = k == 0 ? noisy : levels[static_cast<size_t>(k) - 1].mesh;
+    x = ProlongPositions(levels[static_cast<size_t>(k)], finer, r.V);
+  }
+  SmoothOptions fine = options;
+  fine.multilevel = false;
+  fine.adaptive_epsilon = false;
+  fine.initial_positions = &x;
+  SmoothSummary summary;
+  Mesh result = Smooth(noisy, fine, &summary);
+  summary.levels = static_cast<int>(levels.size()) + 1;
+  summary.coarse_work = coarse_work;
+  summary.time_s = Seconds(start);
+  if (summary_out != nullptr) *summary_out = std::move(summary);
+  return result;
+}
+
 }  // namespace
 
 SmoothTolerance ParseSmoothTolerance(const std::string& name) {
@@ -492,41 +487,14 @@ std::string SmoothToleranceName(SmoothTolerance tolerance) {
   return "default";
 }
 
-SmoothMinimiser ParseSmoothMinimiser(const std::string& name) {
-  if (name == "cg") return SmoothMinimiser::kConjugateGradient;
-  if (name == "lbfgs") return SmoothMinimiser::kLbfgs;
-  RB_FAIL("unknown minimiser '", name, "' (expected cg or lbfgs)");
-}
-
-std::string SmoothMinimiserName(SmoothMinimiser minimiser) {
-  return minimiser == SmoothMinimiser::kLbfgs ? "lbfgs" : "cg";
-}
-
-SmoothPreconditioner ParseSmoothPreconditioner(const std::string& name) {
-  if (name == "none") return SmoothPreconditioner::kNone;
-  if (name == "data") return SmoothPreconditioner::kData;
-  if (name == "block-jacobi") return SmoothPreconditioner::kBlockJacobi;
-  RB_FAIL("unknown preconditioner '", name, "' (expected none, data or block-jacobi)");
-}
-
-std::string SmoothPreconditionerName(SmoothPreconditioner preconditioner) {
-  switch (preconditioner) {
-    case SmoothPreconditioner::kNone:
-      return "none";
-    case SmoothPreconditioner::kData:
-      return "data";
-    case SmoothPreconditioner::kBlockJacobi:
-      return "block-jacobi";
-  }
-  return "data";
-}
-
 std::string SmoothTerminationName(SmoothTermination termination) {
   switch (termination) {
     case SmoothTermination::kEnergyConverged:
       return "energy converged";
     case SmoothTermination::kGradientConverged:
       return "gradient converged";
+    case SmoothTermination::kOptimalityGapConverged:
+      return "converged (optimality gap)";
     case SmoothTermination::kMaxIterations:
       return "iteration limit";
     case SmoothTermination::kNoProgress:
@@ -544,13 +512,12 @@ void SmoothOptions::Check() const {
   RB_CHECK(prior_weight >= 0 && prior_weight <= 1e6, "smooth: prior_weight ", prior_weight, " is outside [0, 1e6]");
   RB_CHECK(max_iterations >= 0 && max_iterations <= 10000000, "smooth: max_iterations ", max_iterations,
            " is outside [0, 1e7]");
-  RB_CHECK(lbfgs_memory >= 1 && lbfgs_memory <= 50, "smooth: lbfgs_memory ", lbfgs_memory, " is outside [1, 50]");
   RB_CHECK(energy_tolerance >= 0 && energy_tolerance < 1, "smooth: energy_tolerance ", energy_tolerance,
            " is outside [0, 1)");
   RB_CHECK(line_search_c2 > 0 && line_search_c2 < 1, "smooth: line_search_c2 ", line_search_c2, " is outside (0, 1)");
-  RB_CHECK(preconditioner_every >= 1 && preconditioner_every <= 1000000, "smooth: preconditioner_every ",
-           preconditioner_every, " is outside [1, 1e6]");
-  RB_CHECK(restart_every >= 0, "smooth: restart_every ", restart_every, " is negative");
+  RB_CHECK(epsilon_continuation_stages >= -1 && epsilon_continuation_stages <= 6,
+           "smooth: epsilon_continuation_stages ", epsilon_continuation_stages, " is outside [-1, 6]");
+  RB_CHECK(gap_tolerance >= 0 && gap_tolerance < 1, "smooth: gap_tolerance ", gap_tolerance, " is outside [0, 1)");
   RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
            "smooth: face_epsilon_squared needs the built-in square-root prior");
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");
@@ -578,9 +545,19 @@ std::string SmoothSummary::BriefReport() const {
     }
     out += line;
   }
+  if (levels > 1) {
+    std::snprintf(line, sizeof(line), "levels:     %d grid levels, coarse levels %.1f input evaluations\n", levels,
+                  coarse_work);
+    out += line;
+  }
   std::snprintf(line, sizeof(line), "summary:    %d iterations, %d evaluations, %.3f s (setup %.3f s), %s\n",
                 iterations, evaluations, time_s, setup_time_s, SmoothTerminationName(termination).c_str());
   out += line;
+  if (std::isfinite(remaining_decrease) && !energy.empty()) {
+    std::snprintf(line, sizeof(line), "distance:   E - E* estimated %.3g (%.2g of the energy, from the rate of decrease)\n",
+                  remaining_decrease, remaining_decrease / std::max(std::abs(energy.back()), 1e-300));
+    out += line;
+  }
   if (!energy.empty()) {
     std::snprintf(line, sizeof(line), "energy:     %.6g -> %.6g (data %.6g, prior %.6g)\n", energy.front(),
                   energy.back(), data_energy, prior_energy);
@@ -606,7 +583,11 @@ Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary* summary_out) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
-  if (options.adaptive_epsilon && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
+  const bool organized = noisy.has_covariance() && noisy.mesh.num_vertices() > 0 &&
+                         noisy.pixel.rows() == noisy.mesh.num_vertices();
+  const int continuation_stages =
+      options.epsilon_continuation_stages >= 0 ? options.epsilon_continuation_stages : (organized ? 3 : 0);
+  if (options.adaptive_epsilon && !organized && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
       options.face_epsilon_squared.empty() && options.initial_positions == nullptr) {
     SmoothOptions plain = options;
     plain.adaptive_epsilon = false;
@@ -618,6 +599,38 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
     summary.time_s = Seconds(start);
     if (summary_out != nullptr) *summary_out = std::move(summary);
     return result;
+  }
+  if (continuation_stages > 0 && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
+      options.face_epsilon_squared.empty()) {
+    SmoothOptions stage = options;
+    stage.epsilon_continuation_stages = 0;
+    stage.tolerance = SmoothTolerance::kFast;
+    stage.progress = nullptr;
+    Vertices x;
+    double work = 0;
+    for (int s = continuation_stages; s >= 1; --s) {
+      stage.sqrt_epsilon_squared = std::min(4.0, options.sqrt_epsilon_squared * std::pow(10.0, s));
+      SmoothSummary ss;
+      Mesh r = Smooth(noisy, stage, &ss);
+      work += ss.evaluations + ss.coarse_work;
+      x = r.V;
+      stage.initial_positions = &x;
+      stage.multilevel = false;
+    }
+    SmoothOptions last = options;
+    last.epsilon_continuation_stages = 0;
+    last.initial_positions = &x;
+    SmoothSummary summary;
+    Mesh result = Smooth(noisy, last, &summary);
+    summary.coarse_work += work;
+    summary.time_s = Seconds(start);
+    if (summary_out != nullptr) *summary_out = std::move(summary);
+    return result;
+  }
+  if (options.multilevel && options.initial_positions == nullptr && noisy.has_covariance() &&
+      noisy.pixel.rows() == noisy.mesh.num_vertices() && noisy.mesh.num_vertices() > 0) {
+    const std::vector<GridLevel> levels = BuildGridHierarchy(noisy);
+    if (!levels.empty()) return SmoothCoarseToFine(noisy, levels, options, summary_out);
   }
   const Mesh& mesh = noisy.mesh;
   RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ", noisy.covariance.size(), " covariances for ",

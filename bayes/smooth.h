@@ -14,6 +14,7 @@
 // from a coarse scan (1.2, 1.7, 2.4, 3.4) over all benchmark meshes at once, not per mesh.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -29,15 +30,9 @@ namespace rangebayes {
 // holds with margin (no MAE worse than at 1e-6 by more than 0.03°, several better) at about half the
 // evaluations; at 5e-5 block 0.4 stopped on a plateau at 3.97° (target 4.0), which is why it is not looser.
 enum class SmoothTolerance { kFast, kDefault, kTight };
-enum class SmoothMinimiser { kConjugateGradient, kLbfgs };
-enum class SmoothPreconditioner { kNone, kData, kBlockJacobi };
 
 SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
 std::string SmoothToleranceName(SmoothTolerance tolerance);
-SmoothMinimiser ParseSmoothMinimiser(const std::string& name);  // "cg", "lbfgs"
-std::string SmoothMinimiserName(SmoothMinimiser minimiser);
-SmoothPreconditioner ParseSmoothPreconditioner(const std::string& name);  // "none", "data", "block-jacobi"
-std::string SmoothPreconditionerName(SmoothPreconditioner preconditioner);
 
 struct SmoothOptions {
   PriorKind prior = PriorKind::kSqrt;  // used when `potential` is null
@@ -51,21 +46,15 @@ struct SmoothOptions {
   const Potential* potential = nullptr;
   double prior_weight = 2.4;  // β, multiplies the prior sum; [0, 1e6]; 2.4 is the measured default rule
   SmoothTolerance tolerance = SmoothTolerance::kDefault;
-  SmoothMinimiser minimiser = SmoothMinimiser::kConjugateGradient;
   // Stop when the relative energy decrease per iteration (mean over 5) falls below this; 0: the preset's
   // (fast 1e-4, default 3e-5, tight 1e-9). [0, 1)
   double energy_tolerance = 0;
+  // Stop when the estimated distance to the optimum E − E* (SmoothSummary::remaining_decrease) falls below this
+  // fraction of the energy; 0: the preset's. [0, 1)
+  double gap_tolerance = 0;
   // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1).
   double line_search_c2 = 0.1;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
-  int lbfgs_memory = 6;     // L-BFGS correction pairs, [1, 50]
-  // CG / L-BFGS preconditioner: kData (default) solves with the data term's Hessian blockdiag(2 W_i), exact
-  // and constant, which removes the conditioning that anisotropic stereo covariances add (a no-op when every
-  // W_i is the same multiple of I, as for generic meshes); kBlockJacobi adds the prior's Gauss–Newton diagonal
-  // blocks, rebuilt every `preconditioner_every` iterations (measured worse: BENCHMARKS.md "Speed and memory").
-  SmoothPreconditioner preconditioner = SmoothPreconditioner::kData;
-  int preconditioner_every = 10;  // kBlockJacobi rebuild period (iterations), [1, 1e6]
-  int restart_every = 0;    // CG restart to steepest descent every N iterations; 0: every 3·#V (i.e. rarely)
   int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
   // Optional start of the minimiser (#V×3 positions in the caller's vertex order, finite; null: the measured
   // positions noisy.mesh.V). Not owned, must outlive the call. The energy is unchanged; used by the adaptive-ε
@@ -74,8 +63,19 @@ struct SmoothOptions {
   // Per-face ε² read from a fast pre-pass on curved meshes (SmoothAdaptiveEpsilon, bayes/adaptive_epsilon.h,
   // with its default rule); piecewise-flat meshes keep the global ε². On by default: this is what `rangebayes
   // smooth` runs. Applies only to the built-in square-root prior with no face_epsilon_squared and no
-  // initial_positions given; ignored otherwise.
+  // initial_positions given, on meshes that are not organized (organized meshes take the continuation below);
+  // ignored otherwise.
   bool adaptive_epsilon = true;
+  // Organized meshes (NoisyMesh::pixel set, as from a depth image): solve coarse-to-fine over the pixel grid
+  // (bayes/grid_hierarchy.h), each level started from the prolongated result of the coarser one. Same energy
+  // and minimum; other meshes, or a given initial_positions, take the single-level solve.
+  bool multilevel = true;
+  // ε continuation for the built-in square-root prior: before the solve at sqrt_epsilon_squared, solve (fast
+  // tolerance, warm-started) at ε² · 10^s for s = stages … 1, a smoother energy whose minimum lies near; the
+  // first stage runs coarse-to-fine when `multilevel` applies. −1 (default): 3 stages on organized meshes
+  // (pixel positions and covariances, as from a depth image), none on others (measured: BENCHMARKS.md "Smoothing
+  // on real stereo"; on generic CAD meshes continuation lands in worse minima). [−1, 6]
+  int epsilon_continuation_stages = -1;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 
   void Check() const;
@@ -84,6 +84,7 @@ struct SmoothOptions {
 enum class SmoothTermination {
   kEnergyConverged,    // relative energy decrease below the tolerance
   kGradientConverged,  // gradient norm below the tolerance
+  kOptimalityGapConverged,  // estimated distance to the optimum below the tolerance
   kMaxIterations,
   kNoProgress,         // the line search found no lower energy (numerically at a minimum)
   kNothingToDo,        // no vertices
@@ -111,6 +112,9 @@ struct SmoothSummary {
   int iterations = 0;
   int evaluations = 0;             // energy + gradient evaluations
   std::vector<double> energy;      // energy[0] at the start, then after each iteration
+  // E − E* at the end, estimated from the rate at which the energy fell over the last 20 iterations (a linear
+  // rate extrapolated); infinity when fewer iterations ran. A budget or iteration cap that stops early shows here.
+  double remaining_decrease = std::numeric_limits<double>::infinity();
   double data_energy = 0;          // final parts
   double prior_energy = 0;
   double initial_gradient_norm = 0;
@@ -125,6 +129,8 @@ struct SmoothSummary {
   int num_threads = 0;
   std::string potential_name;
   size_t memory_bytes = 0;         // solver memory beyond the input mesh (energy buffers + minimiser vectors)
+  int levels = 1;                  // grid levels solved (1: single level)
+  double coarse_work = 0;          // evaluations on the coarse levels, in units of one evaluation of the input
   bool adaptive_epsilon_used = false;  // the adaptive-ε default ran (then `adaptive` says what it did)
   AdaptiveEpsilonSummary adaptive;
 

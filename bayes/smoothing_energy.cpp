@@ -865,128 +865,6 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   return EnergyParts{data_sum, beta * prior_sum};
 }
 
-void SmoothingEnergy::BlockJacobiInverse(const Eigen::VectorXd& x_vector, std::vector<double>* inverse_blocks) const {
-  RB_CHECK(x_vector.size() == z_.size(), "smoothing: state has ", x_vector.size(), " entries, expected ", z_.size());
-  const int nf = num_faces(), nv = num_vertices_;
-  const double* x = x_vector.data();
-  ComputeNormals(x);
-  // Per face t the prior's Hessian with respect to n_t, A_t = β Σ_s [w I + (max(0, φ'') − w) û ûᵀ] (û the unit
-  // normal difference), then per corner k the curvature of moving that corner along n_t:
-  // (e_k × n_t)ᵀ A_t (e_k × n_t) / |c_t|², into h_[3t + k].
-  const bool per_face_epsilon = !face_epsilon_squared_.empty();
-  const double* face_e2 = face_epsilon_squared_.data();
-  const Potential& potential = *potential_;
-  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
-  const double global_e2 = sqrt_potential != nullptr ? sqrt_potential->epsilon_squared() : 0.0;
-  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
-    for (int t = r.begin(); t != r.end(); ++t) {
-      double* out = &h_[3 * static_cast<size_t>(t)];
-      out[0] = out[1] = out[2] = 0;
-      if (!active_[static_cast<size_t>(t)]) continue;
-      const double* nt = &normals_[3 * static_cast<size_t>(t)];
-      double A[6] = {0, 0, 0, 0, 0, 0};
-      for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
-        const int s = neighbours_[static_cast<size_t>(q)];
-        const double* ns = &normals_[3 * static_cast<size_t>(s)];
-        const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
-        const double d2 = dx * dx + dy * dy + dz * dz;
-        const double d = std::sqrt(d2);
-        double weight = 0, second = 0;
-        if (per_face_epsilon || sqrt_potential != nullptr) {
-          const double e2 = per_face_epsilon ? 0.5 * (face_e2[t] + face_e2[s]) : global_e2;
-          const double phi = std::sqrt(d2 + e2);
-          weight = 1.0 / phi;
-          second = e2 / (phi * phi * phi);
-        } else {
-          double value = 0, dp = 0, dm = 0;
-          potential.EvaluateWeight(d, &value, &weight);
-          const double step = 1e-4;
-          potential.Evaluate(std::min(d + step, 2.0), &value, &dp);
-          potential.Evaluate(std::max(d - step, 0.0), &value, &dm);
-          second = (dp - dm) / (std::min(d + step, 2.0) - std::max(d - step, 0.0));
-        }
-        weight = std::max(0.0, weight);
-        second = std::max(0.0, second);
-        A[0] += weight;
-        A[3] += weight;
-        A[5] += weight;
-        if (d > 1e-12) {
-          const double k = (second - weight) / d2;
-          A[0] += k * dx * dx;
-          A[1] += k * dx * dy;
-          A[2] += k * dx * dz;
-          A[3] += k * dy * dy;
-          A[4] += k * dy * dz;
-          A[5] += k * dz * dz;
-        }
-      }
-      const double scale = prior_weight_ * inverse_length_[static_cast<size_t>(t)] * inverse_length_[static_cast<size_t>(t)];
-      for (int k = 0; k < 3; ++k) {
-        const double* p1 = x + 3 * faces_(t, (k + 1) % 3);
-        const double* p2 = x + 3 * faces_(t, (k + 2) % 3);
-        const double ex = p2[0] - p1[0], ey = p2[1] - p1[1], ez = p2[2] - p1[2];
-        const double mx = ey * nt[2] - ez * nt[1], my = ez * nt[0] - ex * nt[2], mz = ex * nt[1] - ey * nt[0];
-        out[k] = scale * (A[0] * mx * mx + A[3] * my * my + A[5] * mz * mz +
-                          2 * (A[1] * mx * my + A[2] * mx * mz + A[4] * my * mz));
-      }
-    }
-  });
-  inverse_blocks->resize(6 * static_cast<size_t>(nv));
-  double* out = inverse_blocks->data();
-  tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
-    for (int i = r.begin(); i != r.end(); ++i) {
-      double w[6];
-      Information(i, w);
-      double b[6] = {2 * w[0], 2 * w[1], 2 * w[2], 2 * w[3], 2 * w[4], 2 * w[5]};
-      for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
-        const int corner = corners_[static_cast<size_t>(q)];
-        const int f = corner / 3;
-        const double* n = &normals_[3 * static_cast<size_t>(f)];
-        const double c = h_[static_cast<size_t>(corner)];
-        b[0] += c * n[0] * n[0];
-        b[1] += c * n[0] * n[1];
-        b[2] += c * n[0] * n[2];
-        b[3] += c * n[1] * n[1];
-        b[4] += c * n[1] * n[2];
-        b[5] += c * n[2] * n[2];
-      }
-      // Inverse of the symmetric 3×3 by cofactors; B is positive definite (W_i is, by construction).
-      const double c00 = b[3] * b[5] - b[4] * b[4], c01 = b[2] * b[4] - b[1] * b[5], c02 = b[1] * b[4] - b[2] * b[3];
-      const double c11 = b[0] * b[5] - b[2] * b[2], c12 = b[1] * b[2] - b[0] * b[4], c22 = b[0] * b[3] - b[1] * b[1];
-      const double det = b[0] * c00 + b[1] * c01 + b[2] * c02;
-      double* o = out + 6 * static_cast<size_t>(i);
-      if (det > 0 && std::isfinite(det)) {
-        const double inv = 1.0 / det;
-        o[0] = c00 * inv;
-        o[1] = c01 * inv;
-        o[2] = c02 * inv;
-        o[3] = c11 * inv;
-        o[4] = c12 * inv;
-        o[5] = c22 * inv;
-      } else {
-        o[0] = o[3] = o[5] = 0;  // should not happen; a zero block keeps the direction a descent one
-        o[1] = o[2] = o[4] = 0;
-      }
-    }
-  });
-}
-
-void SmoothingEnergy::ApplyBlocks(const std::vector<double>& blocks, const Eigen::VectorXd& v,
-                                  Eigen::VectorXd* out) const {
-  out->resize(v.size());
-  const double* in = v.data();
-  double* o = out->data();
-  tbb::parallel_for(tbb::blocked_range<int>(0, num_vertices_, kGrain), [&](const tbb::blocked_range<int>& r) {
-    for (int i = r.begin(); i != r.end(); ++i) {
-      const double* b = &blocks[6 * static_cast<size_t>(i)];
-      const double a0 = in[3 * i], a1 = in[3 * i + 1], a2 = in[3 * i + 2];
-      o[3 * i] = b[0] * a0 + b[1] * a1 + b[2] * a2;
-      o[3 * i + 1] = b[1] * a0 + b[3] * a1 + b[4] * a2;
-      o[3 * i + 2] = b[2] * a0 + b[4] * a1 + b[5] * a2;
-    }
-  });
-}
-
 void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd* out) const {
   out->resize(v.size());
   const double* in = v.data();
@@ -1012,6 +890,11 @@ void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd
       o[3 * i + 2] = s * (c02 * a0 + c12 * a1 + c22 * a2);
     }
   });
+}
+
+double SmoothingEnergy::UniformDataInverseScale() const {
+  if (!uniform_isotropic_ || information_.empty() || !(information_[0] > 0)) return 0.0;
+  return 0.5 / information_[0];
 }
 
 double SmoothingEnergy::DataCurvature(const Eigen::VectorXd& p) const {

@@ -56,22 +56,12 @@ class SmoothingEnergy {
   // pᵀ H_data p with H_data = blockdiag(2 W_i): the data term's curvature along p (a cheap first step length).
   double DataCurvature(const Eigen::VectorXd& p) const;
 
-  // A 3×3 block-Jacobi preconditioner at x: per vertex i the inverse of
-  //   B_i = 2 W_i + Σ_{faces t ∋ i} ω_t n_t n_tᵀ |e_ti|² / |c_t|²,   ω_t = β Σ_{s ~ t} max(0, w(d_st)),
-  // the Gauss–Newton (lagged-diffusivity) diagonal block of the Hessian: w = φ'(d)/d frozen at x, the cross
-  // terms between the two faces of a pair dropped, and ∂n_t/∂x_i = P_t [e_ti]_× / |c_t| (e_ti the edge opposite
-  // i, c_t the unnormalised normal) whose JᵀJ is n_t n_tᵀ |e_ti|²/|c_t|². So the prior stiffens only the normal
-  // direction, which is what makes plain CG slow: tangentially only W acts. Output: 6 per vertex (xx xy xz yy
-  // yz zz of B_i⁻¹). Same threading and determinism as Evaluate.
-  void BlockJacobiInverse(const Eigen::VectorXd& x, std::vector<double>* inverse_blocks) const;
-
-  // out = blockdiag(blocks) · v with `blocks` as BlockJacobiInverse writes them.
-  void ApplyBlocks(const std::vector<double>& blocks, const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
-
   // out = blockdiag(2 W_i)⁻¹ · v: the data term's exact Hessian inverse (computed per call, no storage).
   void ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
   // Every W_i the same multiple of I (then ApplyDataInverse is a global scale, which CG does not need).
   bool uniform_isotropic() const { return uniform_isotropic_; }
+  // 1 / (2 w) for uniform_isotropic() W = w I (the scalar ApplyDataInverse then applies); 0 otherwise.
+  double UniformDataInverseScale() const;
 
   // The measurements as the starting state.
   Eigen::VectorXd Measurements() const;

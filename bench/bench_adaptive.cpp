@@ -177,6 +177,7 @@ int Quality(std::map<std::string, std::string>& flags) {
     if (!estimate) noise.noise_edge_multiple = c.k;
     const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
     SmoothOptions options;
+    options.adaptive_epsilon = false;  // the plain solve (global ε²)
     if (flags.count("--beta")) options.prior_weight = std::stod(flags["--beta"]);
     double baseline_mae = std::nan("");
     if (baseline) baseline_mae = MeanAngularErrorDeg(Smooth(input, options), gt);
@@ -320,6 +321,7 @@ int Gates(std::map<std::string, std::string>& flags) {
       SmoothSummary summary;
       if (cap != 0) {
         SmoothOptions pre;
+        pre.adaptive_epsilon = false;  // the plain solve (global ε²)
         pre.tolerance = SmoothTolerance::kFast;
         pre.max_iterations = std::max(cap, 0);
         reference = Smooth(input, pre, &summary);

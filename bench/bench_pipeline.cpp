@@ -103,6 +103,7 @@ struct Fixture {
   }
   static rb::SmoothOptions FastSmooth() {
     rb::SmoothOptions s;
+    s.adaptive_epsilon = false;  // the plain solve (global ε²)
     s.tolerance = rb::SmoothTolerance::kFast;
     return s;
   }

@@ -1,12 +1,12 @@
 // Bayesian smoothing benchmarks (BENCHMARKS.md "Bayesian smoothing").
 //
-//   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight] [--minimiser cg|lbfgs]
+//   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight] 
 //                        [--beta B] [--ratio R] [--eps2 E] [--prior sqrt|quadratic|cauchy] [--cases a,b,...]
 //       runs every denoising case of DIR (default ../shared/data/meshes) and prints a Markdown table of the
 //       mean angular error (degrees) beside DESIGN.md §4's reference points.
-//   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K] [--minimiser M]
-//                      [--repeat R] [--gt GT] [--file-covariance] [--preconditioner none|data|block-jacobi]
-//                      [--precondition-every N] [--energy-tolerance E] [--kernel portable|avx2]
+//   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K]
+//                      [--repeat R] [--gt GT] [--file-covariance]
+//                      [--energy-tolerance E] [--kernel portable|avx2]
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
@@ -108,7 +108,6 @@ double PeakRssMiB() {
 SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   SmoothOptions options;
   if (flags.count("--tolerance")) options.tolerance = ParseSmoothTolerance(flags["--tolerance"]);
-  if (flags.count("--minimiser")) options.minimiser = ParseSmoothMinimiser(flags["--minimiser"]);
   if (flags.count("--beta")) options.prior_weight = std::stod(flags["--beta"]);
   if (flags.count("--eps2")) options.sqrt_epsilon_squared = std::stod(flags["--eps2"]);
   if (flags.count("--prior")) options.prior = ParsePriorKind(flags["--prior"]);
@@ -117,9 +116,11 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   if (flags.count("--max-iterations")) options.max_iterations = std::stoi(flags["--max-iterations"]);
   if (flags.count("--energy-tolerance")) options.energy_tolerance = std::stod(flags["--energy-tolerance"]);
   if (flags.count("--c2")) options.line_search_c2 = std::stod(flags["--c2"]);
-  if (flags.count("--preconditioner")) options.preconditioner = ParseSmoothPreconditioner(flags["--preconditioner"]);
-  if (flags.count("--precondition-every")) options.preconditioner_every = std::stoi(flags["--precondition-every"]);
-  if (flags.count("--lbfgs-memory")) options.lbfgs_memory = std::stoi(flags["--lbfgs-memory"]);
+  if (flags.count("--gap-tolerance")) options.gap_tolerance = std::stod(flags["--gap-tolerance"]);
+  // The solver alone (the speed targets are stated for it); --adaptive-eps: what `rangebayes smooth` runs.
+  options.adaptive_epsilon = flags.count("--adaptive-eps") > 0;
+  options.multilevel = flags.count("--no-multilevel") == 0;
+  if (flags.count("--continuation")) options.epsilon_continuation_stages = std::stoi(flags["--continuation"]);
   // --kernel portable|avx2: the energy's portable or AVX2 kernels even where the CPU has wider ones (same
   // bytes; for A/B timing). Default: the widest the CPU has.
   if (flags.count("--kernel")) {
@@ -236,15 +237,17 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
     std::printf("final energy %.6e (data %.4e prior %.4e) | ", summary.data_energy + summary.prior_energy,
                 summary.data_energy, summary.prior_energy);
     std::printf(
-        "%s: V=%d F=%d threads=%d kernels=%s minimiser=%s preconditioner=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
+        "%s: V=%d F=%d threads=%d kernels=%s tolerance=%s | total %.3f s (CPU %.3f s), setup %.3f s, %d iterations, %d "
         "evaluations, %.2f ms/iteration, %.2f ms/evaluation, %.1f ns/face/iteration, %.1f ns/face/evaluation | "
-        "termination: %s | "
+        "termination: %s, remaining %.3g (%.3g of E), levels %d, coarse work %.1f | "
         "solver memory %.1f B/vertex | peak RSS %.0f MiB (after loading %.0f, with covariances %.0f)\n",
         name.c_str(), mesh.num_vertices(), mesh.num_faces(), summary.num_threads, SmoothingKernelName(),
-        SmoothMinimiserName(options.minimiser).c_str(), SmoothPreconditionerName(options.preconditioner).c_str(),
         SmoothToleranceName(options.tolerance).c_str(), summary.time_s,
         cpu, summary.setup_time_s, summary.iterations, summary.evaluations, 1e3 * iteration_time, 1e3 * evaluation_time,
         1e9 * iteration_time / std::max(1, mesh.num_faces()), 1e9 * evaluation_time / std::max(1, mesh.num_faces()), SmoothTerminationName(summary.termination).c_str(),
+        summary.remaining_decrease,
+        summary.remaining_decrease / std::max(1e-300, summary.data_energy + summary.prior_energy),
+        summary.levels, summary.coarse_work,
         static_cast<double>(summary.memory_bytes) / std::max(1, mesh.num_vertices()), PeakRssMiB(), rss_mesh,
         rss_input);
     std::fflush(stdout);

@@ -123,9 +123,11 @@ TEST(AdaptiveEpsilon, PlugsIntoSmooth) {
   noise.noise_edge_multiple = 0.1;
   const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
   SmoothOptions pre;
+  pre.adaptive_epsilon = false;  // the plain solve (global ε²)
   pre.tolerance = SmoothTolerance::kFast;
   const Mesh smoothed = Smooth(input, pre);
   SmoothOptions options;
+  options.adaptive_epsilon = false;  // the plain solve (global ε²)
   options.face_epsilon_squared = AdaptiveEpsilonSquared(smoothed);
   const Mesh result = Smooth(input, options);
   ASSERT_TRUE(result.V.allFinite());
@@ -166,6 +168,7 @@ TEST(AdaptiveEpsilon, FromPrepassNeedsTheSquareRootPrior) {
     EXPECT_LE(v, 0.2);
   }
   SmoothOptions cauchy;
+  cauchy.adaptive_epsilon = false;  // the plain solve (global ε²)
   cauchy.prior = PriorKind::kCauchy;
   EXPECT_THROW(AdaptiveEpsilonFromPrepass(input, cauchy, ScanAdaptiveEpsilonOptions()), Error);
 }
@@ -251,6 +254,7 @@ TEST(AdaptiveEpsilon, AutoGateTellsFlatFromCurved) {
     EXPECT_LE(v, 1.0);
   }
   SmoothOptions quadratic;
+  quadratic.adaptive_epsilon = false;  // the plain solve (global ε²)
   quadratic.prior = PriorKind::kQuadratic;
   EXPECT_THROW(AdaptiveEpsilonAuto(curved, quadratic), Error);
 }
@@ -303,11 +307,13 @@ TEST(AdaptiveEpsilon, SmoothStartsFromInitialPositions) {
   noise.noise_edge_multiple = 0.1;
   const NoisyMesh input = MakeGenericNoisyMesh(NoisyBowl(12, 0.1, 5), noise);
   SmoothOptions options;
+  options.adaptive_epsilon = false;  // the plain solve (global ε²)
   const Mesh plain = Smooth(input, options);
   options.initial_positions = &input.mesh.V;
   EXPECT_TRUE(Smooth(input, options).V == plain.V);
 
   SmoothOptions tight;
+  tight.adaptive_epsilon = false;  // the plain solve (global ε²)
   tight.tolerance = SmoothTolerance::kTight;
   const Mesh minimum = Smooth(input, tight);
   options.initial_positions = &minimum.V;
@@ -339,6 +345,7 @@ TEST(AdaptiveEpsilon, SmoothAdaptiveEpsilonContinuesFromThePrepass) {
   EXPECT_GT(summary.prepass_evaluations, 0);
   Mesh prepass;
   SmoothOptions by_hand;
+  by_hand.adaptive_epsilon = false;  // the plain solve (global ε²)
   by_hand.face_epsilon_squared = AdaptiveEpsilonAuto(curved, SmoothOptions{}, {}, nullptr, &prepass);
   by_hand.initial_positions = &prepass.V;
   EXPECT_TRUE(Smooth(curved, by_hand).V == result.V);
