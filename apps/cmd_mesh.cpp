@@ -175,7 +175,7 @@ void AddCommands(CLI::App& app) {
         ->required();
     sub->add_flag("--ascii", args->ascii, "write ascii PLY (17 significant digits, exact)");
     sub->add_flag("--big-endian", args->big_endian, "write binary big-endian PLY");
-    sub->add_flag("-q,--quiet", args->quiet, "print nothing on success");
+    sub->add_flag("--quiet,-q", args->quiet, "Print nothing on success");
     sub->callback([args] { RunConvert(*args); });
   }
 }

@@ -22,7 +22,7 @@ struct LearnedPrior {
   double noise_k_max = std::numeric_limits<double>::quiet_NaN();
   std::string training_set;  // the pairs list it was trained on
   int training_pairs = 0;
-  std::string method;               // "implicit" or "interleaved", and the searches after it
+  std::string method;               // LearnPriorSummary::method: "none + bump search (filtering, 6 moves)"
   double regularizer_weight = 1.0;  // w
   double training_mse_le2 = std::numeric_limits<double>::quiet_NaN();  // D per vertex at the end
   std::string date;                                                    // UTC, ISO 8601

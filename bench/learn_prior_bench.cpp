@@ -1,16 +1,13 @@
 // Learned-prior benchmark: trains φ_θ on synthetic right-angled meshes and compares it with the square root on
-// the held-out synthetic set and on real benchmark meshes (BENCHMARKS.md "Learned priors").
+// the held-out synthetic set and on real benchmark meshes (BENCHMARKS.md "Learned priors"). Without flags it
+// trains with LearnPriorOptions{} (what `rangebayes learn-prior` runs).
 //
-//   learn_prior_bench [--method implicit|interleaved|none] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
+//   learn_prior_bench [--method none|interleaved] [--k 0.3] [--k-max K] [--train 8] [--test 4] [--seed 1]
 //                     [--copies 1] [--min-cells 6] [--max-cells 14]
 //                     [--iterations N] [--time-limit S] [--knots 16] [--w 1] [--step A] [--theta-out FILE]
-//                     [--tolerance fast|default|tight] [--cold] [--warm-tolerance 1e-6]
-//                     [--scaling fixed|rms] [--rms-decay 0.9] [--decay TAU] [--weighting vertex|object]
-//                     [--feature-weight 1]
-//                     [--pattern-sweeps 0] [--pattern-step 0.04] [--bump-sweeps 0] [--bump-method coordinate|filtering]
-//                     [--bump-step 0.1]
-//                     [--bump-min-step 0.005] [--bump-width 0.1] [--bump-centres 0.8,1.0,1.2,1.4,1.6,1.8]
-//                     [--validation 0] [--no-test]
+//                     [--tolerance fast|default|tight]
+//                     [--bump-sweeps 30] [--bump-step 0.2] [--bump-min-step 0.005] [--bump-width 0.1]
+//                     [--bump-centres c1,c2,...] [--validation 0] [--no-test]
 //                     [--init-theta FILE [--set-knot J VALUE]... [--eval-only]] [--no-train-eval]
 //                     [--mesh NOISY GT K]...
 //
@@ -25,9 +22,9 @@
 #include <string>
 #include <vector>
 
-#include "bayes/learn_prior.h"
+#include "bayes/learning/learn_prior.h"
+#include "bayes/learning/synth_meshes.h"
 #include "bayes/noise_model.h"
-#include "bayes/synth_meshes.h"
 #include "core/mesh_io.h"
 #include "core/topology.h"
 
@@ -49,8 +46,8 @@ void Compare(const char* label, const std::vector<TrainingPair>& pairs, const Sp
              const LearnPriorOptions& options) {
   const SqrtPotential sqrt_potential(options.spline.epsilon_squared);
   const auto start = std::chrono::steady_clock::now();
-  const PriorEvaluation base = EvaluatePrior(pairs, sqrt_potential, options, true);
-  const PriorEvaluation mine = EvaluatePrior(pairs, learned, options, true);
+  const PriorEvaluation base = EvaluatePrior(pairs, sqrt_potential, options, KeepMeshes::kYes);
+  const PriorEvaluation mine = EvaluatePrior(pairs, learned, options, KeepMeshes::kYes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("%-10s sqrt: MAE %.3f deg D %.5f | learned: MAE %.3f deg D %.5f | MAE change %+.1f%% (%.1f s)\n", label,
               base.mean_angular_error_deg, base.mean_squared_error_le2, mine.mean_angular_error_deg,
@@ -168,21 +165,15 @@ int main(int argc, char** argv) {
     else if (a == "--w")
       options.regularizer_weight = std::stod(next());
     else if (a == "--step")
-      options.interleaved_step = options.initial_step = std::stod(next());
+      options.interleaved_step = std::stod(next());
     else if (a == "--theta-out")
       theta_out = next();
     else if (a == "--init-theta")
       theta_in = next();
     else if (a == "--no-train-eval")
       train_eval = false;
-    else if (a == "--pattern-sweeps")
-      options.pattern_search_sweeps = std::stoi(next());
-    else if (a == "--pattern-step")
-      options.pattern_search_step = std::stod(next());
     else if (a == "--bump-sweeps")
       options.bump_search_sweeps = std::stoi(next());
-    else if (a == "--bump-method")
-      options.bump_search_method = ParseBumpSearchMethod(next());
     else if (a == "--bump-step")
       options.bump_search_step = std::stod(next());
     else if (a == "--bump-min-step")
@@ -206,22 +197,8 @@ int main(int argc, char** argv) {
     else if (a == "--set-knot") {
       const int j = std::stoi(next());
       set_knots.emplace_back(j, std::stod(next()));
-    } else if (a == "--scaling")
-      options.interleaved_scaling = ParseKnotStepScaling(next());
-    else if (a == "--rms-decay")
-      options.interleaved_rms_decay = std::stod(next());
-    else if (a == "--decay")
-      options.interleaved_step_decay_iterations = std::stod(next());
-    else if (a == "--weighting")
-      options.loss_weighting = ParseLossWeighting(next());
-    else if (a == "--feature-weight")
-      options.feature_vertex_weight = std::stod(next());
-    else if (a == "--tolerance")
+    } else if (a == "--tolerance")
       options.tolerance = ParseSmoothTolerance(next());
-    else if (a == "--cold")
-      options.warm_start = false;
-    else if (a == "--warm-tolerance")
-      options.warm_gradient_tolerance = std::stod(next());
     else if (a == "--mesh") {
       External e;
       e.noisy = next();
@@ -242,12 +219,11 @@ int main(int argc, char** argv) {
   int vertices = 0;
   for (const auto& p : train) vertices += p.truth.num_vertices();
   std::printf(
-      "method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g "
-      "(%s, decay %g), loss per %s, crease-vertex weight %g\n",
+      "method %s, k %.2f..%.2f, %zu training pairs (%d vertices), %zu test pairs, N %d, w %g, step %g, %d bump "
+      "sweeps\n",
       LearnMethodName(options.method).c_str(), synth.noise.k, std::max(synth.noise.k, synth.noise_k_max), train.size(),
       vertices, test.size(), options.spline.num_knots, options.regularizer_weight, options.interleaved_step,
-      KnotStepScalingName(options.interleaved_scaling).c_str(), options.interleaved_step_decay_iterations,
-      LossWeightingName(options.loss_weighting).c_str(), options.feature_vertex_weight);
+      options.bump_search_sweeps);
   Eigen::VectorXd initial_theta;
   if (!theta_in.empty()) {
     std::ifstream in(theta_in);
@@ -265,8 +241,9 @@ int main(int argc, char** argv) {
     }
     std::printf("\n");
   }
-  PrintPairHistogram(train, EvaluatePrior(train, SqrtPotential(options.spline.epsilon_squared), options, true).smoothed,
-                     options.spline.num_knots);
+  PrintPairHistogram(
+      train, EvaluatePrior(train, SqrtPotential(options.spline.epsilon_squared), options, KeepMeshes::kYes).smoothed,
+      options.spline.num_knots);
   options.progress = [](double, std::string_view stage) {
     std::fprintf(stderr, "  %.*s\n", static_cast<int>(stage.size()), stage.data());
   };
@@ -279,12 +256,11 @@ int main(int argc, char** argv) {
   options.progress = nullptr;
   if (!eval_only) {
     std::printf(
-        "training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs (%lld warm CG iterations), "
-        "%.1f s, %s, D/vertex after the gradient method %.5f, %d bump-search moves, %d pattern-search moves\n",
+        "training: D/vertex %.5f -> %.5f, %d iterations, %d smoothing runs, %.1f s, %s, D/vertex after the gradient "
+        "method %.5f, %d bump-search moves\n",
         summary.initial_data_loss / summary.num_vertices, summary.final_data_loss / summary.num_vertices,
-        summary.iterations, summary.smoothing_runs, summary.warm_iterations, summary.total_time_s,
-        summary.termination.c_str(), summary.learned_data_loss / summary.num_vertices, summary.bump_search_moves,
-        summary.pattern_search_moves);
+        summary.iterations, summary.smoothing_runs, summary.total_time_s, summary.termination.c_str(),
+        summary.learned_data_loss / summary.num_vertices, summary.bump_search_moves);
     std::printf("curve (s, D/vertex):");
     for (size_t i = 0; i < summary.data_loss.size(); i += std::max<size_t>(1, summary.data_loss.size() / 20)) {
       std::printf(" %.0f:%.5f", summary.time_s[i], summary.data_loss[i] / summary.num_vertices);

@@ -80,7 +80,7 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
       // σ_ray = σ_Z / r_z = σ_Z·|p|/Z. A pixel error δ (σ_px per image axis) moves the point by Z/f·δ at its
       // depth; across the ray that is Z/f·σ_px tangentially and Z/f·σ_px·cos θ radially (θ the ray's angle
       // to the optical axis). σ_lat² is half the trace of that 2×2 covariance, (Z·σ_px/f)²·(Z² + |p|²)/(2|p|²),
-      // so E[|e_⊥|²/σ_lat²] = 2 exactly (DESIGN.md §2 writes Z/f·σ_px, its on-axis value; |p|/f·σ_px, used
+      // so E[|e_⊥|²/σ_lat²] = 2 exactly (docs/design.md §2 writes Z/f·σ_px, its on-axis value; |p|/f·σ_px, used
       // before, overstated it off-axis by up to 1/cos²θ: a mean of 1.64 instead of 2 at 53° field of view).
       const double sigma_ray = sz[g] * norm / depth;
       const double b = depth * depth * inv_fx * inv_fx * sigma_px * sigma_px * (depth * depth + norm * norm) /

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "bayes/learn_prior_io.h"
+#include "bayes/learning/training_set.h"
 #include "tests/apps/run_binary.h"
 
 namespace rangebayes {
@@ -49,6 +50,37 @@ TEST(LearnCli, SynthThenLearn) {
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
   EXPECT_EQ(usage.exit_code, 2) << usage.output;
+  std::filesystem::remove_all(dir);
+}
+
+// The command's defaults are LearnPriorOptions{}: the same training set read by the library and the same two
+// overrides on both sides give the same θ, bit for bit, and the same method record.
+TEST(LearnCli, DefaultTrainingEqualsTheLibrary) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rb_learn_cli_default_test";
+  std::filesystem::remove_all(dir);
+  const RunResult synth = RunRangebayes("synth-meshes --out '" + dir.string() +
+                                        "' --train 2 --test 0 --min-cells 4 --max-cells 5 --noise 0.2 "
+                                        "--noise-max 0.5 --quiet");
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const std::string list = (dir / "train_pairs.txt").string();
+  const std::string prior = (dir / "prior.yaml").string();
+  const RunResult learn =
+      RunRangebayes("learn-prior --pairs '" + list + "' --out '" + prior + "' --bump-sweeps 2 --threads 1 --quiet");
+  ASSERT_EQ(learn.exit_code, 0) << learn.output;
+  const LearnedPrior cli = ReadLearnedPrior(prior);
+
+  LearnPriorOptions options;
+  options.bump_search_sweeps = 2;
+  options.num_threads = 1;
+  const TrainingSet set = ReadTrainingSet(list);
+  LearnPriorSummary summary;
+  const Eigen::VectorXd theta = LearnPrior(set.pairs, options, {}, &summary);
+  EXPECT_EQ(cli.theta, theta);
+  EXPECT_EQ(cli.method, summary.method);
+  EXPECT_EQ(cli.prior_weight, options.prior_weight);
+  EXPECT_EQ(cli.noise_kind, set.noise_kind);
+  EXPECT_EQ(cli.training_pairs, 2);
+  EXPECT_NE(learn.output.find(summary.method), std::string::npos) << learn.output;
   std::filesystem::remove_all(dir);
 }
 

@@ -1,4 +1,4 @@
-#include "bayes/synth_meshes.h"
+#include "bayes/learning/synth_meshes.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "bayes/synth_meshes.h"
+#include "bayes/learning/synth_meshes.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -291,7 +291,7 @@ NoisyMesh AddSynthNoise(const Mesh& clean, const SynthNoiseOptions& options, std
     }
     return noisy;
   }
-  // Ray-aligned noise from a virtual camera far outside the object (DESIGN §2): σ_ray along the ray,
+  // Ray-aligned noise from a virtual camera far outside the object (docs/design.md §2): σ_ray along the ray,
   // σ_ray / 10 across it, the typical ratio of a stereo scanner.
   Eigen::Vector3d view(rng.Gaussian(), rng.Gaussian(), rng.Gaussian());
   view.normalize();
