@@ -67,10 +67,11 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
   return summary;
 }
 
-// Array job ids that squeue lists (queued or running), or nothing when squeue is not installed.
-std::set<std::string> QueuedArrayJobs(const std::string& squeue) {
+// Array job ids that squeue lists (queued or running); `*listed` tells whether squeue could be run at all.
+std::set<std::string> QueuedArrayJobs(const std::string& squeue, bool* listed) {
   const CapturedRun run = RunAndCapture({squeue, "--noheader", "--array", "--format=%F"});
   std::set<std::string> jobs;
+  *listed = run.started;
   if (!run.started) return jobs;
   RB_CHECK(run.exit.exit_code == 0, "squeue failed (exit ", run.exit.exit_code, "): ", LastLine(run.err),
            "; resubmit checks that no task of the batch is still queued");
@@ -170,19 +171,28 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   const BatchLayout layout(dir);
   BatchRecord record = ReadBatchRecord(layout);
   const BatchReport report = CollectBatchReport(layout.dir);
-  const std::vector<int> indices = report.UnfinishedIndices();
-  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
-           report.running, " running)");
   std::set<std::string> ours;
   for (const BatchSubmission& s : record.submissions) {
     if (s.kind == "slurm") ours.insert(s.job_id);
   }
+  bool queue_listed = false;
   if (!ours.empty()) {
-    for (const std::string& id : QueuedArrayJobs(options.squeue)) {
+    for (const std::string& id : QueuedArrayJobs(options.squeue, &queue_listed)) {
       RB_CHECK(ours.count(id) == 0, "Slurm job ", id, " of this batch is still queued or running; wait for it (squeue -j ",
                id, ") or cancel it (scancel ", id, ") before batch resubmit");
     }
   }
+  std::vector<int> indices = report.UnfinishedIndices();
+  if (queue_listed) {
+    // No job of the batch is left in the queue, so a task still marked running was killed before it could
+    // write its final status (SIGKILL, a lost node): it is unfinished too.
+    for (size_t i = 0; i < report.states.size(); ++i) {
+      if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
+    }
+    std::sort(indices.begin(), indices.end());
+  }
+  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
+           report.running, " running)");
   if (!options.binary.empty()) record.binary = options.binary;
   return Submit(layout, record, indices, options);
 }

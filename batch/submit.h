@@ -38,8 +38,10 @@ struct BatchSubmitSummary {
 BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
                                const BatchSubmitOptions& options);
 
-// Submits exactly the missing and failed tasks of DIR again (a new array, or local workers). Throws when
-// none is left, or when squeue lists a job of this batch still queued or running.
+// Submits exactly the missing and failed tasks of DIR again (a new array, or local workers); when the batch
+// has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running
+// (killed before they could record their end). Throws when none is left, or when squeue lists a job of this
+// batch still queued or running.
 BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options);
 
 // Runs the given tasks of DIR with `workers` processes of `binary batch run-task DIR I` and returns when all

@@ -3,8 +3,8 @@
 # one job slot each) and with `batch submit --local 2` (two slots too), plus the same for N trivial tasks
 # (`info`), whose wall time is nearly all scheduling overhead. Needs root and the Slurm/munge packages.
 #   usage (repository root): bench/batch_slurm_bench.sh build/ci/apps/rangebayes [N=32]
-# Prints one table row per run: tasks/minute and the overhead per task of Slurm against --local,
-# (wall_slurm - wall_local) * slots / N.
+# Prints one table row per run: tasks/minute, and the overhead per task (see row() below); Slurm's extra
+# overhead per task is the difference of the two rows.
 set -euo pipefail
 rb=$(realpath "$1")
 n=${2:-32}
@@ -43,12 +43,20 @@ check() {
   "$rb" batch status "$1" | head -1 | grep -q "$n succeeded" || { "$rb" batch status "$1"; exit 1; }
 }
 
-printf "| tasks | path | wall (s) | tasks/min | overhead/task vs --local (s) |\n|---|---|---|---|---|\n"
+# Seconds spent inside the tasks' commands (status files), summed over all tasks.
+command_s() { cat "$1"/status/*.json | awk -F': ' '/"duration_s"/ { gsub(",", "", $2); t += $2 } END { print t }'; }
+# Overhead per task = (wall x 2 slots - command time) / N: the time a slot spends on anything but a command
+# (starting run-task and the command's process, and for Slurm scheduling, slurmstepd and the job script).
+row() {  # row NAME PATH WALL DIR
+  local c; c=$(command_s "$4")
+  printf "| %d %s | %s | %.1f | %.1f | %.1f | %.2f |\n" "$n" "$1" "$2" "$3" \
+    "$(awk -v n="$n" -v t="$3" 'BEGIN { print n * 60 / t }')" "$c" \
+    "$(awk -v n="$n" -v t="$3" -v c="$c" 'BEGIN { print (t * 2 - c) / n }')"
+}
+printf "| tasks | path | wall (s) | tasks/min | command time (s) | overhead/task (s) |\n|---|---|---|---|---|---|\n"
 for kind in smooth info; do
   tl=$(run_local "$m/$kind.txt" "$work/$kind-local"); check "$work/$kind-local"
-  ts=$(run_slurm "$m/$kind.txt" "$work/$kind-slurm"); check "$work/$kind-slurm"
-  printf "| %d %s | --local 2 | %.2f | %.0f | |\n" "$n" "$kind" "$tl" "$(awk -v n="$n" -v t="$tl" 'BEGIN { print n * 60 / t }')"
-  printf "| %d %s | Slurm, 2 nodes x 1 slot | %.2f | %.0f | %.3f |\n" "$n" "$kind" "$ts" \
-    "$(awk -v n="$n" -v t="$ts" 'BEGIN { print n * 60 / t }')" \
-    "$(awk -v n="$n" -v s="$ts" -v l="$tl" 'BEGIN { print (s - l) * 2 / n }')"
+  ts=$(run_slurm "$m/$kind.txt" "$work/$kind-slurm" 2>/dev/null); check "$work/$kind-slurm"
+  row "$kind" "--local 2" "$tl" "$work/$kind-local"
+  row "$kind" "Slurm, 2 nodes x 1 slot" "$ts" "$work/$kind-slurm"
 done

@@ -286,7 +286,8 @@ TEST(Slurm, MissingOrRefusingSbatchIsOneClearError) {
 TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
   const TempDir dir("resubmit");
   const std::string manifest =
-      MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\nconvert in/tet.obj c.ply\n");
+      MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\nconvert in/tet.obj c.ply\n"
+                               "convert in/tet.obj d.ply\n");
   BatchSubmitOptions options;
   options.binary = RB_BINARY;
   // Records its arguments and accepts the job.
@@ -300,7 +301,7 @@ TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
       << ReadText(out + "/slurm/job.sh");
   EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).job_id, "41");
 
-  // Task 1 ran and succeeded; 0 failed; 2 never started.
+  // Task 1 ran and succeeded; 0 failed; 2 was killed while running (its status says running); 3 never started.
   RunTaskOptions run;
   run.binary = RB_BINARY;
   run.forward_signals = false;
@@ -310,13 +311,18 @@ TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
   failed.state = "failed";
   failed.exit_code = 1;
   WriteBatchTaskStatus(BatchLayout(out), failed);
+  BatchTaskStatus killed;
+  killed.index = 2;
+  killed.state = "running";
+  WriteBatchTaskStatus(BatchLayout(out), killed);
+  EXPECT_EQ(CollectBatchReport(out).UnfinishedIndices(), (std::vector<int>{0, 3}));
 
   EXPECT_THROW(ResubmitBatch(out, options), Error);  // squeue still lists job 41
   options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
   options.max_parallel = 1;
   const BatchSubmitSummary second = ResubmitBatch(out, options);
-  EXPECT_EQ(second.indices, (std::vector<int>{0, 2}));
-  EXPECT_NE(ReadText(dir.path() + "/sbatch.args").find("--array=0,2%1"), std::string::npos)
+  EXPECT_EQ(second.indices, (std::vector<int>{0, 2, 3}));
+  EXPECT_NE(ReadText(dir.path() + "/sbatch.args").find("--array=0,2-3%1"), std::string::npos)
       << ReadText(dir.path() + "/sbatch.args");
   EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.size(), 2u);
 }

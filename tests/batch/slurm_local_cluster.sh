@@ -29,6 +29,7 @@ rb_cluster_free_port() {
 
 rb_cluster_start() {
   local root=$1 nodes=${2:-1} cpus=${3:-$(nproc)}
+  local t0; t0=$(date +%s%N)
   RB_CLUSTER_ROOT=$root
   mkdir -p "$root"/munge "$root"/munge-run "$root"/state "$root"/spool "$root"/log
   chmod 755 "$root" "$root"/munge-run
@@ -102,7 +103,11 @@ CONF
   # Up when every node is idle.
   for i in $(seq 300); do
     local idle; idle=$(sinfo -h -N -t idle -o %N 2>/dev/null | sort -u | wc -l)
-    [ "$idle" -ge "$nodes" ] && { rb_cluster_log "up: $nodes node(s), $cpus CPUs each, after $((i / 10)).$((i % 10)) s"; return 0; }
+    if [ "$idle" -ge "$nodes" ]; then
+      local ms=$((($(date +%s%N) - t0) / 1000000))
+      rb_cluster_log "up: $nodes node(s), $cpus CPUs each, $((ms / 1000)).$(printf %03d $((ms % 1000))) s after the start"
+      return 0
+    fi
     sleep 0.1
   done
   rb_cluster_log "nodes did not become idle:"; sinfo -N >&2 || true; tail -20 "$root"/log/*.log >&2
