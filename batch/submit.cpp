@@ -151,7 +151,8 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
   options.Check();
   const std::vector<ManifestTask> tasks = ReadManifest(manifest_path);
   const BatchLayout layout(dir);
-  RB_CHECK(!fs::exists(layout.record()), layout.dir,
+  // A folder whose earlier submit was refused (no submission recorded) may be used again.
+  RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,
            ": already holds a batch (batch.json); use batch resubmit DIR, or another --out");
   fs::create_directories(layout.dir);
   fs::copy_file(manifest_path, layout.manifest(), fs::copy_options::overwrite_existing);

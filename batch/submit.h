@@ -31,7 +31,7 @@ struct BatchSubmitSummary {
   std::string BriefReport() const;
 };
 
-// Creates DIR (it must not hold a batch yet), copies the manifest into it and submits every task. With
+// Creates DIR (it must not hold a batch yet, unless its only submit was refused), copies the manifest into it and submits every task. With
 // local_workers > 0 it returns when every task has ended (see BatchReport for the outcome); otherwise it
 // returns after sbatch accepted the array. Throws with sbatch's own error line when sbatch is missing or
 // refuses the job.

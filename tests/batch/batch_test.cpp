@@ -281,6 +281,9 @@ TEST(Slurm, MissingOrRefusingSbatchIsOneClearError) {
     EXPECT_EQ(std::string(e.what()),
               "sbatch refused the job (exit 1): sbatch: error: Batch job submission failed: Invalid partition name");
   }
+  // After the refusal the same folder can be submitted again.
+  options.sbatch = FakeProgram(dir.path() + "/accept", "echo 5");
+  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).submission.job_id, "5");
 }
 
 TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {

@@ -74,6 +74,13 @@ smooth meshes/fandisk_noisy_gauss0.3.obj "fandisk smoothed.ply" --noise 0.3 --to
 smooth later/block.obj block.ply --tolerance fast --threads 1
 MANIFEST
 
+# sbatch refusing (an unknown partition) and sbatch missing: one error line each, exit 1.
+if err=$("$rb" batch submit "$m"/tasks.txt --out "$work"/refused --partition nope 2>&1); then fail "submit to partition nope"; fi
+expect_in "$err" "rangebayes batch submit: error: sbatch refused the job (exit 1): sbatch: error:" "sbatch refusing"
+[ "$(wc -l <<<"$err")" -eq 1 ] || fail "more than one error line: $err"
+if err=$(PATH=/nonexistent "$rb" batch submit "$m"/tasks.txt --out "$work"/nosbatch 2>&1); then fail "submit without sbatch"; fi
+expect_in "$err" "sbatch: cannot run sbatch (No such file or directory)" "sbatch missing"
+
 slurm="$work"/slurm
 job=$("$rb" batch submit "$m"/tasks.txt --out "$slurm" --max-parallel 2)
 [[ $job =~ ^[0-9]+$ ]] || fail "batch submit printed '$job', not a job id"
