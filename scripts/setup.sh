@@ -18,6 +18,7 @@ packages=(
   libbenchmark-dev       # bench/
   libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
   clang libclang-rt-14-dev   # libFuzzer targets
+  slurmctld slurmd slurm-client munge  # batch/: the test's and bench's throw-away loopback Slurm cluster
 )
 
 missing=()

@@ -1,0 +1,131 @@
+// `rangebayes batch submit|run-task|status|resubmit`: many subcommand lines on a Slurm cluster or on local
+// worker processes (batch/submit.h, batch/task.h).
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/command.h"
+#include "batch/submit.h"
+#include "batch/task.h"
+
+namespace rangebayes::apps {
+namespace {
+
+struct SubmitArgs {
+  std::string manifest, out, dir;
+  BatchSubmitOptions options;
+};
+
+void AddSchedulingOptions(CLI::App* sub, SubmitArgs* a) {
+  sub->add_option("--partition", a->options.partition, "Slurm partition (sbatch --partition); default: the cluster's");
+  sub->add_option("--max-parallel", a->options.max_parallel,
+                  "at most N tasks of the array at once (--array=...%N); 0: no limit")
+      ->check(CLI::Range(0, 100000));
+  sub->add_option("--slurm-arg", a->options.slurm_args,
+                  "extra sbatch argument, repeatable; write --slurm-arg=--time=1:00:00 for one that starts with -");
+  sub->add_option("--local", a->options.local_workers,
+                  "run here with N worker processes instead of Slurm; returns when every task has ended")
+      ->check(CLI::Range(1, 1024));
+}
+
+void PrintTaskEnd(const BatchTaskStatus& s) {
+  if (s.state == "succeeded") {
+    std::printf("task %d: succeeded in %.2f s\n", s.index, s.duration_s);
+  } else {
+    std::printf("task %d: failed (exit %d) after %.2f s: %s\n", s.index, s.exit_code, s.duration_s,
+                s.error_line.c_str());
+  }
+  std::fflush(stdout);
+}
+
+// After a local run: the counts and failures; exit 3 when a task failed (partial success).
+void FinishLocal(const BatchSubmitSummary& summary) {
+  std::printf("%s\n", summary.BriefReport().c_str());
+  const BatchReport report = CollectBatchReport(summary.dir);
+  std::printf("%s", report.BriefReport().c_str());
+  if (report.failed > 0 || report.missing > 0) SetExitCode(3);
+}
+
+void Submitted(const BatchSubmitSummary& summary) {
+  if (summary.submission.kind == "local") {
+    FinishLocal(summary);
+    return;
+  }
+  std::printf("%s\n", summary.submission.job_id.c_str());
+  std::fprintf(stderr, "%s; follow it with: rangebayes batch status %s\n", summary.BriefReport().c_str(),
+               summary.dir.c_str());
+}
+
+void AddBatch(CLI::App& app) {
+  CLI::App* batch = app.add_subcommand(
+      "batch", "Run a manifest of subcommand lines as a Slurm job array, or on local worker processes");
+  batch->require_subcommand(1);
+
+  {
+    auto a = std::make_shared<SubmitArgs>();
+    CLI::App* sub = batch->add_subcommand(
+        "submit",
+        "Submit every line of MANIFEST (one rangebayes subcommand per line, # comments) as one Slurm job array; "
+        "prints the job id. Inputs are paths relative to the manifest's folder, outputs relative to the task's "
+        "folder DIR/tasks/<index>/ (README, Batch processing)");
+    sub->add_option("MANIFEST", a->manifest, "manifest file")->required()->check(CLI::ExistingFile);
+    sub->add_option("--out", a->out, "batch folder DIR (created; must not hold a batch yet)")->required();
+    AddSchedulingOptions(sub, a.get());
+    sub->callback([a] {
+      if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
+      Submitted(SubmitBatch(a->manifest, a->out, a->options));
+    });
+  }
+  {
+    auto a = std::make_shared<SubmitArgs>();
+    CLI::App* sub = batch->add_subcommand(
+        "resubmit", "Submit exactly the missing and failed tasks of DIR again, as a new job array (or --local N)");
+    sub->add_option("DIR", a->dir, "batch folder")->required();
+    AddSchedulingOptions(sub, a.get());
+    sub->callback([a] {
+      if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
+      Submitted(ResubmitBatch(a->dir, a->options));
+    });
+  }
+  {
+    struct Args {
+      std::string dir;
+      int index = 0;
+    };
+    auto a = std::make_shared<Args>();
+    CLI::App* sub = batch->add_subcommand(
+        "run-task",
+        "Run task I of DIR (what each array task runs): in a temporary folder renamed to DIR/tasks/I/ only on "
+        "success; writes DIR/status/I.json; exits with the task's exit code");
+    sub->add_option("DIR", a->dir, "batch folder")->required();
+    sub->add_option("I", a->index, "task index (0-based, manifest order)")->required()->check(CLI::NonNegativeNumber);
+    sub->callback([a] {
+      const BatchTaskStatus s = RunBatchTask(a->dir, a->index);
+      PrintTaskEnd(s);
+      if (s.state != "succeeded") SetExitCode(s.exit_code > 0 && s.exit_code < 256 ? s.exit_code : 1);
+    });
+  }
+  {
+    struct Args {
+      std::string dir;
+      bool json = false;
+    };
+    auto a = std::make_shared<Args>();
+    CLI::App* sub = batch->add_subcommand(
+        "status", "Counts of succeeded, failed, running and missing tasks of DIR, and each failure's error line");
+    sub->add_option("DIR", a->dir, "batch folder")->required();
+    sub->add_flag("--json", a->json, "print JSON (every task with its status file)");
+    sub->callback([a] {
+      const BatchReport report = CollectBatchReport(a->dir);
+      std::printf("%s", a->json ? report.Json().c_str() : report.BriefReport().c_str());
+    });
+  }
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(80, AddBatch);
+
+}  // namespace rangebayes::apps

@@ -1,0 +1,244 @@
+#include "batch/submit.h"
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "batch/process.h"
+#include "core/error.h"
+
+namespace rangebayes {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string JobScript(const BatchRecord& record, const BatchLayout& layout) {
+  std::ostringstream s;
+  s << "#!/bin/sh\n"
+    << "# rangebayes batch: runs task $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
+    << "# (the sbatch command lines are in " << layout.record() << ").\n"
+    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir}) << " \"$SLURM_ARRAY_TASK_ID\"\n";
+  return s.str();
+}
+
+BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const std::vector<int>& indices,
+                          const BatchSubmitOptions& options) {
+  BatchSubmitSummary summary;
+  summary.dir = layout.dir;
+  summary.indices = indices;
+  BatchSubmission& submission = summary.submission;
+  submission.time_utc = NowUtc();
+  submission.indices = indices;
+  if (options.local_workers > 0) {
+    submission.kind = "local";
+    submission.workers = options.local_workers;
+    record.submissions.push_back(submission);
+    WriteBatchRecord(layout, record);
+    BatchSubmitOptions local = options;
+    local.binary = record.binary;
+    RunBatchLocally(layout, indices, local);
+    return summary;
+  }
+  submission.kind = "slurm";
+  fs::create_directories(layout.slurm_dir());
+  summary.job_script = layout.slurm_dir() + "/job.sh";
+  WriteFileAtomically(summary.job_script, JobScript(record, layout));
+  fs::permissions(summary.job_script, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
+                                          fs::perms::others_read | fs::perms::others_exec);
+  submission.command = SbatchCommand(layout, indices, options, summary.job_script);
+  const CapturedRun run = RunAndCapture(submission.command);
+  RB_CHECK(run.started, options.sbatch, ": cannot run sbatch (", run.error,
+           "); submit from a machine with the Slurm client installed, or use --local N to run here");
+  if (run.exit.exit_code != 0) {
+    std::string line = LastLine(run.err);
+    if (line.empty()) line = LastLine(run.out);
+    RB_FAIL("sbatch refused the job (exit ", run.exit.exit_code, "): ", line.empty() ? "no message" : line);
+  }
+  submission.job_id = ParseSbatchJobId(run.out);
+  record.submissions.push_back(submission);
+  WriteBatchRecord(layout, record);
+  return summary;
+}
+
+// Array job ids that squeue lists (queued or running); `*listed` tells whether squeue could be run at all.
+std::set<std::string> QueuedArrayJobs(const std::string& squeue, bool* listed) {
+  const CapturedRun run = RunAndCapture({squeue, "--noheader", "--array", "--format=%F"});
+  std::set<std::string> jobs;
+  *listed = run.started;
+  if (!run.started) return jobs;
+  RB_CHECK(run.exit.exit_code == 0, "squeue failed (exit ", run.exit.exit_code, "): ", LastLine(run.err),
+           "; resubmit checks that no task of the batch is still queued");
+  std::istringstream in(run.out);
+  std::string id;
+  while (in >> id) jobs.insert(id);
+  return jobs;
+}
+
+}  // namespace
+
+void BatchSubmitOptions::Check() const {
+  RB_CHECK(max_parallel >= 0 && max_parallel <= 100000, "--max-parallel must be 0-100000, got ", max_parallel);
+  RB_CHECK(local_workers >= 0 && local_workers <= 1024, "--local must be 1-1024 workers, got ", local_workers);
+  RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "BatchSubmitOptions::binary must be absolute: ", binary);
+  RB_CHECK(partition.find_first_of(" \t\n") == std::string::npos, "--partition has whitespace: '", partition, "'");
+  RB_CHECK(!sbatch.empty() && !squeue.empty(), "BatchSubmitOptions: sbatch and squeue must be named");
+}
+
+std::string BatchSubmitSummary::BriefReport() const {
+  std::ostringstream out;
+  if (submission.kind == "local") {
+    out << "ran " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " on " << submission.workers
+        << " local worker" << (submission.workers == 1 ? "" : "s") << " in " << dir;
+  } else {
+    out << "submitted " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " as Slurm job "
+        << submission.job_id << " (array " << ArraySpec(indices, 0) << ") in " << dir;
+  }
+  return out.str();
+}
+
+std::string ArraySpec(const std::vector<int>& input, int max_parallel) {
+  std::vector<int> indices = input;
+  std::sort(indices.begin(), indices.end());
+  indices.erase(std::unique(indices.begin(), indices.end()), indices.end());
+  RB_CHECK(!indices.empty(), "no tasks to submit");
+  std::ostringstream out;
+  for (size_t i = 0; i < indices.size();) {
+    size_t j = i;
+    while (j + 1 < indices.size() && indices[j + 1] == indices[j] + 1) ++j;
+    if (i > 0) out << ',';
+    out << indices[i];
+    if (j > i) out << '-' << indices[j];
+    i = j + 1;
+  }
+  if (max_parallel > 0) out << '%' << max_parallel;
+  return out.str();
+}
+
+std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vector<int>& indices,
+                                       const BatchSubmitOptions& options, const std::string& job_script) {
+  std::vector<std::string> command = {options.sbatch,
+                                      "--parsable",
+                                      "--job-name=rangebayes-batch",
+                                      "--array=" + ArraySpec(indices, options.max_parallel),
+                                      "--requeue",
+                                      "--open-mode=append",
+                                      "--output=" + layout.slurm_dir() + "/%A_%a.out",
+                                      "--chdir=" + layout.dir};
+  if (!options.partition.empty()) command.push_back("--partition=" + options.partition);
+  command.insert(command.end(), options.slurm_args.begin(), options.slurm_args.end());
+  command.push_back(job_script);
+  return command;
+}
+
+std::string ParseSbatchJobId(const std::string& output) {
+  std::string line = LastLine(output);
+  const size_t semicolon = line.find(';');
+  if (semicolon != std::string::npos) line = line.substr(0, semicolon);
+  RB_CHECK(!line.empty() && line.find_first_not_of("0123456789") == std::string::npos,
+           "sbatch printed no job id (output: '", LastLine(output), "')");
+  return line;
+}
+
+BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
+                               const BatchSubmitOptions& options) {
+  options.Check();
+  const std::vector<ManifestTask> tasks = ReadManifest(manifest_path);
+  const BatchLayout layout(dir);
+  // A folder whose earlier submit was refused (no submission recorded) may be used again.
+  RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,
+           ": already holds a batch (batch.json); use batch resubmit DIR, or another --out");
+  fs::create_directories(layout.dir);
+  fs::copy_file(manifest_path, layout.manifest(), fs::copy_options::overwrite_existing);
+  BatchRecord record;
+  record.manifest_source = fs::absolute(manifest_path).lexically_normal().string();
+  record.manifest_dir = fs::path(record.manifest_source).parent_path().string();
+  record.binary = options.binary.empty() ? SelfExecutable() : options.binary;
+  record.num_tasks = static_cast<int>(tasks.size());
+  std::vector<int> indices;
+  for (const ManifestTask& t : tasks) indices.push_back(t.index);
+  WriteBatchRecord(layout, record);
+  return Submit(layout, record, indices, options);
+}
+
+BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options) {
+  options.Check();
+  const BatchLayout layout(dir);
+  BatchRecord record = ReadBatchRecord(layout);
+  const BatchReport report = CollectBatchReport(layout.dir);
+  std::set<std::string> ours;
+  for (const BatchSubmission& s : record.submissions) {
+    if (s.kind == "slurm") ours.insert(s.job_id);
+  }
+  bool queue_listed = false;
+  if (!ours.empty()) {
+    for (const std::string& id : QueuedArrayJobs(options.squeue, &queue_listed)) {
+      RB_CHECK(ours.count(id) == 0, "Slurm job ", id, " of this batch is still queued or running; wait for it (squeue -j ",
+               id, ") or cancel it (scancel ", id, ") before batch resubmit");
+    }
+  }
+  std::vector<int> indices = report.UnfinishedIndices();
+  if (queue_listed) {
+    // No job of the batch is left in the queue, so a task still marked running was killed before it could
+    // write its final status (SIGKILL, a lost node): it is unfinished too.
+    for (size_t i = 0; i < report.states.size(); ++i) {
+      if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
+    }
+    std::sort(indices.begin(), indices.end());
+  }
+  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
+           report.running, " running)");
+  if (!options.binary.empty()) record.binary = options.binary;
+  return Submit(layout, record, indices, options);
+}
+
+void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices, const BatchSubmitOptions& options) {
+  RB_CHECK(options.local_workers > 0, "RunBatchLocally needs local_workers > 0");
+  const std::string binary = options.binary.empty() ? SelfExecutable() : options.binary;
+  fs::create_directories(layout.dir + "/local");
+  const std::string output = layout.dir + "/local/run-task.out";
+  std::map<pid_t, int> running;
+  size_t next = 0;
+  auto finish = [&](pid_t pid, const ProcessExit& exit) {
+    const int index = running.at(pid);
+    running.erase(pid);
+    std::optional<BatchTaskStatus> status = ReadBatchTaskStatus(layout, index);
+    if (!status || status->state == "running") {
+      // run-task died before writing its final status.
+      BatchTaskStatus failed = status.value_or(BatchTaskStatus{});
+      failed.index = index;
+      failed.state = "failed";
+      failed.exit_code = exit.exit_code;
+      failed.end_utc = NowUtc();
+      failed.error_line = "batch run-task ended with exit " + std::to_string(exit.exit_code) +
+                          " without a final status (see " + output + ")";
+      WriteBatchTaskStatus(layout, failed);
+      status = failed;
+    }
+    if (options.on_task_end) options.on_task_end(*status);
+  };
+  while (next < indices.size() || !running.empty()) {
+    while (next < indices.size() && static_cast<int>(running.size()) < options.local_workers) {
+      ProcessSpec spec;
+      spec.argv = {binary, "batch", "run-task", layout.dir, std::to_string(indices[next])};
+      spec.output_path = output;
+      running[StartProcess(spec)] = indices[next];
+      ++next;
+    }
+    int status = 0;
+    const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) {
+      RB_CHECK(errno == EINTR, "waitpid: ", std::strerror(errno));
+      continue;
+    }
+    if (running.count(pid) != 0) finish(pid, DecodeWaitStatus(status));
+  }
+}
+
+}  // namespace rangebayes

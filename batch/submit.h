@@ -1,0 +1,61 @@
+// Submitting a batch: one Slurm job array through the sbatch command line, or local worker processes.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "batch/task.h"
+
+namespace rangebayes {
+
+struct BatchSubmitOptions {
+  std::string partition;                // sbatch --partition; empty: the cluster's default
+  int max_parallel = 0;                 // array throttle (--array=...%N); 0: no limit; 1-100000
+  std::vector<std::string> slurm_args;  // passed to sbatch as they are (e.g. --time=1:00:00, --cpus-per-task=4)
+  int local_workers = 0;                // > 0: run here with this many worker processes instead of Slurm
+  std::string binary;                   // rangebayes binary the tasks run (absolute); empty: this executable
+  std::string sbatch = "sbatch";        // sbatch program (a name on PATH or a path)
+  std::string squeue = "squeue";        // squeue program, for resubmit's check that nothing is still queued
+  // Called (in the submitting process) when a local task has ended.
+  std::function<void(const BatchTaskStatus&)> on_task_end;
+  void Check() const;
+};
+
+struct BatchSubmitSummary {
+  std::string dir;
+  std::vector<int> indices;            // the tasks submitted
+  BatchSubmission submission;          // as recorded in DIR/batch.json
+  std::string job_script;              // Slurm: the script sbatch ran
+  // One line: "submitted 6 tasks as Slurm job 12 (DIR)" or "ran 6 tasks on 2 local workers: ...".
+  std::string BriefReport() const;
+};
+
+// Creates DIR (it must not hold a batch yet, unless its only submit was refused), copies the manifest into it and submits every task. With
+// local_workers > 0 it returns when every task has ended (see BatchReport for the outcome); otherwise it
+// returns after sbatch accepted the array. Throws with sbatch's own error line when sbatch is missing or
+// refuses the job.
+BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
+                               const BatchSubmitOptions& options);
+
+// Submits exactly the missing and failed tasks of DIR again (a new array, or local workers); when the batch
+// has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running
+// (killed before they could record their end). Throws when none is left, or when squeue lists a job of this
+// batch still queued or running.
+BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options);
+
+// Runs the given tasks of DIR with `workers` processes of `binary batch run-task DIR I` and returns when all
+// have ended; their own output goes to DIR/local/run-task.out.
+void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices, const BatchSubmitOptions& options);
+
+// sbatch's --array value: ascending indices as ranges ("0-5", "1,3,7-9"), with "%N" when max_parallel > 0.
+std::string ArraySpec(const std::vector<int>& indices, int max_parallel);
+
+// The sbatch command line for `indices` of the batch (everything but the job script is an option).
+std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vector<int>& indices,
+                                       const BatchSubmitOptions& options, const std::string& job_script);
+
+// The job id in sbatch --parsable output ("12" or "12;cluster"); throws when there is none.
+std::string ParseSbatchJobId(const std::string& output);
+
+}  // namespace rangebayes

@@ -1,0 +1,432 @@
+#include "batch/task.h"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "batch/process.h"
+#include "core/error.h"
+
+namespace rangebayes {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  RB_CHECK(in.good(), path, ": cannot read");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string Env(const char* name) {
+  const char* value = std::getenv(name);
+  return value == nullptr ? "" : value;
+}
+
+std::string HostName() {
+  char name[256] = {};
+  if (gethostname(name, sizeof(name) - 1) != 0) return "";
+  return name;
+}
+
+// The line that says why a command failed: its last line containing "error:", else its last line.
+std::string ErrorLine(const std::string& output) {
+  std::istringstream in(output);
+  std::string line, last, last_error;
+  while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    // Progress output rewrites its line with carriage returns; keep what was printed last.
+    const size_t cr = line.find_last_of('\r');
+    if (cr != std::string::npos) line = line.substr(cr + 1);
+    if (line.empty()) continue;
+    last = line;
+    if (line.find("error:") != std::string::npos) last_error = line;
+  }
+  return last_error.empty() ? last : last_error;
+}
+
+volatile sig_atomic_t g_child_pid = 0;
+volatile sig_atomic_t g_signal = 0;
+
+void ForwardSignal(int sig) {
+  g_signal = sig;
+  if (g_child_pid > 0) kill(static_cast<pid_t>(g_child_pid), sig);
+}
+
+struct SignalForwarding {
+  bool active = false;
+  struct sigaction old_term{}, old_int{}, old_hup{};
+  explicit SignalForwarding(bool on) : active(on) {
+    if (!active) return;
+    g_signal = 0;
+    struct sigaction sa{};
+    sa.sa_handler = ForwardSignal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGTERM, &sa, &old_term);
+    sigaction(SIGINT, &sa, &old_int);
+    sigaction(SIGHUP, &sa, &old_hup);
+  }
+  ~SignalForwarding() {
+    g_child_pid = 0;
+    if (!active) return;
+    sigaction(SIGTERM, &old_term, nullptr);
+    sigaction(SIGINT, &old_int, nullptr);
+    sigaction(SIGHUP, &old_hup, nullptr);
+  }
+  SignalForwarding(const SignalForwarding&) = delete;
+  SignalForwarding& operator=(const SignalForwarding&) = delete;
+};
+
+// Moves `from` to `to`; an existing `to` (an older result) is moved aside first and removed after.
+void Publish(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(to)) {
+    old = to.parent_path() / (".old-" + to.filename().string() + "-" + std::to_string(getpid()));
+    fs::rename(to, old, ec);
+    RB_CHECK(!ec, to.string(), ": cannot move the older result aside (", ec.message(), ")");
+  }
+  fs::rename(from, to, ec);
+  RB_CHECK(!ec, from.string(), ": cannot rename to ", to.string(), " (", ec.message(), ")");
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
+}  // namespace
+
+BatchLayout::BatchLayout(const std::string& folder)
+    : dir(fs::absolute(fs::path(folder)).lexically_normal().string()) {
+  while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+}
+std::string BatchLayout::manifest() const { return dir + "/manifest.txt"; }
+std::string BatchLayout::record() const { return dir + "/batch.json"; }
+std::string BatchLayout::tasks_dir() const { return dir + "/tasks"; }
+std::string BatchLayout::task_dir(int index) const { return tasks_dir() + "/" + std::to_string(index); }
+std::string BatchLayout::status_file(int index) const { return dir + "/status/" + std::to_string(index) + ".json"; }
+std::string BatchLayout::log_file(int index) const { return dir + "/logs/" + std::to_string(index) + ".log"; }
+std::string BatchLayout::slurm_dir() const { return dir + "/slurm"; }
+
+std::string NowUtc() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900, tm.tm_mon + 1,
+                tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(ms));
+  return buffer;
+}
+
+void WriteFileAtomically(const std::string& path, const std::string& text) {
+  const fs::path target(path);
+  const fs::path temporary =
+      target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(getpid()));
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    RB_CHECK(out.good(), temporary.string(), ": cannot write");
+    out << text;
+    out.close();
+    RB_CHECK(out.good(), temporary.string(), ": write failed");
+  }
+  std::error_code ec;
+  fs::rename(temporary, target, ec);
+  RB_CHECK(!ec, path, ": cannot replace (", ec.message(), ")");
+}
+
+void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
+  json j;
+  j["manifest_source"] = record.manifest_source;
+  j["manifest_dir"] = record.manifest_dir;
+  j["binary"] = record.binary;
+  j["num_tasks"] = record.num_tasks;
+  j["submissions"] = json::array();
+  for (const BatchSubmission& s : record.submissions) {
+    json js;
+    js["kind"] = s.kind;
+    js["time_utc"] = s.time_utc;
+    js["indices"] = s.indices;
+    if (s.kind == "slurm") {
+      js["job_id"] = s.job_id;
+      js["command"] = s.command;
+    } else {
+      js["workers"] = s.workers;
+    }
+    j["submissions"].push_back(js);
+  }
+  WriteFileAtomically(layout.record(), j.dump(2) + "\n");
+}
+
+BatchRecord ReadBatchRecord(const BatchLayout& layout) {
+  RB_CHECK(fs::exists(layout.record()), layout.dir, ": not a batch folder (no batch.json; run batch submit first)");
+  BatchRecord record;
+  try {
+    const json j = json::parse(ReadText(layout.record()));
+    record.manifest_source = j.at("manifest_source").get<std::string>();
+    record.manifest_dir = j.at("manifest_dir").get<std::string>();
+    record.binary = j.at("binary").get<std::string>();
+    record.num_tasks = j.at("num_tasks").get<int>();
+    for (const json& js : j.at("submissions")) {
+      BatchSubmission s;
+      s.kind = js.at("kind").get<std::string>();
+      s.time_utc = js.value("time_utc", "");
+      s.indices = js.at("indices").get<std::vector<int>>();
+      s.job_id = js.value("job_id", "");
+      if (js.contains("command")) s.command = js.at("command").get<std::vector<std::string>>();
+      s.workers = js.value("workers", 0);
+      record.submissions.push_back(s);
+    }
+  } catch (const json::exception& e) {
+    RB_FAIL(layout.record(), ": malformed (", e.what(), ")");
+  }
+  return record;
+}
+
+std::string BatchTaskStatusJson(const BatchTaskStatus& s) {
+  json j;
+  j["index"] = s.index;
+  j["state"] = s.state;
+  j["exit_code"] = s.exit_code;
+  j["attempt"] = s.attempt;
+  j["run"] = s.run;
+  j["job_id"] = s.job_id;
+  j["host"] = s.host;
+  j["node"] = s.node;
+  j["start_utc"] = s.start_utc;
+  j["end_utc"] = s.end_utc;
+  j["duration_s"] = s.duration_s;
+  j["error_line"] = s.error_line;
+  j["command"] = s.command;
+  return j.dump(2) + "\n";
+}
+
+BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string& source) {
+  BatchTaskStatus s;
+  try {
+    const json j = json::parse(text);
+    s.index = j.at("index").get<int>();
+    s.state = j.at("state").get<std::string>();
+    s.exit_code = j.at("exit_code").get<int>();
+    s.attempt = j.value("attempt", 0);
+    s.run = j.value("run", 1);
+    s.job_id = j.value("job_id", "");
+    s.host = j.value("host", "");
+    s.node = j.value("node", "");
+    s.start_utc = j.value("start_utc", "");
+    s.end_utc = j.value("end_utc", "");
+    s.duration_s = j.value("duration_s", 0.0);
+    s.error_line = j.value("error_line", "");
+    s.command = j.value("command", "");
+  } catch (const json::exception& e) {
+    RB_FAIL(source, ": malformed task status (", e.what(), ")");
+  }
+  RB_CHECK(s.state == "running" || s.state == "succeeded" || s.state == "failed", source, ": unknown state '",
+           s.state, "'");
+  return s;
+}
+
+void WriteBatchTaskStatus(const BatchLayout& layout, const BatchTaskStatus& status) {
+  fs::create_directories(fs::path(layout.status_file(status.index)).parent_path());
+  WriteFileAtomically(layout.status_file(status.index), BatchTaskStatusJson(status));
+}
+
+std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, int index) {
+  const std::string path = layout.status_file(index);
+  if (!fs::exists(path)) return std::nullopt;
+  return ParseBatchTaskStatus(ReadText(path), path);
+}
+
+void RunTaskOptions::Check() const {
+  RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "RunTaskOptions::binary must be absolute: ", binary);
+}
+
+BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options) {
+  options.Check();
+  const BatchLayout layout(dir);
+  const BatchRecord record = ReadBatchRecord(layout);
+  const std::vector<ManifestTask> tasks = ReadManifest(layout.manifest());
+  RB_CHECK(index >= 0 && index < static_cast<int>(tasks.size()), layout.dir, ": task ", index,
+           " out of range (the manifest has ", tasks.size(), " tasks, 0-", tasks.size() - 1, ")");
+  const ManifestTask& task = tasks[index];
+
+  BatchTaskStatus status;
+  status.index = index;
+  status.state = "running";
+  const std::string restarts = Env("SLURM_RESTART_COUNT");
+  status.attempt = restarts.empty() ? 0 : std::atoi(restarts.c_str());
+  if (const auto previous = ReadBatchTaskStatus(layout, index)) status.run = previous->run + 1;
+  status.job_id = Env("SLURM_ARRAY_JOB_ID");
+  status.host = HostName();
+  status.node = Env("SLURMD_NODENAME");
+  status.start_utc = NowUtc();
+  const std::vector<std::string> arguments = ResolveTaskArguments(task.arguments, record.manifest_dir);
+  status.command = QuoteForShell(arguments);
+
+  fs::create_directories(layout.tasks_dir());
+  fs::create_directories(fs::path(layout.log_file(index)).parent_path());
+  const fs::path work = fs::path(layout.tasks_dir()) / (".tmp-" + std::to_string(index) + "-" +
+                                                        std::to_string(status.attempt) + "-" +
+                                                        std::to_string(getpid()));
+  std::error_code ec;
+  fs::remove_all(work, ec);
+  fs::create_directories(work);
+  WriteBatchTaskStatus(layout, status);
+
+  const std::string log = layout.log_file(index);
+  {
+    std::ofstream header(log, std::ios::app);
+    header << "==> task " << index << " (manifest line " << task.line_number << "), run " << status.run
+           << ", attempt " << status.attempt << ", host " << status.host << ", " << status.start_utc << "\n"
+           << "==> " << status.command << "\n";
+  }
+  const std::uintmax_t log_start = fs::file_size(log);
+
+  ProcessSpec spec;
+  spec.argv.push_back(options.binary.empty() ? SelfExecutable() : options.binary);
+  spec.argv.insert(spec.argv.end(), arguments.begin(), arguments.end());
+  spec.working_dir = work.string();
+  spec.output_path = log;
+  const auto start = std::chrono::steady_clock::now();
+  ProcessExit exit;
+  std::string start_error;
+  {
+    SignalForwarding forwarding(options.forward_signals);
+    try {
+      const pid_t pid = StartProcess(spec);
+      g_child_pid = pid;
+      if (g_signal != 0) kill(pid, g_signal);
+      exit = WaitProcess(pid);
+    } catch (const Error& e) {
+      start_error = e.what();
+    }
+  }
+  status.duration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  status.end_utc = NowUtc();
+
+  std::string output;
+  {
+    std::ifstream in(log, std::ios::binary);
+    in.seekg(static_cast<std::streamoff>(log_start));
+    std::ostringstream text;
+    text << in.rdbuf();
+    output = text.str();
+  }
+  const int stop_signal = g_signal;
+  if (!start_error.empty()) {
+    status.exit_code = 127;
+    status.error_line = start_error;
+  } else {
+    status.exit_code = exit.exit_code;
+    if (exit.exit_code != 0) status.error_line = ErrorLine(output);
+    if (exit.signal != 0) {
+      status.error_line = "ended by signal " + std::to_string(exit.signal) +
+                          (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
+                          (status.error_line.empty() ? "" : "; last line: " + status.error_line);
+    }
+  }
+  if (status.exit_code == 0 && stop_signal == 0) {
+    try {
+      Publish(work, layout.task_dir(index));
+      status.state = "succeeded";
+    } catch (const Error& e) {
+      status.state = "failed";
+      status.exit_code = 1;
+      status.error_line = e.what();
+    }
+  } else {
+    status.state = "failed";
+    if (status.exit_code == 0) {
+      status.exit_code = 128 + stop_signal;
+      status.error_line = "stopped by signal " + std::to_string(stop_signal) + " before its result was published";
+    }
+  }
+  fs::remove_all(work, ec);
+  {
+    std::ofstream footer(log, std::ios::app);
+    footer << "==> " << status.state << ", exit " << status.exit_code << ", " << status.duration_s << " s\n";
+  }
+  WriteBatchTaskStatus(layout, status);
+  return status;
+}
+
+BatchReport CollectBatchReport(const std::string& dir) {
+  const BatchLayout layout(dir);
+  ReadBatchRecord(layout);
+  BatchReport report;
+  report.dir = layout.dir;
+  report.tasks = ReadManifest(layout.manifest());
+  for (const ManifestTask& task : report.tasks) {
+    std::optional<BatchTaskStatus> status = ReadBatchTaskStatus(layout, task.index);
+    std::string state = "missing";
+    if (status) {
+      if (status->state == "succeeded") {
+        state = fs::is_directory(layout.task_dir(task.index)) ? "succeeded" : "missing";
+      } else {
+        state = status->state;
+      }
+    }
+    if (state == "succeeded") ++report.succeeded;
+    if (state == "failed") ++report.failed;
+    if (state == "running") ++report.running;
+    if (state == "missing") ++report.missing;
+    report.states.push_back(state);
+    report.statuses.push_back(std::move(status));
+  }
+  return report;
+}
+
+std::vector<int> BatchReport::UnfinishedIndices() const {
+  std::vector<int> indices;
+  for (size_t i = 0; i < states.size(); ++i) {
+    if (states[i] == "missing" || states[i] == "failed") indices.push_back(static_cast<int>(i));
+  }
+  return indices;
+}
+
+std::string BatchReport::BriefReport() const {
+  std::ostringstream out;
+  out << dir << ": " << tasks.size() << " tasks: " << succeeded << " succeeded, " << failed << " failed, "
+      << running << " running, " << missing << " missing\n";
+  for (size_t i = 0; i < tasks.size(); ++i) {
+    if (states[i] != "failed") continue;
+    const BatchTaskStatus& s = *statuses[i];
+    out << "failed: task " << i << " (manifest line " << tasks[i].line_number << ", exit " << s.exit_code
+        << ", attempt " << s.attempt << ", host " << (s.node.empty() ? s.host : s.node) << "): " << s.error_line
+        << "\n";
+  }
+  return out.str();
+}
+
+std::string BatchReport::Json() const {
+  json j;
+  j["dir"] = dir;
+  j["tasks"] = tasks.size();
+  j["succeeded"] = succeeded;
+  j["failed"] = failed;
+  j["running"] = running;
+  j["missing"] = missing;
+  j["task"] = json::array();
+  for (size_t i = 0; i < tasks.size(); ++i) {
+    json t;
+    t["index"] = i;
+    t["line_number"] = tasks[i].line_number;
+    t["line"] = tasks[i].line;
+    t["state"] = states[i];
+    if (statuses[i]) t["status"] = json::parse(BatchTaskStatusJson(*statuses[i]));
+    j["task"].push_back(t);
+  }
+  return j.dump(2) + "\n";
+}
+
+}  // namespace rangebayes

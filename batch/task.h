@@ -1,0 +1,120 @@
+// A batch folder on disk, the per-task status files, and running one task with atomic publishing.
+//
+// Layout of a batch folder DIR (README, "Batch processing on a Slurm cluster"):
+//   DIR/manifest.txt        the manifest, copied at submission
+//   DIR/batch.json          the manifest's folder, the binary, and every submission (sbatch command, job id)
+//   DIR/tasks/<index>/      the outputs of task <index>, present only when it succeeded
+//   DIR/tasks/.tmp-<index>-<attempt>-<pid>/   where a task runs; renamed to tasks/<index>/ on success
+//   DIR/status/<index>.json the task's status (BatchTaskStatus), replaced atomically
+//   DIR/logs/<index>.log    the task command's stdout and stderr, appended by every run
+//   DIR/slurm/              job script and Slurm's output files (%A_%a.out, opened for append)
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "batch/manifest.h"
+
+namespace rangebayes {
+
+// Paths inside a batch folder; `dir` is absolute.
+struct BatchLayout {
+  std::string dir;
+  explicit BatchLayout(const std::string& folder);  // makes `folder` absolute
+  std::string manifest() const;
+  std::string record() const;
+  std::string tasks_dir() const;
+  std::string task_dir(int index) const;
+  std::string status_file(int index) const;
+  std::string log_file(int index) const;
+  std::string slurm_dir() const;
+};
+
+// One submission of (some of) a batch's tasks.
+struct BatchSubmission {
+  std::string kind;          // "slurm" or "local"
+  std::string time_utc;      // ISO 8601
+  std::vector<int> indices;  // the task indices it ran
+  std::string job_id;        // Slurm array job id (kind slurm)
+  std::vector<std::string> command;  // the sbatch command line (kind slurm)
+  int workers = 0;                   // worker processes (kind local)
+};
+
+// DIR/batch.json.
+struct BatchRecord {
+  std::string manifest_source;  // the manifest as given to submit (absolute)
+  std::string manifest_dir;     // inputs resolve against this folder (absolute)
+  std::string binary;           // the rangebayes binary the jobs run (absolute)
+  int num_tasks = 0;
+  std::vector<BatchSubmission> submissions;
+};
+
+void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record);
+// Throws naming DIR when it holds no batch (no batch.json) or the file is malformed.
+BatchRecord ReadBatchRecord(const BatchLayout& layout);
+
+// The status of one task, DIR/status/<index>.json.
+struct BatchTaskStatus {
+  int index = 0;
+  std::string state;      // "running", "succeeded" or "failed"
+  int exit_code = -1;     // of the task's command; 128 + signal when a signal ended it; -1 while running
+  int attempt = 0;        // SLURM_RESTART_COUNT (0 on the first run of a job, and for --local)
+  int run = 1;            // how many times run-task started this index in this folder, this run included
+  std::string job_id;     // SLURM_ARRAY_JOB_ID, empty outside Slurm
+  std::string host;       // gethostname()
+  std::string node;       // SLURMD_NODENAME, empty outside Slurm
+  std::string start_utc, end_utc;  // ISO 8601 with milliseconds; end empty while running
+  double duration_s = 0;           // wall time of the command
+  std::string error_line;          // failed: the command's last "error:" line (else its last line, or why)
+  std::string command;             // the manifest line as run, paths resolved
+};
+
+std::string BatchTaskStatusJson(const BatchTaskStatus& status);
+BatchTaskStatus ParseBatchTaskStatus(const std::string& json, const std::string& source);
+// Written to a temporary file and renamed over the old one, so a reader sees the old or the new status.
+void WriteBatchTaskStatus(const BatchLayout& layout, const BatchTaskStatus& status);
+// nullopt when the task has no status file yet.
+std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, int index);
+
+// Writes `text` to `path` through a temporary file in the same folder and rename(2).
+void WriteFileAtomically(const std::string& path, const std::string& text);
+
+struct RunTaskOptions {
+  std::string binary;  // the rangebayes binary that runs the task's line; empty: this executable
+  // Forward SIGTERM/SIGINT/SIGHUP (Slurm's cancel, preemption, requeue) to the command, then clean up the
+  // temporary folder and record the task as failed.
+  bool forward_signals = true;
+  void Check() const;
+};
+
+// Runs task `index` of the batch in DIR: resolves the line's paths (ResolveTaskArguments), runs it in
+// DIR/tasks/.tmp-<index>-<attempt>-<pid>/ with its output appended to DIR/logs/<index>.log, and renames the
+// folder to DIR/tasks/<index>/ (replacing an older result) only when the command exited 0; otherwise removes
+// it. Writes the status file at the start (running) and the end. Returns the final status; throws only when
+// DIR is not a batch or `index` is out of range.
+BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options = {});
+
+// The state of every task of a batch, from its status files and task folders (no Slurm accounting).
+struct BatchReport {
+  std::string dir;
+  std::vector<ManifestTask> tasks;
+  // Per task: "succeeded" (status says so and tasks/<index>/ exists), "failed", "running", or "missing"
+  // (never started, or its result folder is gone).
+  std::vector<std::string> states;
+  std::vector<std::optional<BatchTaskStatus>> statuses;
+  int succeeded = 0, failed = 0, running = 0, missing = 0;
+
+  // Counts, then one line per failed task with its error line.
+  std::string BriefReport() const;
+  std::string Json() const;
+  // Indices whose state is missing or failed, ascending.
+  std::vector<int> UnfinishedIndices() const;
+};
+
+BatchReport CollectBatchReport(const std::string& dir);
+
+// ISO 8601 UTC with milliseconds, e.g. 2026-12-01T20:15:03.125Z.
+std::string NowUtc();
+
+}  // namespace rangebayes

@@ -1,0 +1,334 @@
+// batch/: manifest parsing and the path rule, status files, atomic publishing of a task's folder, the local
+// runner, and the sbatch command line (with stand-in sbatch/squeue scripts; the real cluster is tested by
+// slurm_cluster_test.sh).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "batch/manifest.h"
+#include "batch/submit.h"
+#include "batch/task.h"
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  explicit TempDir(const std::string& name)
+      : path_((fs::temp_directory_path() / ("rb_batch_" + name + "_" + std::to_string(getpid()))).string()) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+void WriteText(const std::string& path, const std::string& text) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Names in `folder` that start with `prefix`.
+std::vector<std::string> Entries(const std::string& folder, const std::string& prefix) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(folder)) {
+    if (e.path().filename().string().rfind(prefix, 0) == 0) names.push_back(e.path().filename().string());
+  }
+  return names;
+}
+
+// A manifest folder with a small mesh input (a tetrahedron).
+std::string MakeManifest(const std::string& root, const std::string& lines) {
+  WriteText(root + "/in/tet.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  WriteText(root + "/tasks.txt", lines);
+  return root + "/tasks.txt";
+}
+
+// An executable shell script standing in for sbatch or squeue.
+std::string FakeProgram(const std::string& path, const std::string& body) {
+  WriteText(path, "#!/bin/sh\n" + body + "\n");
+  fs::permissions(path, fs::perms::owner_all);
+  return path;
+}
+
+TEST(Manifest, SplitsLikeAShellWithoutExpansions) {
+  EXPECT_EQ(SplitCommandLine("smooth a.ply  b.ply --noise 0.3"),
+            (std::vector<std::string>{"smooth", "a.ply", "b.ply", "--noise", "0.3"}));
+  EXPECT_EQ(SplitCommandLine("smooth 'my scan.ply' \"out \\\"1\\\".ply\" x\\ y $HOME"),
+            (std::vector<std::string>{"smooth", "my scan.ply", "out \"1\".ply", "x y", "$HOME"}));
+  EXPECT_EQ(SplitCommandLine("info a#b.ply # a comment"), (std::vector<std::string>{"info", "a#b.ply"}));
+  EXPECT_EQ(SplitCommandLine("info ''"), (std::vector<std::string>{"info", ""}));
+  EXPECT_TRUE(SplitCommandLine("   # only a comment").empty());
+  EXPECT_THROW(SplitCommandLine("smooth 'a.ply"), Error);
+  EXPECT_THROW(SplitCommandLine("smooth \"a.ply"), Error);
+  EXPECT_THROW(SplitCommandLine("smooth a.ply\\"), Error);
+}
+
+TEST(Manifest, SkipsBlankAndCommentLinesAndNumbersTasks) {
+  const auto tasks = ParseManifest("# scans of monday\n\nsmooth a.ply b.ply\n   \n  replay rec --out r  \n", "m.txt");
+  ASSERT_EQ(tasks.size(), 2u);
+  EXPECT_EQ(tasks[0].index, 0);
+  EXPECT_EQ(tasks[0].line_number, 3);
+  EXPECT_EQ(tasks[1].index, 1);
+  EXPECT_EQ(tasks[1].line_number, 5);
+  EXPECT_EQ(tasks[1].line, "replay rec --out r");
+  EXPECT_EQ(tasks[1].arguments.front(), "replay");
+}
+
+TEST(Manifest, BadLinesNameFileAndLine) {
+  auto message = [](const std::string& text) {
+    try {
+      ParseManifest(text, "m.txt");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("smooth a b\nsmooth 'x\n"), "m.txt:2: unterminated ' quote");
+  EXPECT_NE(message("--noise 3\n").find("m.txt:1: a task starts with a subcommand"), std::string::npos);
+  EXPECT_NE(message("rangebayes smooth a b\n").find("leave out the binary's name"), std::string::npos);
+  EXPECT_NE(message("batch status d\n").find("cannot be a batch command"), std::string::npos);
+  EXPECT_NE(message("# nothing\n\n").find("m.txt: the manifest has no tasks"), std::string::npos);
+}
+
+TEST(Manifest, ExistingPathsBesideTheManifestAreInputsEverythingElseStays) {
+  const TempDir dir("resolve");
+  WriteText(dir.path() + "/scans/a.ply", "x");
+  fs::create_directories(dir.path() + "/recordings/r1");
+  const auto resolved = ResolveTaskArguments(
+      {"smooth", "scans/a.ply", "a_out.ply", "--prior=scans/a.ply", "--noise", "0.3", "/abs/x.ply", "recordings/r1",
+       "--out", "r1"},
+      dir.path());
+  EXPECT_EQ(resolved, (std::vector<std::string>{"smooth", dir.path() + "/scans/a.ply", "a_out.ply",
+                                                "--prior=" + dir.path() + "/scans/a.ply", "--noise", "0.3",
+                                                "/abs/x.ply", dir.path() + "/recordings/r1", "--out", "r1"}));
+  EXPECT_THROW(ResolveTaskArguments({"smooth"}, "relative/dir"), Error);
+}
+
+TEST(Manifest, QuotesForShell) {
+  EXPECT_EQ(QuoteForShell({"smooth", "/a/b.ply", "--noise=0.3"}), "smooth /a/b.ply --noise=0.3");
+  EXPECT_EQ(QuoteForShell({"a b", "it's", ""}), "'a b' 'it'\\''s' ''");
+}
+
+TEST(Status, JsonRoundTripAndAtomicReplace) {
+  const TempDir dir("status");
+  const BatchLayout layout(dir.path());
+  BatchTaskStatus s;
+  s.index = 3;
+  s.state = "failed";
+  s.exit_code = 1;
+  s.attempt = 2;
+  s.run = 4;
+  s.job_id = "17";
+  s.host = "h";
+  s.node = "node1";
+  s.start_utc = "2026-12-01T20:00:00.000Z";
+  s.end_utc = "2026-12-01T20:00:01.500Z";
+  s.duration_s = 1.5;
+  s.error_line = "rangebayes smooth: error: x.ply: cannot open";
+  s.command = "smooth x.ply y.ply";
+  WriteBatchTaskStatus(layout, s);
+  s.exit_code = 2;
+  WriteBatchTaskStatus(layout, s);
+  const auto read = ReadBatchTaskStatus(layout, 3);
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(BatchTaskStatusJson(*read), BatchTaskStatusJson(s));
+  EXPECT_EQ(Entries(dir.path() + "/status", "."), std::vector<std::string>{});  // no temporary left
+  EXPECT_FALSE(ReadBatchTaskStatus(layout, 4).has_value());
+  EXPECT_THROW(ParseBatchTaskStatus("{\"index\": 1}", "s.json"), Error);
+  EXPECT_THROW(ParseBatchTaskStatus("{\"index\":1,\"state\":\"odd\",\"exit_code\":0}", "s.json"), Error);
+}
+
+TEST(RunTask, PublishesOnlyOnSuccessAndReplacesAnOlderResult) {
+  const TempDir dir("runtask");
+  const std::string manifest =
+      MakeManifest(dir.path(), "convert in/tet.obj tet.ply\nconvert in/missing.obj m.ply\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  const BatchLayout layout(out);
+  EXPECT_TRUE(fs::exists(out + "/tasks/0/tet.ply"));
+  EXPECT_FALSE(fs::exists(out + "/tasks/1"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});  // no temporary folder left behind
+
+  const auto failed = ReadBatchTaskStatus(layout, 1);
+  ASSERT_TRUE(failed.has_value());
+  EXPECT_EQ(failed->state, "failed");
+  EXPECT_EQ(failed->exit_code, 1);
+  EXPECT_EQ(failed->attempt, 0);
+  EXPECT_NE(failed->error_line.find("rangebayes convert: error:"), std::string::npos) << failed->error_line;
+  EXPECT_NE(failed->error_line.find("missing.obj"), std::string::npos) << failed->error_line;
+  EXPECT_FALSE(failed->host.empty());
+  EXPECT_FALSE(failed->end_utc.empty());
+
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.succeeded, 1);
+  EXPECT_EQ(report.failed, 1);
+  EXPECT_EQ(report.UnfinishedIndices(), std::vector<int>{1});
+  EXPECT_NE(report.BriefReport().find("failed: task 1 (manifest line 2, exit 1"), std::string::npos)
+      << report.BriefReport();
+
+  // The fix: the input appears beside the manifest; the path rule finds it on the next run.
+  fs::copy_file(dir.path() + "/in/tet.obj", dir.path() + "/in/missing.obj");
+  RunTaskOptions run;
+  run.binary = RB_BINARY;
+  run.forward_signals = false;
+  const BatchTaskStatus fixed = RunBatchTask(out, 1, run);
+  EXPECT_EQ(fixed.state, "succeeded") << fixed.error_line;
+  EXPECT_EQ(fixed.run, 2);
+  EXPECT_TRUE(fs::exists(out + "/tasks/1/m.ply"));
+
+  // Running a finished task again replaces its folder as a whole.
+  WriteText(out + "/tasks/0/stale.txt", "from an older run");
+  EXPECT_EQ(RunBatchTask(out, 0, run).state, "succeeded");
+  EXPECT_TRUE(fs::exists(out + "/tasks/0/tet.ply"));
+  EXPECT_FALSE(fs::exists(out + "/tasks/0/stale.txt"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+  EXPECT_THROW(RunBatchTask(out, 2, run), Error);
+  // The log keeps every run.
+  EXPECT_NE(ReadText(out + "/logs/1.log").find("run 2"), std::string::npos);
+}
+
+TEST(LocalRunner, RunsEveryTaskOnWorkersAndReportsEach) {
+  const TempDir dir("local");
+  std::string lines;
+  for (int i = 0; i < 5; ++i) lines += "convert in/tet.obj t" + std::to_string(i) + ".off\n";
+  const std::string manifest = MakeManifest(dir.path(), "# five conversions\n" + lines);
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 2;
+  std::set<int> ended;
+  options.on_task_end = [&](const BatchTaskStatus& s) {
+    EXPECT_EQ(s.state, "succeeded") << s.error_line;
+    ended.insert(s.index);
+  };
+  const BatchSubmitSummary summary = SubmitBatch(manifest, dir.path() + "/out", options);
+  EXPECT_EQ(summary.submission.kind, "local");
+  EXPECT_EQ(ended, (std::set<int>{0, 1, 2, 3, 4}));
+  const BatchReport report = CollectBatchReport(dir.path() + "/out");
+  EXPECT_EQ(report.succeeded, 5);
+  for (int i = 0; i < 5; ++i) EXPECT_TRUE(fs::exists(dir.path() + "/out/tasks/" + std::to_string(i) + "/t" +
+                                                     std::to_string(i) + ".off"));
+  EXPECT_EQ(ReadText(dir.path() + "/out/manifest.txt"), ReadText(manifest));
+  EXPECT_THROW(ResubmitBatch(dir.path() + "/out", options), Error);  // nothing left to do
+  EXPECT_THROW(SubmitBatch(manifest, dir.path() + "/out", options), Error);  // already a batch
+}
+
+TEST(Slurm, ArraySpecAndSbatchCommandLine) {
+  EXPECT_EQ(ArraySpec({0, 1, 2, 3}, 0), "0-3");
+  EXPECT_EQ(ArraySpec({9, 1, 3, 4, 5}, 2), "1,3-5,9%2");
+  EXPECT_EQ(ArraySpec({7}, 0), "7");
+  EXPECT_THROW(ArraySpec({}, 0), Error);
+  BatchSubmitOptions options;
+  options.partition = "gpu";
+  options.max_parallel = 4;
+  options.slurm_args = {"--time=10", "--cpus-per-task=2"};
+  const BatchLayout layout("/data/b");
+  EXPECT_EQ(SbatchCommand(layout, {0, 1, 2}, options, "/data/b/slurm/job.sh"),
+            (std::vector<std::string>{"sbatch", "--parsable", "--job-name=rangebayes-batch", "--array=0-2%4",
+                                      "--requeue", "--open-mode=append", "--output=/data/b/slurm/%A_%a.out",
+                                      "--chdir=/data/b", "--partition=gpu", "--time=10", "--cpus-per-task=2",
+                                      "/data/b/slurm/job.sh"}));
+  EXPECT_EQ(ParseSbatchJobId("12\n"), "12");
+  EXPECT_EQ(ParseSbatchJobId("Submitted\n345;cluster\n"), "345");
+  EXPECT_THROW(ParseSbatchJobId(""), Error);
+  EXPECT_THROW(ParseSbatchJobId("Submitted batch job 12\n"), Error);
+}
+
+TEST(Slurm, MissingOrRefusingSbatchIsOneClearError) {
+  const TempDir dir("sbatch");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.sbatch = dir.path() + "/no/sbatch";
+  try {
+    SubmitBatch(manifest, dir.path() + "/out1", options);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot run sbatch"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--local N"), std::string::npos) << e.what();
+  }
+  options.sbatch = FakeProgram(dir.path() + "/refuse",
+                               "echo 'sbatch: error: invalid partition specified: nope' >&2\n"
+                               "echo 'sbatch: error: Batch job submission failed: Invalid partition name' >&2\n"
+                               "exit 1");
+  try {
+    SubmitBatch(manifest, dir.path() + "/out2", options);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "sbatch refused the job (exit 1): sbatch: error: Batch job submission failed: Invalid partition name");
+  }
+  // After the refusal the same folder can be submitted again.
+  options.sbatch = FakeProgram(dir.path() + "/accept", "echo 5");
+  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).submission.job_id, "5");
+}
+
+TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
+  const TempDir dir("resubmit");
+  const std::string manifest =
+      MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\nconvert in/tet.obj c.ply\n"
+                               "convert in/tet.obj d.ply\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  // Records its arguments and accepts the job.
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo \"$@\" >> " + dir.path() + "/sbatch.args\necho '41;c'");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 41");
+  const std::string out = dir.path() + "/out";
+  const BatchSubmitSummary first = SubmitBatch(manifest, out, options);
+  EXPECT_EQ(first.submission.job_id, "41");
+  EXPECT_NE(ReadText(out + "/slurm/job.sh").find("batch run-task " + BatchLayout(out).dir + " \"$SLURM_ARRAY_TASK_ID\""),
+            std::string::npos)
+      << ReadText(out + "/slurm/job.sh");
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).job_id, "41");
+
+  // Task 1 ran and succeeded; 0 failed; 2 was killed while running (its status says running); 3 never started.
+  RunTaskOptions run;
+  run.binary = RB_BINARY;
+  run.forward_signals = false;
+  ASSERT_EQ(RunBatchTask(out, 1, run).state, "succeeded");
+  BatchTaskStatus failed;
+  failed.index = 0;
+  failed.state = "failed";
+  failed.exit_code = 1;
+  WriteBatchTaskStatus(BatchLayout(out), failed);
+  BatchTaskStatus killed;
+  killed.index = 2;
+  killed.state = "running";
+  WriteBatchTaskStatus(BatchLayout(out), killed);
+  EXPECT_EQ(CollectBatchReport(out).UnfinishedIndices(), (std::vector<int>{0, 3}));
+
+  EXPECT_THROW(ResubmitBatch(out, options), Error);  // squeue still lists job 41
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  options.max_parallel = 1;
+  const BatchSubmitSummary second = ResubmitBatch(out, options);
+  EXPECT_EQ(second.indices, (std::vector<int>{0, 2, 3}));
+  EXPECT_NE(ReadText(dir.path() + "/sbatch.args").find("--array=0,2-3%1"), std::string::npos)
+      << ReadText(dir.path() + "/sbatch.args");
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.size(), 2u);
+}
+
+}  // namespace
+}  // namespace rangebayes

@@ -1,0 +1,155 @@
+#!/usr/bin/env bash
+# End to end on a real one-node Slurm cluster started here (tests/batch/slurm_local_cluster.sh): a manifest
+# of replays of the bundled recording and smooths of bundled meshes, one task failing on a missing input,
+# goes through `batch submit`; `batch status` names the failure with its error line; after the fix,
+# `batch resubmit` runs exactly that task; a requeued task (scontrol requeue) publishes once, with its
+# attempt counted and its Slurm output appended; and every output equals, byte for byte, that of
+# `batch submit --local 2`.
+#   usage: slurm_cluster_test.sh RANGEBAYES_BINARY   (from the repository root)
+# Exit 77 (skip) only when the Slurm or munge programs are not installed (scripts/setup.sh installs them).
+set -euo pipefail
+
+rb=$(realpath "$1")
+src=$(pwd)
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=slurm_local_cluster.sh
+source "$here"/slurm_local_cluster.sh
+
+if ! rb_cluster_have_binaries; then
+  echo "SKIP: slurmctld, slurmd, sbatch, squeue or munged not installed (scripts/setup.sh installs them)"
+  exit 77
+fi
+if [ "$(id -u)" -ne 0 ]; then
+  echo "FAIL: needs root (slurmd runs jobs as the submitter, munged runs as the munge user)" >&2
+  exit 1
+fi
+
+work=$(mktemp -d /tmp/rb_slurm_test.XXXXXX)
+chmod 755 "$work"
+cleanup() {
+  local rc=$?
+  rb_cluster_stop
+  if [ $rc -ne 0 ] && [ -d "$work" ]; then
+    echo "--- slurmctld log (tail)"; tail -n 20 "$work"/cluster/log/slurmctld.log 2>/dev/null || true
+    echo "--- slurmd log (tail)"; tail -n 20 "$work"/cluster/log/slurmd-node1.log 2>/dev/null || true
+  fi
+  rm -rf "$work"
+  exit $rc
+}
+trap cleanup EXIT
+
+fail() { echo "FAIL: $*" >&2; exit 1; }
+phase() { echo "[$SECONDS s] $*"; }
+expect_in() {  # expect_in TEXT PATTERN WHAT
+  grep -qF -- "$2" <<<"$1" || { echo "$1" >&2; fail "$3: expected '$2'"; }
+}
+
+# Polls squeue (sbatch --wait returns late) until job $1 has left the queue.
+wait_job() {
+  local id=$1 i
+  for i in $(seq 1200); do
+    [ -z "$(squeue --noheader --jobs "$id" 2>/dev/null)" ] && return 0
+    sleep 0.1
+  done
+  squeue >&2 || true
+  fail "job $id still queued after 120 s"
+}
+
+rb_cluster_start "$work"/cluster 1
+phase "cluster up"
+
+# The manifest's folder: the bundled data under the names the manifest uses.
+m="$work"/manifest
+mkdir -p "$m"
+ln -s "$src"/recordings "$m"/recordings
+ln -s "$src"/tests/data/meshes "$m"/meshes
+cat >"$m"/tasks.txt <<'MANIFEST'
+# replays of the bundled recording (small options), smooths of bundled meshes
+replay recordings/synth_planes_320x240 --count 2 --downsample 4 --tolerance fast --out replay_a
+replay recordings/synth_planes_320x240 --first 2 --count 1 --downsample 4 --no-decimate --out replay_b
+
+smooth meshes/trim-star_noisy_gauss_n3.obj trim-star.ply --tolerance fast --threads 1
+smooth meshes/fandisk_noisy_gauss0.3.obj "fandisk smoothed.ply" --noise 0.3 --tolerance fast --threads 1
+# fails until later/block.obj exists beside the manifest
+smooth later/block.obj block.ply --tolerance fast --threads 1
+MANIFEST
+
+# sbatch refusing (an unknown partition) and sbatch missing: one error line each, exit 1.
+if err=$("$rb" batch submit "$m"/tasks.txt --out "$work"/refused --partition nope 2>&1); then fail "submit to partition nope"; fi
+expect_in "$err" "rangebayes batch submit: error: sbatch refused the job (exit 1): sbatch: error:" "sbatch refusing"
+[ "$(wc -l <<<"$err")" -eq 1 ] || fail "more than one error line: $err"
+if err=$(PATH=/nonexistent "$rb" batch submit "$m"/tasks.txt --out "$work"/nosbatch 2>&1); then fail "submit without sbatch"; fi
+expect_in "$err" "sbatch: cannot run sbatch (No such file or directory)" "sbatch missing"
+
+slurm="$work"/slurm
+job=$("$rb" batch submit "$m"/tasks.txt --out "$slurm" --max-parallel 2)
+[[ $job =~ ^[0-9]+$ ]] || fail "batch submit printed '$job', not a job id"
+wait_job "$job"
+phase "first job done"
+
+status=$("$rb" batch status "$slurm")
+echo "$status"
+expect_in "$status" "5 tasks: 4 succeeded, 1 failed, 0 running, 0 missing" "status after the first job"
+expect_in "$status" "failed: task 4 (manifest line 8, exit 1, attempt 0, host node1): rangebayes smooth: error:" \
+  "the failed task and its host"
+expect_in "$status" "later/block.obj" "the error line names the missing input"
+json=$("$rb" batch status "$slurm" --json)
+expect_in "$json" '"failed": 1' "status --json counts"
+expect_in "$json" "\"job_id\": \"$job\"" "status --json job id"
+[ ! -e "$slurm"/tasks/4 ] || fail "the failed task published a folder"
+ls -A "$slurm"/tasks | grep -q '^\.' && fail "a temporary task folder was left behind: $(ls -A "$slurm"/tasks)"
+[ -s "$slurm/slurm/${job}_4.out" ] || fail "no Slurm output file for task 4"
+
+# The fix: the input appears beside the manifest; resubmit runs exactly task 4.
+mkdir -p "$m"/later
+cp "$src"/tests/data/meshes/block_noisy_gauss0.4.obj "$m"/later/block.obj
+job2=$("$rb" batch resubmit "$slurm")
+[ "$job2" != "$job" ] || fail "resubmit reused job $job"
+grep -q -- '"--array=4"' "$slurm"/batch.json || fail "resubmit did not submit exactly task 4: $(cat "$slurm"/batch.json)"
+wait_job "$job2"
+phase "resubmitted job done"
+status=$("$rb" batch status "$slurm")
+echo "$status"
+expect_in "$status" "5 tasks: 5 succeeded, 0 failed, 0 running, 0 missing" "status after resubmit"
+if "$rb" batch resubmit "$slurm" 2>/dev/null; then fail "resubmit of a finished batch succeeded"; fi
+
+# Requeue safety: a task requeued while it runs publishes once; its Slurm output keeps both attempts.
+cat >"$m"/slow.txt <<'MANIFEST'
+smooth meshes/real_angel_scan.obj angel.ply --tolerance tight --threads 1
+MANIFEST
+rq="$work"/requeue
+job3=$("$rb" batch submit "$m"/slow.txt --out "$rq")
+for i in $(seq 300); do
+  grep -qs '"state": "running"' "$rq"/status/0.json && break
+  sleep 0.1
+done
+grep -qs '"state": "running"' "$rq"/status/0.json || fail "the slow task never ran"
+phase "slow task running"
+scontrol requeue "${job3}_0"
+# Slurm holds a requeued job for about two minutes (BeginTime); let it start again at once.
+for i in $(seq 300); do
+  squeue --noheader --jobs "$job3" --format=%T | grep -q PENDING && break
+  sleep 0.1
+done
+scontrol update JobId="${job3}_0" StartTime=now
+wait_job "$job3"
+phase "requeued job done"
+status=$("$rb" batch status "$rq" --json)
+expect_in "$status" '"succeeded": 1' "requeued task finished"
+expect_in "$status" '"attempt": 1' "requeued task's attempt from SLURM_RESTART_COUNT"
+[ "$(grep -c '^task 0:' "$rq/slurm/${job3}_0.out")" -eq 2 ] ||
+  fail "Slurm output of the requeued task was not appended: $(cat "$rq/slurm/${job3}_0.out")"
+ls -A "$rq"/tasks | grep -q '^\.' && fail "a temporary task folder was left behind after requeue"
+[ -s "$rq"/tasks/0/angel.ply ] || fail "requeued task has no result"
+
+# The same manifest on two local workers gives the same files.
+local_out="$work"/local
+"$rb" batch submit "$m"/tasks.txt --out "$local_out" --local 2 >"$work"/local.txt ||
+  { cat "$work"/local.txt; fail "batch submit --local 2"; }
+phase "local run done"
+expect_in "$(cat "$work"/local.txt)" "5 tasks: 5 succeeded" "local run"
+# replay's summary.json holds wall-clock timings (frames/s, latencies); every other file must be identical.
+diff -r -x summary.json "$slurm"/tasks "$local_out"/tasks || fail "Slurm and --local outputs differ"
+[ "$(find "$slurm"/tasks -type f | wc -l)" -gt 10 ] || fail "too few output files: $(find "$slurm"/tasks -type f)"
+cmp "$slurm"/tasks/4/block.ply "$local_out"/tasks/4/block.ply
+echo "PASS: $(find "$slurm"/tasks -type f ! -name summary.json | wc -l) output files identical between Slurm and --local 2"
