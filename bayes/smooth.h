@@ -24,11 +24,10 @@
 
 namespace rangebayes {
 
-// Stopping presets (relative energy decrease over 5 iterations / gradient norm relative to the start):
-// fast 1e-4 / 1e-2 (a usable result soon), default 3e-5 / 1e-3, tight 1e-9 / 1e-6. The default was 1e-6 until
-// the quality-vs-iterations scan in BENCHMARKS.md ("Speed and memory"): at 3e-5 every quality target still
-// holds with margin (no MAE worse than at 1e-6 by more than 0.03°, several better) at about half the
-// evaluations; at 5e-5 block 0.4 stopped on a plateau at 3.97° (target 4.0), which is why it is not looser.
+// Stopping presets. default and tight stop on the estimated distance to the optimum (SmoothSummary::
+// remaining_decrease relative to the energy: default 3e-4, 1e-4 on organized meshes; tight 1e-9); fast (the
+// adaptive-ε pre-pass, previews) stops on the relative energy decrease per iteration (1e-4 over 5 iterations)
+// or a gradient norm of 1e-2 of the start. Iteration caps 300 / 2000 / 20000.
 enum class SmoothTolerance { kFast, kDefault, kTight };
 
 SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
@@ -50,7 +49,8 @@ struct SmoothOptions {
   // (fast 1e-4, default 3e-5, tight 1e-9). [0, 1)
   double energy_tolerance = 0;
   // Stop when the estimated distance to the optimum E − E* (SmoothSummary::remaining_decrease) falls below this
-  // fraction of the energy; 0: the preset's. [0, 1)
+  // fraction of the energy; 0: the preset's (fast: off, it stops on the decrease per iteration; default 3e-4, on
+  // organized meshes 1e-4; tight 1e-9). [0, 1)
   double gap_tolerance = 0;
   // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1).
   double line_search_c2 = 0.1;
