@@ -50,9 +50,10 @@ struct SpaceTimeMatcherOptions {
   // < 0: off (library default); ≥ 0: a pixel with a hole (no valid disparity) or a valid pixel whose
   // disparity differs by more than this per pixel of (chessboard) distance within r + 1 = w/2 + 1 of it
   // becomes NaN: its window mixes two surfaces (depth edge, occlusion border, a grazing face), which drags the
-  // match to the other surface. `rangebayes spacetime` uses 1.0; on the synthetic scenes it removes the gross
-  // edge errors that dominate the depth RMS (box, T = 16, w = 5, noise 4, 1 GN step: 26.5 → 2.3 mm over the
-  // pixels both it and SGBM measured) for 2–6% of coverage.
+  // match to the other surface. On the synthetic scenes 1.0 removes the gross edge errors that dominate the
+  // depth RMS (box, T = 16, w = 5, noise 4, 1 GN step: 26.5 → 2.3 mm over the pixels both it and SGBM
+  // measured), but also 4–11% of the non-occluded pixels, most of them right: the static preset keeps them
+  // as doubtful instead (`rangebayes spacetime --edge-reject 1` still drops them).
   double edge_reject_jump_px = -1.0;
   // < 0: off (library default); ≥ 0 (and edge rejection off): the same test as edge_reject_jump_px, but the
   // pixel is kept and called doubtful: σ_d² += doubtful_sigma_px² + the largest offending jump². Most such
@@ -67,7 +68,7 @@ struct SpaceTimeMatcherOptions {
   // and the left image's gradient (see RefineGaussNewton). 0: parabola only, the library default (the speed
   // case; 0.051 px about the Gray-code plane at T = 16 against 0.050 px with 2 steps). The parabola's pixel
   // locking (±0.03 px, by fractional disparity) leaves depth RMS up to 0.37 of SGBM's away from edges on
-  // the synthetic scenes at T = 16, w = 5; one step: up to 0.25 (`rangebayes spacetime` uses 1).
+  // the synthetic scenes at T = 16, w = 5; one step: up to 0.25 (the static preset uses 1).
   int subpixel_iterations = 0;
   int rows_per_task = 32;            // 1–1024: rows per parallel task (each band recomputes w − 1 rows above it)
   void Check() const;
