@@ -78,8 +78,10 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
                   "Drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of distance "
                   "(px/px; < 0: off, the default)");
   sub->add_option("--doubtful-jump", o->doubtful_jump_px,
-                  std::string("Keep such pixels instead, with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off; "
-                              "default ") + (by_frames ? "1)" : "off)"));
+                  std::string("Keep such pixels instead where a small window confirms them (3x3; spacetime: "
+                              "5x5xT, 3x3xT at T >= 16), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off; "
+                              "default ") +
+                      (by_frames ? "1)" : "off)"));
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,
                   "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance)");
