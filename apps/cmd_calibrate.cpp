@@ -38,7 +38,7 @@ struct RigArgs {
   bool charuco = false;
   double marker_m = 0.0;
   std::string dictionary = "DICT_4X4_50";
-  std::string detector = "sb";
+  std::string detector = "best";
   bool accurate = false;
   int min_pairs = 5;
   bool drop_outliers = false;
@@ -62,7 +62,9 @@ void RunRig(const RigArgs& a) {
   options.board.square_m = a.square_m;
   options.board.marker_m = a.marker_m;
   options.board.dictionary = a.dictionary;
-  options.board.detector = a.detector == "classic" ? ChessboardDetector::kClassic : ChessboardDetector::kSectorBased;
+  options.board.detector = a.detector == "classic" ? ChessboardDetector::kClassic
+                           : a.detector == "sb"     ? ChessboardDetector::kSectorBased
+                                                    : ChessboardDetector::kBest;
   options.board.accurate_corners = a.accurate;
   if (a.charuco) {
     if (!CharucoAvailable()) {
@@ -110,6 +112,16 @@ void RunRig(const RigArgs& a) {
               s.pairs_used);
   std::printf("RMS reprojection error: left %.3f px, right %.3f px, stereo %.3f px\n", s.rms_left_px, s.rms_right_px,
               s.rms_stereo_px);
+  if (options.board.type == BoardType::kChessboard) {
+    const char* used = s.detector_used == ChessboardDetector::kClassic ? "classic" : "sb";
+    if (options.board.detector == ChessboardDetector::kBest) {
+      const auto rms = [](double v) { return v < 0 ? std::string("too few pairs") : std::to_string(v).substr(0, 5) + " px"; };
+      std::printf("corner detector: %s kept (stereo RMS sb %s, classic %s)\n", used,
+                  rms(s.rms_stereo_sector_based_px).c_str(), rms(s.rms_stereo_classic_px).c_str());
+    } else {
+      std::printf("corner detector: %s\n", used);
+    }
+  }
   if (s.pairs_used != s.pairs_found) {
     std::printf("stereo RMS with all %d views: %.3f px\n", s.pairs_found, s.rms_stereo_all_px);
   }
@@ -151,9 +163,9 @@ void AddRig(CLI::App* calibrate) {
   sub->add_option("--marker", a->marker_m, "ChArUco marker side in metres; 0 = 0.75 x square");
   sub->add_option("--dictionary", a->dictionary, "ChArUco dictionary (OpenCV name)");
   sub->add_option("--detector", a->detector,
-                  "chessboard corner detector: sb (findChessboardCornersSB) or classic (findChessboardCorners + "
-                  "cornerSubPix)")
-      ->check(CLI::IsMember({"sb", "classic"}));
+                  "chessboard corner detector: best (calibrate with both, keep the lower stereo RMS), sb "
+                  "(findChessboardCornersSB) or classic (findChessboardCorners + cornerSubPix)")
+      ->check(CLI::IsMember({"best", "sb", "classic"}));
   sub->add_flag("--accurate", a->accurate, "sector-based detector with CALIB_CB_ACCURACY (about 4x slower)");
   sub->add_option("--min-pairs", a->min_pairs, "fewest usable pairs (board found in both images)")
       ->check(CLI::Range(3, 10000));

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -38,7 +39,7 @@ namespace fs = std::filesystem;
 struct MatchCliOptions {
   int min_disparity_px = 0;
   int num_disparities = 64;
-  int window_px = 5;
+  int window_px = 0;              // 0: the base options' window (5 for stereo; by T for spacetime)
   std::string cost = "auto";
   double image_noise_gray = 2.0;
   double sigma_floor_px = -1.0;  // < 0: the matcher's fitted default
@@ -46,21 +47,22 @@ struct MatchCliOptions {
   double max_sigma_px = 0.0;
   int downsample = 1;
   double max_jump_sigma = 6.0;
-  int subpixel_iterations = 0;    // the matcher's defaults; `spacetime` sets its own before registering
-  double edge_reject_px = -1.0;
+  int subpixel_iterations = -1;   // < 0: the base options' (SpaceTimeMatcherOptions{} or the static preset)
+  double edge_reject_px = -1.0;   // < 0: the base options' (off in both)
+  double doubtful_jump_px = std::numeric_limits<double>::quiet_NaN();  // NaN: the base options' 
   bool no_mesh = false;
   bool quiet = false;
   std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
 };
 
-void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
+// by_frames: the defaults are SpaceTimeStaticSceneOptions(T) (spacetime), else SpaceTimeMatcherOptions{}.
+void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
   sub->add_option("--num-disparities", o->num_disparities, "Number of disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
-  sub->add_option("--window", o->window_px,
-                  o->window_px == 0 ? "Spatial window side w (px, odd, 1-31; 0: 7 for T < 16 frames, 5 for T >= 16)"
-                                    : "Spatial window side w (px, odd, 1-31)")
-      ->check(CLI::Range(o->window_px == 0 ? 0 : 1, 31));
+  sub->add_option("--window", o->window_px, "Spatial window side w (px, odd, 1-31; 0: the default, " +
+                                                 std::string(by_frames ? "7 for T < 16 frames, 5 for T >= 16)" : "5)"))
+      ->check(CLI::Range(0, 31));
   sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
   sub->add_option("--sigma-floor", o->sigma_floor_px,
                   "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03 (0.01 "
@@ -69,11 +71,17 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o) {
                   "Disparity sigma scale k (unitless); < 0: fitted default 1.7 (1.8 with Gauss-Newton steps, spacetime)");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--subpixel-iterations", o->subpixel_iterations,
-                  "Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)")
+                  std::string("Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest; "
+                              "default ") + (by_frames ? "1)" : "0)"))
       ->check(CLI::Range(0, 5));
   sub->add_option("--edge-reject", o->edge_reject_px,
                   "Drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of distance "
-                  "(px/px; < 0: off)");
+                  "(px/px; < 0: off, the default)");
+  sub->add_option("--doubtful-jump", o->doubtful_jump_px,
+                  std::string("Keep such pixels instead where a small window confirms them (3x3; spacetime: "
+                              "5x5xT, 3x3xT at T >= 16), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off; "
+                              "default ") +
+                      (by_frames ? "1)" : "off)"));
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,
                   "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance)");
@@ -92,18 +100,26 @@ SpaceTimeCost ParseCost(const std::string& name) {
   UsageError("--cost must be auto, ssd, zncc or zncc-space, not '" + name + "'");
 }
 
-SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o) {
-  SpaceTimeMatcherOptions m;
+// base: SpaceTimeMatcherOptions{} or SpaceTimeStaticSceneOptions(T); the flags given replace its fields.
+SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMatcherOptions& base) {
+  SpaceTimeMatcherOptions m = base;
   m.min_disparity_px = o.min_disparity_px;
   m.num_disparities = o.num_disparities;
-  m.window_px = o.window_px;
+  if (o.window_px > 0) m.window_px = o.window_px;
   m.cost = ParseCost(o.cost);
   m.image_noise_gray = o.image_noise_gray;
+  if (o.subpixel_iterations >= 0 && o.subpixel_iterations != m.subpixel_iterations) {
+    // The σ_d model belongs to the sub-pixel method (kGaussNewtonSigma* with steps, the parabola's without).
+    const SpaceTimeMatcherOptions parabola;
+    m.subpixel_iterations = o.subpixel_iterations;
+    m.sigma_floor_px = m.subpixel_iterations > 0 ? kGaussNewtonSigmaFloorPx : parabola.sigma_floor_px;
+    m.sigma_scale = m.subpixel_iterations > 0 ? kGaussNewtonSigmaScale : parabola.sigma_scale;
+  }
   if (o.sigma_floor_px >= 0.0) m.sigma_floor_px = o.sigma_floor_px;
   if (o.sigma_scale >= 0.0) m.sigma_scale = o.sigma_scale;
   m.max_sigma_disparity_px = o.max_sigma_px;
-  m.subpixel_iterations = o.subpixel_iterations;
-  m.edge_reject_jump_px = o.edge_reject_px;
+  if (o.edge_reject_px >= 0.0) m.edge_reject_jump_px = o.edge_reject_px;
+  if (std::isfinite(o.doubtful_jump_px)) m.doubtful_jump_px = o.doubtful_jump_px;
   if (!o.noise_model.empty()) {
     const DisparityNoiseModel n = ReadDisparityNoiseModel(o.noise_model);
     const bool constant = n.form == NoiseForm::kConstant;
@@ -191,7 +207,7 @@ void AddStereo(CLI::App& app) {
   sub->add_option("--matcher", o->matcher, "sgbm (OpenCV SGBM 3-way) or block (our block matcher with sigma)")
       ->check(CLI::IsMember({"sgbm", "block"}));
   sub->add_option("--sgbm-block", o->sgbm_block, "SGBM block size (px, odd, 1-11)");
-  AddMatchOptions(sub, &o->m);
+  AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o] {
     cv::Mat left = ReadImageOrThrow(o->left), right = ReadImageOrThrow(o->right);
@@ -215,7 +231,7 @@ void AddStereo(CLI::App& app) {
       s.block_size_px = o->sgbm_block;
       matcher = std::make_unique<SgbmMatcher>(s);
     } else {
-      matcher = std::make_unique<SpaceTimeMatcher>(BlockOptions(o->m));
+      matcher = std::make_unique<SpaceTimeMatcher>(BlockOptions(o->m, SpaceTimeMatcherOptions{}));
     }
     const DisparityResult result = matcher->Match({left}, {right});
     WriteOutputs(result, rectifier, 0, 0, o->out, o->m);
@@ -237,14 +253,7 @@ void AddSpaceTime(CLI::App& app) {
   sub->add_option("--frames", o->frames, "Temporal window T (frames; 0: all from --first)")->check(CLI::NonNegativeNumber);
   sub->add_option("--first", o->first, "First frame of the window (index into frames.csv)")
       ->check(CLI::NonNegativeNumber);
-  // The configuration that meets the synthetic-scene target (BENCHMARKS.md, space-time section): one
-  // Gauss-Newton step, edge rejection, and a window that keeps about 400 samples per match, w = 7 at T = 8
-  // (w = 5 there misses at noise 4) and w = 5 at T = 16. Slower than the library's parabola-only default,
-  // which the live path keeps.
-  o->m.subpixel_iterations = 1;
-  o->m.edge_reject_px = 1.0;
-  o->m.window_px = 0;
-  AddMatchOptions(sub, &o->m);
+  AddMatchOptions(sub, &o->m, true);
   sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc over time for T >= 3, else ssd), ssd, zncc or zncc-space");
   sub->callback([o] {
     RecordingReadSummary rs;
@@ -268,13 +277,7 @@ void AddSpaceTime(CLI::App& app) {
       timestamp = f.timestamp_ns();
       id = f.index;
     }
-    SpaceTimeMatcherOptions m = BlockOptions(o->m);
-    if (o->m.window_px == 0) m.window_px = T >= 16 ? 5 : 7;
-    if (m.subpixel_iterations > 0 && o->m.noise_model.empty()) {
-      if (o->m.sigma_floor_px < 0.0) m.sigma_floor_px = kGaussNewtonSigmaFloorPx;
-      if (o->m.sigma_scale < 0.0) m.sigma_scale = kGaussNewtonSigmaScale;
-    }
-    SpaceTimeMatcher matcher(m);
+    SpaceTimeMatcher matcher(BlockOptions(o->m, SpaceTimeStaticSceneOptions(T)));
     const DisparityResult result = matcher.Match(left, right);
     WriteOutputs(result, rectifier, id, timestamp, o->out, o->m);
   });

@@ -7,6 +7,7 @@
 //   bench_stereo --quality=graycode [--data=DIR]    Gray-code plane: disparity noise about a fitted plane
 //   bench_stereo --quality=synth                    synthetic scenes: space-time vs SGBM depth RMS
 //   bench_stereo --quality=sigmafit                 σ_d model (floor, scale) fitted on synthetic scenes
+//   bench_stereo --quality=coverage                 space-time coverage: bad-1.0 with holes vs brute-force SSD
 // DIR defaults to ../shared/data/stereo (relative to the repository root).
 #include <benchmark/benchmark.h>
 
@@ -18,6 +19,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -394,6 +396,7 @@ struct SynthConfig {
   std::string cost = "auto";  // auto, ssd, zncc-time, zncc-space
   double edge = 1.0;          // edge_reject_jump_px (−2: matcher default, off)
   std::uint64_t seed = 5;     // renderer seed of the table
+  int verify = -1;            // --quality=coverage: the preset's doubtful_verify_window_px (−1: its default)
   int sigmafit_gn = 0;        // Gauss–Newton steps of the σ_d fit (--quality=sigmafit); > 0: also edge
                               // rejection and the window by T, as `rangebayes spacetime`
 };
@@ -505,6 +508,111 @@ void QualitySynth() {
   }
 }
 
+// Non-occluded ground-truth pixels of a synthetic left view: finite disparity, the right pixel inside the
+// image, and no pixel further right on the row that lands at or left of it in the right view (a closer
+// surface hides it).
+cv::Mat NonOccludedMask(const cv::Mat& gt) {
+  cv::Mat mask(gt.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < gt.rows; ++y) {
+    const float* g = gt.ptr<float>(y);
+    float reach = -std::numeric_limits<float>::infinity();  // max over x' > x of x - (x' - d(x'))
+    for (int x = gt.cols - 1; x >= 0; --x) {
+      const bool ok = std::isfinite(g[x]) && x - g[x] >= 0.0f && !(reach > g[x]);
+      mask.at<unsigned char>(y, x) = ok ? 255 : 0;
+      reach -= 1.0f;  // moving one pixel left shifts every x' − x by one
+      if (std::isfinite(g[x])) reach = std::max(reach, g[x]);
+    }
+  }
+  return mask;
+}
+
+// Space-time coverage on the synthetic scenes: bad-1.0 with holes counted and the RMS over valid pixels
+// (non-occluded ground truth), for the configuration `rangebayes spacetime` ran before the coverage change
+// (edge rejection drops doubtful pixels), the same with the rejection off, a brute-force w×w×T SSD (winner
+// take all with parabola, no checks), and the library's static-scene preset (doubtful pixels kept with an
+// inflated σ_d). Also the normalised residual of the pixels the preset keeps but the old configuration
+// dropped.
+void QualityCoverage() {
+  const SynthConfig& c = g_synth;
+  std::printf("Space-time coverage, synthetic scenes 320x240, random pattern, seed %llu, non-occluded pixels; bad-1 "
+              "= share off by > 1 px or missing; rms over valid pixels (px)\n",
+              static_cast<unsigned long long>(c.seed));
+  std::printf("%-9s %5s %3s | %14s | %14s | %14s | %14s | %22s\n", "scene", "noise", "T", "old bad1/rms",
+              "edge-off b1/rms", "brute b1/rms", "preset b1/rms", "kept: n, >1px, rms err, rms z");
+  double worst_margin = -1e9, worst_rms_ratio = 0;
+  for (double noise : c.noises) {
+    for (const std::string& scene_name : SplitCommas(c.scenes)) {
+      for (int T : c.frames) {
+        rb::SynthOptions so;
+        so.scene = rb::ParseSynthScene(scene_name);
+        so.frames = T;
+        so.image_noise_gray = noise;
+        so.seed = c.seed;
+        const rb::SynthRecording rec = rb::RenderSynthetic(so);
+        const cv::Mat mask = NonOccludedMask(rec.disparity_px);
+        auto base = [&] {
+          rb::SpaceTimeMatcherOptions m = rb::SpaceTimeStaticSceneOptions(T);
+          m.min_disparity_px = 8;
+          m.num_disparities = 48;
+          m.image_noise_gray = noise;
+          return m;
+        };
+        rb::SpaceTimeMatcherOptions old = base();
+        old.doubtful_jump_px = -1.0;
+        old.edge_reject_jump_px = 1.0;
+        rb::SpaceTimeMatcherOptions off = old;
+        off.edge_reject_jump_px = -1.0;
+        rb::SpaceTimeMatcherOptions brute = base();
+        brute.window_px = 5;
+        brute.cost = rb::SpaceTimeCost::kSsd;
+        brute.uniqueness_ratio = 0.0;
+        brute.left_right_max_diff_px = -1.0;
+        brute.neighbour_jump_px = -1.0;
+        brute.subpixel_iterations = 0;
+        brute.edge_reject_jump_px = -1.0;
+        brute.doubtful_jump_px = -1.0;
+        rb::SpaceTimeMatcherOptions preset = base();
+        if (c.verify >= 0) preset.doubtful_verify_window_px = c.verify;
+        double b1[4], rms[4];
+        cv::Mat dd[4], ss[4];
+        int i = 0;
+        for (const auto& m : {old, off, brute, preset}) {
+          const rb::DisparityResult r = rb::SpaceTimeMatcher(m).Match(rec.left, rec.right);
+          const rb::DisparityEvaluation ev = rb::EvaluateDisparity(r.disparity_px, rec.disparity_px, mask);
+          b1[i] = ev.bad_with_holes[1];
+          rms[i] = ev.rms_px;
+          dd[i] = r.disparity_px;
+          ss[i] = r.sigma_disparity_px;
+          ++i;
+        }
+        double se = 0, sz = 0;
+        int n = 0, gross = 0;
+        for (int y = 0; y < mask.rows; ++y)
+          for (int x = 0; x < mask.cols; ++x) {
+            if (!mask.at<unsigned char>(y, x) || std::isfinite(dd[0].at<float>(y, x))) continue;
+            const float d = dd[3].at<float>(y, x);
+            if (!std::isfinite(d)) continue;
+            const double e = d - rec.disparity_px.at<float>(y, x);
+            se += e * e;
+            sz += e * e / std::pow(ss[3].at<float>(y, x), 2);
+            gross += std::abs(e) > 1.0;
+            ++n;
+          }
+        worst_margin = std::max(worst_margin, b1[3] - b1[2]);
+        worst_rms_ratio = std::max(worst_rms_ratio, rms[3] / rms[0]);
+        std::printf("%-9s %5.1f %3d | %6.2f%% %6.3f | %6.2f%% %6.3f | %6.2f%% %6.3f | %6.2f%% %6.3f | %6d %5.1f%% %6.3f %7.2f\n",
+                    scene_name.c_str(), noise, T, 100 * b1[0], rms[0], 100 * b1[1], rms[1], 100 * b1[2], rms[2],
+                    100 * b1[3], rms[3], n, n ? 100.0 * gross / n : 0.0, n ? std::sqrt(se / n) : 0.0, n ? std::sqrt(sz / n) : 0.0);
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::printf("worst bad-1 preset minus brute force: %+.2f points (target <= 0: %s); worst rms preset / old: %.3f "
+              "(target <= 1: %s)\n",
+              100 * worst_margin, worst_margin <= 0 ? "met" : "missed", worst_rms_ratio,
+              worst_rms_ratio <= 1.0 ? "met" : "missed");
+}
+
 // Fits the σ_d model σ² = floor² + (k·σ_pred)² to the disparity errors of the space-time matcher on the
 // synthetic scenes (planes, sphere, box, cylinder, stairs; 320×240, seeds 5 and 6, image noise 2), per T:
 // maximum likelihood over a grid of floor and k, residuals beyond 5σ left out as outliers (re-cut after
@@ -613,6 +721,7 @@ int main(int argc, char** argv) {
       else if (key == "cost") g_synth.cost = value;
       else if (key == "edge") g_synth.edge = std::stod(value);
       else if (key == "sigmafit-gn") g_synth.sigmafit_gn = std::stoi(value);
+      else if (key == "verify") g_synth.verify = std::stoi(value);
       else if (key == "seed") g_synth.seed = std::stoull(value);
       else if (key == "lr") g_synth.lr = std::stod(value);
       else if (key == "jump") g_synth.jump = std::stod(value);
@@ -629,6 +738,7 @@ int main(int argc, char** argv) {
     if (quality == "graycode") QualityGrayCode(data);
     if (quality == "synth") QualitySynth();
     if (quality == "sigmafit") QualitySigmaFit();
+    if (quality == "coverage") QualityCoverage();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_stereo: error: %s\n", e.what());
     return 1;

@@ -348,9 +348,10 @@ std::vector<CalibrationImagePair> PairCalibrationImages(const std::vector<std::s
   return pairs;
 }
 
-StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
-                             StereoCalibrationSummary* summary, const ProgressCallback& progress) {
-  options.Check();
+namespace {
+
+StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
+                                StereoCalibrationSummary* summary, const ProgressCallback& progress) {
   const BoardModel board = MakeBoard(options.board);
   StereoCalibrationSummary local;
   StereoCalibrationSummary& sum = summary ? *summary : local;
@@ -495,7 +496,49 @@ StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, con
     rig.view_rms_stereo_px.push_back(v.rms_stereo_px);
   }
   if (progress) progress(1.0, "calibrating");
+  sum.detector_used = options.board.detector;
   return rig;
+}
+
+}  // namespace
+
+StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
+                             StereoCalibrationSummary* summary, const ProgressCallback& progress) {
+  options.Check();
+  if (options.board.type != BoardType::kChessboard || options.board.detector != ChessboardDetector::kBest) {
+    return CalibrateWithDetector(pairs, options, summary, progress);
+  }
+  // Both detectors, each through the whole calibration; the lower final stereo RMS wins. A detector that
+  // finds too few pairs drops out (its error is rethrown only when both fail).
+  StereoCalibrationSummary best_sum;
+  std::optional<StereoRig> best;
+  std::optional<Error> first_error;
+  double rms[2] = {-1.0, -1.0};
+  const ChessboardDetector candidates[2] = {ChessboardDetector::kSectorBased, ChessboardDetector::kClassic};
+  for (int k = 0; k < 2; ++k) {
+    StereoCalibrationOptions o = options;
+    o.board.detector = candidates[k];
+    const ProgressCallback part = progress ? ProgressCallback([&progress, k](double f, std::string_view what) {
+      progress(0.5 * (k + f), what);
+    })
+                                           : ProgressCallback();
+    StereoCalibrationSummary s;
+    try {
+      StereoRig rig = CalibrateWithDetector(pairs, o, &s, part);
+      rms[k] = s.rms_stereo_px;
+      if (!best || s.rms_stereo_px < best_sum.rms_stereo_px) {
+        best = std::move(rig);
+        best_sum = std::move(s);
+      }
+    } catch (const Error& e) {
+      if (!first_error) first_error = e;
+    }
+  }
+  if (!best) throw *first_error;
+  best_sum.rms_stereo_sector_based_px = rms[0];
+  best_sum.rms_stereo_classic_px = rms[1];
+  if (summary) *summary = std::move(best_sum);
+  return *best;
 }
 
 RgbImage RenderRectifiedPair(const StereoRig& rig, const CalibrationImagePair& pair,

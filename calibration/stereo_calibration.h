@@ -14,9 +14,12 @@ namespace rangebayes {
 
 enum class BoardType { kChessboard, kCharuco };
 
-// Chessboard corner detector: OpenCV's sector-based findChessboardCornersSB (more accurate; falls back to the
-// classic one when it finds nothing), or the classic findChessboardCorners + cornerSubPix (11×11 window).
-enum class ChessboardDetector { kSectorBased, kClassic };
+// Chessboard corner detector: OpenCV's sector-based findChessboardCornersSB (falls back to the classic one
+// when it finds nothing), the classic findChessboardCorners + cornerSubPix (11×11 window), or kBest (the
+// default): calibrate with each of the two and keep the one with the lower stereo RMS, so the choice is never
+// worse than the classic detector on any set (neither detector wins on every set: BENCHMARKS.md,
+// calibration detector).
+enum class ChessboardDetector { kBest, kSectorBased, kClassic };
 
 // The calibration target. Chessboard: cols × rows INNER corners (OpenCV's 9x6 sample board is 9 × 6).
 // ChArUco: cols × rows SQUARES (its inner corners are (cols−1) × (rows−1)), markers of marker_m inside the
@@ -28,7 +31,7 @@ struct BoardSpec {
   double square_m = 0.025;            // square side in metres (sets the unit of the baseline); > 0
   double marker_m = 0.0;              // ChArUco marker side in metres; 0 = 0.75 × square_m; < square_m
   std::string dictionary = "DICT_4X4_50";  // ChArUco: an OpenCV predefined dictionary name
-  ChessboardDetector detector = ChessboardDetector::kSectorBased;  // chessboard only
+  ChessboardDetector detector = ChessboardDetector::kBest;  // chessboard only
   // Sector-based detector with CALIB_CB_ACCURACY: about 4× slower; on OpenCV's samples stereo RMS 0.281 → 0.273 px.
   bool accurate_corners = false;
   void Check() const;
@@ -97,10 +100,15 @@ struct StereoCalibrationSummary {
   // |y_left − y_right| of the board corners after rectification, over all used views, pixels.
   double epipolar_error_mean_px = -1.0;
   double epipolar_error_max_px = -1.0;
+  // The detector the result comes from (kBest: the one kept) and, for kBest, each candidate's final stereo
+  // RMS (−1: fewer than min_pairs pairs found with it).
+  ChessboardDetector detector_used = ChessboardDetector::kSectorBased;
+  double rms_stereo_sector_based_px = -1.0;
+  double rms_stereo_classic_px = -1.0;
 };
 
-// Calibrates the rig: detection (chessboard: findChessboardCornersSB, falling back to findChessboardCorners
-// with cornerSubPix), calibrateCamera per camera, stereoCalibrate with the intrinsics fixed, stereoRectify
+// Calibrates the rig: detection (chessboard: see ChessboardDetector; kBest runs everything below once per
+// detector), calibrateCamera per camera, stereoCalibrate with the intrinsics fixed, stereoRectify
 // (alpha 0). Pairs whose board is not found in either image are skipped and named in the summary.
 // Throws Error when an image cannot be read, sizes differ, or fewer than min_pairs pairs are usable.
 StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,

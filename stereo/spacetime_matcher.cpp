@@ -29,7 +29,23 @@ void SpaceTimeMatcherOptions::Check() const {
   RB_CHECK(max_sigma_disparity_px >= 0.0, "max_sigma_disparity_px must be ≥ 0");
   RB_CHECK(subpixel_iterations >= 0 && subpixel_iterations <= 5, "subpixel_iterations ", subpixel_iterations,
            " is outside 0–5");
+  RB_CHECK(doubtful_verify_window_px == 0 ||
+               (doubtful_verify_window_px >= 1 && doubtful_verify_window_px <= 31 && doubtful_verify_window_px % 2 == 1),
+           "doubtful_verify_window_px ", doubtful_verify_window_px, " must be 0 or odd in 1–31");
+  RB_CHECK(doubtful_sigma_px >= 0.0, "doubtful_sigma_px ", doubtful_sigma_px, " must be ≥ 0");
   RB_CHECK(rows_per_task >= 1 && rows_per_task <= 1024, "rows_per_task ", rows_per_task, " is outside 1–1024");
+}
+
+SpaceTimeMatcherOptions SpaceTimeStaticSceneOptions(int frames) {
+  RB_CHECK(frames >= 1, "space-time preset needs at least one frame, got ", frames);
+  SpaceTimeMatcherOptions o;
+  o.window_px = frames >= 16 ? 5 : 7;
+  o.subpixel_iterations = 1;
+  o.sigma_floor_px = kGaussNewtonSigmaFloorPx;
+  o.sigma_scale = kGaussNewtonSigmaScale;
+  o.doubtful_jump_px = 1.0;
+  o.doubtful_verify_window_px = frames >= 16 ? 3 : 5;
+  return o;
 }
 
 SpaceTimeMatcher::SpaceTimeMatcher(const SpaceTimeMatcherOptions& options) : options_(options) {
@@ -411,6 +427,38 @@ RB_MULTIVERSION void RunnerUpRow(const float* vol, int W, int D, int dmin, const
   }
 }
 
+// Winner-take-all disparity of pixel (x, y) with a small v×v×T window (v = 2·rv + 1) over the whole search
+// range, or INT_MIN when no disparity has the window inside the right image. Checks a doubtful pixel: a
+// window that reaches only rv px sees little of the other surface across a depth edge.
+int SmallWindowDisparity(const Sequence& L, const Sequence& R, int x, int y, int rv, int dmin, int D) {
+  const int W = L.width, H = L.height, T = L.frames;
+  double best = std::numeric_limits<double>::infinity();
+  int arg = std::numeric_limits<int>::min();
+  for (int di = 0; di < D; ++di) {
+    const int d = dmin + di;
+    if (x - rv - d < 0 || x + rv - d >= W || x - rv < 0 || x + rv >= W) continue;
+    double cost = 0.0;
+    for (int wy = -rv; wy <= rv; ++wy) {
+      const int yy = std::clamp(y + wy, 0, H - 1);
+      const float* lr = L.row(yy);
+      const float* rr = R.row(yy);
+      for (int t = 0; t < T; ++t) {
+        const float* lt = lr + static_cast<size_t>(t) * W;
+        const float* rt = rr + static_cast<size_t>(t) * W;
+        for (int wx = -rv; wx <= rv; ++wx) {
+          const double e = lt[x + wx] - rt[x + wx - d];
+          cost += e * e;
+        }
+      }
+    }
+    if (cost < best) {
+      best = cost;
+      arg = d;
+    }
+  }
+  return arg;
+}
+
 struct BandBuffers {
   std::vector<float> ring;    // [w][D][W]: horizontally summed costs of the last w input rows
   std::vector<float> volume;  // [D][W]: window costs of the current output row (the running column sums)
@@ -619,31 +667,36 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
     rej_sigma += too_uncertain.load();
   }
   const bool edge_reject = options_.edge_reject_jump_px >= 0.0;
-  if (options_.neighbour_jump_px >= 0.0 || edge_reject) {
+  const bool doubt = !edge_reject && options_.doubtful_jump_px >= 0.0;
+  if (options_.neighbour_jump_px >= 0.0 || edge_reject || doubt) {
     // σ_d² += J: the mean over the valid w×w neighbours of (d_n − d)² for the differences beyond
-    // neighbour_jump_px (window straddling a depth edge, isolated mismatches). With edge_reject_jump_px, a
-    // pixel within r + 1 of a hole or of a neighbour more than edge_reject_jump_px per pixel of distance
-    // away straddles a depth edge or an occlusion: its cost mixes two surfaces, so the pixel is dropped.
+    // neighbour_jump_px (window straddling a depth edge, isolated mismatches). A pixel within r + 1 of a hole
+    // or of a neighbour more than the edge threshold per pixel of distance away straddles a depth edge or an
+    // occlusion (its cost mixes two surfaces): with edge_reject_jump_px it is dropped, with doubtful_jump_px
+    // it is kept and σ_d² gains doubtful_sigma_px² plus the largest such jump squared.
     const cv::Mat d = result.disparity_px.clone();
     const double jump = options_.neighbour_jump_px;
-    const double edge_jump = options_.edge_reject_jump_px;
+    const double edge_jump = edge_reject ? options_.edge_reject_jump_px : options_.doubtful_jump_px;
+    const bool edge_test = edge_reject || doubt;
     const bool add_j = options_.neighbour_jump_px >= 0.0;
-    std::atomic<int> dropped{0}, dropped_edge{0};
+    const double doubt_var = options_.doubtful_sigma_px * options_.doubtful_sigma_px;
+    const int verify_r = options_.doubtful_verify_window_px > 0 ? options_.doubtful_verify_window_px / 2 : -1;
+    std::atomic<int> dropped{0}, dropped_edge{0}, doubtful{0};
     tbb::parallel_for(0, H, [&](int y) {
       float* out_d = result.disparity_px.ptr<float>(y);
       float* out_s = result.sigma_disparity_px.ptr<float>(y);
       const float* dr = d.ptr<float>(y);
-      int row_dropped = 0, row_edge = 0;
+      int row_dropped = 0, row_edge = 0, row_doubtful = 0;
       for (int x = 0; x < W; ++x) {
         const float dc = dr[x];
         if (!std::isfinite(dc)) continue;
-        double j2 = 0.0;
+        double j2 = 0.0, max_jump2 = 0.0;
         int n = 0;
         bool straddles = false;
         // The edge test looks one ring beyond the window: a band of wrong disparities can be r pixels wide
         // (the window's reach into the other surface) plus the mixed pixel on the edge itself (measured on
         // the box's grazing top face in bench_stereo --quality=synth: radius r left such pixels 6 px off).
-        const int re = edge_reject ? r + 1 : r;
+        const int re = edge_test ? r + 1 : r;
         for (int yy = std::max(0, y - re); yy <= std::min(H - 1, y + re); ++yy) {
           const float* row = d.ptr<float>(yy);
           for (int xx = std::max(0, x - re); xx <= std::min(W - 1, x + re); ++xx) {
@@ -657,7 +710,10 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
               ++n;
               j2 += std::abs(diff) > jump ? diff * diff : 0.0;
             }
-            if (edge_reject && std::abs(diff) > edge_jump * std::max(std::abs(xx - x), std::abs(yy - y))) straddles = true;
+            if (edge_test && std::abs(diff) > edge_jump * std::max(std::abs(xx - x), std::abs(yy - y))) {
+              straddles = true;
+              max_jump2 = std::max(max_jump2, diff * diff);
+            }
           }
         }
         if (edge_reject && straddles) {
@@ -665,8 +721,21 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
           ++row_edge;
           continue;
         }
-        if (!add_j) continue;
-        const double sigma = std::sqrt(static_cast<double>(out_s[x]) * out_s[x] + j2 / n);
+        double var = static_cast<double>(out_s[x]) * out_s[x];
+        if (add_j) var += j2 / n;
+        if (doubt && straddles) {
+          if (verify_r >= 0) {
+            const int ds = SmallWindowDisparity(L, R, x, y, verify_r, dmin, D);
+            if (!(std::abs(static_cast<double>(ds) - dc) <= 1.0)) {
+              out_d[x] = out_s[x] = nan;
+              ++row_edge;
+              continue;
+            }
+          }
+          var += doubt_var + max_jump2;
+          ++row_doubtful;
+        }
+        const double sigma = std::sqrt(var);
         out_s[x] = static_cast<float>(sigma);
         if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
           out_d[x] = out_s[x] = nan;
@@ -675,10 +744,12 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
       }
       dropped += row_dropped;
       dropped_edge += row_edge;
+      doubtful += row_doubtful;
     });
     valid -= dropped.load() + dropped_edge.load();
     rej_sigma += dropped.load();
     summary_.rejected_edge = dropped_edge.load();
+    summary_.doubtful = doubtful.load();
   }
   summary_.valid_pixels = valid;
   summary_.rejected_left_right = rej_lr;

@@ -50,15 +50,25 @@ struct SpaceTimeMatcherOptions {
   // < 0: off (library default); ≥ 0: a pixel with a hole (no valid disparity) or a valid pixel whose
   // disparity differs by more than this per pixel of (chessboard) distance within r + 1 = w/2 + 1 of it
   // becomes NaN: its window mixes two surfaces (depth edge, occlusion border, a grazing face), which drags the
-  // match to the other surface. `rangebayes spacetime` uses 1.0; on the synthetic scenes it removes the gross
-  // edge errors that dominate the depth RMS (box, T = 16, w = 5, noise 4, 1 GN step: 26.5 → 2.3 mm over the
-  // pixels both it and SGBM measured) for 2–6% of coverage.
+  // match to the other surface. On the synthetic scenes 1.0 removes the gross edge errors that dominate the
+  // depth RMS (box, T = 16, w = 5, noise 4, 1 GN step: 26.5 → 2.3 mm over the pixels both it and SGBM
+  // measured), but also 4–11% of the non-occluded pixels, most of them right: the static preset keeps them
+  // as doubtful instead (`rangebayes spacetime --edge-reject 1` still drops them).
   double edge_reject_jump_px = -1.0;
+  // < 0: off (library default); ≥ 0 (and edge rejection off): the same test as edge_reject_jump_px, but the
+  // pixel is kept and called doubtful: σ_d² += doubtful_sigma_px² + the largest offending jump². Most such
+  // pixels are right to 1 px (BENCHMARKS.md, space-time coverage); the smoother then trusts them less.
+  double doubtful_jump_px = -1.0;
+  double doubtful_sigma_px = 1.0;    // ≥ 0: σ_d added in quadrature to every doubtful pixel (px)
+  // 0: keep every doubtful pixel; odd 1–31: keep it only where a v×v×T window (full search range, winner take
+  // all) agrees with its disparity to 1 px, else drop it (rejected_edge): a small window sees little of the
+  // other surface, so it catches the foreground disparity smeared over the background (the "fattening").
+  int doubtful_verify_window_px = 3;
   // 0–5: Gauss–Newton steps after the parabola on the pixels that passed the checks, with the planar window
   // and the left image's gradient (see RefineGaussNewton). 0: parabola only, the library default (the speed
   // case; 0.051 px about the Gray-code plane at T = 16 against 0.050 px with 2 steps). The parabola's pixel
   // locking (±0.03 px, by fractional disparity) leaves depth RMS up to 0.37 of SGBM's away from edges on
-  // the synthetic scenes at T = 16, w = 5; one step: up to 0.25 (`rangebayes spacetime` uses 1).
+  // the synthetic scenes at T = 16, w = 5; one step: up to 0.25 (the static preset uses 1).
   int subpixel_iterations = 0;
   int rows_per_task = 32;            // 1–1024: rows per parallel task (each band recomputes w − 1 rows above it)
   void Check() const;
@@ -72,6 +82,13 @@ struct SpaceTimeMatcherOptions {
 inline constexpr double kGaussNewtonSigmaFloorPx = 0.01;
 inline constexpr double kGaussNewtonSigmaScale = 1.8;
 
+// The configuration for a static scene under T projected patterns, what `rangebayes spacetime` runs: one
+// Gauss–Newton step with its σ_d model (kGaussNewtonSigma*), a window of about 400 samples per match (w = 7
+// for T < 16, 5 for T ≥ 16; w = 5 at T = 8 misses the synthetic target at noise 4), doubtful pixels kept
+// with an inflated σ_d where a 5×5×T (T < 16) or 3×3×T (T ≥ 16) window confirms them. Slower than SpaceTimeMatcherOptions{} (parabola only), which the live path keeps.
+// Measured: BENCHMARKS.md, space-time sections (`bench_stereo --quality=synth`, `--quality=coverage`).
+SpaceTimeMatcherOptions SpaceTimeStaticSceneOptions(int frames);
+
 struct SpaceTimeMatchSummary {
   SpaceTimeCost cost_used = SpaceTimeCost::kSsd;
   int frames = 0;
@@ -80,7 +97,8 @@ struct SpaceTimeMatchSummary {
   int rejected_flat = 0;      // no curvature (textureless) or minimum at the end of the search range
   int rejected_sigma = 0;
   int rejected_ambiguous = 0;  // failed the uniqueness test
-  int rejected_edge = 0;       // near a depth edge or a hole (edge_reject_jump_px)
+  int rejected_edge = 0;       // near a depth edge or a hole (edge_reject_jump_px), or doubtful and unconfirmed
+  int doubtful = 0;            // kept near a depth edge or a hole with an inflated σ_d (doubtful_jump_px)
 };
 
 class SpaceTimeMatcher : public StereoMatcher {
