@@ -18,6 +18,9 @@ packages=(
   libbenchmark-dev       # bench/
   libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
   clang libclang-rt-14-dev   # libFuzzer targets
+  pybind11-dev python3-dev python3-numpy   # the Python module (python/)
+  python3-pytest python3-matplotlib python3-open3d   # its tests, examples and Open3D interop
+  python3-venv python3-pip python3-setuptools python3-wheel   # pip install --no-build-isolation .
 )
 
 missing=()
