@@ -1,5 +1,8 @@
 #include "python/src/convert.h"
 
+#include <sys/mman.h>
+
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -30,6 +33,16 @@ void CheckShape(const py::array& a, const std::vector<py::ssize_t>& shape, const
   throw py::value_error(what + ": expected an array of shape " + want + ", got " + got);
 }
 
+// Large fresh buffers are filled once here; transparent huge pages (where the kernel offers them on request,
+// as numpy also asks for its own large arrays) turn ~500 page faults per MB into a few.
+void AdviseHugePages(void* data, size_t bytes) {
+  constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  if (data == nullptr || bytes < 4 * kHuge) return;
+  const std::uintptr_t begin = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
+  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+}
+
 char Kind(const py::array& a) { return a.dtype().kind(); }
 
 void CheckReal(const py::array& a, const std::string& what) {
@@ -47,6 +60,7 @@ Vertices VerticesFromArray(py::handle obj, const std::string& what) {
   CheckReal(a, what);
   auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
   Vertices V(c.shape(0), 3);
+  AdviseHugePages(V.data(), sizeof(double) * static_cast<size_t>(V.size()));
   if (V.size() > 0) std::memcpy(V.data(), c.data(), sizeof(double) * static_cast<size_t>(V.size()));
   return V;
 }
@@ -59,6 +73,7 @@ Faces FacesFromArray(py::handle obj, const std::string& what) {
     throw py::type_error(what + ": expected an integer array, got dtype " + py::str(a.dtype()).cast<std::string>());
   }
   Faces F(a.shape(0), 3);
+  AdviseHugePages(F.data(), sizeof(int) * static_cast<size_t>(F.size()));
   if (a.dtype().is(py::dtype::of<int>())) {
     auto c = py::array_t<int, py::array::c_style>::ensure(a);
     if (F.size() > 0) std::memcpy(F.data(), c.data(), sizeof(int) * static_cast<size_t>(F.size()));
@@ -81,6 +96,7 @@ std::vector<Eigen::Matrix3d> CovariancesFromArray(py::handle obj, const std::str
   CheckReal(a, what);
   auto c = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
   std::vector<Eigen::Matrix3d> out(static_cast<size_t>(c.shape(0)));
+  AdviseHugePages(out.data(), sizeof(Eigen::Matrix3d) * out.size());
   const double* p = c.data();
   for (size_t i = 0; i < out.size(); ++i) out[i] = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(p + 9 * i);
   return out;
