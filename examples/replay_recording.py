@@ -29,10 +29,9 @@ def main():
     rec = rb.open_recording(args.recording)
     first = rec[0]
     print(f"{args.recording}: {len(rec)} frames of {first.left.shape}, scene {rec.meta.get('scene', '?')}")
-    # The fast stopping preset keeps this a preview; drop it for the full solve per frame.
-    results, summary = rb.replay(rec, playback={"count": args.count}, smoothing={"tolerance": "fast"},
-                                 decimation={"target_faces": 2000},
-                                 progress=lambda f, stage: None)
+    # A preview: every second pixel and the fast stopping preset (drop both for full-resolution meshes).
+    results, summary = rb.replay(rec, playback={"count": args.count}, triangulate={"downsample": 2},
+                                 smoothing={"tolerance": "fast"}, progress=lambda f, stage: None)
     meshes = []
     for r in results:
         if r.error:

@@ -9,6 +9,8 @@ import rangebayes as rb
 
 def run(root, script, *args, cwd):
     env = dict(os.environ, MPLBACKEND="Agg")
+    package_dir = os.path.dirname(os.path.dirname(os.path.abspath(rb.__file__)))  # the module under test
+    env["PYTHONPATH"] = os.pathsep.join([package_dir, env.get("PYTHONPATH", "")])
     env.pop("DISPLAY", None)
     subprocess.run([sys.executable, str(root / "examples" / script), *args], check=True, cwd=cwd, env=env,
                    stdout=subprocess.DEVNULL)
