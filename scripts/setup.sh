@@ -19,6 +19,9 @@ packages=(
   libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
   clang libclang-rt-14-dev   # libFuzzer targets
   slurmctld slurmd slurm-client munge  # batch/: the test's and bench's throw-away loopback Slurm cluster
+  pybind11-dev python3-dev python3-numpy   # the Python module (python/)
+  python3-pytest python3-matplotlib python3-open3d   # its tests, examples and Open3D interop
+  python3-venv python3-pip python3-setuptools python3-wheel   # pip install --no-build-isolation .
 )
 
 missing=()

@@ -1,0 +1,14 @@
+"""rangebayes: stereo range scanning to clean, compact 3D meshes (Bayesian smoothing and decimation).
+
+The C++ library from Python. Entry points: read_mesh / write_mesh, smooth (the same defaults and result as
+`rangebayes smooth`), decimate / decimate_animated, match / stereo / triangulate, read_rig / write_rig,
+read_noise_model / write_noise_model, open_recording / replay, learn_prior. Every library error is a
+rangebayes.Error (a RuntimeError) with the library's message. Open3D interop: to_open3d / from_open3d
+(when open3d is installed). Long calls release the GIL.
+"""
+
+from ._rangebayes import *  # noqa: F401,F403
+from ._rangebayes import Error, Mesh, NoisyMesh, __doc__ as _ext_doc  # noqa: F401
+from ._open3d import from_open3d, to_open3d  # noqa: F401
+
+__version__ = "0.1.0"

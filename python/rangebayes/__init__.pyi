@@ -1,0 +1,294 @@
+# Type stub of the rangebayes module (for editors; the docstrings at run time hold units and contracts).
+from typing import Any, Callable, Iterator, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+ArrayLike = npt.ArrayLike
+Progress = Callable[[float, str], Any]
+
+class Error(RuntimeError): ...
+
+class Mesh:
+    V: npt.NDArray[np.float64]  # (n, 3), view of the C++ storage; assignment copies
+    F: npt.NDArray[np.int32]  # (m, 3)
+    N: npt.NDArray[np.float64]  # (n, 3) or (0, 3)
+    def __init__(self, V: ArrayLike, F: ArrayLike, N: Optional[ArrayLike] = ...) -> None: ...
+    @property
+    def num_vertices(self) -> int: ...
+    @property
+    def num_faces(self) -> int: ...
+    def copy(self) -> Mesh: ...
+
+class NoisyMesh:
+    mesh: Mesh
+    V: npt.NDArray[np.float64]
+    F: npt.NDArray[np.int32]
+    N: npt.NDArray[np.float64]
+    covariances: npt.NDArray[np.float64]  # (n, 3, 3), model units²
+    pixel: npt.NDArray[np.float32]  # (n, 2) or (0, 2)
+    def __init__(self, V: Union[ArrayLike, Mesh], F: Optional[ArrayLike] = ..., covariances: Optional[ArrayLike] = ...) -> None: ...
+    @property
+    def has_covariance(self) -> bool: ...
+    @property
+    def num_vertices(self) -> int: ...
+    @property
+    def num_faces(self) -> int: ...
+    def copy(self) -> NoisyMesh: ...
+
+class CornerNormals:
+    @property
+    def normals(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def normal_index(self) -> npt.NDArray[np.int32]: ...
+
+def read_mesh(path: str) -> Union[Mesh, NoisyMesh]: ...
+def read_noisy_mesh(path: str) -> NoisyMesh: ...
+def write_mesh(path: str, mesh: Union[Mesh, NoisyMesh, DecimatedMesh], ply_encoding: str = "binary") -> None: ...
+
+# Smoothing
+SMOOTH_OPTIONS: dict[str, Any]
+
+class AdaptiveEpsilonSummary:
+    per_face: bool
+    gate_median_epsilon_squared: float
+    median_epsilon_squared: float
+    p10_epsilon_squared: float
+    p90_epsilon_squared: float
+    faces_at_minimum: int
+    prepass_iterations: int
+    time_s: float
+
+class GenericNoiseSummary:
+    mean_edge_length: float
+    noise_edge_multiple: float
+    sigma: float
+    estimated: bool
+
+class NoiseModelChoice:
+    from_file: bool
+    replaced_file: bool
+    generic: GenericNoiseSummary
+
+class SmoothSummary:
+    iterations: int
+    evaluations: int
+    energy: list[float]
+    data_energy: float
+    prior_energy: float
+    initial_gradient_norm: float
+    final_gradient_norm: float
+    termination: str
+    time_s: float
+    flipped_faces: int
+    input_flipped_faces: int
+    num_threads: int
+    potential_name: str
+    memory_bytes: int
+    adaptive_epsilon_used: bool
+    adaptive: AdaptiveEpsilonSummary
+    noise_model: NoiseModelChoice
+    def brief_report(self) -> str: ...
+
+class LearnedPrior:
+    num_knots: int
+    epsilon_squared: float
+    theta: npt.NDArray[np.float64]
+    prior_weight: float
+    noise_kind: str
+    noise_k: float
+    training_set: str
+    training_pairs: int
+    method: str
+    regularizer_weight: float
+    date: str
+    def __init__(self) -> None: ...
+
+def smooth(
+    mesh: Union[Mesh, NoisyMesh],
+    noise: Optional[float] = ...,
+    sigma: Optional[float] = ...,
+    prior: Union[str, LearnedPrior] = "sqrt",
+    *,
+    across_ratio: float = ...,
+    ignore_covariance: bool = ...,
+    initial_positions: Optional[ArrayLike] = ...,
+    progress: Optional[Progress] = ...,
+    **options: Any,  # the SmoothOptions fields: see SMOOTH_OPTIONS
+) -> Tuple[Mesh, SmoothSummary]: ...
+def estimate_noise_level(mesh: Union[Mesh, NoisyMesh]) -> float: ...
+def make_generic_noisy_mesh(
+    mesh: Union[Mesh, NoisyMesh], noise: Optional[float] = ..., sigma: Optional[float] = ..., across_ratio: float = ...
+) -> Tuple[NoisyMesh, GenericNoiseSummary]: ...
+def read_learned_prior(path: str) -> LearnedPrior: ...
+def write_learned_prior(path: str, prior: LearnedPrior) -> None: ...
+LEARN_PRIOR_OPTIONS: dict[str, Any]
+def learn_prior(
+    pairs: Sequence[Tuple[NoisyMesh, Mesh]], initial_theta: Optional[ArrayLike] = ..., *,
+    progress: Optional[Progress] = ..., **options: Any
+) -> Tuple[LearnedPrior, dict[str, Any]]: ...
+
+# Decimation
+DECIMATE_OPTIONS: dict[str, Any]
+
+class DecimatedMesh:
+    mesh: Mesh
+    corner_normals: CornerNormals
+    face_patch: list[int]
+    vertex_source: list[int]
+    dense_face_patch: list[int]
+    polygons: list[list[int]]
+    num_patches: int
+
+class DecimateSummary:
+    lambda_: float
+    input_faces: int
+    num_patches: int
+    output_faces: int
+    output_vertices: int
+    energy: float
+    converged: bool
+    seconds_total: float
+    notices: list[str]
+
+def decimate(mesh: Union[Mesh, NoisyMesh], *, progress: Optional[Progress] = ..., **options: Any) -> Tuple[DecimatedMesh, DecimateSummary]: ...
+def decimate_animated(
+    poses: Sequence[Union[Mesh, NoisyMesh]], *, progress: Optional[Progress] = ..., **options: Any
+) -> Tuple[list[DecimatedMesh], DecimateSummary]: ...
+
+# Calibration, stereo, reconstruction
+class CameraIntrinsics:
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+    width: int
+    height: int
+    def __init__(self) -> None: ...
+
+class StereoRig:
+    width: int
+    height: int
+    K_left: npt.NDArray[np.float64]
+    K_right: npt.NDArray[np.float64]
+    distortion_left: npt.NDArray[np.float64]
+    distortion_right: npt.NDArray[np.float64]
+    R_right_from_left: npt.NDArray[np.float64]
+    t_right_from_left_m: npt.NDArray[np.float64]
+    is_rectified: bool
+    R1: npt.NDArray[np.float64]
+    R2: npt.NDArray[np.float64]
+    P1: npt.NDArray[np.float64]
+    P2: npt.NDArray[np.float64]
+    Q: npt.NDArray[np.float64]
+    doffs_px: float
+    def __init__(self) -> None: ...
+    def rectified_left(self) -> CameraIntrinsics: ...
+    def baseline_m(self) -> float: ...
+
+def read_rig(path: str) -> StereoRig: ...
+def write_rig(path: str, rig: StereoRig) -> None: ...
+
+class DisparityNoiseModel:
+    form: str
+    sigma_px: float
+    floor_px: float
+    scale: float
+    matcher: str
+    samples: int
+    outlier_fraction: float
+    image_noise_gray: float
+    def __init__(self) -> None: ...
+    def apply(self, sigma_pred_px: float) -> float: ...
+
+def read_noise_model(path: str) -> DisparityNoiseModel: ...
+def write_noise_model(path: str, model: DisparityNoiseModel) -> None: ...
+
+class DepthFrame:
+    depth_m: npt.NDArray[np.float32]
+    sigma_depth_m: npt.NDArray[np.float32]
+    disparity_px: npt.NDArray[np.float32]
+    sigma_disparity_px: npt.NDArray[np.float32]
+    frame_id: int
+    timestamp_ns: int
+    intrinsics: CameraIntrinsics
+    baseline_m: float
+    doffs_px: float
+    sigma_pixel_px: float
+    width: int
+    height: int
+
+Images = Union[ArrayLike, Sequence[ArrayLike]]
+SGBM_OPTIONS: dict[str, Any]
+SPACETIME_OPTIONS: dict[str, Any]
+TRIANGULATE_OPTIONS: dict[str, Any]
+
+def rectify(rig: StereoRig, left: ArrayLike, right: ArrayLike, **options: Any) -> Tuple[np.ndarray, np.ndarray]: ...
+def match(left: Images, right: Images, matcher: str = "sgbm", **options: Any) -> dict[str, Any]: ...
+def stereo(rig: StereoRig, left: Images, right: Images, matcher: str = "sgbm", depth: dict[str, Any] = ..., **options: Any) -> DepthFrame: ...
+def depth_from_disparity(
+    disparity: ArrayLike, sigma: Optional[ArrayLike], intrinsics: CameraIntrinsics, baseline_m: float,
+    doffs_px: float = 0.0, **options: Any
+) -> DepthFrame: ...
+def triangulate(frame: DepthFrame, **options: Any) -> NoisyMesh: ...
+
+# Recordings and the pipeline
+class StereoFrame:
+    left: np.ndarray
+    right: np.ndarray
+    index: int
+    timestamp_left_ns: int
+    timestamp_right_ns: int
+    pattern_id: int
+
+class Recording:
+    folder: str
+    rig: Optional[StereoRig]
+    meta: dict[str, str]
+    def __len__(self) -> int: ...
+    def __getitem__(self, i: int) -> StereoFrame: ...
+    def __iter__(self) -> Iterator[StereoFrame]: ...
+
+def open_recording(folder: str) -> Recording: ...
+
+class PipelineResult:
+    index: int
+    last_index: int
+    timestamp_ns: int
+    frames: int
+    left_rectified: Optional[np.ndarray]
+    depth: DepthFrame
+    raw_mesh: NoisyMesh
+    smoothed: Optional[Mesh]
+    decimated: Optional[DecimatedMesh]
+    error: str
+
+class StageTiming:
+    name: str
+    items: int
+    errors: int
+    total_ms: float
+    mean_ms: float
+
+class PipelineSummary:
+    source: str
+    frames_captured: int
+    results: int
+    failed: int
+    errors: list[str]
+    stages: list[StageTiming]
+    notices: list[str]
+    wall_s: float
+    frames_per_s: float
+
+PIPELINE_OPTIONS: dict[str, Any]
+def replay(
+    recording: Union[str, Recording], rig: Optional[StereoRig] = ..., *, progress: Optional[Progress] = ...,
+    **options: Any
+) -> Tuple[list[PipelineResult], PipelineSummary]: ...
+
+# Open3D interop (needs open3d)
+def to_open3d(mesh: Union[Mesh, NoisyMesh, DecimatedMesh]) -> Any: ...
+def from_open3d(o3d_mesh: Any) -> Mesh: ...

@@ -1,0 +1,35 @@
+"""Open3D interop (open3d is optional: imported only when these functions are called)."""
+
+import numpy as np
+
+
+def _o3d():
+    try:
+        import open3d
+    except ImportError as e:  # pragma: no cover - depends on the machine
+        raise ImportError("to_open3d/from_open3d need open3d (Debian: apt-get install python3-open3d)") from e
+    return open3d
+
+
+def to_open3d(mesh):
+    """An open3d.geometry.TriangleMesh with the vertices, faces and (when present) vertex normals of a Mesh,
+    NoisyMesh or DecimatedMesh (copies: Open3D owns its own storage)."""
+    o3d = _o3d()
+    if hasattr(mesh, "corner_normals") and hasattr(mesh, "polygons"):
+        mesh = mesh.mesh
+    out = o3d.geometry.TriangleMesh()
+    out.vertices = o3d.utility.Vector3dVector(np.ascontiguousarray(mesh.V, dtype=np.float64))
+    out.triangles = o3d.utility.Vector3iVector(np.ascontiguousarray(mesh.F, dtype=np.int32))
+    if mesh.N.shape[0] == mesh.V.shape[0] and mesh.V.shape[0] > 0:
+        out.vertex_normals = o3d.utility.Vector3dVector(np.ascontiguousarray(mesh.N, dtype=np.float64))
+    return out
+
+
+def from_open3d(o3d_mesh):
+    """A rangebayes.Mesh from an open3d.geometry.TriangleMesh (copies vertices, triangles, vertex normals)."""
+    from ._rangebayes import Mesh
+
+    V = np.asarray(o3d_mesh.vertices)
+    F = np.asarray(o3d_mesh.triangles)
+    N = np.asarray(o3d_mesh.vertex_normals) if o3d_mesh.has_vertex_normals() else None
+    return Mesh(V, F, N)

@@ -1,0 +1,313 @@
+// bayes/: smoothing (what `rangebayes smooth` runs), the generic noise model, decimation, learned priors.
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <memory>
+
+#include "python/src/bindings.h"
+#include "python/src/convert.h"
+#include "python/src/option_tables.h"
+
+namespace rangebayes::python {
+namespace {
+
+NoisyMesh ToNoisyMesh(py::handle mesh, const char* what) {
+  if (py::isinstance<NoisyMesh>(mesh)) return mesh.cast<NoisyMesh>();
+  if (py::isinstance<Mesh>(mesh)) {
+    NoisyMesh noisy;
+    noisy.mesh = mesh.cast<Mesh>();
+    return noisy;
+  }
+  throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh");
+}
+
+Mesh ToMesh(py::handle mesh, const char* what) {
+  if (py::isinstance<Mesh>(mesh)) return mesh.cast<Mesh>();
+  if (py::isinstance<NoisyMesh>(mesh)) return mesh.cast<NoisyMesh>().mesh;
+  throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh");
+}
+
+double OptionalNumber(py::handle value, const char* name) {
+  if (value.is_none()) return std::nan("");
+  return FieldFromPython<double>(value, name);
+}
+
+bool IsPriorFile(const std::string& prior) {
+  auto ends = [&](const std::string& suffix) {
+    return prior.size() > suffix.size() && prior.compare(prior.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  return ends(".yaml") || ends(".yml");
+}
+
+// The keywords smooth() takes besides the SmoothOptions table.
+constexpr const char* kSmoothExtraKeywords = "across_ratio, ignore_covariance, initial_positions, progress";
+
+py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::handle prior, py::kwargs kwargs) {
+  py::dict kw = py::dict(kwargs);
+  GenericNoiseOptions noise_options;
+  noise_options.noise_edge_multiple = OptionalNumber(noise, "noise");
+  noise_options.sigma = OptionalNumber(sigma, "sigma");
+  if (!std::isnan(noise_options.noise_edge_multiple) && !std::isnan(noise_options.sigma)) {
+    throw py::value_error("smooth(): give noise or sigma, not both");
+  }
+  py::object across = PopKeyword(kw, "across_ratio");
+  if (!across.is_none()) noise_options.across_ratio = FieldFromPython<double>(across, "across_ratio");
+  py::object ignore = PopKeyword(kw, "ignore_covariance");
+  const bool ignore_covariance = !ignore.is_none() && FieldFromPython<bool>(ignore, "ignore_covariance");
+  py::object initial = PopKeyword(kw, "initial_positions");
+  py::object progress = PopKeyword(kw, "progress");
+
+  SmoothOptions options;
+  std::unique_ptr<SplinePotential> learned;
+  double learned_beta = 0;
+  if (py::isinstance<LearnedPrior>(prior)) {
+    const auto& p = prior.cast<const LearnedPrior&>();
+    learned = std::make_unique<SplinePotential>(p.spline, p.theta);
+    learned_beta = p.prior_weight;
+  } else if (py::isinstance<py::str>(prior)) {
+    const std::string name = prior.cast<std::string>();
+    if (IsPriorFile(name)) {
+      const LearnedPrior p = ReadLearnedPrior(name);
+      learned = std::make_unique<SplinePotential>(p.spline, p.theta);
+      learned_beta = p.prior_weight;
+    } else {
+      options.prior = ParsePriorKind(name);
+    }
+  } else {
+    throw py::type_error("smooth(): prior must be 'sqrt', 'quadratic', 'cauchy', a .yaml path or a LearnedPrior");
+  }
+  options.potential = learned.get();
+  const bool beta_given = kw.contains("prior_weight");
+  ApplyKeywords(SmoothOptionFields(), kw, &options, "smooth", kSmoothExtraKeywords);
+  if (learned && !beta_given && learned_beta > 0) options.prior_weight = learned_beta;
+  Vertices start;
+  if (!initial.is_none()) {
+    start = VerticesFromArray(initial, "initial_positions");
+    options.initial_positions = &start;
+  }
+  options.progress = PythonProgress(progress);
+  options.Check();
+
+  const NoisyMesh input = ToNoisyMesh(mesh, "smooth");
+  NoiseModelChoice choice;
+  SmoothSummary summary;
+  Mesh result;
+  {
+    py::gil_scoped_release nogil;
+    const NoisyMesh noisy = ChooseNoiseModel(
+        input, noise_options, ignore_covariance ? CovarianceSource::kGeneric : CovarianceSource::kAuto, &choice);
+    result = Smooth(noisy, options, &summary);
+  }
+  py::object s = py::cast(std::move(summary));
+  s.attr("noise_model") = py::cast(choice);
+  return py::make_tuple(std::move(result), s);
+}
+
+}  // namespace
+
+void BindBayes(py::module_& m) {
+  py::class_<AdaptiveEpsilonSummary>(m, "AdaptiveEpsilonSummary", "What the adaptive-ε default did.")
+      .def_readonly("per_face", &AdaptiveEpsilonSummary::per_face)
+      .def_readonly("gate_median_epsilon_squared", &AdaptiveEpsilonSummary::gate_median_epsilon_squared)
+      .def_readonly("median_epsilon_squared", &AdaptiveEpsilonSummary::median_epsilon_squared)
+      .def_readonly("p10_epsilon_squared", &AdaptiveEpsilonSummary::p10_epsilon_squared)
+      .def_readonly("p90_epsilon_squared", &AdaptiveEpsilonSummary::p90_epsilon_squared)
+      .def_readonly("faces_at_minimum", &AdaptiveEpsilonSummary::faces_at_minimum)
+      .def_readonly("prepass_iterations", &AdaptiveEpsilonSummary::prepass_iterations)
+      .def_readonly("time_s", &AdaptiveEpsilonSummary::time_s);
+
+  py::class_<SmoothSummary>(m, "SmoothSummary", py::dynamic_attr(),
+                            "What smooth() did; brief_report() is what `rangebayes smooth` prints. noise_model: "
+                            "the NoiseModelChoice (file covariances or the generic model).")
+      .def_readonly("iterations", &SmoothSummary::iterations)
+      .def_readonly("evaluations", &SmoothSummary::evaluations)
+      .def_readonly("energy", &SmoothSummary::energy, "energy at the start, then after each iteration")
+      .def_readonly("data_energy", &SmoothSummary::data_energy)
+      .def_readonly("prior_energy", &SmoothSummary::prior_energy)
+      .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
+      .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
+      .def_property_readonly("termination",
+                             [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
+      .def_readonly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
+      .def_readonly("flipped_faces", &SmoothSummary::flipped_faces)
+      .def_readonly("input_flipped_faces", &SmoothSummary::input_flipped_faces)
+      .def_readonly("num_threads", &SmoothSummary::num_threads)
+      .def_readonly("potential_name", &SmoothSummary::potential_name)
+      .def_readonly("memory_bytes", &SmoothSummary::memory_bytes)
+      .def_readonly("adaptive_epsilon_used", &SmoothSummary::adaptive_epsilon_used)
+      .def_readonly("adaptive", &SmoothSummary::adaptive)
+      .def("brief_report", &SmoothSummary::BriefReport);
+
+  py::class_<GenericNoiseSummary>(m, "GenericNoiseSummary")
+      .def_readonly("mean_edge_length", &GenericNoiseSummary::mean_edge_length, "l_e, model units")
+      .def_readonly("noise_edge_multiple", &GenericNoiseSummary::noise_edge_multiple, "k used")
+      .def_readonly("sigma", &GenericNoiseSummary::sigma, "σ along the normal, model units")
+      .def_readonly("estimated", &GenericNoiseSummary::estimated);
+  py::class_<NoiseModelChoice>(m, "NoiseModelChoice")
+      .def_readonly("from_file", &NoiseModelChoice::from_file)
+      .def_readonly("replaced_file", &NoiseModelChoice::replaced_file)
+      .def_readonly("generic", &NoiseModelChoice::generic);
+
+  m.def("smooth", &SmoothPy, py::arg("mesh"), py::arg("noise") = py::none(), py::arg("sigma") = py::none(),
+        py::arg("prior") = "sqrt",
+        R"(Bayesian smoothing, the same defaults and result as `rangebayes smooth`: returns (Mesh, SmoothSummary).
+
+mesh: a Mesh or NoisyMesh (copied in). The noise model is ChooseNoiseModel's: the NoisyMesh's covariances
+when it has them and neither noise nor sigma is given, else the generic model with noise = k (σ as a multiple
+of the mean edge length, (0, 10]) or sigma (σ in model units), k estimated from the mesh when neither is given.
+prior: 'sqrt' (default), 'quadratic', 'cauchy', a learned prior .yaml path or a LearnedPrior (its β is used
+unless prior_weight is given). Keywords: every SmoothOptions field (rangebayes.SMOOTH_OPTIONS holds their
+defaults; enums as strings, e.g. tolerance='fast'), across_ratio (generic model), ignore_covariance=True (the
+generic model even when covariances are given), initial_positions ((n, 3) start), progress (a function
+(fraction, stage), called with the GIL). The GIL is released while smoothing. An unknown keyword is a
+TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
+  m.attr("SMOOTH_OPTIONS") = FieldsToDict(SmoothOptionFields(), SmoothOptions{});
+
+  m.def("estimate_noise_level", [](py::handle mesh) { return EstimateNoiseLevel(ToMesh(mesh, "estimate_noise_level")); },
+        py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable).");
+  m.def(
+      "make_generic_noisy_mesh",
+      [](py::handle mesh, py::handle noise, py::handle sigma, double across_ratio) {
+        GenericNoiseOptions options;
+        options.noise_edge_multiple = OptionalNumber(noise, "noise");
+        options.sigma = OptionalNumber(sigma, "sigma");
+        options.across_ratio = across_ratio;
+        const Mesh plain = ToMesh(mesh, "make_generic_noisy_mesh");
+        GenericNoiseSummary summary;
+        py::gil_scoped_release nogil;
+        NoisyMesh noisy = MakeGenericNoisyMesh(plain, options, &summary);
+        return std::make_pair(std::move(noisy), summary);
+      },
+      py::arg("mesh"), py::arg("noise") = py::none(), py::arg("sigma") = py::none(),
+      py::arg("across_ratio") = GenericNoiseOptions{}.across_ratio,
+      "The generic noise model (noise = k or sigma in model units; estimated when neither): (NoisyMesh, "
+      "GenericNoiseSummary).");
+
+  // Decimation.
+  py::class_<DecimatedMesh>(m, "DecimatedMesh", "One decimated pose; arrays are copies.")
+      .def_readonly("mesh", &DecimatedMesh::mesh)
+      .def_readonly("corner_normals", &DecimatedMesh::corner_normals)
+      .def_readonly("face_patch", &DecimatedMesh::face_patch, "per output face, its patch")
+      .def_readonly("vertex_source", &DecimatedMesh::vertex_source, "per output vertex, its input index")
+      .def_readonly("dense_face_patch", &DecimatedMesh::dense_face_patch, "per input face, its patch (-1: dropped)")
+      .def_readonly("polygons", &DecimatedMesh::polygons, "one polygon (vertex indices) per patch")
+      .def_readonly("num_patches", &DecimatedMesh::num_patches);
+  py::class_<DecimateSummary>(m, "DecimateSummary")
+      .def_readonly("lambda_", &DecimateSummary::lambda, "the λ used")
+      .def_readonly("input_faces", &DecimateSummary::input_faces)
+      .def_readonly("num_patches", &DecimateSummary::num_patches)
+      .def_readonly("output_faces", &DecimateSummary::output_faces)
+      .def_readonly("output_vertices", &DecimateSummary::output_vertices)
+      .def_readonly("energy", &DecimateSummary::energy)
+      .def_readonly("converged", &DecimateSummary::converged)
+      .def_readonly("seconds_total", &DecimateSummary::seconds_total)
+      .def_readonly("notices", &DecimateSummary::notices);
+  m.def(
+      "decimate",
+      [](py::handle mesh, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        DecimateOptions options;
+        options.progress = PythonProgress(PopKeyword(kw, "progress"));
+        ApplyKeywords(DecimateOptionFields(), kw, &options, "decimate", "progress");
+        options.Check();
+        const Mesh input = ToMesh(mesh, "decimate");
+        DecimateSummary summary;
+        py::gil_scoped_release nogil;
+        DecimatedMesh out = Decimate(input, options, &summary);
+        return std::make_pair(std::move(out), std::move(summary));
+      },
+      py::arg("mesh"),
+      "Bayesian decimation into planar patches: (DecimatedMesh, DecimateSummary). Keywords: the DecimateOptions "
+      "fields (rangebayes.DECIMATE_OPTIONS), progress. GIL released.");
+  m.def(
+      "decimate_animated",
+      [](const py::sequence& poses, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        DecimateOptions options;
+        options.progress = PythonProgress(PopKeyword(kw, "progress"));
+        ApplyKeywords(DecimateOptionFields(), kw, &options, "decimate_animated", "progress");
+        options.Check();
+        std::vector<Mesh> input;
+        for (py::handle pose : poses) input.push_back(ToMesh(pose, "decimate_animated"));
+        DecimateSummary summary;
+        py::gil_scoped_release nogil;
+        std::vector<DecimatedMesh> out = DecimateAnimated(input, options, &summary);
+        return std::make_pair(std::move(out), std::move(summary));
+      },
+      py::arg("poses"),
+      "Decimates poses of one connectivity with one shared patch map: (list of DecimatedMesh, DecimateSummary).");
+  m.attr("DECIMATE_OPTIONS") = FieldsToDict(DecimateOptionFields(), DecimateOptions{});
+
+  // Learned priors.
+  py::class_<LearnedPrior>(m, "LearnedPrior", "A learned spline potential (prior.yaml).")
+      .def(py::init<>())
+      .def_property(
+          "num_knots", [](const LearnedPrior& p) { return p.spline.num_knots; },
+          [](LearnedPrior& p, int n) { p.spline.num_knots = n; })
+      .def_property(
+          "epsilon_squared", [](const LearnedPrior& p) { return p.spline.epsilon_squared; },
+          [](LearnedPrior& p, double e) { p.spline.epsilon_squared = e; })
+      .def_readwrite("theta", &LearnedPrior::theta, "N knot values φ(t_j), t_j = 2j/(N−1)")
+      .def_readwrite("prior_weight", &LearnedPrior::prior_weight, "β it was trained with")
+      .def_readwrite("noise_kind", &LearnedPrior::noise_kind)
+      .def_readwrite("noise_k", &LearnedPrior::noise_k)
+      .def_readwrite("training_set", &LearnedPrior::training_set)
+      .def_readwrite("training_pairs", &LearnedPrior::training_pairs)
+      .def_readwrite("method", &LearnedPrior::method)
+      .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
+      .def_readwrite("date", &LearnedPrior::date);
+  m.def("read_learned_prior", &ReadLearnedPrior, py::arg("path"));
+  m.def("write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
+        py::arg("path"), py::arg("prior"));
+  m.def(
+      "learn_prior",
+      [](const py::sequence& pairs, py::handle initial_theta, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        LearnPriorOptions options;
+        options.progress = PythonProgress(PopKeyword(kw, "progress"));
+        ApplyKeywords(LearnPriorOptionFields(), kw, &options, "learn_prior", "progress");
+        options.Check();
+        std::vector<TrainingPair> training;
+        for (py::handle pair : pairs) {
+          auto t = pair.cast<py::tuple>();
+          if (t.size() != 2) throw py::value_error("learn_prior: each pair is (noisy NoisyMesh, truth Mesh)");
+          TrainingPair p;
+          p.name = "pair " + std::to_string(training.size());
+          p.noisy = ToNoisyMesh(t[0], "learn_prior");
+          p.truth = ToMesh(t[1], "learn_prior");
+          training.push_back(std::move(p));
+        }
+        Eigen::VectorXd start;
+        if (!initial_theta.is_none()) start = initial_theta.cast<Eigen::VectorXd>();
+        LearnPriorSummary summary;
+        Eigen::VectorXd theta;
+        {
+          py::gil_scoped_release nogil;
+          theta = LearnPrior(training, options, start, &summary);
+        }
+        LearnedPrior prior;
+        prior.spline = options.spline;
+        prior.theta = theta;
+        prior.prior_weight = options.prior_weight;
+        prior.training_pairs = static_cast<int>(training.size());
+        prior.method = LearnMethodName(options.method);
+        prior.regularizer_weight = options.regularizer_weight;
+        prior.date = UtcNowIso8601();
+        py::dict s;
+        s["loss"] = summary.loss;
+        s["iterations"] = summary.iterations;
+        s["initial_data_loss"] = summary.initial_data_loss;
+        s["final_data_loss"] = summary.final_data_loss;
+        s["num_vertices"] = summary.num_vertices;
+        s["total_time_s"] = summary.total_time_s;
+        s["termination"] = summary.termination;
+        return py::make_tuple(prior, s);
+      },
+      py::arg("pairs"), py::arg("initial_theta") = py::none(),
+      R"(Learns a spline prior from [(noisy NoisyMesh with covariances, truth Mesh), ...]: (LearnedPrior, summary
+dict). Keywords: rangebayes.LEARN_PRIOR_OPTIONS, progress. GIL released.)");
+  m.attr("LEARN_PRIOR_OPTIONS") = FieldsToDict(LearnPriorOptionFields(), LearnPriorOptions{});
+}
+
+}  // namespace rangebayes::python

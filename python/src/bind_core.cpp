@@ -1,0 +1,179 @@
+// core/: Mesh, NoisyMesh and mesh files.
+#include <pybind11/stl.h>
+
+#include "python/src/bindings.h"
+#include "python/src/convert.h"
+#include "python/src/library.h"
+
+namespace rangebayes::python {
+namespace {
+
+Normals NormalsFromArray(py::handle obj) {
+  if (obj.is_none()) return Normals(0, 3);
+  return VerticesFromArray(obj, "N");
+}
+
+MeshWriteOptions WriteOptions(const std::string& ply_encoding) {
+  MeshWriteOptions options;
+  if (ply_encoding == "binary") {
+    options.ply_encoding = PlyEncoding::kBinaryLittleEndian;
+  } else if (ply_encoding == "ascii") {
+    options.ply_encoding = PlyEncoding::kAscii;
+  } else {
+    throw py::value_error("ply_encoding: expected 'binary' or 'ascii', got '" + ply_encoding + "'");
+  }
+  return options;
+}
+
+}  // namespace
+
+void BindCore(py::module_& m) {
+  py::class_<Mesh>(m, "Mesh", R"(A triangle mesh: V (n, 3) float64 positions in model units (metres for our cameras),
+F (m, 3) int32 vertex indices (counter-clockwise seen from outside), N (n, 3) or (0, 3) optional normals.
+
+Mesh(V, F, N=None) copies the arrays (any real dtype for V, any integer dtype for F, any strides).
+Reading mesh.V / mesh.F / mesh.N gives a writable numpy view of the C++ storage (no copy) that keeps the
+mesh alive; assigning mesh.V = array copies the array in. A view is invalidated when its array is replaced
+by one of another shape.)")
+      .def(py::init([](py::handle V, py::handle F, py::handle N) {
+             Mesh mesh;
+             mesh.V = VerticesFromArray(V, "V");
+             mesh.F = FacesFromArray(F, "F");
+             mesh.N = NormalsFromArray(N);
+             return mesh;
+           }),
+           py::arg("V"), py::arg("F"), py::arg("N") = py::none())
+      .def_property(
+          "V", [](py::object self) { return VerticesView(self.cast<Mesh&>().V, self); },
+          [](Mesh& mesh, py::handle a) { mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+      .def_property(
+          "F", [](py::object self) { return FacesView(self.cast<Mesh&>().F, self); },
+          [](Mesh& mesh, py::handle a) { mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+      .def_property(
+          "N", [](py::object self) { return VerticesView(self.cast<Mesh&>().N, self); },
+          [](Mesh& mesh, py::handle a) { mesh.N = NormalsFromArray(a); },
+          "(n, 3) float64 vertex normals, (0, 3) when absent (view)")
+      .def_property_readonly("num_vertices", &Mesh::num_vertices)
+      .def_property_readonly("num_faces", &Mesh::num_faces)
+      .def("copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
+      .def("__repr__", [](const Mesh& mesh) {
+        return "<rangebayes.Mesh " + std::to_string(mesh.num_vertices()) + " vertices, " +
+               std::to_string(mesh.num_faces()) + " faces>";
+      });
+
+  py::class_<NoisyMesh>(m, "NoisyMesh", R"(A mesh whose vertices are noisy measurements: covariances (n, 3, 3) float64, one 3×3
+covariance per vertex in model units squared (empty (0, 3, 3) when not known), pixel (n, 2) float32 image
+positions the vertices were triangulated from (or (0, 2)).
+
+NoisyMesh(V, F, covariances=None) and NoisyMesh(mesh, covariances=None) copy. V, F, N, covariances and pixel
+read as writable views of the C++ storage (no copy); assignment copies.)")
+      // The Mesh overload first: the array overload accepts any object.
+      .def(py::init([](const Mesh& mesh, py::handle covariances) {
+             NoisyMesh noisy;
+             noisy.mesh = mesh;
+             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             return noisy;
+           }),
+           py::arg("mesh"), py::arg("covariances") = py::none())
+      .def(py::init([](py::handle V, py::handle F, py::handle covariances) {
+             NoisyMesh noisy;
+             noisy.mesh.V = VerticesFromArray(V, "V");
+             noisy.mesh.F = FacesFromArray(F, "F");
+             noisy.mesh.N = Normals(0, 3);
+             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             return noisy;
+           }),
+           py::arg("V"), py::arg("F"), py::arg("covariances") = py::none())
+      .def_property(
+          "mesh", [](NoisyMesh& noisy) -> Mesh& { return noisy.mesh; },
+          [](NoisyMesh& noisy, const Mesh& mesh) { noisy.mesh = mesh; }, py::return_value_policy::reference_internal,
+          "the Mesh inside (a reference: changes show in both)")
+      .def_property(
+          "V", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.V, self); },
+          [](NoisyMesh& n, py::handle a) { n.mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+      .def_property(
+          "F", [](py::object self) { return FacesView(self.cast<NoisyMesh&>().mesh.F, self); },
+          [](NoisyMesh& n, py::handle a) { n.mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+      .def_property(
+          "N", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.N, self); },
+          [](NoisyMesh& n, py::handle a) { n.mesh.N = NormalsFromArray(a); }, "(n, 3) float64 normals (view)")
+      .def_property(
+          "covariances", [](py::object self) { return CovariancesView(self.cast<NoisyMesh&>().covariance, self); },
+          [](NoisyMesh& n, py::handle a) {
+            n.covariance = a.is_none() ? std::vector<Eigen::Matrix3d>{} : CovariancesFromArray(a, "covariances");
+          },
+          "(n, 3, 3) float64 covariances, model units² (view; strides (72, 8, 24): each 3×3 is column-major)")
+      .def_property(
+          "pixel", [](py::object self) { return PixelsView(self.cast<NoisyMesh&>().pixel, self); },
+          [](NoisyMesh& n, py::handle a) {
+            py::array_t<float, py::array::c_style | py::array::forcecast> c(py::reinterpret_borrow<py::object>(a));
+            if (c.ndim() != 2 || c.shape(1) != 2) throw py::value_error("pixel: expected shape (n, 2)");
+            n.pixel.resize(c.shape(0), 2);
+            std::copy(c.data(), c.data() + c.size(), n.pixel.data());
+          },
+          "(n, 2) float32 (u, v) pixel of each vertex, or (0, 2) (view)")
+      .def_property_readonly("has_covariance", &NoisyMesh::has_covariance)
+      .def_property_readonly("num_vertices", [](const NoisyMesh& n) { return n.mesh.num_vertices(); })
+      .def_property_readonly("num_faces", [](const NoisyMesh& n) { return n.mesh.num_faces(); })
+      .def("copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
+      .def("__repr__", [](const NoisyMesh& n) {
+        return "<rangebayes.NoisyMesh " + std::to_string(n.mesh.num_vertices()) + " vertices, " +
+               std::to_string(n.mesh.num_faces()) + " faces, " +
+               (n.has_covariance() ? "with" : "without") + " covariances>";
+      });
+
+  m.def(
+      "read_mesh",
+      [](const std::string& path) -> py::object {
+        NoisyMesh noisy;
+        {
+          py::gil_scoped_release nogil;
+          noisy = ReadNoisyMesh(path);
+        }
+        if (noisy.has_covariance()) return py::cast(std::move(noisy));
+        return py::cast(std::move(noisy.mesh));
+      },
+      py::arg("path"),
+      R"(Reads a PLY / OBJ / OFF mesh (by extension). Returns a NoisyMesh when the file has per-vertex covariances
+(PLY cov_xx..cov_zz), else a Mesh. Raises rangebayes.Error naming the file and line on bad input.)");
+  m.def(
+      "read_noisy_mesh",
+      [](const std::string& path) {
+        py::gil_scoped_release nogil;
+        return ReadNoisyMesh(path);
+      },
+      py::arg("path"), "Reads a mesh as a NoisyMesh (covariances empty when the file has none).");
+  m.def(
+      "write_mesh",
+      [](const std::string& path, py::handle mesh, const std::string& ply_encoding) {
+        MeshWriteOptions options = WriteOptions(ply_encoding);
+        if (py::isinstance<NoisyMesh>(mesh)) {
+          const NoisyMesh noisy = mesh.cast<NoisyMesh>();
+          py::gil_scoped_release nogil;
+          WriteNoisyMesh(noisy, path, options);
+        } else if (py::isinstance<Mesh>(mesh)) {
+          const Mesh plain = mesh.cast<Mesh>();
+          py::gil_scoped_release nogil;
+          WriteMesh(plain, path, options);
+        } else if (py::hasattr(mesh, "corner_normals") && py::hasattr(mesh, "mesh")) {
+          const Mesh plain = mesh.attr("mesh").cast<Mesh>();
+          options.corner_normals = mesh.attr("corner_normals").cast<CornerNormals>();
+          py::gil_scoped_release nogil;
+          WriteMesh(plain, path, options);
+        } else {
+          throw py::type_error("write_mesh: expected a Mesh, NoisyMesh or DecimatedMesh");
+        }
+      },
+      py::arg("path"), py::arg("mesh"), py::arg("ply_encoding") = "binary",
+      R"(Writes a Mesh (as `rangebayes convert` / `smooth` write it), a NoisyMesh (PLY: with its covariances) or a
+DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off); ply_encoding 'binary'
+(default) or 'ascii'.)");
+
+  py::class_<CornerNormals>(m, "CornerNormals", "Per-corner shading normals: normals (k, 3), normal_index (m, 3).")
+      .def(py::init<>())
+      .def_property_readonly("normals", [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
+      .def_property_readonly("normal_index",
+                             [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); });
+}
+
+}  // namespace rangebayes::python

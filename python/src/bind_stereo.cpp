@@ -1,0 +1,240 @@
+// calibration/, stereo/, reconstruction/: rigs and noise models, rectification, matching, depth, triangulation.
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
+#include "python/src/bindings.h"
+#include "python/src/convert.h"
+#include "python/src/option_tables.h"
+
+namespace rangebayes::python {
+namespace {
+
+// A sequence of images: one array (a single frame) or a list of arrays.
+std::vector<ImageIn> ImageSequence(py::handle images, const std::string& what) {
+  std::vector<ImageIn> out;
+  if (py::isinstance<py::list>(images) || py::isinstance<py::tuple>(images)) {
+    for (py::handle image : images) out.push_back(ImageFromArray(image, what));
+  } else {
+    out.push_back(ImageFromArray(images, what));
+  }
+  return out;
+}
+
+std::vector<cv::Mat> Mats(const std::vector<ImageIn>& images) {
+  std::vector<cv::Mat> out;
+  for (const ImageIn& i : images) out.push_back(i.mat);
+  return out;
+}
+
+// Runs the matcher named `matcher` ("sgbm", "spacetime") with keyword options on rectified images.
+DisparityResult MatchImages(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
+                            const std::string& matcher, py::dict& kw, const std::string& what,
+                            const std::string& extra) {
+  if (matcher == "sgbm") {
+    SgbmMatcherOptions options;
+    ApplyKeywords(SgbmOptionFields(), kw, &options, what, extra);
+    options.Check();
+    py::gil_scoped_release nogil;
+    SgbmMatcher m(options);
+    return m.Match(left, right);
+  }
+  if (matcher == "spacetime") {
+    SpaceTimeMatcherOptions options;
+    ApplyKeywords(SpaceTimeOptionFields(), kw, &options, what, extra);
+    options.Check();
+    py::gil_scoped_release nogil;
+    SpaceTimeMatcher m(options);
+    return m.Match(left, right);
+  }
+  throw py::value_error(what + ": matcher must be 'sgbm' or 'spacetime', got '" + matcher + "'");
+}
+
+py::dict DisparityDict(const DisparityResult& r) {
+  py::dict d;
+  d["disparity_px"] = ArrayFromMat(r.disparity_px);
+  d["sigma_disparity_px"] = ArrayFromMat(r.sigma_disparity_px);
+  d["match_ms"] = r.match_ms;
+  d["frames_used"] = r.frames_used;
+  d["valid_fraction"] = r.valid_fraction;
+  return d;
+}
+
+cv::Mat MatOrEmpty(py::handle array, const std::string& what, std::vector<ImageIn>* keep) {
+  if (array.is_none()) return {};
+  keep->push_back(ImageFromArray(array, what));
+  return keep->back().mat;
+}
+
+}  // namespace
+
+void BindStereo(py::module_& m) {
+  py::class_<CameraIntrinsics>(m, "CameraIntrinsics", "Pinhole intrinsics in pixels; image width × height.")
+      .def(py::init<>())
+      .def_readwrite("fx_px", &CameraIntrinsics::fx_px)
+      .def_readwrite("fy_px", &CameraIntrinsics::fy_px)
+      .def_readwrite("cx_px", &CameraIntrinsics::cx_px)
+      .def_readwrite("cy_px", &CameraIntrinsics::cy_px)
+      .def_readwrite("width", &CameraIntrinsics::width)
+      .def_readwrite("height", &CameraIntrinsics::height);
+
+  py::class_<StereoRig>(m, "StereoRig", R"(A calibrated stereo rig (calibration/stereo_rig.h). Matrices are numpy
+arrays (copies on read; assign a whole array to change one). Translations in metres.)")
+      .def(py::init<>())
+      .def_readwrite("width", &StereoRig::width)
+      .def_readwrite("height", &StereoRig::height)
+      .def_readwrite("K_left", &StereoRig::K_left)
+      .def_readwrite("K_right", &StereoRig::K_right)
+      .def_readwrite("distortion_left", &StereoRig::distortion_left)
+      .def_readwrite("distortion_right", &StereoRig::distortion_right)
+      .def_readwrite("R_right_from_left", &StereoRig::R_right_from_left)
+      .def_readwrite("t_right_from_left_m", &StereoRig::t_right_from_left_m)
+      .def_readwrite("is_rectified", &StereoRig::is_rectified)
+      .def_readwrite("R1", &StereoRig::R1)
+      .def_readwrite("R2", &StereoRig::R2)
+      .def_readwrite("P1", &StereoRig::P1)
+      .def_readwrite("P2", &StereoRig::P2)
+      .def_readwrite("Q", &StereoRig::Q)
+      .def_readwrite("doffs_px", &StereoRig::doffs_px)
+      .def("rectified_left", &StereoRig::RectifiedLeft, "the rectified left camera")
+      .def("baseline_m", &StereoRig::baseline_m);
+  m.def("read_rig", &ReadStereoRig, py::arg("path"), "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");
+  m.def("write_rig", [](const std::string& path, const StereoRig& rig) { WriteStereoRig(rig, path); }, py::arg("path"),
+        py::arg("rig"));
+
+  py::class_<DisparityNoiseModel>(m, "DisparityNoiseModel", "σ_d model fitted by `rangebayes calibrate noise`.")
+      .def(py::init<>())
+      .def_property(
+          "form", [](const DisparityNoiseModel& d) { return std::string(NoiseFormName(d.form)); },
+          [](DisparityNoiseModel& d, const std::string& s) { d.form = ParseNoiseForm(s); },
+          "'constant' or 'floor-plus-scale'")
+      .def_readwrite("sigma_px", &DisparityNoiseModel::sigma_px)
+      .def_readwrite("floor_px", &DisparityNoiseModel::floor_px)
+      .def_readwrite("scale", &DisparityNoiseModel::scale)
+      .def_readwrite("matcher", &DisparityNoiseModel::matcher)
+      .def_readwrite("samples", &DisparityNoiseModel::samples)
+      .def_readwrite("outlier_fraction", &DisparityNoiseModel::outlier_fraction)
+      .def_readwrite("image_noise_gray", &DisparityNoiseModel::image_noise_gray)
+      .def("apply", &DisparityNoiseModel::Apply, py::arg("sigma_pred_px"), "σ_d (px) for a predicted σ (px)");
+  m.def("read_noise_model", &ReadDisparityNoiseModel, py::arg("path"));
+  m.def("write_noise_model",
+        [](const std::string& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path); },
+        py::arg("path"), py::arg("model"));
+
+  py::class_<DepthFrame>(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres), sigma_depth_m,
+disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where invalid.)")
+      .def_property_readonly("depth_m", [](const DepthFrame& f) { return ArrayFromMat(f.depth_m); })
+      .def_property_readonly("sigma_depth_m", [](const DepthFrame& f) { return ArrayFromMat(f.sigma_depth_m); })
+      .def_property_readonly("disparity_px", [](const DepthFrame& f) { return ArrayFromMat(f.disparity_px); })
+      .def_property_readonly("sigma_disparity_px", [](const DepthFrame& f) { return ArrayFromMat(f.sigma_disparity_px); })
+      .def_readwrite("frame_id", &DepthFrame::frame_id)
+      .def_readwrite("timestamp_ns", &DepthFrame::timestamp_ns)
+      .def_readwrite("intrinsics", &DepthFrame::intrinsics)
+      .def_readwrite("baseline_m", &DepthFrame::baseline_m)
+      .def_readwrite("doffs_px", &DepthFrame::doffs_px)
+      .def_readwrite("sigma_pixel_px", &DepthFrame::sigma_pixel_px)
+      .def_property_readonly("width", &DepthFrame::width)
+      .def_property_readonly("height", &DepthFrame::height);
+
+  m.def(
+      "rectify",
+      [](const StereoRig& rig, py::handle left, py::handle right, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        RectifierOptions options;
+        ApplyKeywords(RectifierOptionFields(), kw, &options, "rectify");
+        const ImageIn l = ImageFromArray(left, "left");
+        const ImageIn r = ImageFromArray(right, "right");
+        cv::Mat lr, rr;
+        {
+          py::gil_scoped_release nogil;
+          Rectifier rectifier(rig, options);
+          rectifier.Rectify(l.mat, r.mat, &lr, &rr);
+        }
+        return py::make_tuple(ArrayFromMat(lr), ArrayFromMat(rr));
+      },
+      py::arg("rig"), py::arg("left"), py::arg("right"),
+      "Rectifies one pair with the rig: (left, right) new arrays. Keywords: alpha, interpolation.");
+  m.def(
+      "match",
+      [](py::handle left, py::handle right, const std::string& matcher, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        const auto l = ImageSequence(left, "left");
+        const auto r = ImageSequence(right, "right");
+        return DisparityDict(MatchImages(Mats(l), Mats(r), matcher, kw, "match", ""));
+      },
+      py::arg("left"), py::arg("right"), py::arg("matcher") = "sgbm",
+      R"(Stereo matching on rectified images (an array, or a list of arrays for a space-time sequence; read in
+place when C-contiguous, uint8/uint16/float, 1 or 3 channels). matcher 'sgbm' (OpenCV SGBM) or 'spacetime'
+(ours, with σ_d); keywords: rangebayes.SGBM_OPTIONS / SPACETIME_OPTIONS. Returns a dict: disparity_px,
+sigma_disparity_px (float32 (h, w), NaN invalid; σ None for sgbm), match_ms, frames_used, valid_fraction.
+GIL released.)");
+  m.attr("SGBM_OPTIONS") = FieldsToDict(SgbmOptionFields(), SgbmMatcherOptions{});
+  m.attr("SPACETIME_OPTIONS") = FieldsToDict(SpaceTimeOptionFields(), SpaceTimeMatcherOptions{});
+
+  m.def(
+      "stereo",
+      [](const StereoRig& rig, py::handle left, py::handle right, const std::string& matcher, py::dict depth,
+         py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        DepthFromDisparityOptions depth_options;
+        ApplyKeywords(DepthOptionFields(), depth, &depth_options, "stereo(depth=...)");
+        depth_options.Check();
+        const auto l = ImageSequence(left, "left");
+        const auto r = ImageSequence(right, "right");
+        RB_CHECK(l.size() == r.size() && !l.empty(), "stereo: left and right need the same number (>= 1) of images");
+        std::vector<cv::Mat> lr(l.size()), rr(r.size());
+        std::optional<Rectifier> rectifier;
+        {
+          py::gil_scoped_release nogil;
+          rectifier.emplace(rig);
+          for (size_t i = 0; i < l.size(); ++i) rectifier->Rectify(l[i].mat, r[i].mat, &lr[i], &rr[i]);
+        }
+        const DisparityResult result = MatchImages(lr, rr, matcher, kw, "stereo", "depth");
+        py::gil_scoped_release nogil;
+        return DepthFromDisparity(result.disparity_px, result.sigma_disparity_px, rectifier->intrinsics(),
+                                  rectifier->baseline_m(), rectifier->doffs_px(), depth_options);
+      },
+      py::arg("rig"), py::arg("left"), py::arg("right"), py::arg("matcher") = "sgbm", py::arg("depth") = py::dict(),
+      R"(Rectify with the rig, match (matcher 'sgbm' or 'spacetime', keywords as for match()), and convert to
+depth: a DepthFrame. left/right: one image or a list (space-time sequence). depth: dict of
+DepthFromDisparityOptions (min_depth_m, max_depth_m, sigma_pixel_px). GIL released.)");
+
+  m.def(
+      "depth_from_disparity",
+      [](py::handle disparity, py::handle sigma, const CameraIntrinsics& intrinsics, double baseline_m,
+         double doffs_px, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        DepthFromDisparityOptions options;
+        ApplyKeywords(DepthOptionFields(), kw, &options, "depth_from_disparity");
+        std::vector<ImageIn> keep;
+        const cv::Mat d = MatOrEmpty(disparity, "disparity", &keep);
+        const cv::Mat s = MatOrEmpty(sigma, "sigma", &keep);
+        RB_CHECK(d.type() == CV_32F && (s.empty() || s.type() == CV_32F),
+                 "depth_from_disparity: disparity and sigma must be float32 (h, w) images");
+        py::gil_scoped_release nogil;
+        DepthFrame f = DepthFromDisparity(d, s, intrinsics, baseline_m, doffs_px, options);
+        f.depth_m = f.depth_m.clone();  // the result must not point into the caller's arrays
+        f.sigma_depth_m = f.sigma_depth_m.clone();
+        f.disparity_px = f.disparity_px.clone();
+        f.sigma_disparity_px = f.sigma_disparity_px.clone();
+        return f;
+      },
+      py::arg("disparity"), py::arg("sigma"), py::arg("intrinsics"), py::arg("baseline_m"), py::arg("doffs_px") = 0.0,
+      "A DepthFrame from a float32 disparity (px, NaN invalid) and its σ (or None). Copies.");
+
+  m.def(
+      "triangulate",
+      [](const DepthFrame& frame, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        TriangulateOptions options;
+        ApplyKeywords(TriangulateOptionFields(), kw, &options, "triangulate");
+        options.Check();
+        py::gil_scoped_release nogil;
+        return TriangulateDepth(frame, options);
+      },
+      py::arg("frame"),
+      R"(Organized triangulation of a DepthFrame into a NoisyMesh (metres, rectified left camera frame) with the
+ray-aligned covariance per vertex. Keywords: rangebayes.TRIANGULATE_OPTIONS. GIL released.)");
+  m.attr("TRIANGULATE_OPTIONS") = FieldsToDict(TriangulateOptionFields(), TriangulateOptions{});
+}
+
+}  // namespace rangebayes::python

@@ -1,0 +1,28 @@
+// The parts of the _rangebayes extension, one function per layer (python/src/bind_*.cpp).
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+#include <functional>
+#include <memory>
+#include <string_view>
+
+#include "core/progress.h"
+
+namespace rangebayes::python {
+
+namespace py = pybind11;
+
+void BindCore(py::module_& m);
+void BindBayes(py::module_& m);
+void BindStereo(py::module_& m);
+void BindPipeline(py::module_& m);
+
+// A ProgressCallback that calls a Python function (fraction, stage) with the GIL held; None gives an empty
+// callback. Copies of the callback share one reference to the function, so copying it needs no GIL.
+ProgressCallback PythonProgress(py::object function);
+
+// Pops `name` from kwargs (None when absent).
+py::object PopKeyword(py::dict& kwargs, const char* name);
+
+}  // namespace rangebayes::python

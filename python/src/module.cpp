@@ -1,0 +1,40 @@
+// The _rangebayes extension: rangebayes from Python (python/rangebayes/__init__.py re-exports it).
+#include <pybind11/pybind11.h>
+
+#include "core/error.h"
+#include "python/src/bindings.h"
+
+namespace rangebayes::python {
+
+ProgressCallback PythonProgress(py::object function) {
+  if (function.is_none()) return {};
+  if (!PyCallable_Check(function.ptr())) throw py::type_error("progress: expected a callable (fraction, stage)");
+  std::shared_ptr<py::object> held(new py::object(std::move(function)), [](py::object* f) {
+    py::gil_scoped_acquire gil;
+    delete f;
+  });
+  return [held](double fraction, std::string_view stage) {
+    py::gil_scoped_acquire gil;
+    (*held)(fraction, py::str(stage.data(), stage.size()));
+  };
+}
+
+py::object PopKeyword(py::dict& kwargs, const char* name) {
+  if (!kwargs.contains(name)) return py::none();
+  py::object value = kwargs[name];
+  PyDict_DelItemString(kwargs.ptr(), name);
+  return value;
+}
+
+}  // namespace rangebayes::python
+
+PYBIND11_MODULE(_rangebayes, m) {
+  namespace rp = rangebayes::python;
+  m.doc() = "rangebayes: stereo range scanning to clean, compact meshes (C++ library bindings)";
+  // rangebayes.Error: every rangebayes::Error, same message; a subclass of RuntimeError.
+  pybind11::register_exception<rangebayes::Error>(m, "Error", PyExc_RuntimeError);
+  rp::BindCore(m);
+  rp::BindBayes(m);
+  rp::BindStereo(m);
+  rp::BindPipeline(m);
+}

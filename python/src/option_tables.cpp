@@ -1,0 +1,177 @@
+// One row per Options field exposed to Python: adding or removing a field of a library Options struct is a
+// one-line edit here (an enum field's value names sit beside its table).
+#include "python/src/option_tables.h"
+
+namespace rangebayes::python {
+
+RB_PY_ENUM_NAMES(SmoothTolerance, {{"fast", SmoothTolerance::kFast},
+                                   {"default", SmoothTolerance::kDefault},
+                                   {"tight", SmoothTolerance::kTight}});
+RB_PY_ENUM_NAMES(SmoothMinimiser, {{"cg", SmoothMinimiser::kConjugateGradient}, {"lbfgs", SmoothMinimiser::kLbfgs}});
+RB_PY_ENUM_NAMES(SmoothPreconditioner, {{"none", SmoothPreconditioner::kNone},
+                                        {"data", SmoothPreconditioner::kData},
+                                        {"block-jacobi", SmoothPreconditioner::kBlockJacobi}});
+
+const FieldTable<SmoothOptions>& SmoothOptionFields() {
+  static const FieldTable<SmoothOptions> table = {
+      RB_PY_FIELD(SmoothOptions, sqrt_epsilon_squared),
+      RB_PY_FIELD(SmoothOptions, face_epsilon_squared),
+      RB_PY_FIELD(SmoothOptions, cauchy_scale),
+      RB_PY_FIELD(SmoothOptions, prior_weight),
+      RB_PY_FIELD(SmoothOptions, tolerance),
+      RB_PY_FIELD(SmoothOptions, minimiser),
+      RB_PY_FIELD(SmoothOptions, energy_tolerance),
+      RB_PY_FIELD(SmoothOptions, line_search_c2),
+      RB_PY_FIELD(SmoothOptions, max_iterations),
+      RB_PY_FIELD(SmoothOptions, lbfgs_memory),
+      RB_PY_FIELD(SmoothOptions, preconditioner),
+      RB_PY_FIELD(SmoothOptions, preconditioner_every),
+      RB_PY_FIELD(SmoothOptions, restart_every),
+      RB_PY_FIELD(SmoothOptions, num_threads),
+      RB_PY_FIELD(SmoothOptions, adaptive_epsilon),
+  };
+  return table;
+}
+
+const FieldTable<GenericNoiseOptions>& GenericNoiseOptionFields() {
+  static const FieldTable<GenericNoiseOptions> table = {
+      RB_PY_FIELD(GenericNoiseOptions, across_ratio),
+  };
+  return table;
+}
+
+RB_PY_ENUM_NAMES(DecimateWeighting, {{"area", DecimateWeighting::kArea}, {"uniform", DecimateWeighting::kUniform}});
+
+const FieldTable<DecimateOptions>& DecimateOptionFields() {
+  static const FieldTable<DecimateOptions> table = {
+      RB_PY_FIELD(DecimateOptions, lambda),
+      RB_PY_FIELD(DecimateOptions, target_faces),
+      RB_PY_FIELD(DecimateOptions, chain_reserve_share),
+      RB_PY_FIELD(DecimateOptions, lambda_resolution),
+      RB_PY_FIELD(DecimateOptions, max_bisection_steps),
+      RB_PY_FIELD(DecimateOptions, weighting),
+      RB_PY_FIELD(DecimateOptions, max_rounds),
+      RB_PY_FIELD(DecimateOptions, min_cos_to_patch_normal),
+      RB_PY_FIELD(DecimateOptions, chain_tolerance_rel),
+      RB_PY_FIELD(DecimateOptions, shading_regularisation),
+  };
+  return table;
+}
+
+const FieldTable<SgbmMatcherOptions>& SgbmOptionFields() {
+  static const FieldTable<SgbmMatcherOptions> table = {
+      RB_PY_FIELD(SgbmMatcherOptions, min_disparity_px),
+      RB_PY_FIELD(SgbmMatcherOptions, num_disparities),
+      RB_PY_FIELD(SgbmMatcherOptions, block_size_px),
+      RB_PY_FIELD(SgbmMatcherOptions, p1),
+      RB_PY_FIELD(SgbmMatcherOptions, p2),
+      RB_PY_FIELD(SgbmMatcherOptions, uniqueness_ratio_pct),
+      RB_PY_FIELD(SgbmMatcherOptions, speckle_window_px),
+      RB_PY_FIELD(SgbmMatcherOptions, speckle_range_px),
+      RB_PY_FIELD(SgbmMatcherOptions, left_right_max_diff_px),
+      RB_PY_FIELD(SgbmMatcherOptions, pre_filter_cap),
+      RB_PY_FIELD(SgbmMatcherOptions, three_way),
+  };
+  return table;
+}
+
+RB_PY_ENUM_NAMES(SpaceTimeCost, {{"auto", SpaceTimeCost::kAuto},
+                                 {"ssd", SpaceTimeCost::kSsd},
+                                 {"zncc-space", SpaceTimeCost::kZnccSpace},
+                                 {"zncc", SpaceTimeCost::kZnccTime}});
+
+const FieldTable<SpaceTimeMatcherOptions>& SpaceTimeOptionFields() {
+  static const FieldTable<SpaceTimeMatcherOptions> table = {
+      RB_PY_FIELD(SpaceTimeMatcherOptions, min_disparity_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, num_disparities),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, window_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, cost),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, uniqueness_ratio),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, left_right_max_diff_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, image_noise_gray),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, sigma_floor_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, sigma_scale),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, residual_noise),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, ambiguity_weight),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, neighbour_jump_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, max_sigma_disparity_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, edge_reject_jump_px),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, subpixel_iterations),
+      RB_PY_FIELD(SpaceTimeMatcherOptions, rows_per_task),
+  };
+  return table;
+}
+
+const FieldTable<DepthFromDisparityOptions>& DepthOptionFields() {
+  static const FieldTable<DepthFromDisparityOptions> table = {
+      RB_PY_FIELD(DepthFromDisparityOptions, min_depth_m),
+      RB_PY_FIELD(DepthFromDisparityOptions, max_depth_m),
+      RB_PY_FIELD(DepthFromDisparityOptions, sigma_pixel_px),
+  };
+  return table;
+}
+
+const FieldTable<TriangulateOptions>& TriangulateOptionFields() {
+  static const FieldTable<TriangulateOptions> table = {
+      RB_PY_FIELD(TriangulateOptions, downsample),
+      RB_PY_FIELD(TriangulateOptions, max_jump_sigma),
+      RB_PY_FIELD(TriangulateOptions, max_slope_deg),
+      RB_PY_FIELD(TriangulateOptions, default_sigma_disparity_px),
+      RB_PY_FIELD(TriangulateOptions, sigma_pixel_px),
+  };
+  return table;
+}
+
+const FieldTable<RectifierOptions>& RectifierOptionFields() {
+  static const FieldTable<RectifierOptions> table = {
+      RB_PY_FIELD(RectifierOptions, alpha),
+      RB_PY_FIELD(RectifierOptions, interpolation),
+  };
+  return table;
+}
+
+RB_PY_ENUM_NAMES(LearnMethod,
+                 {{"interleaved", LearnMethod::kInterleaved}, {"implicit", LearnMethod::kImplicit}, {"none", LearnMethod::kNone}});
+
+// The top-level knobs of LearnPrior only (its internals are being simplified).
+const FieldTable<LearnPriorOptions>& LearnPriorOptionFields() {
+  static const FieldTable<LearnPriorOptions> table = {
+      RB_PY_FIELD(LearnPriorOptions, method),
+      RB_PY_FIELD(LearnPriorOptions, regularizer_weight),
+      RB_PY_FIELD(LearnPriorOptions, prior_weight),
+      RB_PY_FIELD(LearnPriorOptions, tolerance),
+      RB_PY_FIELD(LearnPriorOptions, max_iterations),
+      RB_PY_FIELD(LearnPriorOptions, time_limit_s),
+      RB_PY_FIELD(LearnPriorOptions, bump_search_sweeps),
+      RB_PY_FIELD(LearnPriorOptions, num_threads),
+  };
+  return table;
+}
+
+RB_PY_ENUM_NAMES(PipelineMatcher, {{"sgbm", PipelineMatcher::kSgbm}, {"spacetime", PipelineMatcher::kSpaceTime}});
+
+// Nested options (sgbm, spacetime, smoothing, ...) are separate dict arguments of replay().
+const FieldTable<PipelineOptions>& PipelineOptionFields() {
+  static const FieldTable<PipelineOptions> table = {
+      RB_PY_FIELD(PipelineOptions, queue_capacity),
+      RB_PY_FIELD(PipelineOptions, matcher),
+      RB_PY_FIELD(PipelineOptions, window_frames),
+      RB_PY_FIELD(PipelineOptions, window_step_frames),
+      RB_PY_FIELD(PipelineOptions, stereo_downsample),
+      RB_PY_FIELD(PipelineOptions, smooth),
+      RB_PY_FIELD(PipelineOptions, smooth_budget_ms),
+      RB_PY_FIELD(PipelineOptions, decimate),
+  };
+  return table;
+}
+
+const FieldTable<PlaybackOptions>& PlaybackOptionFields() {
+  static const FieldTable<PlaybackOptions> table = {
+      RB_PY_FIELD(PlaybackOptions, first_position),
+      RB_PY_FIELD(PlaybackOptions, count),
+      RB_PY_FIELD(PlaybackOptions, repeats),
+  };
+  return table;
+}
+
+}  // namespace rangebayes::python

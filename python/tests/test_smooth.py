@@ -1,0 +1,134 @@
+"""smooth(): the CLI's result byte for byte, keyword validation, errors, progress, the GIL."""
+
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import rangebayes as rb
+
+
+def cli_smooth(cli, src, out, *flags):
+    subprocess.run([str(cli), "smooth", str(src), str(out), "--quiet", *flags], check=True,
+                   stdout=subprocess.DEVNULL)
+
+
+@pytest.mark.parametrize(
+    "flags, kwargs",
+    [
+        ([], {}),  # noise estimated, adaptive ε: the CLI's defaults
+        (["--noise", "0.3", "--tolerance", "fast", "--no-adaptive-eps", "--beta", "1.7", "--eps2", "0.001"],
+         dict(noise=0.3, tolerance="fast", adaptive_epsilon=False, prior_weight=1.7, sqrt_epsilon_squared=1e-3)),
+        (["--sigma", "0.004", "--prior", "cauchy", "--minimiser", "lbfgs", "--threads", "1"],
+         dict(sigma=0.004, prior="cauchy", minimiser="lbfgs", num_threads=1)),
+    ],
+)
+def test_same_bytes_as_the_cli(tmp_path, cli, trim_star, flags, kwargs):
+    cli_out = tmp_path / "cli.ply"
+    cli_smooth(cli, trim_star, cli_out, *flags)
+    mesh, summary = rb.smooth(rb.read_mesh(str(trim_star)), **kwargs)
+    py_out = tmp_path / "py.ply"
+    rb.write_mesh(str(py_out), mesh)
+    assert py_out.read_bytes() == cli_out.read_bytes()
+    assert summary.iterations > 0
+    assert "iterations" in summary.brief_report()
+
+
+def test_file_covariances_are_used_like_the_cli(tmp_path, cli, trim_star):
+    noisy, _ = rb.make_generic_noisy_mesh(rb.read_mesh(str(trim_star)), noise=0.3, across_ratio=3.0)
+    src = tmp_path / "cov.ply"
+    rb.write_mesh(str(src), noisy)
+    cli_out = tmp_path / "cli.ply"
+    cli_smooth(cli, src, cli_out, "--tolerance", "fast")
+    mesh, summary = rb.smooth(rb.read_mesh(str(src)), tolerance="fast")
+    assert summary.noise_model.from_file
+    py_out = tmp_path / "py.ply"
+    rb.write_mesh(str(py_out), mesh)
+    assert py_out.read_bytes() == cli_out.read_bytes()
+
+
+def test_result_arrays_and_defaults(trim_star):
+    m = rb.read_mesh(str(trim_star))
+    out, summary = rb.smooth(m, noise=0.3, tolerance="fast")
+    assert out.V.shape == m.V.shape and out.V.dtype == np.float64
+    np.testing.assert_array_equal(out.F, m.F)
+    assert not summary.noise_model.from_file and summary.noise_model.generic.noise_edge_multiple == 0.3
+    assert rb.SMOOTH_OPTIONS["adaptive_epsilon"] is True
+    assert rb.SMOOTH_OPTIONS["tolerance"] == "default"
+
+
+def test_keyword_validation(trim_star):
+    m = rb.read_mesh(str(trim_star))
+    with pytest.raises(TypeError, match=r"unexpected keyword argument 'max_iter'.*max_iterations"):
+        rb.smooth(m, max_iter=3)
+    with pytest.raises(TypeError, match="max_iterations: expected an int"):
+        rb.smooth(m, max_iterations=2.5)
+    with pytest.raises(TypeError, match="adaptive_epsilon: expected a bool"):
+        rb.smooth(m, adaptive_epsilon=1)
+    with pytest.raises(ValueError, match="tolerance: 'slow' is not one of 'fast', 'default', 'tight'"):
+        rb.smooth(m, tolerance="slow")
+    with pytest.raises(rb.Error, match="prior_weight"):
+        rb.smooth(m, prior_weight=-1.0)  # range checks are the library's own (SmoothOptions::Check)
+    with pytest.raises(ValueError, match="not both"):
+        rb.smooth(m, noise=0.3, sigma=0.1)
+    with pytest.raises(rb.Error):
+        rb.smooth(m, prior="nonsense")
+    tetra = rb.Mesh([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    for name in rb.SMOOTH_OPTIONS:  # every exposed field is accepted with its own default
+        rb.smooth(tetra, noise=0.1, **{name: rb.SMOOTH_OPTIONS[name]})
+
+
+def test_progress_callback_and_its_exception(trim_star):
+    m = rb.read_mesh(str(trim_star))
+    calls = []
+    rb.smooth(m, noise=0.3, tolerance="fast", progress=lambda f, stage: calls.append((f, stage)))
+    assert calls and all(0.0 <= f <= 1.0 for f, _ in calls)
+
+    def boom(f, stage):
+        raise KeyError("stop here")
+
+    with pytest.raises(KeyError, match="stop here"):
+        rb.smooth(m, noise=0.3, tolerance="fast", progress=boom)
+
+
+def test_gil_is_released_during_smooth(trim_star):
+    m = rb.read_mesh(str(trim_star))
+    ticks = []
+    done = threading.Event()
+
+    def ticker():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=ticker)
+    t.start()
+    try:
+        start = time.perf_counter()
+        _, summary = rb.smooth(m, noise=0.3, adaptive_epsilon=False, num_threads=1)
+        end = time.perf_counter()
+    finally:
+        done.set()
+        t.join()
+    during = [x for x in ticks if start < x < end]
+    # With the GIL held the thread could not tick at all during the call.
+    assert summary.iterations > 10
+    assert len(during) >= 5, (len(during), end - start)
+
+
+def test_learned_prior_file_and_object(tmp_path, trim_star):
+    p = rb.LearnedPrior()
+    p.num_knots = 5
+    t = np.linspace(0.0, 2.0, 5)
+    p.theta = np.sqrt(t**2 + p.epsilon_squared)
+    p.prior_weight = 1.5
+    path = str(tmp_path / "prior.yaml")
+    rb.write_learned_prior(path, p)
+    back = rb.read_learned_prior(path)
+    np.testing.assert_allclose(back.theta, p.theta, rtol=1e-12)
+    m = rb.read_mesh(str(trim_star))
+    a, _ = rb.smooth(m, noise=0.3, prior=path, tolerance="fast")
+    b, _ = rb.smooth(m, noise=0.3, prior=back, tolerance="fast")
+    np.testing.assert_array_equal(a.V, b.V)

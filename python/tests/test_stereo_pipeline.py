@@ -1,0 +1,104 @@
+"""Rigs, noise models, recordings, stereo, triangulation, replay, decimation and learning from Python."""
+
+import numpy as np
+import pytest
+
+import rangebayes as rb
+
+
+def test_rig_and_noise_model_yaml(tmp_path, recording_dir):
+    rig = rb.read_rig(str(recording_dir / "rig.yaml"))
+    assert (rig.width, rig.height) == (320, 240)
+    assert rig.K_left.shape == (3, 3) and rig.K_left[0, 0] == 320.0
+    assert rig.baseline_m() == pytest.approx(0.1)
+    path = str(tmp_path / "rig.yaml")
+    rb.write_rig(path, rig)
+    back = rb.read_rig(path)
+    np.testing.assert_array_equal(back.K_left, rig.K_left)
+    np.testing.assert_array_equal(back.t_right_from_left_m, rig.t_right_from_left_m)
+
+    model = rb.DisparityNoiseModel()
+    model.form = "floor-plus-scale"
+    model.floor_px, model.scale, model.matcher = 0.05, 1.5, "spacetime"
+    path = str(tmp_path / "noise.yaml")
+    rb.write_noise_model(path, model)
+    back = rb.read_noise_model(path)
+    assert back.form == "floor-plus-scale" and back.matcher == "spacetime"
+    assert back.apply(0.1) == pytest.approx(model.apply(0.1))
+    with pytest.raises(rb.Error):
+        rb.read_rig(str(tmp_path / "missing.yaml"))
+
+
+def test_recording_frames_are_numpy(recording_dir):
+    rec = rb.open_recording(str(recording_dir))
+    assert len(rec) == 8 and rec.rig is not None and rec.meta["scene"] == "planes"
+    frames = list(rec)
+    assert [f.index for f in frames] == list(range(8))
+    left = frames[0].left
+    assert isinstance(left, np.ndarray) and left.shape[:2] == (240, 320) and left.dtype == np.uint8
+    assert rec[-1].index == 7
+    with pytest.raises(IndexError):
+        rec[8]
+
+
+def test_stereo_sgbm_and_spacetime_then_triangulate(recording_dir):
+    rec = rb.open_recording(str(recording_dir))
+    f = rec[0]
+    depth = rb.stereo(rec.rig, f.left, f.right, matcher="sgbm", num_disparities=64)
+    assert depth.depth_m.shape == (240, 320) and depth.depth_m.dtype == np.float32
+    assert np.isfinite(depth.depth_m).mean() > 0.5
+    frames = [rec[i] for i in range(4)]
+    st = rb.stereo(rec.rig, [x.left for x in frames], [x.right for x in frames], matcher="spacetime",
+                   num_disparities=64, depth={"max_depth_m": 100.0})
+    assert np.isfinite(st.sigma_disparity_px).any()
+    mesh = rb.triangulate(st)
+    assert isinstance(mesh, rb.NoisyMesh) and mesh.has_covariance and mesh.num_faces > 1000
+    assert mesh.pixel.shape == (mesh.num_vertices, 2)
+    cov = mesh.covariances
+    np.testing.assert_allclose(cov, cov.transpose(0, 2, 1), rtol=1e-9, atol=1e-18)
+    d = rb.match(f.left, f.right)  # the synthetic rig is already rectified
+    assert d["disparity_px"].shape == (240, 320) and d["sigma_disparity_px"] is None
+    back = rb.depth_from_disparity(st.disparity_px, st.sigma_disparity_px, st.intrinsics, st.baseline_m,
+                                   max_depth_m=100.0)
+    np.testing.assert_array_equal(back.depth_m, st.depth_m)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'blocksize'.*block_size_px"):
+        rb.match(f.left, f.right, blocksize=3)
+    with pytest.raises(rb.Error):
+        rb.match(f.left, f.right[:100])
+
+
+def test_replay_collects_results(recording_dir):
+    results, summary = rb.replay(str(recording_dir), playback={"count": 2}, triangulate={"downsample": 2},
+                                 smoothing={"tolerance": "fast"})
+    assert summary.results == 2 and summary.failed == 0
+    assert [r.index for r in results] == [0, 1]
+    r = results[0]
+    assert r.error == "" and r.raw_mesh.has_covariance
+    assert isinstance(r.smoothed, rb.Mesh) and r.smoothed.num_vertices == r.raw_mesh.num_vertices
+    assert r.decimated is not None and r.decimated.mesh.num_faces < r.raw_mesh.num_faces
+    assert r.depth.depth_m.shape == (240, 320)
+    with pytest.raises(TypeError, match="valid:"):
+        rb.replay(str(recording_dir), smoothing={"bogus": 1})
+
+
+def test_decimate_static_and_animated(trim_star):
+    m = rb.read_mesh(str(trim_star))
+    smoothed, _ = rb.smooth(m, noise=0.3, tolerance="fast")
+    out, summary = rb.decimate(smoothed, target_faces=500)
+    assert 0 < out.mesh.num_faces <= 500 and summary.num_patches == out.num_patches
+    assert len(out.face_patch) == out.mesh.num_faces
+    poses = [smoothed, rb.Mesh(smoothed.V * 1.5, smoothed.F)]
+    outs, summary = rb.decimate_animated(poses, **{"lambda": 0.5})
+    assert len(outs) == 2 and outs[0].face_patch == outs[1].face_patch
+    with pytest.raises(TypeError, match="lambda"):
+        rb.decimate(smoothed, lam=1.0)
+
+
+def test_learn_prior_runs(trim_star):
+    truth = rb.read_mesh(str(trim_star))
+    rng = np.random.default_rng(3)
+    noisy_mesh = rb.Mesh(truth.V + rng.normal(scale=1e-3, size=truth.V.shape), truth.F)
+    noisy, _ = rb.make_generic_noisy_mesh(noisy_mesh, noise=0.3)
+    prior, summary = rb.learn_prior([(noisy, truth)], max_iterations=1, tolerance="fast")
+    assert prior.theta.shape == (prior.num_knots,)
+    assert summary["iterations"] >= 1
