@@ -8,7 +8,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/render.h"

@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/mesh_io.h"
 
 namespace {

@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 

@@ -1,4 +1,4 @@
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 
 #include <gtest/gtest.h>
 

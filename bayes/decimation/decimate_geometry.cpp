@@ -1,4 +1,4 @@
-#include "bayes/decimate_geometry.h"
+#include "bayes/decimation/decimate_geometry.h"
 
 #include <Eigen/Dense>
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -8,8 +8,8 @@
 #include <numeric>
 #include <unordered_map>
 
-#include "bayes/decimate_geometry.h"
-#include "bayes/decimate_partition.h"
+#include "bayes/decimation/decimate_geometry.h"
+#include "bayes/decimation/decimate_partition.h"
 #include "core/error.h"
 #include "core/topology.h"
 

@@ -5,8 +5,8 @@
 //
 // u_i the unit normal of dense face i, n_k the weighted mean of its patch's normals (eq. 34, not
 // renormalised), g a map from faces to edge-connected patches found by hill climbing (fuse, split, swap;
-// bayes/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
-// each patch on its own (bayes/decimate_geometry.h), with per-corner normals from a linear normal field fitted
+// bayes/decimation/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
+// each patch on its own (bayes/decimation/decimate_geometry.h), with per-corner normals from a linear normal field fitted
 // per patch (the smooth shading of the paper's figures).
 //
 // Face weights: area weighting is the default. The paper weights every face equally, which is the same thing
@@ -56,7 +56,7 @@ struct DecimateOptions {
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
   double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
   // Patch-boundary chains are simplified while removed vertices stay within this share of the bounding-box
-  // diagonal of the simplified chain, [0, ∞) (see bayes/decimate_geometry.h).
+  // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;
   double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
   ProgressCallback progress;              // optional
