@@ -10,6 +10,7 @@
 
 #include "bayes/decimation/decimate_geometry.h"
 #include "bayes/decimation/decimate_partition.h"
+#include "bayes/decimation/decimate_refit.h"
 #include "core/error.h"
 #include "core/topology.h"
 
@@ -375,6 +376,8 @@ void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budg
     a->fell_back = true;
     a->triangulation.F = prep.F;
     a->triangulation.face_patch = a->face_patch;
+    a->triangulation.representative.resize(ns);
+    std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
   }
   a->seconds_geometry = Seconds(t1);
 }
@@ -435,6 +438,7 @@ void DecimateOptions::Check() const {
            "decimate: min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(chain_tolerance_rel >= 0.0, "decimate: chain_tolerance_rel must be ≥ 0");
   RB_CHECK(shading_regularisation >= 0.0, "decimate: shading_regularisation must be ≥ 0");
+  refit.Check();
 }
 
 std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options,
@@ -465,6 +469,8 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   if (options.target_faces <= 0) {
     best = PartitionOnce(problem, lambda, options, options.progress);
     GeometryOnce(prep, options, 0, signature, &best);
+    s.seconds_search_partition = best.seconds_partition;
+    s.seconds_search_geometry = best.seconds_geometry;
   } else {
     // Bracket λ geometrically, then bisect in log λ on "the straightened patches fit in the budget".
     const int target = options.target_faces;
@@ -483,6 +489,8 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       }
       Attempt a = PartitionOnce(problem, l, options, nullptr);
       GeometryOnce(prep, options, budget, signature, &a);
+      s.seconds_search_partition += a.seconds_partition;
+      s.seconds_search_geometry += a.seconds_geometry;
       const bool ok = faces_of(a) <= budget;
       if (ok) {
         hi = l;
@@ -493,22 +501,58 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       }
       return ok;
     };
+    // Bracketing: the face count falls roughly like a power of λ, so the next λ is extrapolated from the
+    // last two runs (the first step assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little so that
+    // the bracket closes in one step.
     double l = lambda;
+    const double log_budget = std::log(static_cast<double>(budget));
+    auto log_faces = [](const Attempt& a) { return std::log(std::max(1.0, static_cast<double>(a.triangulation.F.rows()))); };
+    double prev_l = 0.0, prev_log_faces = 0.0;
+    auto next_factor = [&](double cur_log_faces) {
+      double slope = -1.0;  // d log faces / d log λ
+      if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
+        slope = std::min(-0.2, (cur_log_faces - prev_log_faces) / std::log(l / prev_l));
+      }
+      const double want = (log_budget - cur_log_faces) / slope;  // log λ step to the budget
+      return std::clamp(std::exp(1.3 * std::abs(want)), 2.0, 64.0);
+    };
     if (run(l)) {
       // Once every face is its own patch a smaller λ changes nothing: the budget holds the dense mesh.
       while (steps < options.max_bisection_steps && l > 1e-12 && fits.num_patches < prep.F.rows()) {
-        l /= 4.0;
+        const double factor = next_factor(log_faces(fits));
+        prev_l = l;
+        prev_log_faces = log_faces(fits);
+        l /= factor;
         if (!run(l)) break;
       }
     } else {
       while (steps < options.max_bisection_steps && l < 1e12) {
-        l *= 4.0;
+        const double factor = next_factor(log_faces(too_many));
+        prev_l = l;
+        prev_log_faces = log_faces(too_many);
+        l *= factor;
         if (run(l)) break;
       }
     }
+    // Safeguarded interpolation in log λ against log faces (regula falsi); a step that did not halve the
+    // bracket is followed by a bisection step, so the bracket at least halves every two steps. A point that
+    // lands within the resolution of an end is moved to just that far, which can close the bracket at once.
+    bool bisect_next = false;
     while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) &&
            steps < options.max_bisection_steps) {
-      run(std::sqrt(lo * hi));
+      const double width = std::log(hi / lo);
+      double t = 0.5;
+      if (!bisect_next) {
+        const double f_lo = log_faces(too_many), f_hi = log_faces(fits);
+        if (f_lo > f_hi) t = std::clamp((f_lo - log_budget) / (f_lo - f_hi), 0.0, 1.0);
+      }
+      const double step = std::log(1.0 + options.lambda_resolution);
+      double x = std::log(lo) + t * width;
+      x = std::clamp(x, std::log(lo) + 0.5 * step, std::log(hi) - 0.5 * step);
+      if (x - std::log(lo) < step) x = std::log(lo) + step * 0.999;
+      if (std::log(hi) - x < step) x = std::log(hi) - step * 0.999;
+      run(std::exp(x));
+      bisect_next = !bisect_next && std::log(hi / lo) > 0.5 * width;
     }
     s.bisection_steps = steps;
     s.lambda_too_many = lo;
@@ -518,12 +562,16 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     if (hi > 0.0) {
       lambda = hi;
       best = std::move(fits);
-      if (budget < target) GeometryOnce(prep, options, target, signature, &best);
+      if (budget < target) {
+        GeometryOnce(prep, options, target, signature, &best);
+        s.seconds_search_geometry += best.seconds_geometry;
+      }
     } else {
       // Even one patch per component needs more triangles than the budget: the fewest found.
       lambda = lo;
       best = std::move(too_many);
       GeometryOnce(prep, options, target, signature, &best);
+      s.seconds_search_geometry += best.seconds_geometry;
       s.notices.push_back(StrCat("target ", target, " faces not reachable: ", faces_of(best),
                                  " faces at lambda ", lo, " (the patches' corners and guarded vertices)"));
     }
@@ -533,7 +581,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   // Outputs: compact the kept split vertices, weld copies of one input vertex back together.
   const PatchTriangulation& tri = best.triangulation;
   std::vector<int> out_of_input(poses[0].num_vertices(), -1);
-  std::vector<int> vertex_source;
+  std::vector<int> vertex_source, vertex_split;
   Faces F(tri.F.rows(), 3);
   for (int f = 0; f < tri.F.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -542,6 +590,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       if (id < 0) {
         id = static_cast<int>(vertex_source.size());
         vertex_source.push_back(input);
+        vertex_split.push_back(tri.F(f, k));
       }
       F(f, k) = id;
     }
@@ -551,11 +600,36 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   const auto polygons = PatchPolygons(F, tri.face_patch, best.num_patches);
 
   std::vector<DecimatedMesh> out(poses.size());
+  const auto t_refit = Clock::now();
   for (size_t m = 0; m < poses.size(); ++m) {
     DecimatedMesh& d = out[m];
     d.mesh.F = F;
     d.mesh.V.resize(static_cast<Eigen::Index>(vertex_source.size()), 3);
-    for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
+    if (options.refit_vertices && !best.fell_back) {
+      RefitInput in;
+      in.dense_V = &prep.poses[m];
+      in.dense_F = &prep.F;
+      in.dense_face_patch = &best.face_patch;
+      in.representative = &tri.representative;
+      in.boundary_vertex = &prep.boundary_vertex;
+      in.fixed = &prep.locked;  // copies of one input vertex stay where it is, so that they weld back
+      in.coarse_F = &tri.F;
+      in.coarse_face_patch = &tri.face_patch;
+      in.num_patches = best.num_patches;
+      VertexRefitSummary rs;
+      const Vertices moved = RefitVertices(in, options.refit, &rs);
+      for (size_t i = 0; i < vertex_split.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = moved.row(vertex_split[i]);
+      s.refit_moved += rs.moved;
+      s.refit_blocked += rs.blocked;
+      s.refit_quadric_before += rs.quadric_error_before;
+      s.refit_quadric_after += rs.quadric_error_after;
+      if (m == 0) {
+        s.refit_rms_before = rs.fit_rms_before;
+        s.refit_rms_after = rs.fit_rms_after;
+      }
+    } else {
+      for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
+    }
     d.face_patch = tri.face_patch;
     d.vertex_source = vertex_source;
     d.dense_face_patch = dense_face_patch;
@@ -601,6 +675,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   }
   s.seconds_partition = best.seconds_partition;
   s.seconds_geometry = best.seconds_geometry;
+  s.seconds_refit_and_shading = Seconds(t_refit);
   s.seconds_total = Seconds(t_start);
   if (options.progress) options.progress(1.0, "done");
   return out;

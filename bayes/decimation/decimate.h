@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "bayes/decimation/decimate_refit.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
 #include "core/progress.h"
@@ -59,6 +60,11 @@ struct DecimateOptions {
   // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;
   double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
+  // After the patch structure and triangulation are fixed, move the kept vertices to their regularised
+  // quadric-optimal positions under the flip guard (bayes/decimation/decimate_refit.h); false keeps the
+  // output's vertices a subset of the input's.
+  bool refit_vertices = true;
+  VertexRefitOptions refit;
   ProgressCallback progress;              // optional
 
   // Throws Error naming the field that is out of range.
@@ -90,13 +96,22 @@ struct DecimateSummary {
   bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept
   double seconds_partition = 0.0;
   double seconds_geometry = 0.0;
+  double seconds_refit_and_shading = 0.0;
+  // Over every λ tried (target_faces > 0; otherwise the one run): hill climbing, and triangulation with checks.
+  double seconds_search_partition = 0.0, seconds_search_geometry = 0.0;
+  // Vertex refit, summed over poses: vertices moved and kept in place, Σ quadric error before and after.
+  int refit_moved = 0, refit_blocked = 0;
+  double refit_quadric_before = 0.0, refit_quadric_after = 0.0;
+  // Of the first pose: the fit's area-weighted RMS distance of the dense vertices to the coarse faces, before
+  // and after the fit rounds (VertexRefitSummary).
+  double refit_rms_before = 0.0, refit_rms_after = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> notices;  // one line each: input problems found and how they were handled
 };
 
 // One decimated pose.
 struct DecimatedMesh {
-  Mesh mesh;                     // output triangles; vertices are a subset of the input's
+  Mesh mesh;                     // output triangles; vertices: the input's kept ones, refitted (see refit_vertices)
   CornerNormals corner_normals;  // per-corner shading normals from the patch normal fields
   std::vector<int> face_patch;   // per output face, its patch in [0, num_patches)
   std::vector<int> vertex_source;         // per output vertex, its index in the input
