@@ -143,7 +143,7 @@ void Run(const DecimateArgs& a) {
               s.output_faces, s.output_vertices, 100.0 * s.output_faces / std::max(1, s.input_faces),
               a.polygons ? "; written as one polygon per patch" : "");
   std::printf("lambda: %.6g%s; energy %.6g (data %.6g + lambda x patches %.6g)\n", s.lambda,
-              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " decimations)").c_str()
+              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " full decimations)").c_str()
                                  : "",
               s.energy, s.data_energy, s.energy - s.data_energy);
   if (a.target_faces > 0) {
@@ -188,7 +188,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                                  "normalised to mean 1): larger gives fewer patches")
                      ->check(CLI::PositiveNumber);
   sub->add_option("--target-faces", a->target_faces,
-                  "find lambda by bisection for this many output triangles (normally the output has N or N-1; more "
+                  "find lambda by a search for this many output triangles (normally the output has N or N-1; more "
                   "when N is below what one patch per component needs, with a notice)")
       ->check(CLI::PositiveNumber)
       ->excludes(lambda);

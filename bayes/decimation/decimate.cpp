@@ -472,7 +472,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     s.seconds_search_partition = best.seconds_partition;
     s.seconds_search_geometry = best.seconds_geometry;
   } else {
-    // Bracket λ geometrically, then bisect in log λ on "the straightened patches fit in the budget".
+    // Search λ in log scale on "the straightened patches fit in the budget" (see decimate.h, Target faces).
     const int target = options.target_faces;
     const int budget = std::max(
         1, static_cast<int>(std::lround((1.0 - options.chain_reserve_share) * static_cast<double>(target))));
@@ -501,58 +501,123 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       }
       return ok;
     };
-    // Bracketing: the face count falls roughly like a power of λ, so the next λ is extrapolated from the
-    // last two runs (the first step assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little so that
-    // the bracket closes in one step.
-    double l = lambda;
     const double log_budget = std::log(static_cast<double>(budget));
-    auto log_faces = [](const Attempt& a) { return std::log(std::max(1.0, static_cast<double>(a.triangulation.F.rows()))); };
-    double prev_l = 0.0, prev_log_faces = 0.0;
-    auto next_factor = [&](double cur_log_faces) {
-      double slope = -1.0;  // d log faces / d log λ
-      if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
-        slope = std::min(-0.2, (cur_log_faces - prev_log_faces) / std::log(l / prev_l));
+    const double res_step = std::log(1.0 + options.lambda_resolution);
+    // Finds a bracket [a, b] (b/a ≤ 1 + resolution, a "too many", b "fits") of `eval` (λ → fits?, log faces)
+    // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
+    // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
+    // assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little. Then safeguarded interpolation in
+    // log λ against log faces (regula falsi); a step that did not halve the bracket is followed by a bisection
+    // step; a point within the resolution of an end is moved to just that far, which can close the bracket.
+    auto bracket = [&](auto&& eval, double lo0, double hi0, double start, int max_evals, double* a_out,
+                       double* b_out) {
+      double lo = lo0, hi = hi0, f_lo = 0.0, f_hi = 0.0;
+      int evals = 0;
+      auto go = [&](double l) {
+        ++evals;
+        const auto [ok, lf] = eval(l);
+        if (ok) {
+          hi = l;
+          f_hi = lf;
+        } else {
+          lo = l;
+          f_lo = lf;
+        }
+        return std::make_pair(ok, lf);
+      };
+      double l = start, prev_l = 0.0, prev_lf = 0.0;
+      auto factor = [&](double lf) {
+        double slope = -1.0;  // d log faces / d log λ
+        if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
+          slope = std::min(-0.2, (lf - prev_lf) / std::log(l / prev_l));
+        }
+        return std::clamp(std::exp(1.3 * std::abs((log_budget - lf) / slope)), 2.0, 64.0);
+      };
+      if (lo <= 0.0 || hi <= 0.0) {
+        auto [ok, lf] = go(l);
+        while (evals < max_evals && (lo <= 0.0 || hi <= 0.0) && l > 1e-12 && l < 1e12) {
+          const double next = ok ? l / factor(lf) : l * factor(lf);
+          prev_l = l;
+          prev_lf = lf;
+          l = next;
+          if (ok && lo0 > 0.0 && l <= lo0) break;
+          if (!ok && hi0 > 0.0 && l >= hi0) break;
+          std::tie(ok, lf) = go(l);
+        }
       }
-      const double want = (log_budget - cur_log_faces) / slope;  // log λ step to the budget
-      return std::clamp(std::exp(1.3 * std::abs(want)), 2.0, 64.0);
+      bool bisect_next = false;
+      while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) && evals < max_evals) {
+        const double width = std::log(hi / lo);
+        double t = 0.5;
+        if (!bisect_next && f_lo > f_hi && lo != lo0 && hi != hi0) {
+          t = std::clamp((f_lo - log_budget) / (f_lo - f_hi), 0.0, 1.0);
+        }
+        double x = std::log(lo) + t * width;
+        x = std::clamp(x, std::log(lo) + 0.5 * res_step, std::log(hi) - 0.5 * res_step);
+        if (x - std::log(lo) < res_step) x = std::log(lo) + res_step * 0.999;
+        if (std::log(hi) - x < res_step) x = std::log(hi) - res_step * 0.999;
+        go(std::exp(x));
+        bisect_next = !bisect_next && std::log(hi / lo) > 0.5 * width;
+      }
+      *a_out = lo;
+      *b_out = hi;
     };
-    if (run(l)) {
-      // Once every face is its own patch a smaller λ changes nothing: the budget holds the dense mesh.
-      while (steps < options.max_bisection_steps && l > 1e-12 && fits.num_patches < prep.F.rows()) {
-        const double factor = next_factor(log_faces(fits));
-        prev_l = l;
-        prev_log_faces = log_faces(fits);
-        l /= factor;
-        if (!run(l)) break;
+    // The full evaluation (hill climbing and triangulation) decides; a cheap one guides it: the hill climbing
+    // alone, with the triangle count predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces
+    // to such vertices measured on the last full run that overflowed (there the chains were straightened as
+    // far as they go, so its count is the one "fits" compares).
+    auto corners_of = [&](const std::vector<int>& g) {
+      const DecimationProblem& pr = problem.problem;
+      std::vector<unsigned char> features(ns, 0);
+      for (int f = 0; f < pr.num_faces(); ++f) {
+        for (int k = 0; k < 3; ++k) {
+          const int h = pr.neighbours[f][k];
+          if (h >= 0 && (h < f || g[h] == g[f])) continue;
+          for (int v : {pr.corners[f][k], pr.corners[f][(k + 1) % 3]}) features[v] = static_cast<unsigned char>(std::min(255, features[v] + 1));
+        }
       }
-    } else {
-      while (steps < options.max_bisection_steps && l < 1e12) {
-        const double factor = next_factor(log_faces(too_many));
-        prev_l = l;
-        prev_log_faces = log_faces(too_many);
-        l *= factor;
-        if (run(l)) break;
+      int count = 0;
+      for (int v = 0; v < ns; ++v) count += (features[v] >= 3 || prep.locked[v]) ? 1 : 0;
+      return std::max(1, count);
+    };
+    double ratio = 0.0;
+    auto full = [&](double l) {
+      const bool ok = run(l);
+      const Attempt& a = ok ? fits : too_many;
+      if (!ok || ratio <= 0.0) ratio = static_cast<double>(faces_of(a)) / corners_of(a.face_patch);
+      return ok;
+    };
+
+    auto cheap = [&](double l) {
+
+      Attempt a = PartitionOnce(problem, l, options, nullptr);
+      s.seconds_search_partition += a.seconds_partition;
+      const double predicted = ratio * corners_of(a.face_patch);
+      return std::make_pair(predicted <= budget, std::log(std::max(1.0, predicted)));
+    };
+    full(lambda);
+    for (int outer = 0; outer < 8 && steps < options.max_bisection_steps; ++outer) {
+      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
+      if (hi > 0.0 && fits.num_patches >= prep.F.rows()) break;  // every face its own patch fits
+      double a = 0.0, b = 0.0;
+      bracket(cheap, lo, hi, hi > 0.0 ? hi : lo, 40, &a, &b);
+      bool progressed = false;
+      if (b > 0.0 && b != hi && b != lo) {
+        full(b);
+        progressed = true;
       }
+      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
+      if (a > 0.0 && a != lo && a != hi && (hi <= 0.0 || a < hi) && steps < options.max_bisection_steps) {
+        full(a);
+        progressed = true;
+      }
+      if (!progressed) break;
     }
-    // Safeguarded interpolation in log λ against log faces (regula falsi); a step that did not halve the
-    // bracket is followed by a bisection step, so the bracket at least halves every two steps. A point that
-    // lands within the resolution of an end is moved to just that far, which can close the bracket at once.
-    bool bisect_next = false;
-    while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) &&
-           steps < options.max_bisection_steps) {
-      const double width = std::log(hi / lo);
-      double t = 0.5;
-      if (!bisect_next) {
-        const double f_lo = log_faces(too_many), f_hi = log_faces(fits);
-        if (f_lo > f_hi) t = std::clamp((f_lo - log_budget) / (f_lo - f_hi), 0.0, 1.0);
-      }
-      const double step = std::log(1.0 + options.lambda_resolution);
-      double x = std::log(lo) + t * width;
-      x = std::clamp(x, std::log(lo) + 0.5 * step, std::log(hi) - 0.5 * step);
-      if (x - std::log(lo) < step) x = std::log(lo) + step * 0.999;
-      if (std::log(hi) - x < step) x = std::log(hi) - step * 0.999;
-      run(std::exp(x));
-      bisect_next = !bisect_next && std::log(hi / lo) > 0.5 * width;
+    // Whatever the guide left open is closed by full evaluations alone.
+    if (lo <= 0.0 || hi <= 0.0 || hi > lo * (1.0 + options.lambda_resolution)) {
+      double a = 0.0, b = 0.0;
+      bracket([&](double l) { return std::make_pair(full(l), std::log(std::max(1.0, static_cast<double>(faces_of(hi == l ? fits : too_many))))); },
+              lo, hi, hi > 0.0 ? hi : lo, std::max(0, options.max_bisection_steps - steps), &a, &b);
     }
     s.bisection_steps = steps;
     s.lambda_too_many = lo;

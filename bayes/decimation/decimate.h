@@ -19,11 +19,14 @@
 // (two single faces: 1 − cos θ < λ). `target_faces` finds λ for a requested triangle count instead.
 //
 // Target faces: a triangle budget is split between patches (each costs its corner vertices) and the detail
-// of the patch boundaries (chain vertices). The search finds by bisection in log λ the smallest λ whose
-// patches, with every chain straightened as far as the manifold and flip guards allow, fit in
+// of the patch boundaries (chain vertices). The search finds in log λ the smallest λ (to lambda_resolution)
+// whose patches, with every chain straightened as far as the manifold and flip guards allow, fit in
 // (1 − chain_reserve_share) of the budget (fewer patches fit at larger λ, so "fits" is monotone up to the
 // hill climbing's local optima); at that λ the chains are then straightened only down to the full budget,
-// least chain error first, so the kept chain vertices are those where the boundaries curve most.
+// least chain error first, so the kept chain vertices are those where the boundaries curve most. Full
+// decimations (hill climbing + triangulation) decide the bracket; between them the search is guided by the
+// hill climbing alone, predicting the count from the vertices where ≥ 3 patch sides meet (the ratio measured
+// on the last full run that overflowed), with power-law extrapolation and safeguarded interpolation.
 #pragma once
 
 #include <string>
@@ -52,7 +55,7 @@ struct DecimateOptions {
   // 0.35 was worse than 0.2 on the angel scan's and elephant's normal errors.
   double chain_reserve_share = 0.2;
   double lambda_resolution = 0.02;  // the λ search stops when λ_fits / λ_too_many ≤ 1 + this, (0, 1)
-  int max_bisection_steps = 30;     // decimations tried when searching λ, ≥ 2
+  int max_bisection_steps = 30;     // full decimations tried when searching λ (guided runs not counted), ≥ 2
   DecimateWeighting weighting = DecimateWeighting::kArea;
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
   double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
@@ -72,7 +75,7 @@ struct DecimateOptions {
 };
 
 struct DecimateSummary {
-  double lambda = 0.0;  // the λ used (found by bisection when target_faces > 0)
+  double lambda = 0.0;  // the λ used (found by the search when target_faces > 0)
   int input_faces = 0;
   int num_patches = 0;
   int output_faces = 0;
@@ -83,7 +86,7 @@ struct DecimateSummary {
   long long rejected_disconnecting = 0;        // split/swap moves refused because they would cut a patch
   int rounds = 0;
   bool converged = false;  // the last round found no improving move
-  int bisection_steps = 0;
+  int bisection_steps = 0;  // full decimations the λ search ran
   // The λ search's final bracket (target_faces > 0): at lambda_too_many the straightened patches need
   // faces_too_many > budget_faces triangles, at lambda_fits (the λ used) faces_fits ≤ budget_faces.
   // lambda_too_many = 0 when even the smallest λ tried fits; lambda_fits = 0 when no λ tried fits.

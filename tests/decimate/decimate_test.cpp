@@ -448,7 +448,9 @@ TEST(Decimate, TargetFacesFindsLambda) {
   const DecimatedMesh out_fine = Decimate(sphere, options, &fine);
   ExpectTargetSearchBracket(fine, options);
   EXPECT_EQ(out_fine.mesh.num_faces(), 200);
-  EXPECT_GT(fine.bisection_steps, summary.bisection_steps);
+  // The guided steps between full decimations do most of the narrowing, so the full ones need not grow.
+  EXPECT_GE(fine.bisection_steps, summary.bisection_steps);
+  EXPECT_LT(fine.lambda_fits / fine.lambda_too_many, summary.lambda_fits / summary.lambda_too_many + 1e-12);
 }
 
 // A budget above the input's face count keeps the dense mesh and stops searching once every face is a patch.
