@@ -8,7 +8,7 @@
 
 #include "apps/command.h"
 #include "apps/progress.h"
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
@@ -26,6 +26,7 @@ struct DecimateArgs {
   double chain_reserve = DecimateOptions{}.chain_reserve_share;
   bool uniform = false;
   bool polygons = false;
+  bool no_refit = false;
   std::string png;
   bool quiet = false;
 };
@@ -99,6 +100,7 @@ void Run(const DecimateArgs& a) {
   options.chain_tolerance_rel = a.chain_tolerance;
   options.chain_reserve_share = a.chain_reserve;
   options.weighting = a.uniform ? DecimateWeighting::kUniform : DecimateWeighting::kArea;
+  options.refit_vertices = !a.no_refit;
   options.Check();
 
   std::vector<Mesh> poses;
@@ -141,7 +143,7 @@ void Run(const DecimateArgs& a) {
               s.output_faces, s.output_vertices, 100.0 * s.output_faces / std::max(1, s.input_faces),
               a.polygons ? "; written as one polygon per patch" : "");
   std::printf("lambda: %.6g%s; energy %.6g (data %.6g + lambda x patches %.6g)\n", s.lambda,
-              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " decimations)").c_str()
+              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " full decimations)").c_str()
                                  : "",
               s.energy, s.data_energy, s.energy - s.data_energy);
   if (a.target_faces > 0) {
@@ -156,8 +158,16 @@ void Run(const DecimateArgs& a) {
               s.converged ? ", converged" : ", stopped at max_rounds");
   std::printf("vertices: %d where patches meet, %d more kept for chain shape or to avoid flipped triangles\n",
               s.kept_corner_vertices, s.blocked_vertices);
-  std::printf("time: %.3f s partition, %.3f s geometry, %.3f s total\n", s.seconds_partition, s.seconds_geometry,
-              s.seconds_total);
+  if (!a.no_refit) {
+    std::printf("vertex refit: %d moved, %d kept in place by the flip guard; quadric error %.4g -> %.4g, "
+                "fit RMS %.4g -> %.4g\n",
+                s.refit_moved, s.refit_blocked, s.refit_quadric_before, s.refit_quadric_after, s.refit_rms_before,
+                s.refit_rms_after);
+  }
+  std::printf("time: %.3f s partition, %.3f s geometry (all lambdas: %.3f s, %.3f s), %.3f s refit and shading, "
+              "%.3f s total\n",
+              s.seconds_partition, s.seconds_geometry, s.seconds_search_partition, s.seconds_search_geometry,
+              s.seconds_refit_and_shading, s.seconds_total);
   for (const std::string& w : written) std::printf("wrote %s\n", w.c_str());
 }
 
@@ -178,7 +188,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                                  "normalised to mean 1): larger gives fewer patches")
                      ->check(CLI::PositiveNumber);
   sub->add_option("--target-faces", a->target_faces,
-                  "find lambda by bisection for this many output triangles (normally the output has N or N-1; more "
+                  "find lambda by a search for this many output triangles (normally the output has N or N-1; more "
                   "when N is below what one patch per component needs, with a notice)")
       ->check(CLI::PositiveNumber)
       ->excludes(lambda);
@@ -190,6 +200,8 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                   "with --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
       ->check(CLI::Range(0.0, 0.99));
   sub->add_flag("--uniform-weights", a->uniform, "weight every face 1 (the paper) instead of by its area");
+  sub->add_flag("--no-refit", a->no_refit,
+                "keep the kept vertices where they are in the input (no quadric refit of their positions)");
   sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
   sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
   sub->add_flag("--quiet", a->quiet, "no progress or notices on stderr");

@@ -2,6 +2,9 @@
 //
 //   bench_decimate speed MESH LEVELS [LAMBDA]
 //       decimates MESH and its midpoint subdivisions (×4 faces per level) and prints time per input face.
+//   bench_decimate target SHARE MESH [MESH ...]
+//       decimates MESH (several: side by side as one mesh of several components) to SHARE of its faces (--target-faces, the λ search) and prints where the time goes
+//       (search partitions and triangulations, refit and shading), wall and process CPU time.
 //   bench_decimate animated MESH [POSES] [SHARE] [joints|smooth]
 //       bends and twists MESH into POSES poses (pose 1 the rest pose) and compares, at equal triangle count
 //       (SHARE of the input faces), one patch map shared by all poses (paper §6.3) against decimating the rest
@@ -21,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/mesh_io.h"
 
 namespace {
@@ -72,6 +75,32 @@ int Speed(const std::string& path, int levels, double lambda) {
                 s.seconds_partition, s.seconds_geometry, s.seconds_total, cpu, 1e6 * s.seconds_total / s.input_faces);
     std::fflush(stdout);
   }
+  return 0;
+}
+
+int Target(double share, const std::vector<std::string>& paths) {
+  Mesh m;
+  std::string path;
+  for (const std::string& p : paths) {
+    const Mesh part = ReadMesh(p);
+    path += (path.empty() ? "" : "+") + p;
+    Mesh both;
+    both.V.resize(m.num_vertices() + part.num_vertices(), 3);
+    both.V << m.V, part.V;
+    both.F.resize(m.num_faces() + part.num_faces(), 3);
+    both.F << m.F, (part.F.array() + m.num_vertices()).matrix();
+    m = std::move(both);
+  }
+  DecimateOptions options;
+  options.target_faces = static_cast<int>(std::lround(share * m.num_faces()));
+  DecimateSummary s;
+  const std::clock_t c0 = std::clock();
+  Decimate(m, options, &s);
+  const double cpu = static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
+  std::printf("%s: %d faces -> %d (target %d), %d patches, %d lambda steps\n", path.c_str(), s.input_faces,
+              s.output_faces, options.target_faces, s.num_patches, s.bisection_steps);
+  std::printf("search partition %.3f s, search geometry %.3f s, refit+shading %.3f s, total wall %.3f s, cpu %.3f s\n",
+              s.seconds_search_partition, s.seconds_search_geometry, s.seconds_refit_and_shading, s.seconds_total, cpu);
   return 0;
 }
 
@@ -171,11 +200,15 @@ int Animated(const std::string& path, int count, double share, bool joints) {
 int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   if (mode == "speed" && argc >= 4) return Speed(argv[2], std::atoi(argv[3]), argc > 4 ? std::atof(argv[4]) : 2.0);
+  if (mode == "target" && argc >= 4) return Target(std::atof(argv[2]), std::vector<std::string>(argv + 3, argv + argc));
   if (mode == "animated" && argc >= 3) {
     return Animated(argv[2], argc > 3 ? std::atoi(argv[3]) : 8, argc > 4 ? std::atof(argv[4]) : 0.05,
                     argc > 5 ? std::string(argv[5]) != "smooth" : true);
   }
   std::fprintf(stderr,
-               "usage: %s speed MESH LEVELS [LAMBDA]\n       %s animated MESH [POSES] [SHARE] [joints|smooth]\n", argv[0], argv[0]);
+               
+               "usage: %s speed MESH LEVELS [LAMBDA]\n       %s target SHARE MESH [MESH ...]\n"
+               "       %s animated MESH [POSES] [SHARE] [joints|smooth]\n",
+               argv[0], argv[0], argv[0]);
   return 2;
 }

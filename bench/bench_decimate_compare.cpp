@@ -1,9 +1,13 @@
 // Bayesian decimation against CGAL's quadric edge collapse (Garland–Heckbert plane policies, QSlim-style) and
 // CGAL's variational shape approximation (Cohen-Steiner et al. 2004) at equal triangle count.
 //
-//   bench_decimate_compare MESH [SHARE ...] [--reserve R] [--bayes-only]   (default shares 0.02 0.10)
+//   bench_decimate_compare MESH [SHARE ...] [--reserve R] [--bayes-only] [--no-vsa] [--no-refit] [--both]
+//   (default shares 0.02 0.10)
 //
-// --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL.
+// --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL;
+// --no-vsa skips VSA only; --no-refit turns the vertex refit off; --both prints ours without the refit
+// ("bayes-sub", vertices a subset of the input's) before ours with it; --refit-reg X sets
+// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds.
 //
 // Per method and share it prints: output triangles, symmetric Hausdorff and RMS surface distance (relative to
 // the bounding-box diagonal, from area-uniform samples on both surfaces), the area-weighted angle between each
@@ -29,7 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 
@@ -352,13 +356,25 @@ int main(int argc, char** argv) {
   }
   std::vector<double> shares;
   double reserve = DecimateOptions{}.chain_reserve_share;
-  bool bayes_only = false;
+  bool bayes_only = false, no_vsa = false, refit = true, both = false;
+  double refit_reg = VertexRefitOptions{}.regularisation;
+  int fit_rounds = VertexRefitOptions{}.fit_rounds;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--reserve" && i + 1 < argc) {
       reserve = std::atof(argv[++i]);
     } else if (arg == "--bayes-only") {
       bayes_only = true;
+    } else if (arg == "--fit-rounds" && i + 1 < argc) {
+      fit_rounds = std::atoi(argv[++i]);
+    } else if (arg == "--refit-reg" && i + 1 < argc) {
+      refit_reg = std::atof(argv[++i]);
+    } else if (arg == "--no-vsa") {
+      no_vsa = true;
+    } else if (arg == "--no-refit") {
+      refit = false;
+    } else if (arg == "--both") {
+      both = true;
     } else {
       shares.push_back(std::atof(argv[i]));
     }
@@ -377,26 +393,36 @@ int main(int argc, char** argv) {
               "render", "time s");
   for (double share : shares) {
     const int target = std::max(4, static_cast<int>(std::lround(share * ref.dense.num_faces())));
-    double t0 = Now();
-    DecimateOptions options;
-    options.target_faces = target;
-    options.chain_reserve_share = reserve;
-    DecimateSummary summary;
-    const DecimatedMesh ours = Decimate(ref.dense, options, &summary);
-    const double t_ours = Now() - t0;
-    Normals corner(3 * ours.mesh.num_faces(), 3);
-    for (int f = 0; f < ours.mesh.num_faces(); ++f) {
-      for (int k = 0; k < 3; ++k) corner.row(3 * f + k) = ours.corner_normals.normals.row(ours.corner_normals.normal_index(f, k));
+    double t0 = 0.0;
+    DecimatedMesh ours;
+    for (int pass = both ? 0 : 1; pass < 2; ++pass) {
+      t0 = Now();
+      DecimateOptions options;
+      options.target_faces = target;
+      options.chain_reserve_share = reserve;
+      options.refit_vertices = pass == 1 && refit;
+      options.refit.regularisation = refit_reg;
+      options.refit.fit_rounds = fit_rounds;
+      DecimateSummary summary;
+      ours = Decimate(ref.dense, options, &summary);
+      const double t_ours = Now() - t0;
+      Normals corner(3 * ours.mesh.num_faces(), 3);
+      for (int f = 0; f < ours.mesh.num_faces(); ++f) {
+        for (int k = 0; k < 3; ++k) corner.row(3 * f + k) = ours.corner_normals.normals.row(ours.corner_normals.normal_index(f, k));
+      }
+      Print(options.refit_vertices ? "bayes" : "bayes-sub", share, Evaluate(ref, {{ours.mesh, corner}}), t_ours);
+      std::printf("           (%d patches, lambda %.4g, chain reserve %.2f, chain error up to %.3g%% of the diagonal, "
+                  "refit: %d moved, %d blocked, fit rms %.3g -> %.3g)\n",
+                  summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel, summary.refit_moved,
+                  summary.refit_blocked, summary.refit_rms_before, summary.refit_rms_after);
     }
-    Print("bayes", share, Evaluate(ref, {{ours.mesh, corner}}), t_ours);
-    std::printf("           (%d patches, lambda %.4g, chain reserve %.2f, chain error up to %.3g%% of the diagonal)\n",
-                summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel);
     if (bayes_only) continue;
     const int n = ours.mesh.num_faces();
     t0 = Now();
     const Mesh gh = GarlandHeckbert(ref.dense, n);
     const double t_gh = Now() - t0;
     Print("qslim", share, Evaluate(ref, {{gh, SmoothCorners(gh)}, {gh, FlatCorners(gh)}}), t_gh);
+    if (no_vsa) continue;
     t0 = Now();
     const Mesh vsa = VsaAt(ref.dense, n);
     const double t_vsa = Now() - t0;

@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "bayes/smooth.h"
 #include "capture/playback_source.h"
 #include "capture/recording.h"

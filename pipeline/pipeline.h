@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "bayes/smooth.h"
 #include "calibration/stereo_rig.h"
 #include "capture/frame_source.h"
@@ -86,7 +86,7 @@ struct PipelineOptions {
   // the per-iteration cost measured on the frames before (a running mean per vertex; the first frame gets
   // kSmoothBudgetProbeIterations iterations to measure it). Results then depend on timing.
   double smooth_budget_ms = 0.0;
-  bool decimate = true;              // run Bayesian decimation (bayes/decimate.h) on the smoothed mesh
+  bool decimate = true;              // run Bayesian decimation (bayes/decimation/decimate.h) on the smoothed mesh
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
   const std::atomic<bool>* stop = nullptr;  // polled by the stages (e.g. &StopFlag()); null: never

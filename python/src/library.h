@@ -2,7 +2,7 @@
 // only, so that a move is a one-line change.
 #pragma once
 
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 #include "bayes/learn_prior.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/noise_model.h"

@@ -1,4 +1,4 @@
-#include "bayes/decimate_partition.h"
+#include "bayes/decimation/decimate_partition.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "bayes/decimate_geometry.h"
+#include "bayes/decimation/decimate_geometry.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -83,6 +83,7 @@ class Reducer {
     nb_slot_.assign(nv, 0);
     version_.assign(nv, 0);
     kept_.assign(nv, 0);
+    collapsed_to_.assign(nv, -1);
     for (int v = 0; v < nv; ++v) {
       if (!locked.empty() && locked[v]) kept_[v] = 1;
     }
@@ -156,6 +157,18 @@ class Reducer {
       }
     }
     out.max_chain_error_rel = diag_ > 0.0 ? max_chain_error_ / diag_ : 0.0;
+    out.representative.assign(nv, -1);
+    for (int v = 0; v < nv; ++v) {
+      int r = v;
+      while (collapsed_to_[r] >= 0) r = collapsed_to_[r];
+      if (!vf_[r].empty()) out.representative[v] = r;
+      // Path compression: the chains of collapses are walked once.
+      for (int x = v; collapsed_to_[x] >= 0;) {
+        const int next = collapsed_to_[x];
+        collapsed_to_[x] = r;
+        x = next;
+      }
+    }
     out.collapses = collapses_;
     out.collapse_attempts = attempts_;
     out.pops = pops_;
@@ -541,6 +554,7 @@ class Reducer {
       vf_[u].push_back(f);
     }
     vf_[v].clear();
+    collapsed_to_[v] = u;
     ++collapses_;
     // Only u and v's former neighbours see their stars change.
     ++version_[u];
@@ -563,6 +577,7 @@ class Reducer {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;
   std::vector<char> boundary_, kept_;
   std::vector<int> stamp_, version_;
+  std::vector<int> collapsed_to_;
   std::vector<int> nb_mark_, nb_slot_;
   int nb_stamp_ = 0;
   int current_stamp_ = 0;

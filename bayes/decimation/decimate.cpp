@@ -1,4 +1,4 @@
-#include "bayes/decimate.h"
+#include "bayes/decimation/decimate.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -8,8 +8,9 @@
 #include <numeric>
 #include <unordered_map>
 
-#include "bayes/decimate_geometry.h"
-#include "bayes/decimate_partition.h"
+#include "bayes/decimation/decimate_geometry.h"
+#include "bayes/decimation/decimate_partition.h"
+#include "bayes/decimation/decimate_refit.h"
 #include "core/error.h"
 #include "core/topology.h"
 
@@ -375,6 +376,8 @@ void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budg
     a->fell_back = true;
     a->triangulation.F = prep.F;
     a->triangulation.face_patch = a->face_patch;
+    a->triangulation.representative.resize(ns);
+    std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
   }
   a->seconds_geometry = Seconds(t1);
 }
@@ -435,6 +438,7 @@ void DecimateOptions::Check() const {
            "decimate: min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(chain_tolerance_rel >= 0.0, "decimate: chain_tolerance_rel must be ≥ 0");
   RB_CHECK(shading_regularisation >= 0.0, "decimate: shading_regularisation must be ≥ 0");
+  refit.Check();
 }
 
 std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options,
@@ -465,8 +469,10 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   if (options.target_faces <= 0) {
     best = PartitionOnce(problem, lambda, options, options.progress);
     GeometryOnce(prep, options, 0, signature, &best);
+    s.seconds_search_partition = best.seconds_partition;
+    s.seconds_search_geometry = best.seconds_geometry;
   } else {
-    // Bracket λ geometrically, then bisect in log λ on "the straightened patches fit in the budget".
+    // Search λ in log scale on "the straightened patches fit in the budget" (see decimate.h, Target faces).
     const int target = options.target_faces;
     const int budget = std::max(
         1, static_cast<int>(std::lround((1.0 - options.chain_reserve_share) * static_cast<double>(target))));
@@ -483,6 +489,8 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       }
       Attempt a = PartitionOnce(problem, l, options, nullptr);
       GeometryOnce(prep, options, budget, signature, &a);
+      s.seconds_search_partition += a.seconds_partition;
+      s.seconds_search_geometry += a.seconds_geometry;
       const bool ok = faces_of(a) <= budget;
       if (ok) {
         hi = l;
@@ -493,22 +501,123 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       }
       return ok;
     };
-    double l = lambda;
-    if (run(l)) {
-      // Once every face is its own patch a smaller λ changes nothing: the budget holds the dense mesh.
-      while (steps < options.max_bisection_steps && l > 1e-12 && fits.num_patches < prep.F.rows()) {
-        l /= 4.0;
-        if (!run(l)) break;
+    const double log_budget = std::log(static_cast<double>(budget));
+    const double res_step = std::log(1.0 + options.lambda_resolution);
+    // Finds a bracket [a, b] (b/a ≤ 1 + resolution, a "too many", b "fits") of `eval` (λ → fits?, log faces)
+    // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
+    // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
+    // assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little. Then safeguarded interpolation in
+    // log λ against log faces (regula falsi); a step that did not halve the bracket is followed by a bisection
+    // step; a point within the resolution of an end is moved to just that far, which can close the bracket.
+    auto bracket = [&](auto&& eval, double lo0, double hi0, double start, int max_evals, double* a_out,
+                       double* b_out) {
+      double lo = lo0, hi = hi0, f_lo = 0.0, f_hi = 0.0;
+      int evals = 0;
+      auto go = [&](double l) {
+        ++evals;
+        const auto [ok, lf] = eval(l);
+        if (ok) {
+          hi = l;
+          f_hi = lf;
+        } else {
+          lo = l;
+          f_lo = lf;
+        }
+        return std::make_pair(ok, lf);
+      };
+      double l = start, prev_l = 0.0, prev_lf = 0.0;
+      auto factor = [&](double lf) {
+        double slope = -1.0;  // d log faces / d log λ
+        if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
+          slope = std::min(-0.2, (lf - prev_lf) / std::log(l / prev_l));
+        }
+        return std::clamp(std::exp(1.3 * std::abs((log_budget - lf) / slope)), 2.0, 64.0);
+      };
+      if (lo <= 0.0 || hi <= 0.0) {
+        auto [ok, lf] = go(l);
+        while (evals < max_evals && (lo <= 0.0 || hi <= 0.0) && l > 1e-12 && l < 1e12) {
+          const double next = ok ? l / factor(lf) : l * factor(lf);
+          prev_l = l;
+          prev_lf = lf;
+          l = next;
+          if (ok && lo0 > 0.0 && l <= lo0) break;
+          if (!ok && hi0 > 0.0 && l >= hi0) break;
+          std::tie(ok, lf) = go(l);
+        }
       }
-    } else {
-      while (steps < options.max_bisection_steps && l < 1e12) {
-        l *= 4.0;
-        if (run(l)) break;
+      bool bisect_next = false;
+      while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) && evals < max_evals) {
+        const double width = std::log(hi / lo);
+        double t = 0.5;
+        if (!bisect_next && f_lo > f_hi && lo != lo0 && hi != hi0) {
+          t = std::clamp((f_lo - log_budget) / (f_lo - f_hi), 0.0, 1.0);
+        }
+        double x = std::log(lo) + t * width;
+        x = std::clamp(x, std::log(lo) + 0.5 * res_step, std::log(hi) - 0.5 * res_step);
+        if (x - std::log(lo) < res_step) x = std::log(lo) + res_step * 0.999;
+        if (std::log(hi) - x < res_step) x = std::log(hi) - res_step * 0.999;
+        go(std::exp(x));
+        bisect_next = !bisect_next && std::log(hi / lo) > 0.5 * width;
       }
+      *a_out = lo;
+      *b_out = hi;
+    };
+    // The full evaluation (hill climbing and triangulation) decides; a cheap one guides it: the hill climbing
+    // alone, with the triangle count predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces
+    // to such vertices measured on the last full run that overflowed (there the chains were straightened as
+    // far as they go, so its count is the one "fits" compares).
+    auto corners_of = [&](const std::vector<int>& g) {
+      const DecimationProblem& pr = problem.problem;
+      std::vector<unsigned char> features(ns, 0);
+      for (int f = 0; f < pr.num_faces(); ++f) {
+        for (int k = 0; k < 3; ++k) {
+          const int h = pr.neighbours[f][k];
+          if (h >= 0 && (h < f || g[h] == g[f])) continue;
+          for (int v : {pr.corners[f][k], pr.corners[f][(k + 1) % 3]}) features[v] = static_cast<unsigned char>(std::min(255, features[v] + 1));
+        }
+      }
+      int count = 0;
+      for (int v = 0; v < ns; ++v) count += (features[v] >= 3 || prep.locked[v]) ? 1 : 0;
+      return std::max(1, count);
+    };
+    double ratio = 0.0;
+    auto full = [&](double l) {
+      const bool ok = run(l);
+      const Attempt& a = ok ? fits : too_many;
+      if (!ok || ratio <= 0.0) ratio = static_cast<double>(faces_of(a)) / corners_of(a.face_patch);
+      return ok;
+    };
+
+    auto cheap = [&](double l) {
+
+      Attempt a = PartitionOnce(problem, l, options, nullptr);
+      s.seconds_search_partition += a.seconds_partition;
+      const double predicted = ratio * corners_of(a.face_patch);
+      return std::make_pair(predicted <= budget, std::log(std::max(1.0, predicted)));
+    };
+    full(lambda);
+    for (int outer = 0; outer < 8 && steps < options.max_bisection_steps; ++outer) {
+      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
+      if (hi > 0.0 && fits.num_patches >= prep.F.rows()) break;  // every face its own patch fits
+      double a = 0.0, b = 0.0;
+      bracket(cheap, lo, hi, hi > 0.0 ? hi : lo, 40, &a, &b);
+      bool progressed = false;
+      if (b > 0.0 && b != hi && b != lo) {
+        full(b);
+        progressed = true;
+      }
+      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
+      if (a > 0.0 && a != lo && a != hi && (hi <= 0.0 || a < hi) && steps < options.max_bisection_steps) {
+        full(a);
+        progressed = true;
+      }
+      if (!progressed) break;
     }
-    while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) &&
-           steps < options.max_bisection_steps) {
-      run(std::sqrt(lo * hi));
+    // Whatever the guide left open is closed by full evaluations alone.
+    if (lo <= 0.0 || hi <= 0.0 || hi > lo * (1.0 + options.lambda_resolution)) {
+      double a = 0.0, b = 0.0;
+      bracket([&](double l) { return std::make_pair(full(l), std::log(std::max(1.0, static_cast<double>(faces_of(hi == l ? fits : too_many))))); },
+              lo, hi, hi > 0.0 ? hi : lo, std::max(0, options.max_bisection_steps - steps), &a, &b);
     }
     s.bisection_steps = steps;
     s.lambda_too_many = lo;
@@ -518,12 +627,16 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     if (hi > 0.0) {
       lambda = hi;
       best = std::move(fits);
-      if (budget < target) GeometryOnce(prep, options, target, signature, &best);
+      if (budget < target) {
+        GeometryOnce(prep, options, target, signature, &best);
+        s.seconds_search_geometry += best.seconds_geometry;
+      }
     } else {
       // Even one patch per component needs more triangles than the budget: the fewest found.
       lambda = lo;
       best = std::move(too_many);
       GeometryOnce(prep, options, target, signature, &best);
+      s.seconds_search_geometry += best.seconds_geometry;
       s.notices.push_back(StrCat("target ", target, " faces not reachable: ", faces_of(best),
                                  " faces at lambda ", lo, " (the patches' corners and guarded vertices)"));
     }
@@ -533,7 +646,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   // Outputs: compact the kept split vertices, weld copies of one input vertex back together.
   const PatchTriangulation& tri = best.triangulation;
   std::vector<int> out_of_input(poses[0].num_vertices(), -1);
-  std::vector<int> vertex_source;
+  std::vector<int> vertex_source, vertex_split;
   Faces F(tri.F.rows(), 3);
   for (int f = 0; f < tri.F.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -542,6 +655,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       if (id < 0) {
         id = static_cast<int>(vertex_source.size());
         vertex_source.push_back(input);
+        vertex_split.push_back(tri.F(f, k));
       }
       F(f, k) = id;
     }
@@ -551,11 +665,36 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   const auto polygons = PatchPolygons(F, tri.face_patch, best.num_patches);
 
   std::vector<DecimatedMesh> out(poses.size());
+  const auto t_refit = Clock::now();
   for (size_t m = 0; m < poses.size(); ++m) {
     DecimatedMesh& d = out[m];
     d.mesh.F = F;
     d.mesh.V.resize(static_cast<Eigen::Index>(vertex_source.size()), 3);
-    for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
+    if (options.refit_vertices && !best.fell_back) {
+      RefitInput in;
+      in.dense_V = &prep.poses[m];
+      in.dense_F = &prep.F;
+      in.dense_face_patch = &best.face_patch;
+      in.representative = &tri.representative;
+      in.boundary_vertex = &prep.boundary_vertex;
+      in.fixed = &prep.locked;  // copies of one input vertex stay where it is, so that they weld back
+      in.coarse_F = &tri.F;
+      in.coarse_face_patch = &tri.face_patch;
+      in.num_patches = best.num_patches;
+      VertexRefitSummary rs;
+      const Vertices moved = RefitVertices(in, options.refit, &rs);
+      for (size_t i = 0; i < vertex_split.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = moved.row(vertex_split[i]);
+      s.refit_moved += rs.moved;
+      s.refit_blocked += rs.blocked;
+      s.refit_quadric_before += rs.quadric_error_before;
+      s.refit_quadric_after += rs.quadric_error_after;
+      if (m == 0) {
+        s.refit_rms_before = rs.fit_rms_before;
+        s.refit_rms_after = rs.fit_rms_after;
+      }
+    } else {
+      for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
+    }
     d.face_patch = tri.face_patch;
     d.vertex_source = vertex_source;
     d.dense_face_patch = dense_face_patch;
@@ -601,6 +740,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   }
   s.seconds_partition = best.seconds_partition;
   s.seconds_geometry = best.seconds_geometry;
+  s.seconds_refit_and_shading = Seconds(t_refit);
   s.seconds_total = Seconds(t_start);
   if (options.progress) options.progress(1.0, "done");
   return out;

@@ -5,8 +5,8 @@
 //
 // u_i the unit normal of dense face i, n_k the weighted mean of its patch's normals (eq. 34, not
 // renormalised), g a map from faces to edge-connected patches found by hill climbing (fuse, split, swap;
-// bayes/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
-// each patch on its own (bayes/decimate_geometry.h), with per-corner normals from a linear normal field fitted
+// bayes/decimation/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
+// each patch on its own (bayes/decimation/decimate_geometry.h), with per-corner normals from a linear normal field fitted
 // per patch (the smooth shading of the paper's figures).
 //
 // Face weights: area weighting is the default. The paper weights every face equally, which is the same thing
@@ -19,16 +19,20 @@
 // (two single faces: 1 − cos θ < λ). `target_faces` finds λ for a requested triangle count instead.
 //
 // Target faces: a triangle budget is split between patches (each costs its corner vertices) and the detail
-// of the patch boundaries (chain vertices). The search finds by bisection in log λ the smallest λ whose
-// patches, with every chain straightened as far as the manifold and flip guards allow, fit in
+// of the patch boundaries (chain vertices). The search finds in log λ the smallest λ (to lambda_resolution)
+// whose patches, with every chain straightened as far as the manifold and flip guards allow, fit in
 // (1 − chain_reserve_share) of the budget (fewer patches fit at larger λ, so "fits" is monotone up to the
 // hill climbing's local optima); at that λ the chains are then straightened only down to the full budget,
-// least chain error first, so the kept chain vertices are those where the boundaries curve most.
+// least chain error first, so the kept chain vertices are those where the boundaries curve most. Full
+// decimations (hill climbing + triangulation) decide the bracket; between them the search is guided by the
+// hill climbing alone, predicting the count from the vertices where ≥ 3 patch sides meet (the ratio measured
+// on the last full run that overflowed), with power-law extrapolation and safeguarded interpolation.
 #pragma once
 
 #include <string>
 #include <vector>
 
+#include "bayes/decimation/decimate_refit.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
 #include "core/progress.h"
@@ -51,14 +55,19 @@ struct DecimateOptions {
   // 0.35 was worse than 0.2 on the angel scan's and elephant's normal errors.
   double chain_reserve_share = 0.2;
   double lambda_resolution = 0.02;  // the λ search stops when λ_fits / λ_too_many ≤ 1 + this, (0, 1)
-  int max_bisection_steps = 30;     // decimations tried when searching λ, ≥ 2
+  int max_bisection_steps = 30;     // full decimations tried when searching λ (guided runs not counted), ≥ 2
   DecimateWeighting weighting = DecimateWeighting::kArea;
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
   double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
   // Patch-boundary chains are simplified while removed vertices stay within this share of the bounding-box
-  // diagonal of the simplified chain, [0, ∞) (see bayes/decimate_geometry.h).
+  // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;
   double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
+  // After the patch structure and triangulation are fixed, move the kept vertices to their regularised
+  // quadric-optimal positions under the flip guard (bayes/decimation/decimate_refit.h); false keeps the
+  // output's vertices a subset of the input's.
+  bool refit_vertices = true;
+  VertexRefitOptions refit;
   ProgressCallback progress;              // optional
 
   // Throws Error naming the field that is out of range.
@@ -66,7 +75,7 @@ struct DecimateOptions {
 };
 
 struct DecimateSummary {
-  double lambda = 0.0;  // the λ used (found by bisection when target_faces > 0)
+  double lambda = 0.0;  // the λ used (found by the search when target_faces > 0)
   int input_faces = 0;
   int num_patches = 0;
   int output_faces = 0;
@@ -77,7 +86,7 @@ struct DecimateSummary {
   long long rejected_disconnecting = 0;        // split/swap moves refused because they would cut a patch
   int rounds = 0;
   bool converged = false;  // the last round found no improving move
-  int bisection_steps = 0;
+  int bisection_steps = 0;  // full decimations the λ search ran
   // The λ search's final bracket (target_faces > 0): at lambda_too_many the straightened patches need
   // faces_too_many > budget_faces triangles, at lambda_fits (the λ used) faces_fits ≤ budget_faces.
   // lambda_too_many = 0 when even the smallest λ tried fits; lambda_fits = 0 when no λ tried fits.
@@ -90,13 +99,22 @@ struct DecimateSummary {
   bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept
   double seconds_partition = 0.0;
   double seconds_geometry = 0.0;
+  double seconds_refit_and_shading = 0.0;
+  // Over every λ tried (target_faces > 0; otherwise the one run): hill climbing, and triangulation with checks.
+  double seconds_search_partition = 0.0, seconds_search_geometry = 0.0;
+  // Vertex refit, summed over poses: vertices moved and kept in place, Σ quadric error before and after.
+  int refit_moved = 0, refit_blocked = 0;
+  double refit_quadric_before = 0.0, refit_quadric_after = 0.0;
+  // Of the first pose: the fit's area-weighted RMS distance of the dense vertices to the coarse faces, before
+  // and after the fit rounds (VertexRefitSummary).
+  double refit_rms_before = 0.0, refit_rms_after = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> notices;  // one line each: input problems found and how they were handled
 };
 
 // One decimated pose.
 struct DecimatedMesh {
-  Mesh mesh;                     // output triangles; vertices are a subset of the input's
+  Mesh mesh;                     // output triangles; vertices: the input's kept ones, refitted (see refit_vertices)
   CornerNormals corner_normals;  // per-corner shading normals from the patch normal fields
   std::vector<int> face_patch;   // per output face, its patch in [0, num_patches)
   std::vector<int> vertex_source;         // per output vertex, its index in the input

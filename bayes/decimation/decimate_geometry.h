@@ -52,6 +52,8 @@ struct PatchTriangulation {
   long long pops = 0;
   // Budgeted pass (target_faces > 0): the largest chain error accepted, share of the bounding-box diagonal.
   double max_chain_error_rel = 0.0;
+  // Per dense vertex, the kept vertex its star collapsed onto (itself when kept), −1 for one no face used.
+  std::vector<int> representative;
 };
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite

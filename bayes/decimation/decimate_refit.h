@@ -1,0 +1,64 @@
+// Vertex refit, the continuous half of the paper's mixed discrete–continuous optimisation (DESIGN.md §6): with
+// the patch structure and the coarse triangulation fixed, each kept vertex moves to the minimiser of the
+// Garland–Heckbert quadric of the dense faces it stands for (the faces around the dense vertices whose stars
+// collapsed onto it, plus perpendicular planes along the mesh boundary), regularised towards its dense
+// position, under the flip guard of the reduction (bayes/decimation/decimate_geometry.h).
+//
+//   Q_v(x) = Σ_{f ∈ cluster(v)} A_f (n_fᵀ x − n_fᵀ p_f)² + Σ_{boundary edges e} w_b |e|² (m_eᵀ x − m_eᵀ p_e)²
+//   x_v = argmin Q_v(x) + α_v ‖x − x_v⁰‖²,   α_v = regularisation · trace(quadric matrix of v) / 3
+//
+// The step towards x_v is halved up to `max_halvings` times while any triangle of v would lose area, reverse
+// its orientation or leave the cone of its patch normal; otherwise the vertex stays. Since Q_v + α_v‖·‖² is
+// convex and equals Q_v at x_v⁰, every accepted step lowers Q_v: the refit never increases the quadric error.
+// Then `fit_rounds` rounds fit the kept vertices to the dense vertices themselves (each projected onto the
+// nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser of the
+// area-weighted point-to-plane distances of the samples on its faces, weighted by their barycentric share, plus
+// the boundary planes), under the same guard; this lowers the surface distance further (Hoppe et al. 1993).
+// Connectivity is untouched, so manifoldness and the patch map are kept as they are.
+#pragma once
+
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace rangebayes {
+
+struct VertexRefitOptions {
+  double regularisation = 0.01;           // α_v as a share of the quadric's mean eigenvalue, > 0
+  double boundary_weight = 1.0;           // weight of the boundary planes against the face planes, ≥ 0
+  double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
+  int max_halvings = 4;                   // step halvings tried before a vertex stays, ≥ 0
+  int fit_rounds = 2;                     // rounds of the fit to the dense vertices after the quadric step, ≥ 0
+
+  // Throws Error naming the field that is out of range.
+  void Check() const;
+};
+
+struct VertexRefitSummary {
+  int moved = 0;    // vertices that took their full or a halved step
+  int blocked = 0;  // vertices that stayed because every step would flip or squash a triangle
+  double quadric_error_before = 0.0, quadric_error_after = 0.0;  // Σ_v Q_v over the refitted vertices
+  // Area-weighted RMS distance of the dense vertices to the coarse faces they project onto (fit_rounds > 0),
+  // after the quadric step and after the fit.
+  double fit_rms_before = 0.0, fit_rms_after = 0.0;
+};
+
+// The dense surface and how the coarse mesh covers it. All vertex ids index the dense vertex array.
+struct RefitInput {
+  const Vertices* dense_V = nullptr;       // dense positions of this pose
+  const Faces* dense_F = nullptr;          // dense faces
+  const std::vector<int>* dense_face_patch = nullptr;  // per dense face, its patch
+  const std::vector<int>* representative = nullptr;    // per dense vertex, the kept vertex it collapsed onto, or −1
+  const std::vector<char>* boundary_vertex = nullptr;  // per dense vertex, 1 on the mesh boundary (may be empty)
+  const std::vector<char>* fixed = nullptr;            // per dense vertex, 1 to keep it where it is (may be empty)
+  const Faces* coarse_F = nullptr;                     // coarse faces over dense vertex ids
+  const std::vector<int>* coarse_face_patch = nullptr;  // per coarse face, its patch
+  int num_patches = 0;
+};
+
+// Returns the dense vertex array with the kept vertices moved (other rows as in dense_V). Throws Error for
+// inconsistent sizes.
+Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& options = {},
+                       VertexRefitSummary* summary = nullptr);
+
+}  // namespace rangebayes
