@@ -18,6 +18,7 @@ packages=(
   libbenchmark-dev       # bench/
   libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
   clang libclang-rt-14-dev   # libFuzzer targets
+  python3-open3d python3-numpy  # bench/ only: the Open3D peer of bench_fuse (bench/fuse_open3d.py)
 )
 
 missing=()
