@@ -23,9 +23,9 @@ struct RegisterOptions {
   // Coarse to fine: the largest correspondence distance per level, in mean edge lengths of the scans (the
   // first level must exceed the initial misalignment: 40 edges = 2 cm on the Stanford scans).
   std::vector<double> max_distance_edges{40, 20, 10, 5, 3, 2};
-  int iterations_per_level = 6;        // Gauss–Newton steps per level (each with new correspondences), [1, 1000]
-  int samples_per_scan = 1500;         // source points per scan on all but the last level, [10, 1e7]
-  int final_samples_per_scan = 5000;   // on the last level, [10, 1e7]
+  int iterations_per_level = 4;        // Gauss–Newton steps per level (each with new correspondences), [1, 1000]
+  int samples_per_scan = 1000;         // source points per scan on all but the last level, [10, 1e7]
+  int final_samples_per_scan = 3000;   // on the last level, [10, 1e7]
   double max_normal_angle_deg = 45.0;  // reject pairs whose normals differ more, (0, 180]
   double slide_sigma_edges = 10.0;     // s, in mean edge lengths, > 0
   double robust_scale_sigma = 3.0;     // Cauchy scale c in σ units, > 0
@@ -33,7 +33,7 @@ struct RegisterOptions {
   // error (it does not overlap the others, or its initial pose is too far off). [0, 1)
   double min_overlap = 0.02;
   // A level stops early when no pose moves more than this (rotation in rad, translation in mean edges). ≥ 0
-  double converged_step = 1e-6;
+  double converged_step = 1e-5;
   std::uint64_t seed = 1;              // choice of the sample points
   int num_threads = 0;                 // 0: all cores
   void Check() const;
