@@ -168,6 +168,21 @@ NoisyMesh ReadNoisyMesh(const std::string& path, MeshReadSummary* summary) {
   return ParseNoisyMesh(bytes, format, path, summary);
 }
 
+RangeGridScan ReadRangeGridScan(const std::string& path, MeshReadSummary* summary) {
+  RB_CHECK(MeshFormatFromPath(path) == MeshFormat::kPly, path, ": range grids are read from PLY files only");
+  const std::string bytes = ReadWholeFile(path);
+  MeshReadSummary local;
+  MeshReadSummary* out = summary != nullptr ? summary : &local;
+  *out = MeshReadSummary{};
+  mesh_io::PlyRangeGrid grid;
+  RangeGridScan scan;
+  scan.mesh = mesh_io::ParsePly(bytes, path, out, &grid);
+  scan.width = grid.width;
+  scan.height = grid.height;
+  scan.cell_vertex = std::move(grid.cell_vertex);
+  return scan;
+}
+
 Mesh ReadMesh(const std::string& path, MeshReadSummary* summary) {
   return std::move(ReadNoisyMesh(path, summary).mesh);
 }

@@ -50,6 +50,22 @@ NoisyMesh ReadNoisyMesh(const std::string& path, MeshReadSummary* summary = null
 NoisyMesh ParseNoisyMesh(std::string_view bytes, MeshFormat format, const std::string& name,
                          MeshReadSummary* summary = nullptr);
 
+// A scan stored as an organized grid (PLY `element range_grid`, as the Stanford/Cyberware scans are): its
+// vertices (and whatever else the file holds, faces included) plus, per grid cell, the vertex it holds.
+struct RangeGridScan {
+  NoisyMesh mesh;
+  int width = 0;                 // cells per row (PLY header 'obj_info num_cols')
+  int height = 0;                // rows ('obj_info num_rows')
+  std::vector<int> cell_vertex;  // width·height entries, row by row: cell (x, y) at y·width + x; -1: empty
+  bool has_grid() const { return width > 0 && height > 0; }
+};
+
+// Reads a PLY file with its `range_grid` element (one list of 0 or 1 vertex indices per cell; the grid size
+// from the header lines 'obj_info num_cols N' / 'obj_info num_rows N', or the same words as comments). A PLY
+// without range_grid reads as a plain mesh (has_grid() false). Throws Error naming the file and cell on a
+// malformed grid (cell count not num_cols × num_rows, a cell with two vertices, an index out of range).
+RangeGridScan ReadRangeGridScan(const std::string& path, MeshReadSummary* summary = nullptr);
+
 // Writes a mesh in the format of the extension. Vertex order and faces are kept exactly.
 void WriteMesh(const Mesh& mesh, const std::string& path, const MeshWriteOptions& options = {});
 

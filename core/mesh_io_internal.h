@@ -12,8 +12,17 @@
 
 namespace rangebayes::mesh_io {
 
-// Each reader parses the whole file's bytes; `name` (the path) goes into every error message.
-NoisyMesh ParsePly(std::string_view bytes, const std::string& name, MeshReadSummary* summary);
+// A PLY `range_grid` element: cell_vertex[y·width + x] is the vertex of cell (x, y) or -1 (empty: no vertex).
+struct PlyRangeGrid {
+  int width = 0;
+  int height = 0;
+  std::vector<int> cell_vertex;
+};
+
+// Each reader parses the whole file's bytes; `name` (the path) goes into every error message. ParsePly also
+// reads a `range_grid` element into `grid` when it is not null (else the element is skipped).
+NoisyMesh ParsePly(std::string_view bytes, const std::string& name, MeshReadSummary* summary,
+                   PlyRangeGrid* grid = nullptr);
 NoisyMesh ParseObj(std::string_view bytes, const std::string& name, MeshReadSummary* summary);
 NoisyMesh ParseOff(std::string_view bytes, const std::string& name, MeshReadSummary* summary);
 

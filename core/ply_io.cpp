@@ -80,7 +80,20 @@ struct PlyHeader {
   Encoding encoding = Encoding::kAscii;
   std::vector<PlyElement> elements;
   size_t body_offset = 0;
+  // Range-grid size from 'obj_info num_cols N' / 'obj_info num_rows N' (or the same as comments); -1: absent.
+  int64_t num_cols = -1;
+  int64_t num_rows = -1;
 };
+
+// Reads 'num_cols N' or 'num_rows N' after an obj_info or comment keyword.
+void ReadGridSize(const std::vector<std::string_view>& words, PlyHeader* header) {
+  if (words.size() != 3) return;
+  int64_t* target = words[1] == "num_cols" ? &header->num_cols : words[1] == "num_rows" ? &header->num_rows : nullptr;
+  if (target == nullptr) return;
+  int64_t value = -1;
+  const auto [ptr, ec] = std::from_chars(words[2].data(), words[2].data() + words[2].size(), value);
+  if (ec == std::errc() && ptr == words[2].data() + words[2].size() && value > 0) *target = value;
+}
 
 std::vector<std::string_view> SplitWords(std::string_view line) {
   std::vector<std::string_view> words;
@@ -113,7 +126,10 @@ PlyHeader ParseHeader(std::string_view bytes, const std::string& name) {
       ended = true;
       break;
     }
-    if (key == "comment" || key == "obj_info") continue;
+    if (key == "comment" || key == "obj_info") {
+      ReadGridSize(words, &header);
+      continue;
+    }
     if (key == "format") {
       RB_CHECK(words.size() >= 2, name, ": header line ", line_number, ": 'format' needs an encoding");
       if (words[1] == "ascii") {
@@ -253,8 +269,10 @@ int64_t LoadInt(PlyType type, const char* p, bool swap) {
 // Reads the body, one element at a time, into the mesh.
 class BodyReader {
  public:
-  BodyReader(std::string_view bytes, const PlyHeader& header, const std::string& name, MeshReadSummary* summary)
-      : header_(header),
+  BodyReader(std::string_view bytes, const PlyHeader& header, const std::string& name, MeshReadSummary* summary,
+             PlyRangeGrid* grid = nullptr)
+      : grid_(grid),
+        header_(header),
         name_(name),
         summary_(summary),
         p_(bytes.data() + header.body_offset),
@@ -272,6 +290,8 @@ class BodyReader {
       } else if (element.name == "face" && !have_faces) {
         ReadFaces(element);
         have_faces = true;
+      } else if (element.name == "range_grid" && grid_ != nullptr && grid_->cell_vertex.empty()) {
+        ReadRangeGrid(element);
       } else {
         SkipElement(element);
         if (element.count > 0) {
@@ -573,6 +593,33 @@ class BodyReader {
     }
   }
 
+  // element range_grid: one list of 0 or 1 vertex indices per cell, row by row (num_cols cells a row).
+  void ReadRangeGrid(const PlyElement& element) {
+    RB_CHECK(element.properties.size() == 1 && element.properties[0].is_list &&
+                 IsInteger(element.properties[0].type),
+             name_, ": 'range_grid' element must have one integer list property (its vertex indices)");
+    RB_CHECK(header_.num_cols > 0 && header_.num_rows > 0, name_,
+             ": 'range_grid' without its size (header lines 'obj_info num_cols N' and 'obj_info num_rows N')");
+    RB_CHECK(static_cast<uint64_t>(header_.num_cols) * static_cast<uint64_t>(header_.num_rows) == element.count,
+             name_, ": 'range_grid' has ", element.count, " cells but num_cols x num_rows is ", header_.num_cols,
+             " x ", header_.num_rows);
+    CheckCount(element, MinBytes(element));
+    const int64_t num_vertices = mesh_.mesh.V.rows();
+    const PlyProperty& property = element.properties[0];
+    grid_->width = static_cast<int>(header_.num_cols);
+    grid_->height = static_cast<int>(header_.num_rows);
+    grid_->cell_vertex.assign(static_cast<size_t>(element.count), -1);
+    for (uint64_t c = 0; c < element.count; ++c) {
+      const int64_t count = ListCount(element, c, property);
+      RB_CHECK(count <= 1, name_, ": range_grid cell ", c, " lists ", count, " vertices (0 or 1 expected)");
+      if (count == 0) continue;
+      const int64_t v = FaceIndex(element, c, property);
+      RB_CHECK(v < num_vertices, name_, ": range_grid cell ", c, " names vertex ", v, " of ", num_vertices);
+      grid_->cell_vertex[static_cast<size_t>(c)] = static_cast<int>(v);
+    }
+  }
+
+  PlyRangeGrid* grid_;
   const PlyHeader& header_;
   const std::string& name_;
   MeshReadSummary* summary_;
@@ -650,9 +697,10 @@ const char* FormatLine(PlyEncoding encoding) {
 
 }  // namespace
 
-NoisyMesh ParsePly(std::string_view bytes, const std::string& name, MeshReadSummary* summary) {
+NoisyMesh ParsePly(std::string_view bytes, const std::string& name, MeshReadSummary* summary,
+                   PlyRangeGrid* grid) {
   const PlyHeader header = ParseHeader(bytes, name);
-  BodyReader reader(bytes, header, name, summary);
+  BodyReader reader(bytes, header, name, summary, grid);
   return reader.Read();
 }
 

@@ -1,0 +1,194 @@
+// `rangebayes fuse SCAN... [--poses FILE] --out DIR`: align range scans with their covariances and fuse them into
+// one mesh (fusion/register.h, fusion/tsdf.h), optionally smoothed and decimated by the bayes stages.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "apps/command.h"
+#include "apps/progress.h"
+#include "bayes/decimation/decimate.h"
+#include "bayes/smooth.h"
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/render.h"
+#include "core/scan_poses.h"
+#include "fusion/register.h"
+#include "fusion/scan.h"
+#include "fusion/tsdf.h"
+#include "pipeline/png.h"
+
+namespace rangebayes::apps {
+namespace {
+
+struct FuseArgs {
+  std::vector<std::string> scans;
+  std::string poses;
+  std::string out_dir;
+  bool smooth = false;
+  bool decimate = false;
+  bool no_align = false;
+  double voxel = 0;
+  double sigma_range = RangeGridScanOptions{}.sigma_range;
+  double sigma_lateral = RangeGridScanOptions{}.sigma_lateral;
+  int threads = 0;
+  std::vector<double> view{0.0, 0.0, -1.0};
+  bool quiet = false;
+};
+
+Eigen::Vector3f ScanColour(int k) {
+  static const float kColours[][3] = {{0.90f, 0.35f, 0.30f}, {0.30f, 0.60f, 0.90f}, {0.40f, 0.80f, 0.40f},
+                                      {0.95f, 0.75f, 0.25f}, {0.70f, 0.45f, 0.85f}, {0.30f, 0.80f, 0.80f},
+                                      {0.85f, 0.55f, 0.70f}, {0.60f, 0.60f, 0.35f}, {0.55f, 0.40f, 0.30f},
+                                      {0.50f, 0.50f, 0.60f}};
+  const float* c = kColours[k % 10];
+  return Eigen::Vector3f(c[0], c[1], c[2]);
+}
+
+// All scans in the world frame, one colour each.
+RgbImage AlignedPicture(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& poses,
+                        const RenderOptions& base) {
+  Mesh all;
+  int nv = 0, nf = 0;
+  for (const Scan& s : scans) {
+    nv += s.num_vertices();
+    nf += s.noisy.mesh.num_faces();
+  }
+  all.V.resize(nv, 3);
+  all.F.resize(nf, 3);
+  RenderOptions options = base;
+  options.face_colors.resize(nf, 3);
+  int v0 = 0, f0 = 0;
+  for (size_t k = 0; k < scans.size(); ++k) {
+    const Mesh& m = scans[k].noisy.mesh;
+    for (int i = 0; i < m.num_vertices(); ++i) {
+      all.V.row(v0 + i) = (poses[k] * Eigen::Vector3d(m.V.row(i))).transpose();
+    }
+    all.F.middleRows(f0, m.num_faces()) = m.F.array() + v0;
+    for (int f = 0; f < m.num_faces(); ++f) options.face_colors.row(f0 + f) = ScanColour(static_cast<int>(k));
+    v0 += m.num_vertices();
+    f0 += m.num_faces();
+  }
+  return RenderMesh(all, options);
+}
+
+void RunFuse(const FuseArgs& args) {
+  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).norm() > 0)) {
+    UsageError("--view needs a nonzero direction x y z");
+  }
+  if (args.scans.size() < 2 && !args.no_align) UsageError("fuse needs at least two scans (or --no-align)");
+  RangeGridScanOptions scan_options;
+  scan_options.sigma_range = args.sigma_range;
+  scan_options.sigma_lateral = args.sigma_lateral;
+  scan_options.Check();
+  FuseOptions fuse_options;
+  fuse_options.voxel_size = args.voxel;
+  fuse_options.Check();
+  RegisterOptions register_options;
+  register_options.num_threads = args.threads;
+  register_options.Check();
+
+  std::vector<ScanPose> file_poses;
+  if (!args.poses.empty()) file_poses = ReadScanPoses(args.poses);
+  std::vector<Scan> scans;
+  std::vector<Eigen::Isometry3d> initial;
+  for (const std::string& path : args.scans) {
+    RangeGridScanSummary grid;
+    scans.push_back(ReadScan(path, scan_options, &grid));
+    const Scan& s = scans.back();
+    std::printf("scan:       %s: %d vertices, %d faces, mean edge %.4g%s\n", path.c_str(), s.num_vertices(),
+                s.noisy.mesh.num_faces(), s.mean_edge,
+                grid.ray_model.empty() ? " (mesh)" : (" (range grid, rays: " + grid.ray_model + ")").c_str());
+    initial.push_back(file_poses.empty() ? Eigen::Isometry3d::Identity()
+                                         : FindScanPose(file_poses, path, args.poses).world_from_scan);
+  }
+  std::filesystem::create_directories(args.out_dir);
+  const std::string dir = args.out_dir + "/";
+
+  std::vector<Eigen::Isometry3d> poses = initial;
+  if (!args.no_align && scans.size() >= 2) {
+    RegisterSummary summary;
+    poses = RegisterScans(scans, initial, register_options, &summary);
+    std::printf("alignment:  %s\n", summary.BriefReport().c_str());
+    const std::string report = FormatPairReport(summary, scans);
+    std::ofstream(dir + "report.txt") << report;
+    std::printf("%s", report.c_str());
+    std::printf("report:     %sreport.txt\n", dir.c_str());
+  }
+  std::vector<ScanPose> out_poses;
+  for (size_t k = 0; k < scans.size(); ++k) out_poses.push_back({FileBaseName(scans[k].name), poses[k]});
+  WriteScanPoses(out_poses, dir + "poses.conf");
+  std::printf("poses:      %sposes.conf (first scan fixed)\n", dir.c_str());
+
+  FuseSummary fuse_summary;
+  NoisyMesh fused = FuseScans(scans, poses, fuse_options, &fuse_summary);
+  std::printf("fusion:     %s\n", fuse_summary.BriefReport().c_str());
+  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
+  Mesh model = fused.mesh;
+  if (args.smooth) {
+    SmoothOptions smooth;
+    smooth.num_threads = args.threads;
+    ProgressPrinter progress(args.quiet);
+    smooth.progress = progress.callback();
+    SmoothSummary summary;
+    model = Smooth(fused, smooth, &summary);
+    progress.Finish();
+    std::printf("smoothing:  %d iterations, %.3f s, %s\n", summary.iterations, summary.time_s,
+                SmoothTerminationName(summary.termination).c_str());
+  }
+  if (args.decimate) {
+    DecimateSummary summary;
+    const DecimatedMesh decimated = Decimate(model, {}, &summary);
+    std::printf("decimation: %d -> %d faces, %d patches, %.3f s\n", summary.input_faces, summary.output_faces,
+                summary.num_patches, summary.seconds_total);
+    model = decimated.mesh;
+  }
+  WriteMesh(model, dir + "fused.ply");
+  std::printf("model:      %sfused.ply (%d vertices, %d faces)\n", dir.c_str(), model.num_vertices(),
+              model.num_faces());
+
+  RenderOptions render;
+  render.view_direction = Eigen::Vector3d(args.view[0], args.view[1], args.view[2]);
+  render.width_px = 640;
+  render.height_px = 640;
+  WritePng(AlignedPicture(scans, poses, render), dir + "aligned.png");
+  render.shading = Shading::kSmooth;
+  WritePng(RenderMesh(model, render), dir + "fused.png");
+  std::printf("pictures:   %saligned.png (one colour per scan), %sfused.png\n", dir.c_str(), dir.c_str());
+}
+
+}  // namespace
+
+RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
+  auto args = std::make_shared<FuseArgs>();
+  auto* sub = app.add_subcommand("fuse",
+                                 "Align range scans with their covariances (multi-scan GICP) and fuse them into one "
+                                 "mesh (TSDF weighted by 1/sigma_ray^2, marching cubes)");
+  sub->add_option("SCAN", args->scans,
+                  "scans: PLY range grids (Stanford/Cyberware 'range_grid'), or meshes such as 'replay' writes "
+                  "(PLY with covariances; plain meshes get the generic noise model)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub->add_option("--poses", args->poses,
+                  "initial poses, bun.conf format 'bmesh FILE tx ty tz qx qy qz qw' (default: identity, i.e. "
+                  "the scans are taken as roughly pre-aligned)");
+  sub->add_option("--out", args->out_dir, "output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
+      ->required();
+  sub->add_flag("--smooth", args->smooth, "Bayesian smoothing of the fused mesh (bayes/smooth.h defaults)");
+  sub->add_flag("--decimate", args->decimate, "Bayesian decimation of the (smoothed) fused mesh (defaults)");
+  sub->add_flag("--no-align", args->no_align, "fuse with the given poses as they are");
+  sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)");
+  sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray (> 0)");
+  sub->add_option("--threads", args->threads, "worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  sub->add_option("--view", args->view, "view direction x y z of the pictures (world frame)")->expected(3);
+  sub->add_flag("--quiet,-q", args->quiet, "no progress on stderr");
+  sub->callback([args] { RunFuse(*args); });
+});
+
+}  // namespace rangebayes::apps

@@ -1,0 +1,340 @@
+// Multi-scan alignment and fusion (fusion/): the Stanford bunny's ten scans from perturbed reference poses, the
+// fused mesh against the reference-pose union of the raw scans, and synthetic multi-view scans of a known mesh.
+//
+//   bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth]   ten scans in DIR (bun.conf); writes OUT/...
+//   bench_fuse score DIR POSES.conf MESH.ply               pose errors and mesh distances of any result (Open3D's)
+//   bench_fuse synthetic OUT                               rendered views of a known blob with ray noise
+#include <sys/resource.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bayes/smooth.h"
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/scan_poses.h"
+#include "fusion/register.h"
+#include "fusion/scan.h"
+#include "fusion/synthetic_scan.h"
+#include "fusion/tsdf.h"
+#include "pipeline/mesh_metrics.h"
+
+namespace rb = rangebayes;
+
+namespace {
+
+const char* kScans[] = {"bun000.ply", "bun045.ply", "bun090.ply", "bun180.ply", "bun270.ply",
+                        "bun315.ply", "chin.ply",   "ear_back.ply", "top2.ply", "top3.ply"};
+
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec + 1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+double Rms(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x * x;
+  return v.empty() ? NAN : std::sqrt(s / v.size());
+}
+
+struct Bunny {
+  std::vector<rb::Scan> scans;
+  std::vector<Eigen::Isometry3d> reference;
+};
+
+Bunny ReadBunny(const std::string& dir) {
+  Bunny b;
+  const std::vector<rb::ScanPose> conf = rb::ReadScanPoses(dir + "/bun.conf");
+  for (const char* name : kScans) {
+    b.scans.push_back(rb::ReadScan(dir + "/" + name));
+    b.reference.push_back(rb::FindScanPose(conf, name, "bun.conf").world_from_scan);
+  }
+  return b;
+}
+
+// Every vertex on a triangle of every scan, placed with the reference poses.
+rb::Vertices ReferenceUnion(const Bunny& b, int stride) {
+  std::vector<double> xyz;
+  for (size_t s = 0; s < b.scans.size(); ++s) {
+    const rb::Scan& scan = b.scans[s];
+    for (int i = 0; i < scan.num_vertices(); i += stride) {
+      if (scan.normal.row(i).squaredNorm() < 0.5) continue;
+      const Eigen::Vector3d p = b.reference[s] * Eigen::Vector3d(scan.noisy.mesh.V.row(i));
+      xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+    }
+  }
+  return Eigen::Map<const rb::Vertices>(xyz.data(), static_cast<Eigen::Index>(xyz.size() / 3), 3);
+}
+
+struct PoseStats {
+  double max_deg = 0, max_translation = 0;
+};
+
+PoseStats Errors(const std::vector<Eigen::Isometry3d>& estimate, const std::vector<Eigen::Isometry3d>& reference) {
+  PoseStats out;
+  for (size_t k = 1; k < estimate.size(); ++k) {
+    const rb::PoseError e = rb::RelativePoseError(estimate[0], estimate[k], reference[0], reference[k]);
+    out.max_deg = std::max(out.max_deg, e.rotation_deg);
+    out.max_translation = std::max(out.max_translation, e.translation);
+  }
+  return out;
+}
+
+// Distances of the reference union to a mesh (placed so that its bun000 matches the reference's).
+void ScoreMesh(const rb::Mesh& mesh, const rb::Vertices& union_points, const char* label) {
+  const Eigen::VectorXd d = rb::DistanceToSurface(union_points, mesh);
+  std::vector<double> v(d.data(), d.data() + d.size());
+  int within = 0;
+  for (double x : v) within += x <= 1e-3;
+  std::printf("%s: raw points to mesh RMS %.4f mm, p95 %.4f mm, median %.4f mm, within 1 mm %.2f%%; mesh %d faces, "
+              "%d boundary edges\n",
+              label, 1e3 * Rms(v), 1e3 * Percentile(v, 0.95), 1e3 * Percentile(v, 0.5), 100.0 * within / v.size(),
+              mesh.num_faces(), rb::CountBoundaryEdges(mesh));
+}
+
+Eigen::Isometry3d Perturb(const Eigen::Isometry3d& pose, const Eigen::Vector3d& centre, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0), angle(0.0, 5.0), shift(0.0, 0.01);
+  Eigen::Vector3d axis, dir;
+  do axis = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)); while (axis.norm() > 1 || axis.norm() < 1e-3);
+  do dir = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)); while (dir.norm() > 1 || dir.norm() < 1e-3);
+  Eigen::Isometry3d delta = Eigen::Isometry3d::Identity();
+  delta.linear() = Eigen::AngleAxisd(angle(*rng) * M_PI / 180, axis.normalized()).toRotationMatrix();
+  // Rotation about the scan's world centroid, then a shift of up to 1 cm.
+  delta.translation() = centre - delta.linear() * centre + shift(*rng) * dir.normalized();
+  return delta * pose;
+}
+
+void WritePoses(const std::vector<rb::Scan>& scans, const std::vector<Eigen::Isometry3d>& poses,
+                const std::string& path) {
+  std::vector<rb::ScanPose> out;
+  for (size_t k = 0; k < scans.size(); ++k) out.push_back({kScans[k], poses[k]});
+  rb::WriteScanPoses(out, path);
+}
+
+int RunBunny(const std::string& dir, const std::string& out, const std::vector<int>& seeds, bool smooth) {
+  std::filesystem::create_directories(out);
+  double cpu0 = CpuSeconds();
+  auto wall0 = std::chrono::steady_clock::now();
+  const Bunny b = ReadBunny(dir);
+  const double read_cpu = CpuSeconds() - cpu0;
+  const double read_wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  std::printf("read and triangulated 10 scans: %.2f s wall, %.2f s CPU\n", read_wall, read_cpu);
+  // Inputs for the Open3D peer: each scan's points and normals in its own frame.
+  for (size_t k = 0; k < b.scans.size(); ++k) {
+    rb::Mesh points;
+    points.V = b.scans[k].noisy.mesh.V;
+    points.N = b.scans[k].normal;
+    points.F = b.scans[k].noisy.mesh.F;
+    rb::WriteMesh(points, out + "/" + kScans[k]);
+  }
+  std::vector<Eigen::Isometry3d> first_result;
+  for (int seed : seeds) {
+    std::mt19937_64 rng(static_cast<std::uint64_t>(seed));
+    std::vector<Eigen::Isometry3d> start = b.reference;
+    for (size_t k = 1; k < start.size(); ++k) {
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      const rb::Vertices& V = b.scans[k].noisy.mesh.V;
+      for (int i = 0; i < V.rows(); ++i) centre += b.reference[k] * Eigen::Vector3d(V.row(i));
+      start[k] = Perturb(b.reference[k], centre / V.rows(), &rng);
+    }
+    WritePoses(b.scans, start, out + "/start_seed" + std::to_string(seed) + ".conf");
+    const PoseStats before = Errors(start, b.reference);
+    cpu0 = CpuSeconds();
+    wall0 = std::chrono::steady_clock::now();
+    rb::RegisterSummary summary;
+    const std::vector<Eigen::Isometry3d> poses = rb::RegisterScans(b.scans, start, {}, &summary);
+    const double cpu = CpuSeconds() - cpu0;
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    const PoseStats after = Errors(poses, b.reference);
+    std::printf("seed %d: start worst %.2f deg / %.2f mm -> aligned worst %.4f deg / %.4f mm; %.2f s wall, %.2f s CPU "
+                "(%d iterations)\n",
+                seed, before.max_deg, 1e3 * before.max_translation, after.max_deg, 1e3 * after.max_translation, wall,
+                cpu, summary.iterations);
+    for (size_t k = 1; k < poses.size(); ++k) {
+      const rb::PoseError e = rb::RelativePoseError(poses[0], poses[k], b.reference[0], b.reference[k]);
+      std::printf("  %-12s %.4f deg %.4f mm\n", kScans[k], e.rotation_deg, 1e3 * e.translation);
+    }
+    WritePoses(b.scans, poses, out + "/ours_seed" + std::to_string(seed) + ".conf");
+    if (first_result.empty()) {
+      first_result = poses;
+      std::FILE* f = std::fopen((out + "/report_seed" + std::to_string(seed) + ".txt").c_str(), "w");
+      if (f) {
+        std::fputs(rb::FormatPairReport(summary, b.scans).c_str(), f);
+        std::fclose(f);
+      }
+    }
+  }
+  // Fusion with the first seed's poses (bun000 is the identity in both).
+  cpu0 = CpuSeconds();
+  wall0 = std::chrono::steady_clock::now();
+  rb::FuseSummary fs;
+  const rb::NoisyMesh fused = rb::FuseScans(b.scans, first_result, {}, &fs);
+  const double fcpu = CpuSeconds() - cpu0;
+  const double fwall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  std::printf("fusion: %s; %.2f s wall, %.2f s CPU\n", fs.BriefReport().c_str(), fwall, fcpu);
+  rb::WriteMesh(fused.mesh, out + "/ours_fused.ply");
+  const rb::Vertices union_points = ReferenceUnion(b, 4);
+  ScoreMesh(fused.mesh, union_points, "ours (TSDF)");
+  if (smooth) {
+    rb::SmoothSummary ss;
+    const rb::Mesh smoothed = rb::Smooth(fused, {}, &ss);
+    std::printf("smoothing: %d iterations, %.2f s\n", ss.iterations, ss.time_s);
+    rb::WriteMesh(smoothed, out + "/ours_fused_smoothed.ply");
+    ScoreMesh(smoothed, union_points, "ours (TSDF + smooth)");
+  }
+  return 0;
+}
+
+int RunScore(const std::string& dir, const std::string& conf, const std::string& mesh_path) {
+  const Bunny b = ReadBunny(dir);
+  const std::vector<rb::ScanPose> poses = rb::ReadScanPoses(conf);
+  std::vector<Eigen::Isometry3d> estimate;
+  for (const char* name : kScans) estimate.push_back(rb::FindScanPose(poses, name, conf).world_from_scan);
+  const PoseStats e = Errors(estimate, b.reference);
+  std::printf("%s: worst pose error %.4f deg / %.4f mm\n", conf.c_str(), e.max_deg, 1e3 * e.max_translation);
+  for (size_t k = 1; k < estimate.size(); ++k) {
+    const rb::PoseError pe = rb::RelativePoseError(estimate[0], estimate[k], b.reference[0], b.reference[k]);
+    std::printf("  %-12s %.4f deg %.4f mm\n", kScans[k], pe.rotation_deg, 1e3 * pe.translation);
+  }
+  if (!mesh_path.empty()) {
+    rb::Mesh mesh = rb::ReadMesh(mesh_path);
+    // The mesh is in the frame of the estimate's bun000: move it to the reference's.
+    const Eigen::Isometry3d to_reference = b.reference[0] * estimate[0].inverse();
+    for (int i = 0; i < mesh.num_vertices(); ++i) mesh.V.row(i) = to_reference * Eigen::Vector3d(mesh.V.row(i));
+    ScoreMesh(mesh, ReferenceUnion(b, 4), mesh_path.c_str());
+  }
+  return 0;
+}
+
+// Views of a known blob (about 10 cm across) with noise along the rays; fused with the true poses and after
+// alignment from perturbed ones.
+int RunSynthetic(const std::string& out) {
+  std::filesystem::create_directories(out);
+  rb::Mesh truth = rb::MakeSphereMesh(0.05, Eigen::Vector3d::Zero(), 160);
+  for (int i = 0; i < truth.num_vertices(); ++i) {
+    const Eigen::Vector3d p = truth.V.row(i);
+    const double theta = std::acos(std::clamp(p.z() / p.norm(), -1.0, 1.0)), phi = std::atan2(p.y(), p.x());
+    truth.V.row(i) = p * (1.0 + 0.12 * std::sin(3 * theta) * std::cos(2 * phi) +
+                          0.08 * std::cos(5 * phi) * std::sin(theta));
+  }
+  rb::WriteMesh(truth, out + "/truth.ply");
+  const double sigma = 2e-4, spacing = 5e-4;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int k = 0; k < 8; ++k) {
+    Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+    p.linear() = (Eigen::AngleAxisd(2 * M_PI * k / 8, Eigen::Vector3d::UnitY()) *
+                  Eigen::AngleAxisd((k % 2 ? 25.0 : -25.0) * M_PI / 180, Eigen::Vector3d::UnitX()))
+                     .toRotationMatrix();
+    poses.push_back(p);
+  }
+  for (double pitch : {90.0, -90.0}) {
+    Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+    p.linear() = Eigen::AngleAxisd(pitch * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    poses.push_back(p);
+  }
+  std::vector<rb::Scan> scans;
+  std::vector<double> single;
+  for (size_t k = 0; k < poses.size(); ++k) {
+    rb::SyntheticScanOptions so;
+    so.width = so.height = 280;
+    so.spacing = spacing;
+    so.sigma_range = sigma;
+    so.seed = 100 + k;
+    rb::RangeGridScanOptions go;
+    go.sigma_range = sigma;
+    go.sigma_lateral = sigma / 4;
+    scans.push_back(rb::MakeRangeGridScan(rb::RenderSyntheticScan(truth, poses[k], so), "view" + std::to_string(k),
+                                          go));
+  }
+  // A single scan's points against the truth.
+  {
+    rb::Vertices pts = scans[0].noisy.mesh.V;
+    for (int i = 0; i < pts.rows(); ++i) pts.row(i) = poses[0] * Eigen::Vector3d(pts.row(i));
+    const Eigen::VectorXd d = rb::DistanceToSurface(pts, truth);
+    single.assign(d.data(), d.data() + d.size());
+  }
+  const double single_median = Percentile(single, 0.5);
+  std::printf("synthetic: %zu views, sigma_ray %.3g mm, grid %.3g mm; single scan points: median %.4f mm, p95 %.4f mm\n",
+              poses.size(), 1e3 * sigma, 1e3 * spacing, 1e3 * single_median, 1e3 * Percentile(single, 0.95));
+  const auto score = [&](const rb::Mesh& model, const char* label) {
+    const Eigen::VectorXd d = rb::DistanceToSurface(model.V, truth);
+    std::vector<double> v(d.data(), d.data() + d.size());
+    const Eigen::VectorXd c = rb::DistanceToSurface(truth.V, model);
+    int covered = 0;
+    for (int i = 0; i < c.size(); ++i) covered += c(i) <= 3 * sigma;
+    std::printf("  %-28s median %.4f mm (%.2fx single), p95 %.4f mm; true surface within 3 sigma: %.2f%%; "
+                "%d faces, %d boundary edges\n",
+                label, 1e3 * Percentile(v, 0.5), Percentile(v, 0.5) / single_median, 1e3 * Percentile(v, 0.95),
+                100.0 * covered / c.size(), model.num_faces(), rb::CountBoundaryEdges(model));
+  };
+  rb::FuseSummary fs;
+  const rb::NoisyMesh fused = rb::FuseScans(scans, poses, {}, &fs);
+  std::printf("  %s\n", fs.BriefReport().c_str());
+  score(fused.mesh, "fused (true poses)");
+  rb::SmoothSummary ss;
+  const rb::Mesh smoothed = rb::Smooth(fused, {}, &ss);
+  score(smoothed, "fused + smoothed");
+  rb::WriteMesh(smoothed, out + "/fused_smoothed.ply");
+  // Alignment from poses perturbed by up to 5 deg / 1 cm.
+  std::mt19937_64 rng(3);
+  std::vector<Eigen::Isometry3d> start = poses;
+  for (size_t k = 1; k < start.size(); ++k) start[k] = Perturb(poses[k], Eigen::Vector3d::Zero(), &rng);
+  rb::RegisterSummary rs;
+  const std::vector<Eigen::Isometry3d> aligned = rb::RegisterScans(scans, start, {}, &rs);
+  const PoseStats before = Errors(start, poses), after = Errors(aligned, poses);
+  std::printf("  alignment: start worst %.2f deg / %.2f mm -> %.4f deg / %.4f mm (%s)\n", before.max_deg,
+              1e3 * before.max_translation, after.max_deg, 1e3 * after.max_translation, rs.BriefReport().c_str());
+  const rb::NoisyMesh fused_aligned = rb::FuseScans(scans, aligned, {}, nullptr);
+  rb::Mesh moved = fused_aligned.mesh;  // aligned frame has scan 0 at its true pose already
+  score(moved, "fused (aligned poses)");
+  score(rb::Smooth(fused_aligned, {}, nullptr), "fused (aligned) + smoothed");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    if (args.size() >= 3 && args[0] == "bunny") {
+      std::vector<int> seeds = {1, 2, 3};
+      bool smooth = false;
+      for (size_t i = 3; i < args.size(); ++i) {
+        if (args[i] == "--seeds" && i + 1 < args.size()) {
+          seeds.clear();
+          std::stringstream list(args[++i]);
+          std::string item;
+          while (std::getline(list, item, ',')) seeds.push_back(std::stoi(item));
+        } else if (args[i] == "--smooth") {
+          smooth = true;
+        }
+      }
+      return RunBunny(args[1], args[2], seeds, smooth);
+    }
+    if (args.size() >= 3 && args[0] == "score") return RunScore(args[1], args[2], args.size() > 3 ? args[3] : "");
+    if (args.size() == 2 && args[0] == "synthetic") return RunSynthetic(args[1]);
+    std::fprintf(stderr,
+                 "usage: bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth] | score DIR POSES.conf [MESH.ply] | "
+                 "synthetic OUT\n");
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_fuse: error: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,311 @@
+#include "fusion/register.h"
+
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <cstdio>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/scan_poses.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d s;
+  s << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return s;
+}
+
+// Per scan: a kd-tree over the vertices that have a normal, which of them lie on the mesh boundary, and a
+// shuffled list of interior vertices to draw samples from.
+struct ScanIndex {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud;
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  std::vector<int> tree_vertex;      // cloud point → vertex
+  std::vector<char> boundary;        // per vertex
+  std::vector<int> sample_order;     // interior vertices with a normal, shuffled
+  Eigen::AlignedBox3d box;           // scan frame
+};
+
+void BuildIndex(const Scan& scan, std::uint64_t seed, ScanIndex* index) {
+  const Mesh& mesh = scan.noisy.mesh;
+  const int nv = mesh.num_vertices();
+  index->boundary.assign(nv, 0);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  for (int e = 0; e < topology.edges.rows(); ++e) {
+    if (topology.edge_faces.size(e) == 1) {
+      index->boundary[topology.edges(e, 0)] = 1;
+      index->boundary[topology.edges(e, 1)] = 1;
+    }
+  }
+  index->cloud.reset(new pcl::PointCloud<pcl::PointXYZ>);
+  for (int i = 0; i < nv; ++i) {
+    if (scan.normal.row(i).squaredNorm() < 0.5) continue;
+    const Eigen::Vector3d p = mesh.V.row(i);
+    index->cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                          static_cast<float>(p.z())));
+    index->tree_vertex.push_back(i);
+    index->box.extend(p);
+    if (!index->boundary[i]) index->sample_order.push_back(i);
+  }
+  RB_CHECK(!index->tree_vertex.empty(), scan.name, ": empty scan (no vertex on a triangle)");
+  index->tree.setInputCloud(index->cloud);
+  std::mt19937_64 rng(seed);
+  std::shuffle(index->sample_order.begin(), index->sample_order.end(), rng);
+}
+
+// Accumulated normal equations of one ordered pair: blocks for (a, a), (a, b), (b, b) and gradients.
+struct PairSystem {
+  Eigen::Matrix<double, 12, 12> H = Eigen::Matrix<double, 12, 12>::Zero();
+  Eigen::Matrix<double, 12, 1> g = Eigen::Matrix<double, 12, 1>::Zero();
+  double cost = 0;
+  PairReport report;
+  double sum_sigma2 = 0, sum_distance2 = 0;
+};
+
+}  // namespace
+
+void RegisterOptions::Check() const {
+  RB_CHECK(!max_distance_edges.empty(), "max_distance_edges must list at least one level");
+  for (double d : max_distance_edges) RB_CHECK(d > 0 && std::isfinite(d), "max_distance_edges must be positive");
+  RB_CHECK(iterations_per_level >= 1 && iterations_per_level <= 1000, "iterations_per_level ",
+           iterations_per_level, " is outside 1–1000");
+  RB_CHECK(samples_per_scan >= 10 && samples_per_scan <= 10000000, "samples_per_scan is outside 10–1e7");
+  RB_CHECK(final_samples_per_scan >= 10 && final_samples_per_scan <= 10000000,
+           "final_samples_per_scan is outside 10–1e7");
+  RB_CHECK(max_normal_angle_deg > 0 && max_normal_angle_deg <= 180, "max_normal_angle_deg is outside (0, 180]");
+  RB_CHECK(slide_sigma_edges > 0, "slide_sigma_edges must be positive");
+  RB_CHECK(robust_scale_sigma > 0, "robust_scale_sigma must be positive");
+  RB_CHECK(min_overlap >= 0 && min_overlap < 1, "min_overlap ", min_overlap, " is outside [0, 1)");
+  RB_CHECK(converged_step >= 0, "converged_step must not be negative");
+  RB_CHECK(num_threads >= 0, "num_threads must not be negative");
+}
+
+std::string RegisterSummary::BriefReport() const {
+  return StrCat("aligned in ", iterations, " iterations over ", levels, " levels, ", time_s, " s; cost ",
+                cost.empty() ? 0.0 : cost.front(), " -> ", cost.empty() ? 0.0 : cost.back(), "; ", pairs.size(),
+                " overlapping pairs");
+}
+
+std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
+                                             const std::vector<Eigen::Isometry3d>& initial,
+                                             const RegisterOptions& options, RegisterSummary* summary) {
+  options.Check();
+  const auto start = std::chrono::steady_clock::now();
+  const int n = static_cast<int>(scans.size());
+  RB_CHECK(n >= 2, "alignment needs at least two scans, got ", n);
+  RB_CHECK(static_cast<int>(initial.size()) == n, "alignment: ", initial.size(), " initial poses for ", n,
+           " scans");
+  std::unique_ptr<tbb::global_control> threads;
+  if (options.num_threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    options.num_threads);
+  }
+  std::vector<ScanIndex> index(n);
+  double edge = 0;
+  for (int s = 0; s < n; ++s) {
+    RB_CHECK(scans[s].normal.rows() == scans[s].num_vertices() && scans[s].ray.rows() == scans[s].num_vertices() &&
+                 scans[s].noisy.has_covariance(),
+             scans[s].name, ": scan lacks normals, rays or covariances");
+    BuildIndex(scans[s], options.seed + static_cast<std::uint64_t>(s), &index[s]);
+    edge += scans[s].mean_edge / n;
+  }
+  RB_CHECK(edge > 0, "alignment: the scans have no edges");
+  std::vector<Eigen::Isometry3d> pose = initial;
+  RegisterSummary local;
+  const double cos_max = std::cos(options.max_normal_angle_deg * M_PI / 180.0);
+  const double c2 = options.robust_scale_sigma * options.robust_scale_sigma;
+  const int levels = static_cast<int>(options.max_distance_edges.size());
+  std::vector<PairSystem> last;
+  for (int level = 0; level < levels; ++level) {
+    const double max_distance = options.max_distance_edges[level] * edge;
+    const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
+    for (int it = 0; it < options.iterations_per_level; ++it) {
+      // Pairs whose world boxes, grown by the correspondence distance, meet.
+      std::vector<std::pair<int, int>> pairs;
+      std::vector<Eigen::AlignedBox3d> world_box(n);
+      for (int s = 0; s < n; ++s) {
+        for (int k = 0; k < 8; ++k) {
+          world_box[s].extend(pose[s] * index[s].box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
+        }
+      }
+      for (int a = 0; a < n; ++a) {
+        for (int b = 0; b < n; ++b) {
+          if (a == b) continue;
+          Eigen::AlignedBox3d grown = world_box[a];
+          grown.min().array() -= max_distance;
+          grown.max().array() += max_distance;
+          if (grown.intersects(world_box[b])) pairs.emplace_back(a, b);
+        }
+      }
+      std::vector<PairSystem> systems(pairs.size());
+      tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
+        const int a = pairs[k].first, b = pairs[k].second;
+        const Scan& sa = scans[a];
+        const Scan& sb = scans[b];
+        const Eigen::Matrix3d Ra = pose[a].linear(), Rb = pose[b].linear();
+        const Eigen::Isometry3d b_from_a = pose[b].inverse() * pose[a];
+        const double slide2 = std::pow(options.slide_sigma_edges * sb.mean_edge, 2);
+        PairSystem& sys = systems[k];
+        sys.report.a = a;
+        sys.report.b = b;
+        const int count = std::min<int>(samples, static_cast<int>(index[a].sample_order.size()));
+        std::vector<int> nn(1);
+        std::vector<float> nn_d2(1);
+        for (int m = 0; m < count; ++m) {
+          const int i = index[a].sample_order[m];
+          const Eigen::Vector3d p = sa.noisy.mesh.V.row(i);
+          const Eigen::Vector3d y = b_from_a * p;
+          if (!(index[b].box.exteriorDistance(y) < max_distance)) continue;
+          ++sys.report.samples;
+          const pcl::PointXYZ query(static_cast<float>(y.x()), static_cast<float>(y.y()), static_cast<float>(y.z()));
+          if (index[b].tree.nearestKSearch(query, 1, nn, nn_d2) < 1) continue;
+          const int j = index[b].tree_vertex[nn[0]];
+          if (index[b].boundary[j]) continue;
+          const Eigen::Vector3d q = sb.noisy.mesh.V.row(j);
+          if ((y - q).norm() > max_distance) continue;
+          const Eigen::Vector3d np = Ra * sa.normal.row(i).transpose();
+          const Eigen::Vector3d nq = Rb * sb.normal.row(j).transpose();
+          if (np.dot(nq) < cos_max) continue;
+          const Eigen::Vector3d xa = pose[a] * p, xb = pose[b] * q;
+          const Eigen::Vector3d r = xa - xb;
+          const Eigen::Matrix3d point_cov = Ra * sa.noisy.covariance[i] * Ra.transpose() +
+                                            Rb * sb.noisy.covariance[j] * Rb.transpose();
+          const Eigen::Matrix3d C = point_cov + slide2 * (Eigen::Matrix3d::Identity() - nq * nq.transpose());
+          const Eigen::Matrix3d W = C.inverse();
+          const double e2 = r.dot(W * r);
+          const double weight = 1.0 / (1.0 + e2 / c2);
+          sys.cost += c2 * std::log1p(e2 / c2);
+          Eigen::Matrix<double, 3, 12> J;
+          J.block<3, 3>(0, 0) = -Skew(xa);
+          J.block<3, 3>(0, 3).setIdentity();
+          J.block<3, 3>(0, 6) = Skew(xb);
+          J.block<3, 3>(0, 9) = -Eigen::Matrix3d::Identity();
+          const Eigen::Matrix<double, 12, 3> JtW = J.transpose() * (weight * W);
+          sys.H.noalias() += JtW * J;
+          sys.g.noalias() += JtW * r;
+          ++sys.report.correspondences;
+          const double along = r.dot(nq);
+          sys.sum_distance2 += along * along;
+          sys.sum_sigma2 += along * along / nq.dot(point_cov * nq);
+        }
+      });
+      // Assemble the 6n system (scan 0 fixed) and take one damped Gauss–Newton step.
+      const int dof = 6 * (n - 1);
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dof, dof);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(dof);
+      double cost = 0;
+      for (size_t k = 0; k < pairs.size(); ++k) {
+        const int s[2] = {pairs[k].first, pairs[k].second};
+        cost += systems[k].cost;
+        for (int u = 0; u < 2; ++u) {
+          if (s[u] == 0) continue;
+          g.segment<6>(6 * (s[u] - 1)) += systems[k].g.segment<6>(6 * u);
+          for (int v = 0; v < 2; ++v) {
+            if (s[v] == 0) continue;
+            H.block<6, 6>(6 * (s[u] - 1), 6 * (s[v] - 1)) += systems[k].H.block<6, 6>(6 * u, 6 * v);
+          }
+        }
+      }
+      local.cost.push_back(cost);
+      ++local.iterations;
+      last = std::move(systems);
+      for (int s = 1; s < n; ++s) {
+        const double info = H.block<6, 6>(6 * (s - 1), 6 * (s - 1)).trace();
+        RB_CHECK(info > 0, scans[s].name, ": overlaps no other scan (no correspondence within ", max_distance,
+                 " model units); check its initial pose");
+      }
+      const double damping = 1e-9 * H.diagonal().maxCoeff();
+      H.diagonal().array() += damping;
+      const Eigen::VectorXd delta = -H.ldlt().solve(g);
+      double largest = 0;
+      for (int s = 1; s < n; ++s) {
+        const Eigen::Vector3d w = delta.segment<3>(6 * (s - 1));
+        const Eigen::Vector3d v = delta.segment<3>(6 * (s - 1) + 3);
+        Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+        if (w.norm() > 0) step.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+        step.translation() = v;
+        pose[s] = step * pose[s];
+        Eigen::Matrix3d R = pose[s].linear();
+        pose[s].linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
+        largest = std::max({largest, w.norm(), v.norm() / edge});
+      }
+      if (largest < options.converged_step) break;
+    }
+    ++local.levels;
+  }
+  // Reports from the last correspondences; a scan without enough overlap is an error.
+  std::vector<double> best_overlap(n, 0.0);
+  std::vector<int> best_partner(n, -1);
+  for (PairSystem& sys : last) {
+    PairReport& r = sys.report;
+    if (r.correspondences == 0) continue;
+    r.overlap = r.samples > 0 ? static_cast<double>(r.correspondences) / r.samples : 0.0;
+    r.rms_sigma = std::sqrt(sys.sum_sigma2 / r.correspondences);
+    r.rms_distance = std::sqrt(sys.sum_distance2 / r.correspondences);
+    const double share = static_cast<double>(r.correspondences) /
+                         std::max<size_t>(1, std::min<size_t>(options.final_samples_per_scan,
+                                                              index[r.a].sample_order.size()));
+    if (share > best_overlap[r.a]) {
+      best_overlap[r.a] = share;
+      best_partner[r.a] = r.b;
+    }
+    local.pairs.push_back(r);
+  }
+  for (int s = 0; s < n; ++s) {
+    RB_CHECK(best_overlap[s] >= options.min_overlap, scans[s].name, ": overlaps no other scan after alignment (",
+             100.0 * best_overlap[s], "% of its samples found a partner",
+             best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
+             100.0 * options.min_overlap, "% needed): check its pose or leave it out");
+  }
+  std::sort(local.pairs.begin(), local.pairs.end(), [](const PairReport& x, const PairReport& y) {
+    return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
+           std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));
+  });
+  local.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (summary) *summary = local;
+  return pose;
+}
+
+PoseError RelativePoseError(const Eigen::Isometry3d& estimate0, const Eigen::Isometry3d& estimate,
+                            const Eigen::Isometry3d& reference0, const Eigen::Isometry3d& reference) {
+  const Eigen::Isometry3d e = estimate0.inverse() * estimate;
+  const Eigen::Isometry3d r = reference0.inverse() * reference;
+  const Eigen::Isometry3d d = r.inverse() * e;
+  PoseError out;
+  out.rotation_deg = Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI;
+  out.translation = d.translation().norm();
+  return out;
+}
+
+}  // namespace rangebayes
+
+namespace rangebayes {
+
+std::string FormatPairReport(const RegisterSummary& summary, const std::vector<Scan>& scans) {
+  std::ostringstream out;
+  out << "# source target samples correspondences overlap rms_sigma rms_distance\n";
+  for (const PairReport& p : summary.pairs) {
+    char line[512];
+    std::snprintf(line, sizeof(line), "%s %s %d %d %.3f %.3f %.6g\n", FileBaseName(scans[p.a].name).c_str(),
+                  FileBaseName(scans[p.b].name).c_str(), p.samples, p.correspondences, p.overlap, p.rms_sigma,
+                  p.rms_distance);
+    out << line;
+  }
+  return out.str();
+}
+
+}  // namespace rangebayes

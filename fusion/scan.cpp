@@ -1,0 +1,224 @@
+#include "fusion/scan.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "bayes/noise_model.h"
+#include "core/error.h"
+#include "core/render.h"
+#include "core/topology.h"
+
+namespace rangebayes {
+namespace {
+
+Eigen::Matrix3d RayCovariance(const Eigen::Vector3d& r, double sigma_ray, double sigma_lat) {
+  const double a = sigma_ray * sigma_ray - sigma_lat * sigma_lat;
+  return a * r * r.transpose() + sigma_lat * sigma_lat * Eigen::Matrix3d::Identity();
+}
+
+// Vertex normals facing the sensor (and faces turned so that most face it).
+void OrientTowardsSensor(Scan* scan) {
+  Mesh& mesh = scan->noisy.mesh;
+  double facing = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    facing += n.dot(scan->ray.row(mesh.F(f, 0)));
+  }
+  if (facing > 0) mesh.F.col(1).swap(mesh.F.col(2));
+  scan->normal = AreaWeightedVertexNormals(mesh);
+  for (int i = 0; i < mesh.num_vertices(); ++i) {
+    if (scan->normal.row(i).dot(scan->ray.row(i)) > 0) scan->normal.row(i) *= -1.0;
+  }
+  scan->mean_edge = mesh.num_faces() > 0 ? MeanEdgeLength(mesh) : 0.0;
+}
+
+}  // namespace
+
+void RangeGridScanOptions::Check() const {
+  RB_CHECK(sigma_range > 0 && std::isfinite(sigma_range), "sigma_range ", sigma_range, " must be positive");
+  RB_CHECK(sigma_lateral > 0 && std::isfinite(sigma_lateral), "sigma_lateral ", sigma_lateral,
+           " must be positive");
+  RB_CHECK(max_jump_sigma > 0, "max_jump_sigma ", max_jump_sigma, " must be positive");
+  RB_CHECK(max_slope_deg >= 0 && max_slope_deg < 89.95, "max_slope_deg ", max_slope_deg, " is outside 0–89.9");
+}
+
+Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const RangeGridScanOptions& options,
+                       RangeGridScanSummary* summary) {
+  options.Check();
+  RB_CHECK(grid.has_grid(), name, ": no range_grid element (not an organized scan)");
+  const Vertices& V = grid.mesh.mesh.V;
+  RB_CHECK(V.rows() > 0, name, ": empty scan (no vertices)");
+  RB_CHECK(V.allFinite(), name, ": vertex positions are not all finite");
+  const int w = grid.width, h = grid.height;
+  Scan scan;
+  scan.name = name;
+  scan.noisy.mesh.V = V;
+  const int nv = static_cast<int>(V.rows());
+
+  // Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  Eigen::Vector2d mean_direction = Eigen::Vector2d::Zero();
+  double residual2 = 0;
+  int fitted_points = 0, fitted_rows = 0;
+  std::vector<Eigen::Vector2d> row_dir(h, Eigen::Vector2d::Zero());
+  for (int y = 0; y < h; ++y) {
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    int n = 0;
+    for (int x = 0; x < w; ++x) {
+      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+      if (v < 0) continue;
+      c += Eigen::Vector2d(V(v, 1), V(v, 2));
+      ++n;
+    }
+    if (n < 3) continue;
+    c /= n;
+    Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+    for (int x = 0; x < w; ++x) {
+      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+      if (v < 0) continue;
+      const Eigen::Vector2d d = Eigen::Vector2d(V(v, 1), V(v, 2)) - c;
+      S += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(S);
+    // A row needs extent along its ray (5 σ) to define it.
+    if (!(eig.eigenvalues()(1) > n * 25.0 * options.sigma_range * options.sigma_range)) continue;
+    Eigen::Vector2d d = eig.eigenvectors().col(1);
+    if (d.y() > 0) d = -d;
+    row_dir[y] = d;
+    residual2 += eig.eigenvalues()(0);
+    fitted_points += n;
+    ++fitted_rows;
+    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - d * d.transpose();
+    A += P;
+    rhs += P * c;
+    mean_direction += d;
+  }
+  RangeGridScanSummary local;
+  local.row_fit_rms = fitted_points > 0 ? std::sqrt(residual2 / fitted_points) : 0.0;
+  scan.ray.resize(nv, 3);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> conditioning(A);
+  const bool fan = fitted_rows >= 2 && conditioning.eigenvalues()(0) > 1e-6 * conditioning.eigenvalues()(1);
+  if (fan) {
+    const Eigen::Vector2d centre = A.ldlt().solve(rhs);
+    local.ray_model = "fan";
+    local.sensor_centre = Eigen::Vector3d(0, centre.x(), centre.y());
+    for (int i = 0; i < nv; ++i) {
+      const Eigen::Vector3d r(0, V(i, 1) - centre.x(), V(i, 2) - centre.y());
+      scan.ray.row(i) = r.norm() > 0 ? r.normalized() : Eigen::Vector3d(0, 0, -1);
+    }
+  } else {
+    Eigen::Vector3d r(0, 0, -1);
+    local.ray_model = "axis";
+    if (fitted_rows > 0 && mean_direction.norm() > 0) {
+      r = Eigen::Vector3d(0, mean_direction.x(), mean_direction.y()).normalized();
+      local.ray_model = "parallel";
+    }
+    for (int i = 0; i < nv; ++i) scan.ray.row(i) = r;
+  }
+  scan.noisy.covariance.resize(nv);
+  for (int i = 0; i < nv; ++i) {
+    scan.noisy.covariance[i] = RayCovariance(scan.ray.row(i), options.sigma_range, options.sigma_lateral);
+  }
+
+  // Grid triangulation with the depth-image discontinuity cut, measured along the ray.
+  const double slope = std::tan(options.max_slope_deg * M_PI / 180.0);
+  const double allowed_noise = options.max_jump_sigma * std::sqrt(2.0) * options.sigma_range;
+  const auto cell = [&](int x, int y) { return grid.cell_vertex[static_cast<size_t>(y) * w + x]; };
+  const auto connected = [&](int a, int b) {
+    if (a < 0 || b < 0) return false;
+    const Eigen::Vector3d d = V.row(a) - V.row(b);
+    const Eigen::Vector3d r = (scan.ray.row(a) + scan.ray.row(b)).normalized();
+    const double along = std::abs(d.dot(r));
+    const double across = (d - d.dot(r) * r).norm();
+    return along <= slope * across + allowed_noise;
+  };
+  std::vector<int> faces;
+  int cuts = 0;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int i0 = cell(x, y);
+      if (i0 < 0) continue;
+      if (x + 1 < w && cell(x + 1, y) >= 0) cuts += !connected(i0, cell(x + 1, y));
+      if (y + 1 < h && cell(x, y + 1) >= 0) cuts += !connected(i0, cell(x, y + 1));
+    }
+  }
+  for (int y = 0; y + 1 < h; ++y) {
+    for (int x = 0; x + 1 < w; ++x) {
+      const int i0 = cell(x, y), i1 = cell(x + 1, y), i2 = cell(x, y + 1), i3 = cell(x + 1, y + 1);
+      const bool e01 = connected(i0, i1), e02 = connected(i0, i2), e13 = connected(i1, i3);
+      const bool e23 = connected(i2, i3), e03 = connected(i0, i3), e12 = connected(i1, i2);
+      const bool A3 = e02 && e23 && e03, B3 = e03 && e13 && e01;
+      const bool C3 = e02 && e12 && e01, D3 = e12 && e23 && e13;
+      const auto put = [&](int a, int b, int c) { faces.insert(faces.end(), {a, b, c}); };
+      if (A3 && B3 && C3 && D3) {
+        if ((V.row(i0) - V.row(i3)).squaredNorm() <= (V.row(i1) - V.row(i2)).squaredNorm()) {
+          put(i0, i2, i3);
+          put(i0, i3, i1);
+        } else {
+          put(i0, i2, i1);
+          put(i1, i2, i3);
+        }
+      } else if (A3 && B3) {
+        put(i0, i2, i3);
+        put(i0, i3, i1);
+      } else if (C3 && D3) {
+        put(i0, i2, i1);
+        put(i1, i2, i3);
+      } else if (A3) {
+        put(i0, i2, i3);
+      } else if (B3) {
+        put(i0, i3, i1);
+      } else if (C3) {
+        put(i0, i2, i1);
+      } else if (D3) {
+        put(i1, i2, i3);
+      }
+    }
+  }
+  RB_CHECK(!faces.empty(), name, ": empty scan (no triangle: no two neighbouring grid cells hold vertices)");
+  scan.noisy.mesh.F = Eigen::Map<const Faces>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+  OrientTowardsSensor(&scan);
+  local.vertices = nv;
+  local.faces = scan.noisy.mesh.num_faces();
+  local.cut_edges = cuts;
+  if (summary) *summary = local;
+  return scan;
+}
+
+Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
+  RB_CHECK(mesh.mesh.num_vertices() > 0 && mesh.mesh.num_faces() > 0, name,
+           ": empty scan (", mesh.mesh.num_vertices(), " vertices, ", mesh.mesh.num_faces(), " faces)");
+  RB_CHECK(mesh.mesh.V.allFinite(), name, ": vertex positions are not all finite");
+  Scan scan;
+  scan.name = name;
+  const int nv = mesh.mesh.num_vertices();
+  if (mesh.has_covariance()) {
+    scan.noisy = mesh;
+    scan.ray.resize(nv, 3);
+    for (int i = 0; i < nv; ++i) {
+      const Eigen::Vector3d p = mesh.mesh.V.row(i);
+      scan.ray.row(i) = p.norm() > 0 ? p.normalized() : Eigen::Vector3d(0, 0, 1);
+    }
+    OrientTowardsSensor(&scan);
+    return scan;
+  }
+  scan.noisy = MakeGenericNoisyMesh(mesh.mesh);
+  scan.normal = AreaWeightedVertexNormals(scan.noisy.mesh);
+  scan.ray = -scan.normal;
+  scan.mean_edge = MeanEdgeLength(scan.noisy.mesh);
+  return scan;
+}
+
+Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, RangeGridScanSummary* summary) {
+  const bool ply = MeshFormatFromPath(path) == MeshFormat::kPly;
+  if (ply) {
+    RangeGridScan grid = ReadRangeGridScan(path);
+    if (grid.has_grid()) return MakeRangeGridScan(grid, path, options, summary);
+    return MakeScanFromMesh(grid.mesh, path);
+  }
+  return MakeScanFromMesh(ReadNoisyMesh(path), path);
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,73 @@
+// One range scan prepared for alignment and fusion: a NoisyMesh in the scan's own frame with, per vertex, the
+// viewing ray and a normal that faces the sensor.
+//
+// Scans enter in one of three ways:
+//  - MakeRangeGridScan: an organized grid (PLY `range_grid`, core/mesh_io.h), triangulated cell by cell with
+//    the discontinuity cut of reconstruction/triangulate.h, and a ray-aligned covariance per vertex from the
+//    scanner geometry read off the grid (see below);
+//  - MakeScanFromMesh: a NoisyMesh with covariances (what `rangebayes replay` / `mesh` write): the covariance
+//    is kept, the ray runs from the camera at the origin of the mesh's frame;
+//  - MakeScanFromMesh on a plain mesh: the generic noise model (bayes/noise_model.h), rays against the normals.
+#pragma once
+
+#include <string>
+
+#include "core/mesh.h"
+#include "core/mesh_io.h"
+
+namespace rangebayes {
+
+struct Scan {
+  std::string name;   // file name, for messages and pose files
+  NoisyMesh noisy;    // scan frame; covariance per vertex (model units²)
+  Vertices ray;       // #V×3 unit direction from the sensor towards each vertex, scan frame
+  Normals normal;     // #V×3 unit vertex normals facing the sensor (n·ray < 0); zero rows for isolated vertices
+  double mean_edge = 0;  // mean edge length of the triangulation (model units), the sampling scale
+
+  int num_vertices() const { return noisy.mesh.num_vertices(); }
+};
+
+struct RangeGridScanOptions {
+  // Noise of the range measurement along the ray and across it (model units; the Stanford scans are in
+  // metres). 0.2 mm / 0.05 mm: the Cyberware 3030MS's inter-scan residuals (median 0.23–0.33 mm, DESIGN §9)
+  // are about √2·σ_ray; lateral position comes from a 0.25–0.5 mm grid of known motor steps.
+  double sigma_range = 2e-4;    // > 0
+  double sigma_lateral = 5e-5;  // > 0
+  // Edge cut between grid neighbours a, b (as for depth images): cut when the jump along the ray exceeds
+  // max_jump_sigma·sqrt(σ_a² + σ_b²) plus tan(max_slope_deg)·(their distance across the ray).
+  double max_jump_sigma = 6.0;  // > 0
+  double max_slope_deg = 80.0;  // [0, 89.9]
+  void Check() const;
+};
+
+struct RangeGridScanSummary {
+  int vertices = 0;
+  int faces = 0;
+  int cut_edges = 0;
+  // How the rays were found: "fan" (each grid row lies on one ray through a common centre, fitted),
+  // "parallel" (rows on parallel rays), or "axis" (no row could be fitted: rays along -z).
+  std::string ray_model;
+  Eigen::Vector3d sensor_centre = Eigen::Vector3d::Zero();  // the fan's centre (x: not used), "fan" only
+  double row_fit_rms = 0;  // RMS distance of the points from their row's ray line (model units)
+};
+
+// Triangulates a range-grid scan: two triangles per 2×2 block of valid cells (split along the shorter
+// diagonal), none across a cut edge, one triangle for a block of three; counter-clockwise seen from the sensor.
+// Rays: on the Cyberware scans every grid row lies on one line of its column's (y, z) plane (RMS 3–14 µm), the
+// laser ray of that row; the rows fan out from one centre, fitted by least squares; the ray of a vertex runs
+// from that centre to it. Σ = σ_range² r rᵀ + σ_lateral² (I − r rᵀ). Vertices of no triangle are kept (they
+// carry no normal). Throws Error naming the scan on a file without a grid or without any vertex.
+Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const RangeGridScanOptions& options = {},
+                       RangeGridScanSummary* summary = nullptr);
+
+// A scan from a mesh: its covariances when it has them (the sensor at the origin of its frame, as for
+// meshes from depth images), else the generic noise model and rays opposite to the vertex normals. Throws
+// Error naming the scan when it has no faces.
+Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name);
+
+// Reads a scan file: a PLY with range_grid → MakeRangeGridScan, any other mesh file → MakeScanFromMesh.
+// Throws Error naming the file when it is empty (no vertices or no faces after triangulation).
+Scan ReadScan(const std::string& path, const RangeGridScanOptions& options = {},
+              RangeGridScanSummary* summary = nullptr);
+
+}  // namespace rangebayes

@@ -1,0 +1,109 @@
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "core/error.h"
+#include "core/mesh_io.h"
+#include "fusion/scan.h"
+
+namespace rangebayes {
+namespace {
+
+std::string WriteTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+// A 3×2 grid with five vertices on the plane z = 1 (cell (2, 1) empty), as the Stanford scans store it.
+std::string GridPly(const std::string& cells, int rows = 2) {
+  return "ply\nformat ascii 1.0\nobj_info num_cols 3\nobj_info num_rows " + std::to_string(rows) +
+         "\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+         "element range_grid " + std::to_string(3 * rows) + "\nproperty list uchar int vertex_indices\nend_header\n"
+         "0 0 1\n0.001 0 1\n0.002 0 1\n0 0.001 1\n0.001 0.001 1\n" + cells;
+}
+
+TEST(RangeGrid, ReadsCellsRowByRow) {
+  const std::string path = WriteTemp("grid.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
+  const RangeGridScan scan = ReadRangeGridScan(path);
+  ASSERT_TRUE(scan.has_grid());
+  EXPECT_EQ(scan.width, 3);
+  EXPECT_EQ(scan.height, 2);
+  ASSERT_EQ(scan.cell_vertex.size(), 6u);
+  EXPECT_EQ(scan.cell_vertex[4], 4);
+  EXPECT_EQ(scan.cell_vertex[5], -1);
+  EXPECT_EQ(scan.mesh.mesh.num_vertices(), 5);
+  // A plain mesh reader still skips the grid.
+  EXPECT_EQ(ReadMesh(path).num_vertices(), 5);
+}
+
+TEST(RangeGrid, TriangulatesAsAnOrganizedGrid) {
+  const RangeGridScan grid = ReadRangeGridScan(WriteTemp("grid2.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n")));
+  RangeGridScanSummary summary;
+  const Scan scan = MakeRangeGridScan(grid, "grid2.ply", {}, &summary);
+  // Block (0,0) has four vertices: two triangles; block (1,0) three: one triangle.
+  EXPECT_EQ(scan.noisy.mesh.num_faces(), 3);
+  EXPECT_EQ(summary.cut_edges, 0);
+  ASSERT_TRUE(scan.noisy.has_covariance());
+  for (int i = 0; i < 5; ++i) {
+    // Rows have no extent along a ray here: rays along −z, normals facing the sensor (+z).
+    EXPECT_NEAR(scan.ray(i, 2), -1.0, 1e-12);
+    EXPECT_NEAR(scan.normal(i, 2), 1.0, 1e-9);
+    const Eigen::Vector3d r = scan.ray.row(i);
+    EXPECT_NEAR(r.dot(scan.noisy.covariance[i] * r), 4e-8, 1e-15);  // σ_range² default (0.2 mm)²
+  }
+}
+
+TEST(RangeGrid, CutsDepthJumps) {
+  // The last vertex 5 cm behind the plane: every edge to it is cut.
+  std::string text = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
+  text.replace(text.find("0.001 0.001 1\n"), 14, "0.001 0.001 0.95\n");
+  const Scan scan = MakeRangeGridScan(ReadRangeGridScan(WriteTemp("jump.ply", text)), "jump.ply");
+  EXPECT_EQ(scan.noisy.mesh.num_faces(), 1);  // only (0, 1, 3) remains
+}
+
+TEST(RangeGrid, StanfordPiecesReadWithFanRays) {
+  const std::string path = std::string(RB_SOURCE_DIR) + "/tests/data/scans/bun000_piece.ply";
+  RangeGridScanSummary summary;
+  const Scan scan = ReadScan(path, {}, &summary);
+  EXPECT_EQ(summary.ray_model, "fan");
+  EXPECT_LT(summary.row_fit_rms, 3e-5);  // rows lie on one laser ray each (RMS 3–14 µm on the full scan)
+  EXPECT_GT(scan.noisy.mesh.num_faces(), scan.num_vertices());
+  EXPECT_NEAR(scan.mean_edge, 8e-4, 2e-4);  // 0.5 mm motion steps, interlaced rows, plus diagonals
+}
+
+TEST(RangeGrid, BadGridsNameTheFileAndCell) {
+  const auto message = [](const std::string& name, const std::string& text) {
+    try {
+      ReadRangeGridScan(WriteTemp(name, text));
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("two.ply", GridPly("1 0\n2 1 2\n1 2\n1 3\n1 4\n0\n")).find("cell 1 lists 2 vertices"),
+            std::string::npos);
+  EXPECT_NE(message("range.ply", GridPly("1 0\n1 9\n1 2\n1 3\n1 4\n0\n")).find("names vertex 9"), std::string::npos);
+  std::string no_size = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
+  no_size.replace(no_size.find("obj_info num_cols 3\n"), 20, "");
+  EXPECT_NE(message("nosize.ply", no_size).find("without its size"), std::string::npos);
+  std::string count = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n");
+  count.replace(count.find("range_grid 6"), 12, "range_grid 5");
+  EXPECT_NE(message("count.ply", count).find("count.ply: 'range_grid' has 5 cells but num_cols x num_rows is 3 x 2"),
+            std::string::npos);
+}
+
+TEST(RangeGrid, EmptyScanIsAnError) {
+  const std::string path = WriteTemp("empty.ply", GridPly("0\n0\n0\n0\n0\n0\n"));
+  try {
+    ReadScan(path);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("empty.ply: empty scan"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes

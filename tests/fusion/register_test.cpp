@@ -1,0 +1,66 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/error.h"
+#include "fusion/register.h"
+#include "synthetic.h"
+
+namespace rangebayes {
+namespace {
+
+Eigen::Isometry3d Perturb(const Eigen::Isometry3d& pose, double max_deg, double max_shift, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::Vector3d axis(u(*rng), u(*rng), u(*rng));
+  Eigen::Isometry3d delta = Eigen::Isometry3d::Identity();
+  delta.linear() = Eigen::AngleAxisd(max_deg * M_PI / 180 * std::abs(u(*rng)), axis.normalized()).toRotationMatrix();
+  delta.translation() = max_shift / std::sqrt(3.0) * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  return delta * pose;
+}
+
+TEST(Register, RecoversAKnownPerturbationOfThreeViews) {
+  const Mesh truth = testing::MakeBlob();
+  const std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0), testing::ViewPose(70, 15),
+                                                testing::ViewPose(-70, -10)};
+  const std::vector<Scan> scans = testing::RenderViews(truth, poses, 5e-5);
+  std::mt19937_64 rng(7);
+  std::vector<Eigen::Isometry3d> start = poses;
+  for (size_t k = 1; k < start.size(); ++k) start[k] = Perturb(poses[k], 5.0, 0.01, &rng);
+  RegisterSummary summary;
+  const std::vector<Eigen::Isometry3d> result = RegisterScans(scans, start, {}, &summary);
+  EXPECT_TRUE(result[0].isApprox(poses[0]));
+  for (size_t k = 1; k < result.size(); ++k) {
+    const PoseError start_error = RelativePoseError(start[0], start[k], poses[0], poses[k]);
+    const PoseError error = RelativePoseError(result[0], result[k], poses[0], poses[k]);
+    EXPECT_GT(start_error.rotation_deg, 0.5);
+    // Tolerances: 0.1° and 0.2 mm, a tenth of a grid cell (1.4 mm), noise 0.05 mm.
+    EXPECT_LT(error.rotation_deg, 0.1) << "scan " << k << ": " << summary.BriefReport();
+    EXPECT_LT(error.translation, 2e-4) << "scan " << k;
+  }
+  // The neighbouring views (70° apart) overlap well and their residuals are of the order of the modelled
+  // noise; the two side views (140° apart) share only a grazing rim.
+  int good = 0;
+  for (const PairReport& pair : summary.pairs) {
+    if (pair.a != 0 && pair.b != 0) continue;
+    EXPECT_GT(pair.overlap, 0.1);
+    EXPECT_LT(pair.rms_sigma, 3.0);
+    ++good;
+  }
+  EXPECT_EQ(good, 4);
+}
+
+TEST(Register, NonOverlappingScanIsNamed) {
+  const Mesh truth = testing::MakeBlob();
+  std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0), testing::ViewPose(60)};
+  const std::vector<Scan> scans = testing::RenderViews(truth, poses, 5e-5);
+  poses[1].translation() += Eigen::Vector3d(0.5, 0, 0);  // half a metre away from the other scan
+  try {
+    RegisterScans(scans, poses);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("view1: overlaps no other scan"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes
