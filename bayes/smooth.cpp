@@ -219,21 +219,22 @@ double ProgressFraction(double first_decrease, double decrease, double tolerance
   return std::clamp(std::max(by_energy, by_iterations), 0.0, 0.99);
 }
 
-// The energy still to lose, E − E*, extrapolated from the last 2·kRateWindow iterations: with the mean decrease
-// per iteration Δ over the last window and Δ' over the one before, a linear rate ρ = (Δ/Δ')^(1/kRateWindow) leaves
-// Δ·ρ/(1 − ρ). A slow plateau (ρ → 1) reads as far from the optimum, not as converged, which is what a rule on the
-// decrease per iteration gets wrong. Infinity until 2·kRateWindow iterations have run; 0 when the energy stopped
-// falling.
+// The energy still to lose, E − E*, extrapolated from the energy history: with the mean decrease per iteration Δ
+// over the last window of w iterations and Δ' over the w before (w = kRateWindow, or half the iterations so far
+// when fewer have run, at least 2), a linear rate ρ = (Δ/Δ')^(1/w) leaves Δ·ρ/(1 − ρ). A slow plateau (ρ → 1)
+// reads as far from the optimum, not as converged, which is what a rule on the decrease per iteration gets
+// wrong. Infinity before 4 iterations; 0 when the energy stopped falling.
 constexpr int kRateWindow = 10;
 double RemainingDecrease(const std::vector<double>& energy) {
   const int k = static_cast<int>(energy.size()) - 1;
-  if (k < 2 * kRateWindow) return std::numeric_limits<double>::infinity();
-  const double recent = energy[static_cast<size_t>(k - kRateWindow)] - energy[static_cast<size_t>(k)];
-  const double older = energy[static_cast<size_t>(k - 2 * kRateWindow)] - energy[static_cast<size_t>(k - kRateWindow)];
+  const int w = std::min(kRateWindow, k / 2);
+  if (w < 2) return std::numeric_limits<double>::infinity();
+  const double recent = energy[static_cast<size_t>(k - w)] - energy[static_cast<size_t>(k)];
+  const double older = energy[static_cast<size_t>(k - 2 * w)] - energy[static_cast<size_t>(k - w)];
   if (!(recent > 0)) return 0.0;
   const double ratio = older > 0 ? std::min(recent / older, 1.0) : 1.0;
-  const double rho = std::min(std::pow(ratio, 1.0 / kRateWindow), 0.9999);
-  return recent / kRateWindow * rho / (1 - rho);
+  const double rho = std::min(std::pow(ratio, 1.0 / w), 0.9999);
+  return recent / w * rho / (1 - rho);
 }
 
 struct MinimiseResult {

@@ -113,7 +113,7 @@ struct SmoothSummary {
   int evaluations = 0;             // energy + gradient evaluations
   std::vector<double> energy;      // energy[0] at the start, then after each iteration
   // E − E* at the end, estimated from the rate at which the energy fell over the last 20 iterations (a linear
-  // rate extrapolated); infinity when fewer iterations ran. A budget or iteration cap that stops early shows here.
+  // rate extrapolated; over all iterations when fewer ran); infinity before 4 iterations. A budget or iteration cap that stops early shows here.
   double remaining_decrease = std::numeric_limits<double>::infinity();
   double data_energy = 0;          // final parts
   double prior_energy = 0;

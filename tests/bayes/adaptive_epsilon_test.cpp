@@ -319,7 +319,7 @@ TEST(AdaptiveEpsilon, SmoothStartsFromInitialPositions) {
   options.initial_positions = &minimum.V;
   SmoothSummary summary;
   const Mesh again = Smooth(input, options, &summary);
-  // Already at the minimum: the energy criterion stops after its 5-iteration window (or the line search finds
+  // Already at the minimum: the distance criterion stops after 4 iterations (or the line search finds
   // nothing lower), and nothing moves by more than what the tight stop left (measured 3.8e-6 of the grid
   // spacing 1; a start at the measurements moves vertices by ~0.1).
   EXPECT_LE(summary.iterations, 6);
