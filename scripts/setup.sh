@@ -18,6 +18,9 @@ packages=(
   libbenchmark-dev       # bench/
   libcgal-dev            # bench/ only: quadric edge collapse and VSA as decimation references
   clang libclang-rt-14-dev   # libFuzzer targets
+  libboost-dev           # console: HTTP/WebSocket server (Boost.Beast, header-only)
+  libjs-three            # console: the page's 3D view (served by the process, no CDN)
+  chromium               # console: the browser test (headless)
 )
 
 missing=()
