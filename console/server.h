@@ -28,7 +28,9 @@ struct ConsoleServerOptions {
   int client_queue_messages = 2;       // ≥ 1: messages of one topic waiting per client; beyond it the oldest
                                        // of that topic is dropped (a live view wants the newest, not a backlog)
   int max_clients = 16;                // ≥ 1: WebSocket clients at once (more: 503)
-  int send_buffer_bytes = 0;           // ≥ 0: SO_SNDBUF of client sockets; 0: the system's (tests shrink it)
+  // ≥ 0: SO_SNDBUF of WebSocket sockets (0: the system's, which grows to megabytes: a backlog of stale
+  // frames in the kernel, seconds of latency on a slow client). Tests shrink it further.
+  int send_buffer_bytes = 256 * 1024;
   // Topics a client receives before it asks for others: topic "group/value" goes to a client that has no
   // subscription for "group" or whose subscription for it is "value"; a topic without '/' goes to everyone.
   std::map<std::string, std::string> default_subscriptions;

@@ -130,6 +130,8 @@ function showImage(header, payload) {
   if (header.kind === 'depth') { $('depth-near').textContent = header.min.toFixed(2) + ' m'; $('depth-far').textContent = header.max.toFixed(2) + ' m'; }
   if (header.kind === 'sigma') { $('sigma-lo').textContent = (header.min * 1000).toFixed(1) + ' mm'; $('sigma-hi').textContent = (header.max * 1000).toFixed(1) + ' mm'; }
   $('frame').textContent = header.frame;
+  $('sigma-note').textContent = state.images.depth > 3 && !state.images.sigma
+    ? '- none from this matcher (SGBM): choose space-time' : '';
 }
 
 function onBinary(buf) {

@@ -40,58 +40,52 @@ PipelineOptions SmallOptions() {
   return p;
 }
 
-// Changes the settings when the first result arrives (the frames after it are still being read).
-class SteeringSink : public PipelineSink {
+struct Seen {
+  std::int64_t index;
+  int ds;
+  bool full_quality;
+  bool decimated;
+};
+
+class CollectSink : public PipelineSink {
  public:
-  explicit SteeringSink(PipelineControl* control) : control_(control) {}
   void Consume(const PipelineResult& r) override {
-    if (results.empty()) {
-      control_->SetStereoDownsample(2);
-      control_->RequestFullQuality();
-    }
     results.push_back({r.index, r.stereo_downsample, r.full_quality, r.decimated.has_value()});
   }
-  struct Seen {
-    std::int64_t index;
-    int ds;
-    bool full_quality;
-    bool decimated;
-  };
   std::vector<Seen> results;
-
- private:
-  PipelineControl* control_;
 };
 
 TEST(PipelineControl, ChangesApplyToLaterFramesAndFullQualityRunsOnce) {
   TempDir dir("control_changes");
-  const Recording rec = OpenRecording(MakeRecording(dir, 10));
+  const Recording rec = OpenRecording(MakeRecording(dir, 6));
   PlaybackSource source(rec);
   PipelineControl control;
   PipelineOptions options = SmallOptions();
-  options.queue_capacity = 1;
   options.control = &control;
   std::atomic<int> observed{0};
-  options.on_frame = [&](const StereoFrame&) { ++observed; };
-  SteeringSink sink(&control);
+  // The observer runs in the capture thread before the frame takes its settings: changes made while frame
+  // 2 is observed apply from frame 2 on.
+  options.on_frame = [&](const StereoFrame& f) {
+    ++observed;
+    if (f.index == 2) {
+      control.SetStereoDownsample(2);
+      control.RequestFullQuality();
+    }
+  };
+  CollectSink sink;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
-  ASSERT_EQ(s.results, 10);
-  EXPECT_EQ(observed.load(), 10);
-  ASSERT_EQ(sink.results.size(), 10u);
-  EXPECT_EQ(sink.results.front().ds, 1);
-  EXPECT_EQ(sink.results.back().ds, 2);  // queues of one item: the last frames entered after the change
-  int full = 0;
-  for (const auto& r : sink.results) {
-    if (!r.full_quality) continue;
-    ++full;
-    EXPECT_EQ(r.ds, 1);
-    EXPECT_TRUE(r.decimated);  // the full-quality path decimates even with decimation off
+  ASSERT_EQ(s.results, 6);
+  EXPECT_EQ(observed.load(), 6);
+  ASSERT_EQ(sink.results.size(), 6u);
+  for (const Seen& r : sink.results) {
+    EXPECT_EQ(r.full_quality, r.index == 2) << r.index;
+    EXPECT_EQ(r.ds, r.index < 3 ? 1 : 2) << r.index;  // the full-quality frame is matched at full resolution
+    EXPECT_EQ(r.decimated, r.full_quality) << r.index;  // it is decimated even with decimation off
   }
-  EXPECT_EQ(full, 1);
   const PipelineSnapshot snap = control.Snapshot();
   EXPECT_FALSE(snap.running);
-  EXPECT_EQ(snap.results, 10);
-  EXPECT_EQ(snap.frames_captured, 10);
+  EXPECT_EQ(snap.results, 6);
+  EXPECT_EQ(snap.frames_captured, 6);
   EXPECT_EQ(snap.full_quality_done, 1);
   ASSERT_EQ(snap.stages.size(), s.stages.size());
   EXPECT_EQ(snap.stages[2].items, s.stages[2].items);
