@@ -1,6 +1,8 @@
 // Subcommands cameras, record, live and replay: from cameras or recordings through the stereo-to-mesh pipeline.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <thread>
 #include <optional>
 #include <filesystem>
 #include <memory>
@@ -17,9 +19,12 @@
 #include "capture/recording.h"
 #include "capture/stop_signal.h"
 #include "capture/v4l2_source.h"
+#include "console/console.h"
+#include "console/protocol.h"
 #include "core/error.h"
 #include "pipeline/file_sink.h"
 #include "pipeline/pipeline.h"
+#include "pipeline/pipeline_control.h"
 
 namespace rangebayes::apps {
 namespace {
@@ -55,6 +60,8 @@ struct PipelineCli {
   int preview_width_px = 0;
   bool no_previews = false;
   bool quiet = false;
+  std::string ui;            // [ADDR:]PORT of the operator's console; empty: none
+  std::string ui_record_dir; // recordings started from the console; empty: OUT/recordings
 };
 
 void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
@@ -100,6 +107,12 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
   sub->add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+  sub->add_option("--ui", o->ui,
+                  "Serve the operator's console (a live web page with controls) on [ADDR:]PORT (ADDR default "
+                  "127.0.0.1; 0.0.0.0 exposes it to the network); the control token is printed at start; the "
+                  "page stays up after the run until Ctrl-C");
+  sub->add_option("--ui-record-dir", o->ui_record_dir,
+                  "Folder for recordings started from the console (default: OUT/recordings)");
 }
 
 PipelineOptions MakePipelineOptions(const PipelineCli& o) {
@@ -174,9 +187,28 @@ void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool qui
   }
 }
 
-// Runs the pipeline with a file sink into out_dir, prints the summary, writes summary.json, sets the exit code.
+// Runs the pipeline with a file sink into out_dir (and the console with --ui), prints the summary, writes
+// summary.json, sets the exit code.
 void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions options, const PipelineCli& cli,
                  const std::string& out_dir) {
+  std::unique_ptr<PipelineControl> control;
+  std::unique_ptr<Console> console;
+  if (!cli.ui.empty()) {
+    const UiAddress address = ParseUiAddress(cli.ui);
+    ConsoleOptions co;
+    co.server.address = address.address;
+    co.server.port = address.port;
+    co.record_root = cli.ui_record_dir.empty() ? (fs::path(out_dir) / "recordings").string() : cli.ui_record_dir;
+    co.capture_dir = (fs::path(out_dir) / "captures").string();
+    control = std::make_unique<PipelineControl>();
+    console = std::make_unique<Console>(co, control.get(), rig, source.Meta());
+    options.control = control.get();
+    options.on_frame = [c = console.get()](const StereoFrame& frame) { c->OnFrame(frame); };
+    // Printed even with --quiet: the operator needs the token to control the run.
+    std::fprintf(stderr, "rangebayes: console at %s (control token %s; or open %s#token=%s)\n",
+                 console->url().c_str(), console->token().c_str(), console->url().c_str(), console->token().c_str());
+    std::fflush(stderr);
+  }
   FileSinkOptions sink_options;
   sink_options.preview_width_px = cli.preview_width_px;
   // Live previews are drawn at the matched resolution: a 640-px panel costs 4x the rendering time of a 320-px one.
@@ -185,11 +217,13 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   }
   if (cli.no_previews) sink_options.depth_png = sink_options.shaded_png = false;
   FileSink sink(out_dir, sink_options);
-  ProgressPrinter progress(cli.quiet);
+  ProgressPrinter progress(cli.quiet || console != nullptr);
   options.progress = progress.callback();
   InstallStopSignalHandlers();
   options.stop = &StopFlag();
-  PipelineSummary summary = RunPipeline(source, rig, options, {&sink});
+  std::vector<PipelineSink*> sinks = {&sink};
+  if (console) sinks.push_back(console.get());
+  PipelineSummary summary = RunPipeline(source, rig, options, sinks);
   progress.Finish();
   if (cli.live_path && !options.decimate && !cli.no_decimate) {
     summary.notices.push_back(
@@ -198,6 +232,10 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   }
   WritePipelineSummaryJson(summary, (fs::path(out_dir) / "summary.json").string());
   PrintSummary(summary, out_dir, cli.quiet);
+  if (console) {
+    Notice(cli.quiet, StrCat("run finished; the console stays up at ", console->url(), " until Ctrl-C"));
+    while (!StopFlag().load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
   if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
     RB_FAIL("no frame went through the pipeline (see the errors above)");

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "core/error.h"
+#include "pipeline/pipeline_control.h"
 
 namespace rangebayes {
 namespace {
@@ -22,11 +23,22 @@ double MsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
+// The settings one frame is processed with (from the options, or from a PipelineControl when it entered).
+struct ItemSettings {
+  int ds = 1;
+  PipelineMatcher matcher = PipelineMatcher::kSgbm;
+  int window = 1;
+  int step = 1;
+  double smooth_budget_ms = 0.0;
+  bool full_quality = false;
+};
+
 struct Item {
   std::vector<StereoFrame> frames;
   std::vector<cv::Mat> left_rect, right_rect;
   PipelineResult result;
   Clock::time_point captured;
+  ItemSettings settings;
 };
 using ItemPtr = std::unique_ptr<Item>;
 using ItemQueue = BoundedQueue<ItemPtr>;
@@ -61,13 +73,13 @@ class Run {
     } catch (const std::exception& e) {
       item.result.error = StrCat(timing->name, ": ", e.what());
       item.result.error_stage = timing->name;
-      ++timing->errors;
     } catch (...) {
       item.result.error = StrCat(timing->name, ": unknown error");
       item.result.error_stage = timing->name;
-      ++timing->errors;
     }
     const double ms = MsSince(start);
+    std::lock_guard<std::mutex> lock(mutex_);  // a PipelineControl may read the timings while the run goes on
+    if (!item.result.error.empty()) ++timing->errors;
     ++timing->items;
     timing->total_ms += ms;
     timing->max_ms = std::max(timing->max_ms, ms);
@@ -87,6 +99,12 @@ class Run {
     out.Close();
   }
 
+  void AddFullQualityDone() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++full_quality_done_;
+  }
+  std::int64_t full_quality_done() const { return full_quality_done_; }  // under mutex()
+
   PipelineSummary& summary() { return summary_; }
   std::mutex& mutex() { return mutex_; }
   const PipelineOptions& options() const { return options_; }
@@ -98,7 +116,37 @@ class Run {
   std::atomic<bool> halt_{false};
   std::mutex mutex_;
   PipelineSummary summary_;
+  std::int64_t full_quality_done_ = 0;
 };
+
+// Matcher, camera and triangulation settings for stereo at 1/ds resolution.
+struct MatchSetup {
+  CameraIntrinsics intrinsics;
+  SgbmMatcherOptions sgbm;
+  SpaceTimeMatcherOptions spacetime;
+  TriangulateOptions triangulate;
+};
+
+MatchSetup MakeMatchSetup(const PipelineOptions& options, const CameraIntrinsics& full, int ds,
+                          int triangulate_downsample) {
+  MatchSetup m;
+  m.intrinsics = DownsampledIntrinsics(full, ds);
+  // Disparity ranges are given in full-resolution pixels: at 1/ds resolution they shrink by ds.
+  m.sgbm = options.sgbm;
+  m.spacetime = options.spacetime;
+  if (ds > 1) {
+    const auto floor_div = [ds](int v) { return v >= 0 ? v / ds : -((-v + ds - 1) / ds); };
+    m.sgbm.num_disparities = std::max(1, (options.sgbm.num_disparities + ds - 1) / ds);
+    m.sgbm.min_disparity_px = floor_div(options.sgbm.min_disparity_px);
+    m.spacetime.num_disparities = std::max(3, (options.spacetime.num_disparities + ds - 1) / ds);
+    m.spacetime.min_disparity_px = floor_div(options.spacetime.min_disparity_px);
+  }
+  m.triangulate = options.triangulate;
+  m.triangulate.downsample = std::max(1, (triangulate_downsample + ds / 2) / ds);
+  return m;
+}
+
+int DsSlot(int ds) { return ds == 1 ? 0 : ds == 2 ? 1 : ds == 4 ? 2 : 3; }
 
 ItemPtr MakeItem(StereoFrame frame) {
   auto item = std::make_unique<Item>();
@@ -106,6 +154,8 @@ ItemPtr MakeItem(StereoFrame frame) {
   item->result.index = frame.index;
   item->result.last_index = frame.index;
   item->result.timestamp_ns = frame.timestamp_ns();
+  item->result.entered_steady_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(item->captured.time_since_epoch()).count();
   item->result.frames = 1;
   item->frames.push_back(std::move(frame));
   return item;
@@ -181,6 +231,8 @@ void PipelineOptions::Check() const {
            "stereo downsample must be 1, 2, 4 or 8, got ", stereo_downsample);
   RB_CHECK(smooth_budget_ms >= 0.0 && std::isfinite(smooth_budget_ms),
            "smoothing budget must be >= 0 ms, got ", smooth_budget_ms);
+  RB_CHECK(full_quality_triangulate_downsample >= 1 && full_quality_triangulate_downsample <= 64,
+           "full-quality triangulation downsample must be in 1..64, got ", full_quality_triangulate_downsample);
   rectify.Check();
   sgbm.Check();
   spacetime.Check();
@@ -195,21 +247,17 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   options.Check();
   const Rectifier rectifier(rig, options.rectify);
   const int ds = options.stereo_downsample;
-  const CameraIntrinsics match_intrinsics = DownsampledIntrinsics(rectifier.intrinsics(), ds);
-  // Disparity ranges are given in full-resolution pixels: at 1/ds resolution they shrink by ds.
-  SgbmMatcherOptions sgbm_options = options.sgbm;
-  SpaceTimeMatcherOptions spacetime_options = options.spacetime;
-  if (ds > 1) {
-    const auto floor_div = [ds](int v) { return v >= 0 ? v / ds : -((-v + ds - 1) / ds); };
-    sgbm_options.num_disparities = std::max(1, (options.sgbm.num_disparities + ds - 1) / ds);
-    sgbm_options.min_disparity_px = floor_div(options.sgbm.min_disparity_px);
-    spacetime_options.num_disparities = std::max(3, (options.spacetime.num_disparities + ds - 1) / ds);
-    spacetime_options.min_disparity_px = floor_div(options.spacetime.min_disparity_px);
+  // One setup per downsample factor (a control may change it between frames), and one for the full-quality path.
+  std::array<MatchSetup, 4> setups;
+  for (const int f : {1, 2, 4, 8}) {
+    setups[DsSlot(f)] = MakeMatchSetup(options, rectifier.intrinsics(), f, options.triangulate.downsample);
   }
-  TriangulateOptions triangulate_options = options.triangulate;
-  triangulate_options.downsample = std::max(1, (options.triangulate.downsample + ds / 2) / ds);
+  const MatchSetup full_quality_setup =
+      MakeMatchSetup(options, rectifier.intrinsics(), 1, options.full_quality_triangulate_downsample);
+  const MatchSetup& default_setup = setups[DsSlot(ds)];
   const int window = options.window_frames;
   const int step = options.window_step_frames > 0 ? options.window_step_frames : window;
+  PipelineControl* control = options.control;
   const std::optional<std::int64_t> frames_total = source.frames_total();
 
   Run run(options, sinks);
@@ -266,12 +314,66 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   ItemQueue& q_smoothed = *queues[4];
   ItemQueue& q_decimated = *queues[5];
 
+  if (control != nullptr) {
+    control->Begin(options, [&]() {
+      PipelineSnapshot snap;
+      snap.running = true;
+      snap.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+      for (const auto& q : queues) {
+        snap.queue_fill.push_back(static_cast<int>(q->size()));
+        snap.dropped += q->dropped();
+      }
+      snap.queue_capacity = options.queue_capacity;
+      std::lock_guard<std::mutex> lock(run.mutex());
+      snap.frames_captured = summary.frames_captured;
+      snap.frames_skipped = summary.frames_skipped;
+      snap.timeouts = summary.timeouts;
+      snap.results = summary.results;
+      snap.failed = summary.failed;
+      snap.full_quality_done = run.full_quality_done();
+      snap.stages = summary.stages;
+      const size_t n = summary.errors.size();
+      snap.errors.assign(summary.errors.begin() + static_cast<std::ptrdiff_t>(n > 20 ? n - 20 : 0),
+                         summary.errors.end());
+      return snap;
+    });
+  }
+  // The settings a frame entering now is processed with.
+  const auto settings_now = [&]() {
+    ItemSettings s;
+    s.ds = ds;
+    s.matcher = options.matcher;
+    s.window = window;
+    s.step = step;
+    s.smooth_budget_ms = options.smooth_budget_ms;
+    if (control != nullptr) {
+      const PipelineSettings c = control->settings();
+      s.ds = c.stereo_downsample;
+      s.matcher = c.matcher;
+      s.window = c.window_frames;
+      s.step = c.window_frames == window ? step : c.window_frames;
+      s.smooth_budget_ms = c.smooth_budget_ms;
+      if (control->TakeFullQualityRequest()) {
+        s.full_quality = true;
+        s.ds = 1;
+        s.window = 1;
+        s.step = 1;
+        s.smooth_budget_ms = 0.0;
+      }
+    }
+    return s;
+  };
+
   SmoothCost smooth_cost;  // written by the smooth thread only, read after the join
   std::array<std::thread, 7> threads;
   int next_thread = 0;
   threads[next_thread++] = std::thread([&] {
     int consecutive_timeouts = 0;
     while (!run.Stopping()) {
+      if (control != nullptr && control->settings().paused) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        continue;
+      }
       FrameResult r;
       const auto start = Clock::now();
       try {
@@ -306,15 +408,31 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
         run.AddError(StrCat("frame ", r.frame.index, " skipped: ", r.reason));
         continue;
       }
+      if (options.on_frame) {
+        try {
+          options.on_frame(r.frame);
+        } catch (const std::exception& e) {
+          {
+            std::lock_guard<std::mutex> lock(run.mutex());
+            ++summary.frames_skipped;
+          }
+          run.AddError(StrCat("frame ", r.frame.index, " skipped: frame observer: ", e.what()));
+          continue;
+        }
+      }
       const double ms = MsSince(start);
-      ++t_capture->items;
-      t_capture->total_ms += ms;
-      t_capture->max_ms = std::max(t_capture->max_ms, ms);
+      ItemPtr item = MakeItem(std::move(r.frame));
+      item->settings = settings_now();
+      item->result.full_quality = item->settings.full_quality;
+      item->result.stereo_downsample = item->settings.ds;
       {
         std::lock_guard<std::mutex> lock(run.mutex());
+        ++t_capture->items;
+        t_capture->total_ms += ms;
+        t_capture->max_ms = std::max(t_capture->max_ms, ms);
         ++summary.frames_captured;
       }
-      q_captured.Push(MakeItem(std::move(r.frame)));
+      q_captured.Push(std::move(item));
     }
     q_captured.Close();
   });
@@ -327,61 +445,85 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       cv::Mat l, r;
       rectifier.Rectify(ToMatcherInput(f.left), ToMatcherInput(f.right), &l, &r);
       item.result.left_rectified = l;
-      item.left_rect.push_back(Shrink(l, ds));
-      item.right_rect.push_back(Shrink(r, ds));
+      item.left_rect.push_back(Shrink(l, item.settings.ds));
+      item.right_rect.push_back(Shrink(r, item.settings.ds));
       item.frames.clear();  // the raw images are not needed downstream
     });
   });
 
   threads[next_thread++] = std::thread([&] {
-    std::unique_ptr<StereoMatcher> matcher;
-    if (options.matcher == PipelineMatcher::kSgbm) {
-      matcher = std::make_unique<SgbmMatcher>(sgbm_options);
-    } else {
-      matcher = std::make_unique<SpaceTimeMatcher>(spacetime_options);
-    }
+    // One matcher per (matcher, downsample) pair, made when a frame first needs it.
+    std::array<std::array<std::unique_ptr<StereoMatcher>, 4>, 2> matchers;
+    const auto matcher_for = [&](const ItemSettings& s) -> StereoMatcher& {
+      const MatchSetup& setup = s.full_quality ? full_quality_setup : setups[DsSlot(s.ds)];
+      const int kind = s.matcher == PipelineMatcher::kSgbm ? 0 : 1;
+      std::unique_ptr<StereoMatcher>& m = matchers[kind][DsSlot(s.ds)];
+      if (!m) {
+        if (kind == 0) {
+          m = std::make_unique<SgbmMatcher>(setup.sgbm);
+        } else {
+          m = std::make_unique<SpaceTimeMatcher>(setup.spacetime);
+        }
+      }
+      return *m;
+    };
     auto match = [&](Item& item) {
-      const DisparityResult d = matcher->Match(item.left_rect, item.right_rect);
-      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, match_intrinsics,
-                                             rectifier.baseline_m(), rectifier.doffs_px() / ds, options.depth);
+      const int f = item.settings.ds;
+      const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
+      const DisparityResult d = matcher_for(item.settings).Match(item.left_rect, item.right_rect);
+      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, setup.intrinsics,
+                                             rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
       item.result.depth.frame_id = item.result.index;
       item.result.depth.timestamp_ns = item.result.timestamp_ns;
       item.left_rect.clear();
       item.right_rect.clear();
     };
-    // Frames wait here until a window is full; a window's result takes the first frame's index.
+    // Frames wait here until a window is full; a window's result takes the first frame's index. A frame
+    // whose settings differ from the waiting ones (a control changed them) discards the waiting frames.
     std::deque<ItemPtr> buffer;
+    const auto same_window = [](const ItemSettings& a, const ItemSettings& b) {
+      return a.ds == b.ds && a.matcher == b.matcher && a.window == b.window && a.step == b.step;
+    };
     while (auto popped = q_rectified.Pop()) {
       ItemPtr item = std::move(*popped);
       if (run.Stopping()) {
         run.AddAbandoned();
         continue;
       }
-      if (!item->result.error.empty() || window == 1) {
+      if (!item->result.error.empty() || item->settings.window == 1 || item->settings.full_quality) {
         run.Process(*item, t_stereo, match);
         q_matched.Push(std::move(item));
         continue;
       }
+      if (!buffer.empty() && !same_window(buffer.front()->settings, item->settings)) {
+        for (size_t i = 0; i < buffer.size(); ++i) run.AddAbandoned();
+        buffer.clear();
+      }
       buffer.push_back(std::move(item));
-      if (static_cast<int>(buffer.size()) < window) continue;
+      const int w = buffer.front()->settings.window;
+      if (static_cast<int>(buffer.size()) < w) continue;
       auto merged = std::make_unique<Item>();
       merged->captured = buffer.back()->captured;
+      merged->settings = buffer.front()->settings;
       merged->result.index = buffer.front()->result.index;
       merged->result.last_index = buffer.back()->result.index;
       merged->result.timestamp_ns = buffer.back()->result.timestamp_ns;
-      merged->result.frames = window;
+      merged->result.entered_steady_ns = buffer.back()->result.entered_steady_ns;
+      merged->result.frames = w;
+      merged->result.stereo_downsample = merged->settings.ds;
       merged->result.left_rectified = buffer.back()->result.left_rectified;
       for (const ItemPtr& b : buffer) {
         merged->left_rect.push_back(b->left_rect.front());
         merged->right_rect.push_back(b->right_rect.front());
       }
-      for (int i = 0; i < step && !buffer.empty(); ++i) buffer.pop_front();
+      for (int i = 0; i < merged->settings.step && !buffer.empty(); ++i) buffer.pop_front();
       run.Process(*merged, t_stereo, match);
       q_matched.Push(std::move(merged));
     }
     if (!buffer.empty() && !run.Stopping()) {
       std::lock_guard<std::mutex> lock(run.mutex());
-      summary.notices.push_back(StrCat("the last ", buffer.size(), " frame(s) did not fill a ", window,
+      summary.notices.push_back(StrCat("the last ", buffer.size(), " frame(s) did not fill a ",
+                                       buffer.front()->settings.window,
                                        "-frame space-time window and were not matched"));
     }
     q_matched.Close();
@@ -390,9 +532,11 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   threads[next_thread++] = std::thread([&] {
     run.Stage(q_matched, q_triangulated, t_triangulate, [&](Item& item) {
       TriangulateSummary ts;
-      item.result.raw_mesh = TriangulateDepth(item.result.depth, triangulate_options, &ts);
+      const int f = item.settings.ds;
+      const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
+      item.result.raw_mesh = TriangulateDepth(item.result.depth, setup.triangulate, &ts);
       // pyrDown pixel x sits at full-resolution 2x (see DownsampledIntrinsics).
-      if (ds > 1) item.result.raw_mesh.pixel *= static_cast<float>(ds);
+      if (f > 1) item.result.raw_mesh.pixel *= static_cast<float>(f);
       RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index,
                ": no surface (", ts.vertices, " valid depth pixels, no triangle)");
     });
@@ -400,18 +544,25 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
 
   threads[next_thread++] = std::thread([&] {
     run.Stage(q_triangulated, q_smoothed, t_smooth, [&](Item& item) {
+      if (item.settings.full_quality) {
+        SmoothOptions smoothing = options.smoothing;
+        smoothing.tolerance = SmoothOptions{}.tolerance;
+        item.result.smoothed = Smooth(item.result.raw_mesh, smoothing);
+        return;
+      }
       if (!options.smooth) return;
       SmoothOptions smoothing = options.smoothing;
       // Per frame the pipeline runs the plain solve: the adaptive-ε pre-pass is not part of a frame's budget.
       smoothing.adaptive_epsilon = false;
       const double vertices = static_cast<double>(std::max(1, item.result.raw_mesh.mesh.num_vertices()));
-      if (options.smooth_budget_ms > 0.0) {
+      const double budget_ms = item.settings.smooth_budget_ms;
+      if (budget_ms > 0.0) {
         smoothing.max_iterations =
             smooth_cost.samples == 0
                 ? std::min(kSmoothBudgetProbeIterations,
                            options.smoothing.max_iterations > 0 ? options.smoothing.max_iterations
                                                                 : kSmoothBudgetProbeIterations)
-                : SmoothIterationsForBudget(options.smooth_budget_ms, smooth_cost.setup_ms_per_vertex * vertices,
+                : SmoothIterationsForBudget(budget_ms, smooth_cost.setup_ms_per_vertex * vertices,
                                             smooth_cost.iteration_ms_per_vertex * vertices,
                                             options.smoothing.max_iterations);
       }
@@ -434,7 +585,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
 
   threads[next_thread++] = std::thread([&] {
     run.Stage(q_smoothed, q_decimated, t_decimate, [&](Item& item) {
-      if (!options.decimate) return;
+      if (!options.decimate && !item.settings.full_quality) return;
       const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
       item.result.decimated = Decimate(input, options.decimation);
     });
@@ -456,6 +607,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
         });
       }
       const bool ok = item.result.error.empty();
+      if (ok && item.settings.full_quality) run.AddFullQualityDone();
       {
         std::lock_guard<std::mutex> lock(run.mutex());
         ++(ok ? summary.results : summary.failed);
@@ -466,7 +618,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
                                             : StrCat("frame ", item.result.index, ": ", item.result.error));
       }
       latency_sum_ms += MsSince(item.captured);
-      frames_done += item.result.frames > 1 ? step : 1;
+      frames_done += item.result.frames > 1 ? item.settings.step : 1;
       if (options.progress) {
         const double elapsed_s = std::chrono::duration<double>(Clock::now() - run_start).count();
         const double fps = elapsed_s > 0 ? static_cast<double>(frames_done) / elapsed_s : 0.0;
@@ -496,6 +648,11 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   });
 
   for (std::thread& t : threads) t.join();
+  if (control != nullptr) {
+    PipelineSnapshot last = control->Snapshot();
+    last.running = false;
+    control->End(std::move(last));
+  }
 
   summary.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
   summary.stopped = options.stop != nullptr && options.stop->load();
@@ -518,11 +675,11 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
     summary.notices.push_back(line);
   }
   if (ds > 1) {
-    summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", match_intrinsics.width, "x",
-                                     match_intrinsics.height, ", ",
-                                     options.matcher == PipelineMatcher::kSgbm ? sgbm_options.num_disparities
-                                                                               : spacetime_options.num_disparities,
-                                     " disparities), triangulated every ", triangulate_options.downsample,
+    summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",
+                                     default_setup.intrinsics.height, ", ",
+                                     options.matcher == PipelineMatcher::kSgbm ? default_setup.sgbm.num_disparities
+                                                                               : default_setup.spacetime.num_disparities,
+                                     " disparities), triangulated every ", default_setup.triangulate.downsample,
                                      " pixel(s) of it"));
   }
   return summary;

@@ -37,12 +37,15 @@ namespace rangebayes {
 
 enum class PipelineMatcher { kSgbm, kSpaceTime };
 
+class PipelineControl;  // pipeline/pipeline_control.h
+
 // What one pass through the stages produced for a frame (or a space-time window of frames). Stages that
 // are switched off leave their part empty; `error` is set when a stage failed (later parts are empty).
 struct PipelineResult {
   std::int64_t index = 0;          // frame index of the first frame of the window
   std::int64_t last_index = 0;     // frame index of the last frame of the window (== index for one frame)
   std::int64_t timestamp_ns = 0;   // the last frame's capture time
+  std::int64_t entered_steady_ns = 0;  // when the last frame entered the pipeline (steady_clock), for latency
   int frames = 0;                  // frames in the window
   cv::Mat left_rectified;          // last frame of the window, for previews
   DepthFrame depth;
@@ -51,6 +54,8 @@ struct PipelineResult {
   std::optional<DecimatedMesh> decimated;
   std::string error;               // "<stage>: <reason>" when the frame failed
   std::string error_stage;
+  bool full_quality = false;       // went through the full-quality path (PipelineControl::RequestFullQuality)
+  int stereo_downsample = 1;       // the factor this result was matched at
 };
 
 // Receives finished results in frame order (from the sink thread; one call at a time).
@@ -90,6 +95,15 @@ struct PipelineOptions {
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
   const std::atomic<bool>* stop = nullptr;  // polled by the stages (e.g. &StopFlag()); null: never
+  // Optional: settings changed while the run goes on (pause, budget, downsample, matcher), full-quality
+  // requests, live counters (pipeline/pipeline_control.h). Must outlive the run.
+  PipelineControl* control = nullptr;
+  // Optional: called from the capture thread with every frame that enters, before any drop (to record the
+  // raw frames). Must be quick (hand the frame to another thread); an exception counts the frame as skipped.
+  std::function<void(const StereoFrame&)> on_frame;
+  // The full-quality path a control can ask for: stereo at full resolution, triangulation every this many
+  // pixels (1–64), smoothing to the library's default tolerance without a time budget, decimation on.
+  int full_quality_triangulate_downsample = 1;
   ProgressCallback progress;         // from the sink thread; fraction of frames_total() when known
   void Check() const;
 };

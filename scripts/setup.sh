@@ -22,6 +22,9 @@ packages=(
   pybind11-dev python3-dev python3-numpy   # the Python module (python/)
   python3-pytest python3-matplotlib python3-open3d   # its tests, examples and Open3D interop
   python3-venv python3-pip python3-setuptools python3-wheel   # pip install --no-build-isolation .
+  libboost-dev           # console: HTTP/WebSocket server (Boost.Beast, header-only)
+  libjs-three            # console: the page's 3D view (served by the process, no CDN)
+  chromium               # console: the browser test (headless)
 )
 
 missing=()

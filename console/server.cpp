@@ -1,0 +1,377 @@
+#include "console/server.h"
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <deque>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "core/error.h"
+
+namespace rangebayes {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+
+namespace {
+class WsSession;
+}  // namespace
+
+// Everything the server thread owns. The io_context is declared first so that it is destroyed last: its
+// destruction destroys the pending handlers and with them the sessions, which never touch State then.
+struct ConsoleServer::State {
+  net::io_context ioc{1};
+  ConsoleServerOptions options;
+  Handler handler;
+  std::optional<tcp::acceptor> acceptor;
+  std::vector<std::weak_ptr<WsSession>> sessions;  // server thread only
+  std::atomic<bool> stopped{false};
+  std::atomic<int> clients{0};
+  std::atomic<std::int64_t> queued{0}, sent{0}, dropped{0}, requests{0}, refused{0};
+};
+
+namespace {
+
+using State = ConsoleServer::State;
+
+struct Outgoing {
+  std::shared_ptr<const std::string> data;
+  bool binary = true;
+  std::string topic;
+};
+
+bool TopicWanted(const std::map<std::string, std::string>& subscriptions, const std::string& topic) {
+  const size_t slash = topic.find('/');
+  if (slash == std::string::npos) return true;
+  const auto it = subscriptions.find(topic.substr(0, slash));
+  return it == subscriptions.end() || it->second == topic.substr(slash + 1);
+}
+
+class WsSession : public std::enable_shared_from_this<WsSession> {
+ public:
+  WsSession(tcp::socket socket, State* state)
+      : ws_(std::move(socket)), state_(state), subscriptions_(state->options.default_subscriptions) {}
+
+  void Run(http::request<http::string_body> request) {
+    request_ = std::move(request);
+    beast::error_code ignored;
+    if (state_->options.send_buffer_bytes > 0) {
+      beast::get_lowest_layer(ws_).socket().set_option(
+          net::socket_base::send_buffer_size(state_->options.send_buffer_bytes), ignored);
+    }
+    beast::get_lowest_layer(ws_).expires_never();
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.read_message_max(static_cast<std::uint64_t>(state_->options.max_client_message_bytes));
+    ws_.async_accept(request_, beast::bind_front_handler(&WsSession::OnAccept, shared_from_this()));
+  }
+
+  // Each topic has its own bound, so that a flood of one kind (images) never starves another (status).
+  void Enqueue(const Outgoing& message) {
+    if (!open_ || !TopicWanted(subscriptions_, message.topic)) return;
+    int same = 0;
+    for (const Outgoing& m : queue_) same += m.topic == message.topic ? 1 : 0;
+    if (same >= state_->options.client_queue_messages) {
+      queue_.erase(std::find_if(queue_.begin(), queue_.end(),
+                                [&](const Outgoing& m) { return m.topic == message.topic; }));
+      ++state_->dropped;
+    }
+    queue_.push_back(message);
+    ++state_->queued;
+    if (!writing_) DoWrite();
+  }
+
+ private:
+  void OnAccept(beast::error_code ec) {
+    if (ec) return;
+    open_ = true;
+    ++state_->clients;
+    state_->sessions.push_back(weak_from_this());
+    DoRead();
+  }
+
+  void DoRead() {
+    ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::OnRead, shared_from_this()));
+  }
+
+  void OnRead(beast::error_code ec, size_t) {
+    if (ec) {
+      if (ec == websocket::error::message_too_big) ++state_->refused;
+      Closed();
+      return;
+    }
+    const std::string text = beast::buffers_to_string(buffer_.data());
+    buffer_.consume(buffer_.size());
+    if (!ws_.got_text() || !ApplyClientMessage(text)) {
+      ++state_->refused;
+      Closed();
+      ws_.async_close(websocket::close_reason(websocket::close_code::policy_error, "malformed message"),
+                      [self = shared_from_this()](beast::error_code) {});
+      return;
+    }
+    DoRead();
+  }
+
+  bool ApplyClientMessage(const std::string& text) {
+    const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.is_object() || j.size() != 1 || !j.contains("subscribe")) return false;
+    const nlohmann::json& s = j["subscribe"];
+    if (!s.is_object() || s.size() > 8) return false;
+    for (const auto& [group, value] : s.items()) {
+      if (!value.is_string() || group.size() > 32 || value.get<std::string>().size() > 32) return false;
+    }
+    for (const auto& [group, value] : s.items()) subscriptions_[group] = value.get<std::string>();
+    return true;
+  }
+
+  void DoWrite() {
+    if (queue_.empty() || !open_) return;
+    writing_ = true;
+    current_ = std::move(queue_.front());
+    queue_.pop_front();
+    ws_.binary(current_.binary);
+    ws_.async_write(net::buffer(*current_.data), beast::bind_front_handler(&WsSession::OnWrite, shared_from_this()));
+  }
+
+  void OnWrite(beast::error_code ec, size_t) {
+    writing_ = false;
+    current_ = {};
+    if (ec) {
+      Closed();
+      return;
+    }
+    ++state_->sent;
+    DoWrite();
+  }
+
+  void Closed() {
+    if (open_) --state_->clients;
+    open_ = false;
+    queue_.clear();
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  State* state_;
+  http::request<http::string_body> request_;
+  beast::flat_buffer buffer_;
+  std::map<std::string, std::string> subscriptions_;
+  std::deque<Outgoing> queue_;
+  Outgoing current_;
+  bool writing_ = false;
+  bool open_ = false;
+};
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(tcp::socket socket, State* state) : stream_(std::move(socket)), state_(state) {}
+
+  void Run() { DoRead(); }
+
+ private:
+  void DoRead() {
+    parser_.emplace();
+    parser_->header_limit(static_cast<std::uint32_t>(state_->options.max_header_bytes));
+    parser_->body_limit(static_cast<std::uint64_t>(state_->options.max_body_bytes));
+    stream_.expires_after(std::chrono::seconds(15));
+    http::async_read(stream_, buffer_, *parser_, beast::bind_front_handler(&HttpSession::OnRead, shared_from_this()));
+  }
+
+  void OnRead(beast::error_code ec, size_t) {
+    if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == net::error::eof ||
+        ec == net::error::connection_reset || ec == net::error::operation_aborted) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      return;
+    }
+    if (ec == http::error::body_limit) return Refuse(413, "request body too large");
+    if (ec == http::error::header_limit) return Refuse(431, "request header too large");
+    if (ec) return Refuse(400, "malformed request");
+    http::request<http::string_body>& req = parser_->get();
+    if (req.target().size() > static_cast<size_t>(state_->options.max_target_chars)) {
+      return Refuse(414, "request target too long");
+    }
+    const std::string target(req.target());
+    const std::string path = target.substr(0, target.find('?'));
+    if (websocket::is_upgrade(req)) {
+      if (path != "/ws" || req.method() != http::verb::get) return Refuse(404, "no WebSocket here");
+      if (state_->clients.load() >= state_->options.max_clients) return Refuse(503, "too many clients");
+      std::make_shared<WsSession>(stream_.release_socket(), state_)->Run(parser_->release());
+      return;
+    }
+    HttpRequest request;
+    request.method = std::string(req.method_string());
+    request.target = target;
+    request.body = req.body();
+    for (const auto& field : req) {
+      std::string name(field.name_string());
+      for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      request.headers[name] = std::string(field.value());
+    }
+    HttpReply reply;
+    try {
+      reply = state_->handler(request);
+    } catch (const std::exception& e) {
+      reply.status = 500;
+      reply.body = nlohmann::json{{"error", e.what()}}.dump();
+    }
+    if (reply.status >= 400) ++state_->refused;
+    Send(reply, !req.keep_alive(), req.version());
+  }
+
+  void Refuse(int status, const std::string& reason) {
+    ++state_->refused;
+    HttpReply reply;
+    reply.status = status;
+    reply.body = nlohmann::json{{"error", reason}}.dump();
+    Send(reply, /*close=*/true, 11);
+  }
+
+  void Send(const HttpReply& reply, bool close, unsigned version) {
+    ++state_->requests;
+    response_ = {};
+    response_.version(version);
+    response_.result(static_cast<unsigned>(reply.status));
+    response_.set(http::field::server, "rangebayes");
+    response_.set(http::field::content_type, reply.content_type);
+    response_.set(http::field::cache_control, "no-store");
+    response_.set("X-Content-Type-Options", "nosniff");
+    response_.set("Referrer-Policy", "no-referrer");
+    for (const auto& [name, value] : reply.headers) response_.set(name, value);
+    response_.body() = reply.body;
+    response_.keep_alive(!close);
+    response_.prepare_payload();
+    http::async_write(stream_, response_,
+                      beast::bind_front_handler(&HttpSession::OnWrite, shared_from_this(), close));
+  }
+
+  void OnWrite(bool close, beast::error_code ec, size_t) {
+    if (ec) return;
+    if (close) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      // Read and discard what the client still sends (a refused body) for a moment before closing, so that
+      // closing with unread data (a reset) does not destroy the answer before the client reads it.
+      stream_.expires_after(std::chrono::seconds(2));
+      Drain(0);
+      return;
+    }
+    DoRead();
+  }
+
+  void Drain(size_t drained) {
+    if (drained > (1u << 20)) return;
+    stream_.async_read_some(net::buffer(scratch_), [self = shared_from_this(), drained](beast::error_code ec, size_t n) {
+      if (!ec) self->Drain(drained + n);
+    });
+  }
+
+  beast::tcp_stream stream_;
+  State* state_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  http::response<http::string_body> response_;
+  std::array<char, 4096> scratch_{};
+};
+
+void DoAccept(State* state) {
+  state->acceptor->async_accept(state->ioc, [state](beast::error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (ec == net::error::operation_aborted) return;
+    } else {
+      std::make_shared<HttpSession>(std::move(socket), state)->Run();
+    }
+    DoAccept(state);
+  });
+}
+
+}  // namespace
+
+void ConsoleServerOptions::Check() const {
+  RB_CHECK(port >= 0 && port <= 65535, "console port must be in 0..65535, got ", port);
+  RB_CHECK(max_header_bytes >= 512, "console: max_header_bytes must be >= 512");
+  RB_CHECK(max_body_bytes >= 0, "console: max_body_bytes must be >= 0");
+  RB_CHECK(max_target_chars >= 16, "console: max_target_chars must be >= 16");
+  RB_CHECK(max_client_message_bytes >= 64, "console: max_client_message_bytes must be >= 64");
+  RB_CHECK(client_queue_messages >= 1, "console: client_queue_messages must be >= 1");
+  RB_CHECK(max_clients >= 1, "console: max_clients must be >= 1");
+  RB_CHECK(send_buffer_bytes >= 0, "console: send_buffer_bytes must be >= 0");
+}
+
+ConsoleServer::ConsoleServer(const ConsoleServerOptions& options, Handler handler)
+    : options_(options), state_(std::make_unique<State>()) {
+  options.Check();
+  state_->options = options;
+  state_->handler = std::move(handler);
+  beast::error_code ec;
+  const net::ip::address address = net::ip::make_address(options.address, ec);
+  RB_CHECK(!ec, "console: '", options.address, "' is not a numeric IP address");
+  const tcp::endpoint endpoint(address, static_cast<unsigned short>(options.port));
+  state_->acceptor.emplace(state_->ioc);
+  state_->acceptor->open(endpoint.protocol(), ec);
+  RB_CHECK(!ec, "console: cannot open a socket: ", ec.message());
+  state_->acceptor->set_option(net::socket_base::reuse_address(true), ec);
+  state_->acceptor->bind(endpoint, ec);
+  RB_CHECK(!ec, "console: cannot listen on ", options.address, ":", options.port, ": ", ec.message());
+  state_->acceptor->listen(net::socket_base::max_listen_connections, ec);
+  RB_CHECK(!ec, "console: cannot listen on ", options.address, ":", options.port, ": ", ec.message());
+  port_ = state_->acceptor->local_endpoint().port();
+  DoAccept(state_.get());
+  thread_ = std::thread([state = state_.get()] {
+    for (;;) {
+      try {
+        state->ioc.run();
+        return;
+      } catch (const std::exception&) {
+        // A handler failed in a way the sessions did not catch: keep serving the others.
+      }
+    }
+  });
+}
+
+ConsoleServer::~ConsoleServer() { Stop(); }
+
+void ConsoleServer::Stop() {
+  if (state_->stopped.exchange(true)) return;
+  net::post(state_->ioc, [state = state_.get()] {
+    beast::error_code ignored;
+    state->acceptor->close(ignored);
+  });
+  state_->ioc.stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+void ConsoleServer::Broadcast(std::shared_ptr<const std::string> message, bool binary, const std::string& topic) {
+  if (state_->stopped.load()) return;
+  net::post(state_->ioc, [state = state_.get(), message = std::move(message), binary, topic] {
+    const Outgoing out{message, binary, topic};
+    auto& sessions = state->sessions;
+    size_t kept = 0;
+    for (size_t i = 0; i < sessions.size(); ++i) {
+      if (auto s = sessions[i].lock()) {
+        s->Enqueue(out);
+        sessions[kept++] = sessions[i];
+      }
+    }
+    sessions.resize(kept);
+  });
+}
+
+ConsoleServerStats ConsoleServer::stats() const {
+  ConsoleServerStats s;
+  s.clients = state_->clients.load();
+  s.messages_queued = state_->queued.load();
+  s.messages_sent = state_->sent.load();
+  s.messages_dropped = state_->dropped.load();
+  s.requests = state_->requests.load();
+  s.refused = state_->refused.load();
+  return s;
+}
+
+}  // namespace rangebayes

@@ -1,0 +1,94 @@
+// The HTTP and WebSocket server of the operator's console: Boost.Beast on one Asio thread of its own.
+// HTTP requests go to one handler (the console decides what a path means); "GET /ws" with an upgrade becomes
+// a WebSocket client. Messages for clients are queued per client and written asynchronously: a client that
+// reads slowly or not at all only loses its own oldest queued messages (counted), it never blocks Broadcast.
+// Limits: request header and body sizes, target length, WebSocket message size from a client, number of
+// clients; a request over a limit is answered 413 (431 for headers) and the connection closed.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace rangebayes {
+
+struct ConsoleServerOptions {
+  std::string address = "127.0.0.1";  // numeric IPv4 or IPv6 address to listen on
+  int port = 0;                        // 0–65535; 0: any free port (ConsoleServer::port() tells which)
+  int max_header_bytes = 8 * 1024;     // ≥ 512: one request's header
+  int max_body_bytes = 16 * 1024;      // ≥ 0: one request's body
+  int max_target_chars = 512;          // ≥ 16: the request target (path and query)
+  int max_client_message_bytes = 1024; // ≥ 64: one WebSocket message from a client (larger: connection closed)
+  int client_queue_messages = 2;       // ≥ 1: messages of one topic waiting per client; beyond it the oldest
+                                       // of that topic is dropped (a live view wants the newest, not a backlog)
+  int max_clients = 16;                // ≥ 1: WebSocket clients at once (more: 503)
+  // ≥ 0: SO_SNDBUF of WebSocket sockets (0: the system's, which grows to megabytes: a backlog of stale
+  // frames in the kernel, seconds of latency on a slow client). Tests shrink it further.
+  int send_buffer_bytes = 256 * 1024;
+  // Topics a client receives before it asks for others: topic "group/value" goes to a client that has no
+  // subscription for "group" or whose subscription for it is "value"; a topic without '/' goes to everyone.
+  std::map<std::string, std::string> default_subscriptions;
+  void Check() const;
+};
+
+struct HttpRequest {
+  std::string method;  // "GET", "POST", ...
+  std::string target;  // as sent, e.g. "/api/status?x=1"
+  std::string body;
+  std::map<std::string, std::string> headers;  // lower-case names
+};
+
+struct HttpReply {
+  int status = 200;
+  std::string content_type = "application/json";
+  std::string body;
+  std::vector<std::pair<std::string, std::string>> headers;  // extra headers (Content-Disposition, ...)
+};
+
+struct ConsoleServerStats {
+  int clients = 0;
+  std::int64_t messages_queued = 0;   // messages handed to clients' queues
+  std::int64_t messages_sent = 0;     // completely written to a client
+  std::int64_t messages_dropped = 0;  // oldest messages dropped from full client queues
+  std::int64_t requests = 0;          // HTTP requests answered
+  std::int64_t refused = 0;           // requests and client messages refused (limits, malformed)
+};
+
+class ConsoleServer {
+ public:
+  using Handler = std::function<HttpReply(const HttpRequest&)>;
+
+  // Listens and starts the server thread; throws Error when the address cannot be bound. The handler runs
+  // on the server thread and must not block for long; an exception from it is answered 500. The only
+  // message a client may send is a JSON object {"subscribe": {"group": "value", ...}} (at most 8 groups);
+  // anything else closes its connection (policy error).
+  ConsoleServer(const ConsoleServerOptions& options, Handler handler);
+  ~ConsoleServer();  // Stop()
+  ConsoleServer(const ConsoleServer&) = delete;
+  ConsoleServer& operator=(const ConsoleServer&) = delete;
+
+  int port() const { return port_; }
+  const std::string& address() const { return options_.address; }
+
+  // Queues `message` (binary or text) for every client subscribed to `topic`. Never blocks; thread-safe.
+  void Broadcast(std::shared_ptr<const std::string> message, bool binary, const std::string& topic);
+
+  ConsoleServerStats stats() const;
+  void Stop();
+
+  struct State;  // server.cpp
+
+ private:
+  ConsoleServerOptions options_;
+  std::unique_ptr<State> state_;
+  std::thread thread_;
+  int port_ = 0;
+};
+
+}  // namespace rangebayes

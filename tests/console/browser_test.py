@@ -1,0 +1,324 @@
+#!/usr/bin/python3
+"""Browser test of the operator's console (issue 17): headless Chromium from Debian drives the page served by
+`rangebayes replay recordings/synth_planes_320x240 --ui 127.0.0.1:0`.
+
+Checks: the page loads with no console errors, receives depth frames and at least one mesh, the 3D canvas is
+not blank (its pixels are read), start/stop recording through the page writes a recording that `rangebayes
+replay` reads, and a wrong token is refused. Keeps a screenshot in OUT/console_screenshot.png.
+
+Chromium is driven through the DevTools protocol over --remote-debugging-pipe (fds 3 and 4, messages ended
+by NUL), so the driver needs only the Python standard library. Every process is started here and stopped in
+the finally block (and on SIGTERM).
+
+usage: browser_test.py RANGEBAYES_BINARY OUT_DIR [--chromium /usr/bin/chromium] [--bench SECONDS]
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RECORDING = os.path.join(REPO, "recordings", "synth_planes_320x240")
+
+
+class Cdp:
+    """A DevTools protocol client over Chromium's --remote-debugging-pipe."""
+
+    def __init__(self, chromium, user_data_dir, log_path):
+        to_child_r, self._to_child_w = os.pipe()
+        self._from_child_r, from_child_w = os.pipe()
+        # The child's ends move above 10, out of the way of the 3 and 4 that dup2 puts them on.
+        a, b = fcntl_dup_high(to_child_r), fcntl_dup_high(from_child_w)
+
+        def child_fds():
+            os.dup2(a, 3)
+            os.dup2(b, 4)
+
+        args = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                "--disable-default-apps", "--disable-extensions", "--mute-audio", "--no-default-browser-check",
+                "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--window-size=1440,1000",
+                "--remote-debugging-pipe", f"--user-data-dir={user_data_dir}", "about:blank"]
+        self._log = open(log_path, "wb")
+        self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
+                                     close_fds=False, preexec_fn=child_fds)
+        os.close(a)
+        os.close(b)
+        self._next_id = 0
+        self._replies = {}
+        self.events = []
+        self._cv = threading.Condition()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        self.session = None
+
+    def _read(self):
+        buf = b""
+        while True:
+            chunk = os.read(self._from_child_r, 1 << 16)
+            if not chunk:
+                with self._cv:
+                    self._cv.notify_all()
+                return
+            buf += chunk
+            while b"\0" in buf:
+                raw, buf = buf.split(b"\0", 1)
+                msg = json.loads(raw)
+                with self._cv:
+                    if "id" in msg:
+                        self._replies[msg["id"]] = msg
+                    else:
+                        self.events.append(msg)
+                    self._cv.notify_all()
+
+    def call(self, method, params=None, session=True, timeout=30):
+        with self._cv:
+            self._next_id += 1
+            mid = self._next_id
+        msg = {"id": mid, "method": method, "params": params or {}}
+        if session and self.session:
+            msg["sessionId"] = self.session
+        os.write(self._to_child_w, json.dumps(msg).encode() + b"\0")
+        deadline = time.time() + timeout
+        with self._cv:
+            while mid not in self._replies:
+                left = deadline - time.time()
+                if left <= 0 or self.proc.poll() is not None:
+                    raise RuntimeError(f"no DevTools reply to {method}")
+                self._cv.wait(left)
+            reply = self._replies.pop(mid)
+        if "error" in reply:
+            raise RuntimeError(f"{method}: {reply['error']}")
+        return reply.get("result", {})
+
+    def evaluate(self, expression, timeout=30):
+        r = self.call("Runtime.evaluate", {"expression": expression, "awaitPromise": True, "returnByValue": True},
+                      timeout=timeout)
+        if "exceptionDetails" in r:
+            raise RuntimeError(f"page exception in {expression!r}: {r['exceptionDetails']}")
+        return r["result"].get("value")
+
+    def wait_for(self, expression, timeout, what):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            if self.evaluate(expression):
+                return
+            time.sleep(0.25)
+        seen = self.evaluate("JSON.stringify({status_messages: rbConsole.statusMessages, meshes: rbConsole.meshes, "
+                             "feedback: document.getElementById('feedback').textContent, "
+                             "recording: rbConsole.lastStatus && rbConsole.lastStatus.recording})")
+        raise AssertionError(f"timed out after {timeout} s waiting for {what} ({expression}); page: {seen}")
+
+    def console_errors(self):
+        with self._cv:
+            events = list(self.events)
+        errors = []
+        for e in events:
+            m, p = e.get("method"), e.get("params", {})
+            if m == "Runtime.exceptionThrown":
+                errors.append("exception: " + json.dumps(p.get("exceptionDetails", {}))[:400])
+            elif m == "Runtime.consoleAPICalled" and p.get("type") in ("error", "assert"):
+                errors.append("console.error: " + json.dumps(p.get("args", []))[:400])
+            elif m == "Log.entryAdded" and p.get("entry", {}).get("level") == "error":
+                entry = p["entry"]
+                errors.append(f"log ({entry.get('source')}): {entry.get('text')} {entry.get('url', '')}")
+        return errors
+
+    def close(self):
+        try:
+            if self.proc.poll() is None:
+                try:
+                    self.call("Browser.close", session=False, timeout=5)
+                except Exception:
+                    pass
+                try:
+                    self.proc.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    self.proc.kill()
+                    self.proc.wait()
+        finally:
+            self._log.close()
+
+
+def fcntl_dup_high(fd):
+    import fcntl
+    high = fcntl.fcntl(fd, fcntl.F_DUPFD, 10)
+    os.close(fd)
+    return high
+
+
+def start_replay(binary, out, extra):
+    log = open(os.path.join(out, "replay.log"), "wb")
+    args = [binary, "replay", RECORDING, "--out", os.path.join(out, "run"), "--speed", "recorded",
+            "--repeat", "100000", "--ui", "127.0.0.1:0"] + extra
+    proc = subprocess.Popen(args, cwd=REPO, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.time() + 60
+    pattern = re.compile(r"console at (http://\S+/) \(control token ([0-9a-f]+)")
+    while time.time() < deadline:
+        with open(os.path.join(out, "replay.log"), "r", errors="replace") as f:
+            m = pattern.search(f.read())
+        if m:
+            return proc, log, m.group(1), m.group(2)
+        if proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    raise AssertionError("rangebayes replay --ui did not print its console address; see " +
+                         os.path.join(out, "replay.log"))
+
+
+def stop_process(proc, sig=signal.SIGINT, timeout=20):
+    if proc is None or proc.poll() is not None:
+        return
+    proc.send_signal(sig)
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+CANVAS_NON_BLANK = """(() => {
+  const c = window.rbConsole.canvas;
+  if (!c) return -1;
+  const t = document.createElement('canvas');
+  t.width = c.width; t.height = c.height;
+  const g = t.getContext('2d');
+  g.drawImage(c, 0, 0);
+  const d = g.getImageData(0, 0, t.width, t.height).data;
+  let lit = 0;
+  for (let i = 0; i < d.length; i += 4) {
+    if (Math.abs(d[i] - 0x14) + Math.abs(d[i + 1] - 0x17) + Math.abs(d[i + 2] - 0x1b) > 40) lit++;
+  }
+  return lit / (d.length / 4);
+})()"""
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("binary")
+    ap.add_argument("out")
+    ap.add_argument("--chromium", default="/usr/bin/chromium")
+    ap.add_argument("--bench", type=float, default=0.0,
+                    help="benchmark mode: keep the page open this many seconds and print the latency")
+    ap.add_argument("replay_args", nargs="*", help="extra replay arguments (after --)")
+    a = ap.parse_args()
+    if not os.path.exists(a.chromium):
+        print(f"browser_test: {a.chromium} not found (scripts/setup.sh installs chromium)", file=sys.stderr)
+        return 1
+    out = os.path.abspath(a.out)
+    shutil.rmtree(out, ignore_errors=True)
+    os.makedirs(out)
+    replay = log = cdp = None
+    user_data = tempfile.mkdtemp(prefix="rb-chromium-")
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
+    try:
+        extra = a.replay_args or ["--live-path"]
+        replay, log, url, token = start_replay(a.binary, out, extra)
+        print(f"browser_test: console at {url}")
+        cdp = Cdp(a.chromium, user_data, os.path.join(out, "chromium.log"))
+        target = cdp.call("Target.createTarget", {"url": "about:blank"}, session=False)["targetId"]
+        cdp.session = cdp.call("Target.attachToTarget", {"targetId": target, "flatten": True},
+                               session=False)["sessionId"]
+        for domain in ("Runtime", "Log", "Page"):
+            cdp.call(domain + ".enable")
+        cdp.call("Emulation.setDeviceMetricsOverride",
+                 {"width": 1440, "height": 1000, "deviceScaleFactor": 1, "mobile": False})
+        cdp.call("Page.navigate", {"url": f"{url}#token={token}"})
+        cdp.wait_for("typeof window.rbConsole === 'object' && window.rbConsole.statusMessages > 0", 30,
+                     "the page and its first status message")
+        if a.bench > 0:
+            return bench(cdp, a.bench)
+        cdp.wait_for("rbConsole.images.depth >= 2 && rbConsole.images.left >= 2 && rbConsole.meshes >= 1", 90,
+                     "depth frames and a mesh")
+        assert cdp.evaluate("rbConsole.webgl") is True, "the page found no WebGL"
+        # The mesh is drawn on the next animation frames: give the renderer a moment.
+        deadline = time.time() + 20
+        lit = 0.0
+        while time.time() < deadline:
+            lit = cdp.evaluate(CANVAS_NON_BLANK)
+            if lit > 0.01:
+                break
+            time.sleep(0.25)
+        assert lit > 0.01, f"the 3D canvas is blank ({lit:.4f} of its pixels differ from the background)"
+        print(f"browser_test: {cdp.evaluate('rbConsole.images.depth')} depth frames, "
+              f"{cdp.evaluate('rbConsole.meshes')} meshes, {100 * lit:.1f}% of the 3D canvas lit")
+
+        # Recording through the page's own buttons.
+        cdp.evaluate("document.getElementById('rec-name').value = 'browser_rec'; "
+                     "document.getElementById('rec-start').click(); true")
+        cdp.wait_for("document.getElementById('feedback').textContent.startsWith('record_start: ok')", 10,
+                     "the recording to start")
+        cdp.wait_for("rbConsole.lastStatus.recording.active && rbConsole.lastStatus.recording.frames_written >= 3",
+                     60, "three recorded frames")
+        cdp.evaluate("document.getElementById('rec-stop').click(); true")
+        cdp.wait_for("document.getElementById('feedback').textContent.startsWith('record_stop: ok')", 20,
+                     "the recording to stop")
+        rec = os.path.join(out, "run", "recordings", "browser_rec")
+        check = subprocess.run([a.binary, "replay", rec, "--out", os.path.join(out, "reread"), "--no-smooth",
+                                "--no-decimate", "--no-previews", "--count", "3", "-q"], cwd=REPO, capture_output=True, text=True,
+                               timeout=120)
+        assert check.returncode == 0, f"the page's recording does not replay: {check.stdout}{check.stderr}"
+        with open(os.path.join(rec, "frames.csv")) as f:
+            frames = len(f.readlines()) - 1
+        assert frames >= 3, f"the page's recording holds {frames} frames"
+        print(f"browser_test: recording from the page: {frames} frames, replayed")
+
+        cdp.evaluate("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+        shot = cdp.call("Page.captureScreenshot", {"format": "png"})
+        import base64
+        with open(os.path.join(out, "console_screenshot.png"), "wb") as f:
+            f.write(base64.b64decode(shot["data"]))
+
+        errors = cdp.console_errors()
+        assert not errors, "console errors on the page:\n  " + "\n  ".join(errors)
+
+        # A wrong token is refused and changes nothing.
+        cdp.evaluate("document.getElementById('token').value = 'not-the-token'; "
+                     "document.getElementById('pause').click(); true")
+        cdp.wait_for("document.getElementById('feedback').textContent.includes('refused (403)')", 10,
+                     "the refusal of a wrong token")
+        time.sleep(1.0)
+        assert cdp.evaluate("rbConsole.lastStatus.settings.paused") is False, "a wrong token paused the run"
+        # The one error the browser logs now is the 403 of that request; nothing else may appear.
+        late = [e for e in cdp.console_errors()[len(errors):] if "403" not in e]
+        assert not late, "console errors after the wrong token:\n  " + "\n  ".join(late)
+        print("browser_test: wrong token refused; screenshot in " + os.path.join(out, "console_screenshot.png"))
+        print("browser_test: passed")
+        return 0
+    finally:
+        for cleanup in (lambda: cdp and cdp.close(), lambda: stop_process(replay), lambda: log and log.close(),
+                        lambda: shutil.rmtree(user_data, ignore_errors=True)):
+            try:
+                cleanup()
+            except Exception as e:  # every process is stopped even when one cleanup fails
+                print(f"browser_test: cleanup: {e}", file=sys.stderr)
+
+
+def bench(cdp, seconds):
+    cdp.wait_for("rbConsole.meshes >= 1", 60, "a first mesh")
+    start = cdp.evaluate("({m: rbConsole.meshes, r: rbConsole.lastStatus.results})")
+    n0 = cdp.evaluate("rbConsole.latencies.length")
+    time.sleep(seconds)
+    end = cdp.evaluate("({m: rbConsole.meshes, r: rbConsole.lastStatus.results, "
+                       "l: rbConsole.latencies.slice(), s: rbConsole.lastStatus})")
+    lat = end["l"][-min(len(end["l"]), max(1, len(end["l"]) - 0)):]
+    lat_sorted = sorted(lat)
+    print(json.dumps({"meshes_on_page": end["m"] - start["m"], "results": end["r"] - start["r"],
+                      "seconds": seconds,
+                      "latency_ms_mean": sum(lat) / len(lat),
+                      "latency_ms_median": lat_sorted[len(lat) // 2],
+                      "latency_samples": len(lat), "status": end["s"]["console"],
+                      "fps_status": end["s"]["fps"]}))
+    del n0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,304 @@
+// The console's server and HTTP API over real loopback sockets: status JSON fields, the page's files and
+// nothing else (traversal attempts), request and message limits, malformed messages, the control token,
+// recording and capture through the API, and back-pressure: a client that never reads loses its own
+// oldest messages (counted) while frames keep flowing through the pipeline.
+#include "console/console.h"
+
+#include <gtest/gtest.h>
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "capture/playback_source.h"
+#include "capture/recording.h"
+#include "console/server.h"
+#include "pipeline/pipeline_control.h"
+#include "tests/capture/test_util.h"
+
+namespace rangebayes {
+namespace {
+
+namespace beast = boost::beast;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+
+constexpr const char* kRecording = "recordings/synth_planes_320x240";
+
+tcp::endpoint Local(int port) { return {net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)}; }
+
+// Sends `request` as is and returns everything the server answers until it closes.
+std::string Exchange(int port, const std::string& request) {
+  net::io_context ioc;
+  tcp::socket s(ioc);
+  s.connect(Local(port));
+  net::write(s, net::buffer(request));
+  std::string out;
+  std::array<char, 4096> buf{};
+  beast::error_code ec;
+  for (;;) {
+    const size_t n = s.read_some(net::buffer(buf), ec);
+    if (ec) break;
+    out.append(buf.data(), n);
+  }
+  return out;
+}
+
+int StatusOf(const std::string& response) {
+  return response.size() > 12 && response.rfind("HTTP/1.1 ", 0) == 0 ? std::stoi(response.substr(9, 3)) : -1;
+}
+
+std::string BodyOf(const std::string& response) {
+  const size_t at = response.find("\r\n\r\n");
+  return at == std::string::npos ? "" : response.substr(at + 4);
+}
+
+std::string Get(int port, const std::string& target) {
+  return Exchange(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+}
+
+std::string Post(int port, const std::string& body, const std::string& token) {
+  return Exchange(port, "POST /api/control HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" +
+                            (token.empty() ? std::string() : "X-Rangebayes-Token: " + token + "\r\n") +
+                            "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
+                            "\r\n\r\n" + body);
+}
+
+template <typename Predicate>
+bool WaitFor(Predicate done, double seconds = 20.0) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return done();
+}
+
+ConsoleOptions TestOptions(const TempDir& dir) {
+  ConsoleOptions o;
+  o.record_root = dir.path() + "/recordings";
+  o.capture_dir = dir.path() + "/captures";
+  o.token = "0123456789abcdef0123456789abcdef";
+  o.status_period_s = 0.05;
+  return o;
+}
+
+PipelineOptions FastOptions() {
+  PipelineOptions p;
+  p.stereo_downsample = 2;
+  p.triangulate.downsample = 2;
+  p.smoothing.tolerance = SmoothTolerance::kFast;
+  p.smoothing.max_iterations = 5;
+  p.decimate = false;
+  p.full_quality_triangulate_downsample = 4;  // keeps the full-quality frame of the test short
+  return p;
+}
+
+class ConsoleTest : public ::testing::Test {
+ protected:
+  ConsoleTest() : dir_("console"), recording_(OpenRecording(kRecording)) {
+    console_ = std::make_unique<Console>(TestOptions(dir_), &control_, recording_.rig, RecordingMeta{});
+  }
+  TempDir dir_;
+  Recording recording_;
+  PipelineControl control_;
+  std::unique_ptr<Console> console_;
+};
+
+TEST_F(ConsoleTest, StatusHasTheIssuesFieldsAndFollowsTheRun) {
+  const std::string before = Get(console_->port(), "/api/status");
+  ASSERT_EQ(StatusOf(before), 200) << before;
+  const nlohmann::json j0 = nlohmann::json::parse(BodyOf(before));
+  for (const char* field : {"frames_in", "results", "dropped", "failed", "stages", "recording", "fps", "queue_fill",
+                            "errors", "settings", "console"}) {
+    EXPECT_TRUE(j0.contains(field)) << field;
+  }
+  EXPECT_FALSE(j0["running"]);
+  // A recording started from the API during the run, and a full-quality capture.
+  ASSERT_EQ(StatusOf(Post(console_->port(), R"({"cmd":"record_start","name":"api_rec"})", TestOptions(dir_).token)),
+            200);
+  control_.RequestFullQuality();
+  PlaybackSource source(recording_);
+  PipelineOptions options = FastOptions();
+  options.control = &control_;
+  options.on_frame = [this](const StereoFrame& f) { console_->OnFrame(f); };
+  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  ASSERT_EQ(s.results, 8);
+  ASSERT_TRUE(WaitFor([&] { return !console_->Status()["captures"].empty(); }));
+  const nlohmann::json j = nlohmann::json::parse(BodyOf(Get(console_->port(), "/api/status")));
+  EXPECT_EQ(j["frames_in"], 8);
+  EXPECT_EQ(j["results"], 8);
+  EXPECT_EQ(j["dropped"], 0);
+  EXPECT_EQ(j["failed"], 0);
+  ASSERT_EQ(j["stages"].size(), 7u);
+  EXPECT_EQ(j["stages"][2]["name"], "stereo");
+  EXPECT_GT(j["stages"][2]["mean_ms"].get<double>(), 0.0);
+  EXPECT_FALSE(j["recording"]["active"]);  // Finish() stopped it
+  EXPECT_EQ(j["recording"]["last"]["frames_written"], 8);
+  EXPECT_GT(j["recording"]["disk_free_bytes"].get<double>(), 0.0);
+  const Recording written = OpenRecording(dir_.path() + "/recordings/api_rec");
+  EXPECT_EQ(written.num_frames(), 8);
+  const std::string ply = Get(console_->port(), j["captures"][0]["url"].get<std::string>());
+  EXPECT_EQ(StatusOf(ply), 200);
+  EXPECT_EQ(BodyOf(ply).rfind("ply\n", 0), 0u);
+}
+
+TEST_F(ConsoleTest, ServesThePageAndNothingElse) {
+  EXPECT_EQ(StatusOf(Get(console_->port(), "/")), 200);
+  EXPECT_NE(Get(console_->port(), "/").find("text/html"), std::string::npos);
+  EXPECT_EQ(StatusOf(Get(console_->port(), "/console.js")), 200);
+  EXPECT_EQ(StatusOf(Get(console_->port(), "/three/build/three.module.js")), 200);
+  EXPECT_EQ(StatusOf(Get(console_->port(), "/three/examples/jsm/controls/OrbitControls.js")), 200);
+  for (const std::string bad :
+       {"/../../../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/three/../../../../etc/passwd",
+        "/three/build/../../../../../../etc/passwd", "//etc/passwd", "/three/build/three.js", "/console.js/..",
+        "/.%2e/.%2e/etc/passwd", "/api/capture/../../etc/passwd", "/api/capture/1.ply", "/three/"}) {
+    const std::string r = Get(console_->port(), bad);
+    EXPECT_EQ(StatusOf(r), 404) << bad;
+    EXPECT_EQ(r.find("root:"), std::string::npos) << bad;
+  }
+  EXPECT_EQ(StatusOf(Exchange(console_->port(), "GET ../etc/passwd HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")),
+            404);
+  EXPECT_EQ(StatusOf(Exchange(console_->port(), "DELETE / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")), 405);
+}
+
+TEST_F(ConsoleTest, ControlNeedsTheTokenAndWellFormedCommands) {
+  const int port = console_->port();
+  const std::string token = TestOptions(dir_).token;
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"pause"})", "")), 403);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"pause"})", "0123456789abcdef0123456789abcdee")), 403);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"pause"})", token.substr(0, 31))), 403);
+  EXPECT_FALSE(control_.settings().paused);
+  EXPECT_EQ(StatusOf(Post(port, "not json", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":42})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"format_disk"})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","stereo_downsample":3})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","matcher":"magic"})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"record_start","name":"../escape"})", token)), 400);
+  EXPECT_FALSE(std::filesystem::exists(dir_.path() + "/escape"));
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"pause"})", token)), 200);
+  EXPECT_TRUE(control_.settings().paused);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","stereo_downsample":4,"smooth_budget_ms":40})", token)), 200);
+  EXPECT_EQ(control_.settings().stereo_downsample, 4);
+  EXPECT_EQ(control_.settings().smooth_budget_ms, 40.0);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","matcher":"spacetime","window_frames":4})", token)), 200);
+  EXPECT_EQ(control_.settings().window_frames, 4);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"record_stop"})", token)), 409);  // not recording
+}
+
+TEST_F(ConsoleTest, OversizedRequestsAreRefused) {
+  const int port = console_->port();
+  // The body is announced but not sent: the limit is checked against Content-Length first.
+  EXPECT_EQ(StatusOf(Exchange(port, "POST /api/control HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n")), 413);
+  EXPECT_EQ(StatusOf(Exchange(port, "GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(20000, 'a') + "\r\n\r\n")),
+            431);
+  EXPECT_EQ(StatusOf(Get(port, "/" + std::string(2000, 'a'))), 414);
+  EXPECT_EQ(StatusOf(Exchange(port, "THIS IS NOT HTTP\r\n\r\n")), 400);
+}
+
+// A WebSocket client that sends one message and reports how the server closed the connection.
+websocket::close_code SendAndReadClose(int port, const std::string& message, bool text) {
+  net::io_context ioc;
+  websocket::stream<tcp::socket> ws(ioc);
+  ws.next_layer().connect(Local(port));
+  ws.handshake("127.0.0.1", "/ws");
+  ws.text(text);
+  beast::error_code ec;
+  ws.write(net::buffer(message), ec);
+  if (ec) return websocket::close_code::none;  // the server closed while the client still wrote
+  beast::flat_buffer buffer;
+  for (int i = 0; i < 1000 && !ec; ++i) {
+    ws.read(buffer, ec);  // status messages may come first
+    buffer.consume(buffer.size());
+  }
+  return ec == websocket::error::closed ? static_cast<websocket::close_code>(ws.reason().code)
+                                         : websocket::close_code::none;
+}
+
+TEST_F(ConsoleTest, OversizedAndMalformedClientMessagesCloseTheConnection) {
+  const int port = console_->port();
+  // Too big: closed with code 1009, or reset before the client finished writing it.
+  const websocket::close_code big = SendAndReadClose(port, std::string(5000, 'x'), true);
+  EXPECT_TRUE(big == websocket::close_code::too_big || big == websocket::close_code::none) << big;
+  EXPECT_TRUE(WaitFor([&] { return console_->server_stats().refused >= 1; }));
+  EXPECT_EQ(SendAndReadClose(port, "not json", true), websocket::close_code::policy_error);
+  EXPECT_EQ(SendAndReadClose(port, R"({"subscribe":{"mesh":7}})", true), websocket::close_code::policy_error);
+  EXPECT_EQ(SendAndReadClose(port, R"({"cmd":"pause"})", true), websocket::close_code::policy_error);
+  EXPECT_EQ(SendAndReadClose(port, "\x01\x02", false), websocket::close_code::policy_error);
+  EXPECT_GE(console_->server_stats().refused, 5);
+  EXPECT_FALSE(control_.settings().paused);  // no control over the WebSocket
+}
+
+// A client that completes the handshake and then never reads, with the smallest socket buffers.
+struct StalledClient {
+  net::io_context ioc;
+  websocket::stream<tcp::socket> ws{ioc};
+  explicit StalledClient(int port) {
+    ws.next_layer().open(tcp::v4());
+    ws.next_layer().set_option(net::socket_base::receive_buffer_size(1024));
+    ws.next_layer().connect(Local(port));
+    ws.handshake("127.0.0.1", "/ws");
+  }
+};
+
+TEST(ConsoleServer, AClientThatNeverReadsLosesItsOldestMessagesOnly) {
+  ConsoleServerOptions o;
+  o.send_buffer_bytes = 4096;
+  ConsoleServer server(o, [](const HttpRequest&) { return HttpReply{404, "text/plain", "", {}}; });
+  StalledClient stalled(server.port());
+  net::io_context ioc;
+  websocket::stream<tcp::socket> reader(ioc);
+  reader.next_layer().connect(Local(server.port()));
+  reader.handshake("127.0.0.1", "/ws");
+  ASSERT_TRUE(WaitFor([&] { return server.stats().clients == 2; }));
+  constexpr int kMessages = 200;
+  for (int i = 0; i < kMessages; ++i) {
+    std::string m(64 * 1024, 'm');
+    const std::string seq = std::to_string(i);
+    m.replace(0, seq.size() + 1, seq + ":");
+    server.Broadcast(std::make_shared<const std::string>(std::move(m)), true, "image/left");
+  }
+  // The newest message always survives: the reading client gets it.
+  int last = -1;
+  beast::flat_buffer buffer;
+  while (last != kMessages - 1) {
+    reader.read(buffer);
+    const std::string m = beast::buffers_to_string(buffer.data());
+    buffer.consume(buffer.size());
+    last = std::stoi(m.substr(0, m.find(':')));
+  }
+  const ConsoleServerStats s = server.stats();
+  // The stalled client can hold the 2 queued, 1 in flight and what fits its socket buffers (a few KB):
+  // all the rest of its 200 are dropped.
+  EXPECT_GE(s.messages_dropped, kMessages - 10);
+  EXPECT_EQ(s.clients, 2);
+}
+
+TEST_F(ConsoleTest, AStalledClientDoesNotHoldThePipeline) {
+  // Shrunk server socket buffers so that the stalled client fills up within a few frames.
+  ConsoleOptions o = TestOptions(dir_);
+  o.server.send_buffer_bytes = 4096;
+  console_.reset();
+  console_ = std::make_unique<Console>(o, &control_, recording_.rig, RecordingMeta{});
+  StalledClient stalled(console_->port());
+  ASSERT_TRUE(WaitFor([&] { return console_->server_stats().clients == 1; }));
+  PlaybackOptions playback;
+  playback.repeats = 3;
+  PlaybackSource source(recording_, playback);
+  PipelineOptions options = FastOptions();
+  options.control = &control_;
+  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  EXPECT_EQ(s.results, 24);  // every frame went through
+  EXPECT_EQ(s.failed, 0);
+  // Each published result sends four images and meshes of tens of KB: far more than a stalled reader's
+  // buffers and its queue of 2 per topic hold, so its drops are counted.
+  ASSERT_TRUE(WaitFor([&] { return console_->Status()["console"]["results_published"].get<int>() >= 1; }));
+  EXPECT_GT(console_->Status()["console"]["messages_dropped"].get<int>(), 0);
+}
+
+}  // namespace
+}  // namespace rangebayes

@@ -1,0 +1,123 @@
+// The console's wire format and small checks: message framing, mesh payloads, the wire-mesh reduction,
+// --ui parsing, token comparison, names of recordings made from the page.
+#include "console/protocol.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+Mesh Grid(int n) {  // an n×n vertex grid on the plane z = 1, two triangles per cell
+  Mesh m;
+  m.V.resize(n * n, 3);
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) m.V.row(y * n + x) << x * 0.01, y * 0.01, 1.0;
+  }
+  m.F.resize(2 * (n - 1) * (n - 1), 3);
+  int f = 0;
+  for (int y = 0; y + 1 < n; ++y) {
+    for (int x = 0; x + 1 < n; ++x) {
+      const int a = y * n + x;
+      m.F.row(f++) << a, a + 1, a + n;
+      m.F.row(f++) << a + 1, a + n + 1, a + n;
+    }
+  }
+  return m;
+}
+
+TEST(ConsoleProtocol, MessageRoundTripKeepsHeaderAndAlignsPayload) {
+  for (const std::string name : {"a", "ab", "abc", "abcd"}) {  // every header length modulo 4
+    const std::string msg = EncodeConsoleMessage(ConsoleMessageType::kMesh, {{"k", name}}, "PAYLOAD!");
+    const ConsoleMessage m = DecodeConsoleMessage(msg);
+    EXPECT_EQ(m.type, ConsoleMessageType::kMesh);
+    EXPECT_EQ(m.header["k"], name);
+    EXPECT_EQ(m.payload, "PAYLOAD!");
+    EXPECT_EQ((m.payload.data() - msg.data()) % 4, 0);  // Float32Array needs 4-byte alignment
+  }
+}
+
+TEST(ConsoleProtocol, MalformedMessagesAreRefused) {
+  EXPECT_THROW(DecodeConsoleMessage("abc"), Error);
+  std::string msg = EncodeConsoleMessage(ConsoleMessageType::kImage, {{"k", 1}}, "x");
+  std::string bad_type = msg;
+  bad_type[0] = 7;
+  EXPECT_THROW(DecodeConsoleMessage(bad_type), Error);
+  std::string long_header = msg;
+  long_header[4] = static_cast<char>(0xff);
+  long_header[5] = static_cast<char>(0xff);
+  EXPECT_THROW(DecodeConsoleMessage(long_header), Error);
+  std::string bad_json = msg;
+  bad_json[8] = '!';
+  EXPECT_THROW(DecodeConsoleMessage(bad_json), Error);
+}
+
+TEST(ConsoleProtocol, MeshPayloadRoundTripAndRefusals) {
+  const Mesh grid = Grid(4);
+  const std::string p = EncodeMeshPayload(grid);
+  EXPECT_EQ(p.size(), 8 + 12 * 16 + 12 * 18u);
+  const Mesh back = DecodeMeshPayload(p);
+  EXPECT_EQ(back.F, grid.F);
+  EXPECT_LT((back.V - grid.V).cwiseAbs().maxCoeff(), 1e-6);  // float32
+  EXPECT_THROW(DecodeMeshPayload(p.substr(0, p.size() - 1)), Error);
+  std::string bad_index = p;
+  bad_index[p.size() - 4] = 99;  // last face names vertex 99 of 16
+  EXPECT_THROW(DecodeMeshPayload(bad_index), Error);
+}
+
+TEST(ConsoleProtocol, WireMeshKeepsSmallMeshesAndReducesLargeOnes) {
+  const Mesh small = Grid(10);
+  const Mesh same = WireMesh(small);
+  EXPECT_EQ(same.F, small.F);
+  EXPECT_EQ(same.V, small.V);
+  const Mesh large = Grid(201);  // 80,000 faces
+  WireMeshOptions o;
+  o.max_faces = 5000;
+  const Mesh wire = WireMesh(large, o);
+  // The cell size comes from the area: on a plane about max_faces remain (cells cut by the grid: ±30%).
+  EXPECT_GT(wire.num_faces(), 3500);
+  EXPECT_LT(wire.num_faces(), 6500);
+  EXPECT_LT((wire.V.col(2).array() - 1.0).abs().maxCoeff(), 1e-12);  // vertices stay on the plane
+  EXPECT_GE(wire.V.col(0).minCoeff(), 0.0);
+  EXPECT_LE(wire.V.col(0).maxCoeff(), 2.0);
+  for (int f = 0; f < wire.num_faces(); ++f) {
+    EXPECT_NE(wire.F(f, 0), wire.F(f, 1));
+    EXPECT_NE(wire.F(f, 1), wire.F(f, 2));
+    EXPECT_NE(wire.F(f, 0), wire.F(f, 2));
+  }
+}
+
+TEST(ConsoleProtocol, UiAddress) {
+  EXPECT_EQ(ParseUiAddress("8080").address, "127.0.0.1");
+  EXPECT_EQ(ParseUiAddress("8080").port, 8080);
+  EXPECT_EQ(ParseUiAddress("0.0.0.0:9000").address, "0.0.0.0");
+  EXPECT_EQ(ParseUiAddress("0.0.0.0:9000").port, 9000);
+  EXPECT_EQ(ParseUiAddress("127.0.0.1:0").port, 0);
+  EXPECT_THROW(ParseUiAddress("http"), Error);
+  EXPECT_THROW(ParseUiAddress("70000"), Error);
+  EXPECT_THROW(ParseUiAddress(":80"), Error);
+  EXPECT_THROW(ParseUiAddress("1.2.3.4:"), Error);
+}
+
+TEST(ConsoleProtocol, TokensAndNames) {
+  const std::string t = MakeConsoleToken();
+  EXPECT_EQ(t.size(), 32u);
+  EXPECT_NE(t, MakeConsoleToken());
+  EXPECT_TRUE(ConstantTimeEqual(t, t));
+  EXPECT_FALSE(ConstantTimeEqual(t, t.substr(0, 31)));
+  EXPECT_FALSE(ConstantTimeEqual(t, t + "0"));
+  EXPECT_FALSE(ConstantTimeEqual(t, ""));
+  std::string other = t;
+  other[31] = other[31] == 'a' ? 'b' : 'a';
+  EXPECT_FALSE(ConstantTimeEqual(t, other));
+  EXPECT_TRUE(IsValidRecordingName("session_1-a.b"));
+  for (const std::string& bad : std::vector<std::string>{"", "..", "../x", ".hidden", "a/b", "a\\b", "x y", std::string(65, 'a')}) {
+    EXPECT_FALSE(IsValidRecordingName(bad)) << bad;
+  }
+}
+
+}  // namespace
+}  // namespace rangebayes

@@ -1,0 +1,244 @@
+// The rangebayes operator's console: reads the WebSocket stream of the process that serves this page
+// (console/protocol.h describes the binary messages) and sends commands to POST /api/control.
+import * as THREE from '/three/build/three.module.js';
+import { OrbitControls } from '/three/examples/jsm/controls/OrbitControls.js';
+
+const $ = (id) => document.getElementById(id);
+const state = {
+  images: { left: 0, depth: 0, sigma: 0 },
+  meshes: 0,
+  meshKind: 'smoothed',
+  statusMessages: 0,
+  lastStatus: null,
+  latencies: [],
+  captures: [],
+  webgl: false,
+};
+window.rbConsole = state;  // for tests and the benchmark
+
+const hash = new URLSearchParams(location.hash.slice(1));
+if (hash.get('token')) $('token').value = hash.get('token');
+
+// --- 3D view -------------------------------------------------------------------------------------
+const view = $('view3d');
+let renderer = null, scene, camera, controls, meshObject = null, framed = false, renderPending = false;
+try {
+  renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  state.webgl = true;
+} catch (e) {
+  view.textContent = 'no WebGL in this browser: the 3D view is off';
+}
+if (renderer) {
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.setClearColor(0x14171b);
+  view.appendChild(renderer.domElement);
+  state.canvas = renderer.domElement;
+  scene = new THREE.Scene();
+  camera = new THREE.PerspectiveCamera(50, 1, 0.01, 1000);
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 0.55));
+  const head = new THREE.DirectionalLight(0xffffff, 0.75);
+  camera.add(head);
+  scene.add(camera);
+  controls = new OrbitControls(camera, renderer.domElement);
+  // Drawn only when something changed: an idle page costs the rig's CPU nothing.
+  controls.addEventListener('change', () => requestRender());
+  const resize = () => {
+    const w = view.clientWidth, h = view.clientHeight;
+    renderer.setSize(w, h, false);
+    renderer.domElement.style.width = w + 'px';
+    renderer.domElement.style.height = h + 'px';
+    camera.aspect = w / Math.max(1, h);
+    camera.updateProjectionMatrix();
+    requestRender();
+  };
+  window.addEventListener('resize', resize);
+  resize();
+}
+function requestRender() {
+  if (!renderer || renderPending) return;
+  renderPending = true;
+  requestAnimationFrame(() => {
+    renderPending = false;
+    renderer.render(scene, camera);
+  });
+}
+
+function frameView(geometry) {
+  geometry.computeBoundingSphere();
+  const s = geometry.boundingSphere;
+  // Start where the rig's left camera is, looking at the surface; the operator orbits from there.
+  camera.position.set(0, 0, 0);
+  camera.near = Math.max(1e-3, s.radius / 100);
+  camera.far = (s.center.length() + s.radius) * 10 + 1;
+  camera.updateProjectionMatrix();
+  controls.target.copy(s.center);
+  if (s.center.length() < 1e-9) camera.position.set(0, 0, s.radius * 3);
+  controls.update();
+}
+$('reset-view').onclick = () => { if (meshObject) frameView(meshObject.geometry); };
+
+function showMesh(header, nv, nf, positions, faces) {
+  if (!renderer) return;
+  const p = new Float32Array(positions.length);
+  // Camera frame (x right, y down, z forward) to three.js (y up, looking along -z).
+  for (let i = 0; i < positions.length; i += 3) {
+    p[i] = positions[i]; p[i + 1] = -positions[i + 1]; p[i + 2] = -positions[i + 2];
+  }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', new THREE.BufferAttribute(p, 3));
+  g.setIndex(new THREE.BufferAttribute(faces, 1));
+  g.computeVertexNormals();
+  if (!meshObject) {
+    const material = new THREE.MeshPhongMaterial({ color: 0xb9c7d6, specular: 0x222222, shininess: 20, side: THREE.DoubleSide });
+    meshObject = new THREE.Mesh(g, material);
+    scene.add(meshObject);
+  } else {
+    meshObject.geometry.dispose();
+    meshObject.geometry = g;
+  }
+  if (!framed) { frameView(g); framed = true; }
+  requestRender();
+  $('mesh-info').textContent = `${header.kind}, frame ${header.frame}: ${header.faces} faces on the wire (${header.source_faces} in the pipeline)`;
+  requestAnimationFrame(() => {
+    const latency = header.age_ms + (Date.now() - header.sent_unix_ms);
+    state.latencies.push(latency);
+    if (state.latencies.length > 200) state.latencies.shift();
+    const recent = state.latencies.slice(-20);
+    $('latency').textContent = (recent.reduce((a, b) => a + b, 0) / recent.length).toFixed(0);
+  });
+}
+
+for (const b of document.querySelectorAll('#mesh-kinds button')) {
+  b.onclick = () => selectKind(b.dataset.kind);
+}
+function selectKind(kind) {
+  state.meshKind = kind;
+  for (const b of document.querySelectorAll('#mesh-kinds button')) b.classList.toggle('on', b.dataset.kind === kind);
+  if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ subscribe: { mesh: kind } }));
+}
+
+// --- stream --------------------------------------------------------------------------------------
+const imageUrls = {};
+function showImage(header, payload) {
+  const el = $('img-' + header.kind);
+  if (!el) return;
+  const url = URL.createObjectURL(new Blob([payload], { type: header.format === 'png' ? 'image/png' : 'image/jpeg' }));
+  if (imageUrls[header.kind]) URL.revokeObjectURL(imageUrls[header.kind]);
+  imageUrls[header.kind] = url;
+  el.src = url;
+  state.images[header.kind] = (state.images[header.kind] || 0) + 1;
+  if (header.kind === 'depth') { $('depth-near').textContent = header.min.toFixed(2) + ' m'; $('depth-far').textContent = header.max.toFixed(2) + ' m'; }
+  if (header.kind === 'sigma') { $('sigma-lo').textContent = (header.min * 1000).toFixed(1) + ' mm'; $('sigma-hi').textContent = (header.max * 1000).toFixed(1) + ' mm'; }
+  $('frame').textContent = header.frame;
+  $('sigma-note').textContent = state.images.depth > 3 && !state.images.sigma
+    ? '- none from this matcher (SGBM): choose space-time' : '';
+}
+
+function onBinary(buf) {
+  const dv = new DataView(buf);
+  const type = dv.getUint8(0);
+  const n = dv.getUint32(4, true);
+  const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 8, n)));
+  const start = Math.ceil((8 + n) / 4) * 4;
+  if (type === 1) {
+    showImage(header, buf.slice(start));
+  } else if (type === 2) {
+    const nv = dv.getUint32(start, true), nf = dv.getUint32(start + 4, true);
+    const positions = new Float32Array(buf, start + 8, nv * 3);
+    const faces = new Uint32Array(buf, start + 8 + 12 * nv, nf * 3);
+    state.meshes++;
+    showMesh(header, nv, nf, positions, faces);
+  }
+}
+
+const fmtBytes = (b) => b < 0 ? '?' : b > 1e9 ? (b / 1e9).toFixed(1) + ' GB' : (b / 1e6).toFixed(0) + ' MB';
+function onStatus(s) {
+  state.statusMessages++;
+  state.lastStatus = s;
+  $('fps').textContent = s.fps.toFixed(1);
+  const run = $('run');
+  run.textContent = s.settings.paused ? 'paused' : s.running ? 'running' : s.finished ? 'finished' : 'waiting';
+  run.className = 'pill ' + (s.settings.paused ? 'warn' : s.running ? 'ok' : '');
+  const c = s.console;
+  $('counters').innerHTML = [
+    ['frames in', s.frames_in], ['results', s.results], ['dropped', s.dropped], ['failed', s.failed],
+    ['skipped', s.skipped], ['to this page: dropped', c.messages_dropped], ['console skipped', c.results_skipped],
+  ].map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
+  $('stages').querySelector('tbody').innerHTML = s.stages.map((t) =>
+    `<tr><td>${t.name}</td><td>${t.mean_ms.toFixed(1)}</td><td>${t.items}</td><td>${t.errors}</td></tr>`).join('');
+  $('queues').innerHTML = s.queue_fill.map((f, i) =>
+    `<div class="queue">queue ${i + 1} <div class="fill" style="width:${Math.round(60 * f / Math.max(1, s.queue_capacity))}px"></div> ${f}/${s.queue_capacity}</div>`).join('');
+  const r = s.recording;
+  $('recording').innerHTML = r.active
+    ? `<b>recording</b> into ${r.folder}: ${r.frames_written} frames written, ${r.frames_dropped} dropped${r.error ? ', error: ' + r.error : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`
+    : `not recording${r.last && r.last.name ? ` (last: ${r.last.folder}, ${r.last.frames_written} frames)` : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`;
+  $('errors').innerHTML = s.errors.map((e) => `<li>${e.replace(/</g, '&lt;')}</li>`).join('');
+  if (document.activeElement !== $('budget')) $('budget').value = s.settings.smooth_budget_ms;
+  if (document.activeElement !== $('ds')) $('ds').value = String(s.settings.stereo_downsample);
+  if (document.activeElement !== $('matcher')) $('matcher').value = s.settings.matcher;
+  if (document.activeElement !== $('window')) $('window').value = s.settings.window_frames;
+  for (const b of document.querySelectorAll('#mesh-kinds button')) b.disabled = !s.mesh_kinds.includes(b.dataset.kind);
+  if (s.mesh_kinds.length && !s.mesh_kinds.includes(state.meshKind)) selectKind(s.mesh_kinds[s.mesh_kinds.length > 1 ? 1 : 0]);
+  for (const cap of s.captures) addCapture(cap);
+}
+
+function addCapture(cap) {
+  if (state.captures.includes(cap.id)) return;
+  state.captures.push(cap.id);
+  const li = document.createElement('li');
+  li.innerHTML = `<a href="${cap.url}" download>capture ${cap.id}</a> (frame ${cap.frame}, ${cap.faces} faces, PLY)`;
+  $('captures').appendChild(li);
+}
+
+let ws = null;
+function connect() {
+  ws = new WebSocket(`ws://${location.host}/ws`);
+  ws.binaryType = 'arraybuffer';
+  ws.onopen = () => {
+    $('conn').textContent = 'connected'; $('conn').className = 'pill ok';
+    ws.send(JSON.stringify({ subscribe: { mesh: state.meshKind } }));
+  };
+  ws.onmessage = (ev) => {
+    if (typeof ev.data === 'string') {
+      const m = JSON.parse(ev.data);
+      if (m.type === 'status') onStatus(m);
+      else if (m.type === 'capture') addCapture(m);
+    } else {
+      onBinary(ev.data);
+    }
+  };
+  ws.onclose = () => {
+    $('conn').textContent = 'disconnected'; $('conn').className = 'pill bad';
+    setTimeout(connect, 1000);
+  };
+}
+connect();
+
+// --- controls ------------------------------------------------------------------------------------
+async function control(body) {
+  const fb = $('feedback');
+  let reply;
+  try {
+    const r = await fetch('/api/control', {
+      method: 'POST',
+      headers: { 'Content-Type': 'application/json', 'X-Rangebayes-Token': $('token').value.trim() },
+      body: JSON.stringify(body),
+    });
+    reply = { status: r.status, body: await r.json() };
+  } catch (e) {
+    reply = { status: 0, body: { error: String(e) } };
+  }
+  fb.className = reply.status === 200 ? '' : 'err';
+  fb.textContent = reply.status === 200 ? `${body.cmd}: ok${reply.body.folder ? ' (' + reply.body.folder + ')' : ''}`
+                                        : `${body.cmd}: refused (${reply.status}): ${reply.body.error}`;
+  return reply;
+}
+state.control = control;
+$('pause').onclick = () => control({ cmd: 'pause' });
+$('resume').onclick = () => control({ cmd: 'resume' });
+$('capture').onclick = () => control({ cmd: 'capture_now' });
+$('rec-start').onclick = () => control({ cmd: 'record_start', name: $('rec-name').value.trim() });
+$('rec-stop').onclick = () => control({ cmd: 'record_stop' });
+$('budget-set').onclick = () => control({ cmd: 'set', smooth_budget_ms: Number($('budget').value) });
+$('ds-set').onclick = () => control({ cmd: 'set', stereo_downsample: Number($('ds').value) });
+$('matcher-set').onclick = () => control({ cmd: 'set', matcher: $('matcher').value, window_frames: Number($('window').value) });
