@@ -1,4 +1,4 @@
-// `rangebayes smooth IN OUT` (Bayesian smoothing, bayes/smooth.h) and `rangebayes eval GT RESULT` (DESIGN §7).
+// `rangebayes smooth IN OUT` (Bayesian smoothing, bayes/smooth.h) and `rangebayes eval GT RESULT` (docs/design.md §7).
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Per-face ε² for the square-root prior φ(d) = sqrt(d² + ε²) (DESIGN §4, last paragraph): one global ε cannot
+// Per-face ε² for the square-root prior φ(d) = sqrt(d² + ε²) (docs/design.md §4, last paragraph): one global ε cannot
 // serve both sharp CAD shapes (small ε keeps creases) and smooth, finely detailed scans (a larger ε makes φ
 // quadratic for the normal differences that gentle curvature produces, so it is not flattened into facets).
 //

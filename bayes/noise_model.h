@@ -1,4 +1,4 @@
-// The generic noise model for meshes that did not come from our cameras (DESIGN §3.2): per vertex a
+// The generic noise model for meshes that did not come from our cameras (docs/design.md §3.2): per vertex a
 // covariance with standard deviation σ along the mean of the adjacent face normals and σ / across_ratio across
 // it, σ = k · l_e (l_e the mean edge length) given as k, as σ in model units, or estimated from the mesh.
 #pragma once

@@ -1,5 +1,5 @@
 // Pairwise potentials φ(d) of the smoothing prior over the normal difference d = ‖n_s − n_t‖ ∈ [0, 2] of two
-// faces that share an edge (paper eq. 9–11, DESIGN §3.1). The smoother sees only this interface, so any
+// faces that share an edge (paper eq. 9–11, docs/design.md §3.1). The smoother sees only this interface, so any
 // potential (the learned spline of bayes/spline_potential.h included) plugs in by deriving from Potential.
 #pragma once
 

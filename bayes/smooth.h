@@ -1,4 +1,4 @@
-// Bayesian mesh smoothing: the MAP estimate of paper §3–4 (DESIGN §3) by nonlinear conjugate gradient.
+// Bayesian mesh smoothing: the MAP estimate of paper §3–4 (docs/design.md §3) by nonlinear conjugate gradient.
 //
 //   Mesh smoothed = Smooth(noisy_mesh, options, &summary);
 //
@@ -6,7 +6,7 @@
 // multiplied by β = SmoothOptions::prior_weight. For a mesh that did not come from our cameras, build the
 // covariances with MakeGenericNoisyMesh (bayes/noise_model.h) first.
 //
-// The default rule (DESIGN §3.2, measured in BENCHMARKS.md "Bayesian smoothing"): the data term carries all
+// The default rule (docs/design.md §3.2, measured in BENCHMARKS.md "Bayesian smoothing"): the data term carries all
 // units (W = ½ Σ⁻¹; for a generic mesh Σ = σ² I with σ = k·l_e, so W scales with the mesh and its noise), the
 // prior is unitless, and one constant β = 2.4 (square-root prior, ε² = 1e-4, each face pair counted once)
 // balances them on every mesh. Why a constant works: at the MAP, a vertex moved by about σ costs O(1) in the

@@ -1,4 +1,4 @@
-// The MAP smoothing energy of paper eq. 11 (DESIGN §3.1) and its gradient (eqs. 13–16, DESIGN §3.3):
+// The MAP smoothing energy of paper eq. 11 (docs/design.md §3.1) and its gradient (eqs. 13–16, docs/design.md §3.3):
 //
 //   E(x) = Σ_i (z_i − x_i)ᵀ W_i (z_i − x_i) + β Σ_(s,t) φ(‖n_s − n_t‖)
 //

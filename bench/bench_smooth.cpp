@@ -3,7 +3,7 @@
 //   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight] 
 //                        [--beta B] [--ratio R] [--eps2 E] [--prior sqrt|quadratic|cauchy] [--cases a,b,...]
 //       runs every denoising case of DIR (default ../shared/data/meshes) and prints a Markdown table of the
-//       mean angular error (degrees) beside DESIGN.md §4's reference points.
+//       mean angular error (degrees) beside the reference points of docs/journal/benchmarks-sessions-1-4.md.
 //   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K]
 //                      [--repeat R] [--gt GT] [--file-covariance]
 //                      [--energy-tolerance E] [--kernel portable|avx2]
@@ -40,7 +40,7 @@ struct Case {
   std::string gt;
   std::string noisy;
   double k;
-  double reference;  // DESIGN §4 reference minimiser (NaN: none)
+  double reference;  // reference minimiser of docs/journal/benchmarks-sessions-1-4.md (NaN: none)
   double target;     // issue 3's quality target (NaN: none)
   std::string anchor;
 };
@@ -140,7 +140,7 @@ int Quality(std::map<std::string, std::string>& flags) {
   GenericNoiseOptions noise;
   if (flags.count("--ratio")) noise.across_ratio = std::stod(flags["--ratio"]);
   std::string selected = flags.count("--cases") ? flags["--cases"] : "";
-  std::printf("| case | k given | k used | ours MAE (deg) | DESIGN §4 reference | target | best classical / published | iterations | evaluations | energy | time (s) | CPU (s) |\n");
+  std::printf("| case | k given | k used | ours MAE (deg) | reference (journal) | target | best classical / published | iterations | evaluations | energy | time (s) | CPU (s) |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Case& c : Cases()) {
     if (!selected.empty() && selected.find(c.name.substr(0, c.name.find(' '))) == std::string::npos) continue;

@@ -1,4 +1,4 @@
-// The disparity-noise model of DESIGN §2 (σ_d of a disparity measurement, pixels), its YAML file (noise.yaml,
+// The disparity-noise model of docs/design.md §2 (σ_d of a disparity measurement, pixels), its YAML file (noise.yaml,
 // OpenCV FileStorage) and its maximum-likelihood fit from residuals about a known target.
 #pragma once
 

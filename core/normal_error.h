@@ -1,4 +1,4 @@
-// Mean angular error of face normals (DESIGN §7): the quality measure of the denoising literature, used by
+// Mean angular error of face normals (docs/design.md §7): the quality measure of the denoising literature, used by
 // `rangebayes eval`, the learned-prior objective reports and the smoothing benchmarks and tests.
 #pragma once
 

@@ -1,7 +1,7 @@
 // Pose files of multi-scan sets in the Stanford `.conf` format (bun.conf): one line per scan,
 //   bmesh FILE tx ty tz qx qy qz qw
 // meaning p_world = R(q)ᵀ·p_scan + t, R(q) the rotation matrix of the unit quaternion (x, y, z, w): the file's
-// quaternion rotates by its conjugate (measured on the Stanford bunny, DESIGN.md §9). A `camera ...` line (a
+// quaternion rotates by its conjugate (measured on the Stanford bunny, docs/design.md §9). A `camera ...` line (a
 // viewer setting) is ignored on reading and not written.
 #pragma once
 

@@ -1,5 +1,5 @@
 // Simultaneous alignment of many range scans that weights every correspondence by the two points'
-// covariances (generalized ICP, Segal, Haehnel, Thrun 2009, extended to all scans at once: DESIGN §9).
+// covariances (generalized ICP, Segal, Haehnel, Thrun 2009, extended to all scans at once: docs/design.md §9).
 //
 // For a correspondence (p in scan a, its nearest neighbour q in scan b) the residual r = T_a p − T_b q has
 // covariance C = R_a Σ_p R_aᵀ + R_b Σ_q R_bᵀ + s²(I − n nᵀ), n the normal at q and s a sliding term across

@@ -29,7 +29,7 @@ struct Scan {
 
 struct RangeGridScanOptions {
   // Noise of the range measurement along the ray and across it (model units; the Stanford scans are in
-  // metres). 0.2 mm / 0.05 mm: the Cyberware 3030MS's inter-scan residuals (median 0.23–0.33 mm, DESIGN §9)
+  // metres). 0.2 mm / 0.05 mm: the Cyberware 3030MS's inter-scan residuals (median 0.23–0.33 mm, docs/design.md §9)
   // are about √2·σ_ray; lateral position comes from a 0.25–0.5 mm grid of known motor steps.
   double sigma_range = 2e-4;    // > 0
   double sigma_lateral = 5e-5;  // > 0

@@ -1,4 +1,4 @@
-// Volumetric fusion of aligned scans (Curless & Levoy 1996, DESIGN §9): a truncated signed distance on a
+// Volumetric fusion of aligned scans (Curless & Levoy 1996, docs/design.md §9): a truncated signed distance on a
 // voxel grid, each measurement weighted by its information along its viewing ray, and the zero crossing
 // extracted by marching cubes.
 //

@@ -1,4 +1,4 @@
-// Quality metrics of a smoothed (or decimated) mesh against a ground-truth mesh (DESIGN §7).
+// Quality metrics of a smoothed (or decimated) mesh against a ground-truth mesh (docs/design.md §7).
 #pragma once
 
 #include <Eigen/Core>

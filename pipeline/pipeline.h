@@ -1,4 +1,4 @@
-// The stereo-to-mesh pipeline (DESIGN.md §1): capture → rectify → stereo (one frame, or space-time over a
+// The stereo-to-mesh pipeline (docs/design.md §1): capture → rectify → stereo (one frame, or space-time over a
 // window of frames) → triangulate → smooth → decimate → sinks, each stage in its own thread, connected by
 // bounded queues. Replay (QueueFullPolicy::kBlock) never drops a frame; live (kDropOldest) drops the oldest
 // captured frame when the pipeline is busy and counts it: only the queue after capture drops, every later

@@ -1,4 +1,4 @@
-// Organized triangulation of a depth image into a NoisyMesh with the ray-aligned covariance of DESIGN.md §2.
+// Organized triangulation of a depth image into a NoisyMesh with the ray-aligned covariance of docs/design.md §2.
 //
 // PCL's OrganizedFastMesh does the same grid triangulation, but it cannot carry a covariance per vertex and
 // its discontinuity test is a fixed length (or a fixed angle), not a threshold scaled by each pixel's depth
@@ -37,7 +37,7 @@ struct TriangulateSummary {
 // Covariance per vertex: Σ = σ_ray² r rᵀ + σ_lat² (I − r rᵀ), r the unit ray, σ_ray = σ_Z / r_z (σ_Z =
 // Z²/(f·B)·σ_d is along the optical axis; along the ray it is longer by 1/cos) and σ_lat² = (Z·σ_px/f)²·
 // (Z² + |p|²)/(2|p|²): half the trace of the pixel error's covariance (σ_px per image axis, the point moved by
-// Z/f·δ at its depth) across the ray, i.e. DESIGN.md §2's Z/f·σ_px on the axis, ≈ 7% less at 53° off it.
+// Z/f·δ at its depth) across the ray, i.e. docs/design.md §2's Z/f·σ_px on the axis, ≈ 7% less at 53° off it.
 // NoisyMesh::pixel holds each vertex's (u, v) at full resolution. Throws Error on an empty frame or
 // inconsistent sizes.
 NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options = {},

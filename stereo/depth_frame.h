@@ -1,4 +1,4 @@
-// A depth image in the rectified left view, with its per-pixel uncertainty (DESIGN.md §2).
+// A depth image in the rectified left view, with its per-pixel uncertainty (docs/design.md §2).
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// Scoring a disparity map against ground truth (Middlebury's bad-N and RMS, DESIGN.md §7).
+// Scoring a disparity map against ground truth (Middlebury's bad-N and RMS, docs/design.md §7).
 #pragma once
 
 #include <opencv2/core.hpp>

@@ -594,7 +594,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
             continue;
           }
           // Linearising the right image about the minimum gives var(d̂) = 2σ_n²/Σg² with noise σ_n in both
-          // images, and the cost curvature is C″ = 2Σg², so σ_pred² = 4σ_n²/C″ (DESIGN.md §2 writes the
+          // images, and the cost curvature is C″ = 2Σg², so σ_pred² = 4σ_n²/C″ (docs/design.md §2 writes the
           // same relation for a cost scaled by ½).
           const double noise =
               options_.image_noise_gray * (noise_left.empty() ? 1.0 : noise_left[static_cast<size_t>(y) * W + x]);

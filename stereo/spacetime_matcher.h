@@ -1,7 +1,7 @@
 // Our space-time stereo matcher (Davis, Nehab, Ramamoorthi, Rusinkiewicz 2005; Zhang, Curless, Seitz 2003):
 // the matching cost of a left pixel at disparity d is summed over a w×w×T spatio-temporal window, the
 // disparity is the winner-take-all minimum refined by a parabola through the three costs around it, a
-// left-right check removes occlusions and mismatches, and σ_d comes from the cost curvature (DESIGN.md §2).
+// left-right check removes occlusions and mismatches, and σ_d comes from the cost curvature (docs/design.md §2).
 // With T = 1 it is a single-frame block matcher that also yields σ_d.
 #pragma once
 
@@ -25,7 +25,7 @@ struct SpaceTimeMatcherOptions {
   double left_right_max_diff_px = 1.0;  // < 0: off; else max |d_left − d_right| (integer disparities)
   double image_noise_gray = 2.0;     // > 0: σ_n of one image sample, grey levels of the input (8-bit: 0–255)
   // σ_d = sqrt(floor² + (scale · σ_pred)² + J), σ_pred² = 4σ_eff²/C″ + … from the cost curvature at the integer
-  // minimum (DESIGN.md §2; the other terms below). Fitted by maximum likelihood (J off) on synthetic scenes
+  // minimum (docs/design.md §2; the other terms below). Fitted by maximum likelihood (J off) on synthetic scenes
   // from stereo/synth (planes, sphere, box, cylinder, stairs; 320×240, noise 2 grey levels, seeds 5–6;
   // residuals beyond 5σ left out as outliers, 0.5–0.8% of pixels; `bench_stereo --quality=sigmafit`) with
   // parabola sub-pixel refinement: T = 8 gives floor 0.03 px (the parabola's pixel-locking bias, which no

@@ -47,7 +47,7 @@ struct SynthOptions {
   double optics_blur_px = 0.5;     // 0–5: σ of the lens blur (Gaussian), camera pixels
   double ambient = 0.08;           // 0–1: light not from the projector (share of full scale)
   int supersample = 3;             // 1–8: samples per pixel side (anti-aliased stripes and edges)
-  // Pixel localisation error (DESIGN.md §2, σ_px): 0–2 px, 0 off. The left pixel (u, v) is rendered from the
+  // Pixel localisation error (docs/design.md §2, σ_px): 0–2 px, 0 off. The left pixel (u, v) is rendered from the
   // ray through (u + δu, v + δv), δ ~ N(0, σ²) per component, fixed for the whole sequence: a residual
   // distortion of the rectified rig that calibration did not capture. The field is smooth (random values
   // on a grid of pixel_jitter_cell_px, interpolated with weights renormalised so each pixel's δ stays

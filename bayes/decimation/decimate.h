@@ -1,4 +1,4 @@
-// Bayesian decimation (paper §6, DESIGN.md §6): replace a dense mesh by planar patches that look like it when
+// Bayesian decimation (paper §6, docs/design.md §6): replace a dense mesh by planar patches that look like it when
 // rendered, static or shared across the poses of an animated mesh.
 //
 //   E(g) = λ·#patches + Σ_i w_i ‖u_i − n_g(i)‖²   (paper eqs. 28–31 with W = I; eq. 36 sums it over poses)

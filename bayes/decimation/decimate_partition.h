@@ -1,4 +1,4 @@
-// The discrete half of Bayesian decimation (paper §6.1–6.2, DESIGN.md §6): a map g from dense faces to
+// The discrete half of Bayesian decimation (paper §6.1–6.2, docs/design.md §6): a map g from dense faces to
 // contiguous patches that minimises E(g) = λ·#patches + Σ_i w_i ‖u_i − n_g(i)‖², n_k the weighted mean of
 // its faces' normals (eq. 34, not renormalised), found by hill climbing with the paper's three moves.
 //

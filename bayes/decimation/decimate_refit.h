@@ -1,4 +1,4 @@
-// Vertex refit, the continuous half of the paper's mixed discrete–continuous optimisation (DESIGN.md §6): with
+// Vertex refit, the continuous half of the paper's mixed discrete–continuous optimisation (docs/design.md §6): with
 // the patch structure and the coarse triangulation fixed, each kept vertex moves to the minimiser of the
 // Garland–Heckbert quadric of the dense faces it stands for (the faces around the dense vertices whose stars
 // collapsed onto it, plus perpendicular planes along the mesh boundary), regularised towards its dense

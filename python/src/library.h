@@ -3,7 +3,7 @@
 #pragma once
 
 #include "bayes/decimation/decimate.h"
-#include "bayes/learn_prior.h"
+#include "bayes/learning/learn_prior.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/noise_model.h"
 #include "bayes/potential.h"

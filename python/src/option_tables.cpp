@@ -7,10 +7,6 @@ namespace rangebayes::python {
 RB_PY_ENUM_NAMES(SmoothTolerance, {{"fast", SmoothTolerance::kFast},
                                    {"default", SmoothTolerance::kDefault},
                                    {"tight", SmoothTolerance::kTight}});
-RB_PY_ENUM_NAMES(SmoothMinimiser, {{"cg", SmoothMinimiser::kConjugateGradient}, {"lbfgs", SmoothMinimiser::kLbfgs}});
-RB_PY_ENUM_NAMES(SmoothPreconditioner, {{"none", SmoothPreconditioner::kNone},
-                                        {"data", SmoothPreconditioner::kData},
-                                        {"block-jacobi", SmoothPreconditioner::kBlockJacobi}});
 
 const FieldTable<SmoothOptions>& SmoothOptionFields() {
   static const FieldTable<SmoothOptions> table = {
@@ -19,16 +15,14 @@ const FieldTable<SmoothOptions>& SmoothOptionFields() {
       RB_PY_FIELD(SmoothOptions, cauchy_scale),
       RB_PY_FIELD(SmoothOptions, prior_weight),
       RB_PY_FIELD(SmoothOptions, tolerance),
-      RB_PY_FIELD(SmoothOptions, minimiser),
       RB_PY_FIELD(SmoothOptions, energy_tolerance),
+      RB_PY_FIELD(SmoothOptions, gap_tolerance),
       RB_PY_FIELD(SmoothOptions, line_search_c2),
       RB_PY_FIELD(SmoothOptions, max_iterations),
-      RB_PY_FIELD(SmoothOptions, lbfgs_memory),
-      RB_PY_FIELD(SmoothOptions, preconditioner),
-      RB_PY_FIELD(SmoothOptions, preconditioner_every),
-      RB_PY_FIELD(SmoothOptions, restart_every),
       RB_PY_FIELD(SmoothOptions, num_threads),
       RB_PY_FIELD(SmoothOptions, adaptive_epsilon),
+      RB_PY_FIELD(SmoothOptions, multilevel),
+      RB_PY_FIELD(SmoothOptions, epsilon_continuation_stages),
   };
   return table;
 }
@@ -131,7 +125,7 @@ const FieldTable<RectifierOptions>& RectifierOptionFields() {
 }
 
 RB_PY_ENUM_NAMES(LearnMethod,
-                 {{"interleaved", LearnMethod::kInterleaved}, {"implicit", LearnMethod::kImplicit}, {"none", LearnMethod::kNone}});
+                 {{"interleaved", LearnMethod::kInterleaved}, {"none", LearnMethod::kNone}});
 
 // The top-level knobs of LearnPrior only (its internals are being simplified).
 const FieldTable<LearnPriorOptions>& LearnPriorOptionFields() {
