@@ -35,6 +35,7 @@ struct SmoothArgs {
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
   bool adaptive_epsilon = true;
   bool multilevel = SmoothOptions{}.multilevel;
+  double gap_tolerance = SmoothOptions{}.gap_tolerance;
   int continuation = SmoothOptions{}.epsilon_continuation_stages;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
@@ -119,6 +120,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.adaptive_epsilon = args.adaptive_epsilon;
   options.multilevel = args.multilevel;
   options.epsilon_continuation_stages = args.continuation;
+  options.gap_tolerance = args.gap_tolerance;
   SmoothSummary summary;
   const Mesh result = Smooth(noisy, options, &summary);
   progress.Finish();
@@ -206,6 +208,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_flag("--multilevel,!--no-multilevel", args->multilevel,
                 "on by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
                 "over the pixel grid. --no-multilevel: one level");
+  sub->add_option("--gap-tolerance", args->gap_tolerance,
+                  "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
+                  "0: the --tolerance preset's")
+      ->check(CLI::Range(0.0, 0.999999));
   sub->add_option("--continuation", args->continuation,
                   "sqrt prior: epsilon continuation stages before the final solve (eps2 x 10^s, s = N..1), [-1, 6]; "
                   "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")

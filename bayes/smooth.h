@@ -25,7 +25,7 @@
 namespace rangebayes {
 
 // Stopping presets. default and tight stop on the estimated distance to the optimum (SmoothSummary::
-// remaining_decrease relative to the energy: default 3e-4, 1e-4 on organized meshes; tight 1e-9); fast (the
+// remaining_decrease relative to the energy: default 3e-4, 1e-5 on organized meshes; tight 1e-9); fast (the
 // adaptive-ε pre-pass, previews) stops on the relative energy decrease per iteration (1e-4 over 5 iterations)
 // or a gradient norm of 1e-2 of the start. Iteration caps 300 / 2000 / 20000.
 enum class SmoothTolerance { kFast, kDefault, kTight };
@@ -50,7 +50,7 @@ struct SmoothOptions {
   double energy_tolerance = 0;
   // Stop when the estimated distance to the optimum E − E* (SmoothSummary::remaining_decrease) falls below this
   // fraction of the energy; 0: the preset's (fast: off, it stops on the decrease per iteration; default 3e-4, on
-  // organized meshes 1e-4; tight 1e-9). [0, 1)
+  // organized meshes 1e-5; tight 1e-9). [0, 1)
   double gap_tolerance = 0;
   // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1).
   double line_search_c2 = 0.1;
@@ -70,12 +70,19 @@ struct SmoothOptions {
   // (bayes/grid_hierarchy.h), each level started from the prolongated result of the coarser one. Same energy
   // and minimum; other meshes, or a given initial_positions, take the single-level solve.
   bool multilevel = true;
-  // ε continuation for the built-in square-root prior: before the solve at sqrt_epsilon_squared, solve (fast
-  // tolerance, warm-started) at ε² · 10^s for s = stages … 1, a smoother energy whose minimum lies near; the
+  // ε continuation for the built-in square-root prior: before the solve at sqrt_epsilon_squared, solve (same
+  // stopping rule as the final solve, warm-started) at ε² · 10^s for s = stages … 1, a smoother energy whose
+  // minimum lies near; each stage solved to the same distance from its optimum lands the final solve in a lower
+  // basin than fast stages did (the energy is not convex; BENCHMARKS.md "Smoothing on real stereo"); the
   // first stage runs coarse-to-fine when `multilevel` applies. −1 (default): 3 stages on organized meshes
-  // (pixel positions and covariances, as from a depth image), none on others (measured: BENCHMARKS.md "Smoothing
+  // (pixel positions and covariances, as from a depth image) without initial_positions (a warm start is
+  // already near its optimum), none on others (measured: BENCHMARKS.md "Smoothing
   // on real stereo"; on generic CAD meshes continuation lands in worse minima). [−1, 6]
   int epsilon_continuation_stages = -1;
+  // Seconds for the whole call, continuation stages and coarse levels included (0: no limit). Checked after each
+  // iteration; the final solve at the true ε always gets at least one; stages not started when it ran out are
+  // skipped. The result then depends on the machine's speed. [0, 1e6]
+  double time_limit_s = 0;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 
   void Check() const;
@@ -87,6 +94,7 @@ enum class SmoothTermination {
   kOptimalityGapConverged,  // estimated distance to the optimum below the tolerance
   kMaxIterations,
   kNoProgress,         // the line search found no lower energy (numerically at a minimum)
+  kTimeLimit,          // SmoothOptions::time_limit_s ran out (remaining_decrease says how far from converged)
   kNothingToDo,        // no vertices
 };
 std::string SmoothTerminationName(SmoothTermination termination);

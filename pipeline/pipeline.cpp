@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
+#include "bayes/warm_start.h"
 #include "core/error.h"
 #include "pipeline/pipeline_control.h"
 
@@ -183,26 +184,19 @@ cv::Mat Shrink(const cv::Mat& image, int factor) {
   return out;
 }
 
-// Running mean of the smoothing cost per vertex, for PipelineOptions::smooth_budget_ms.
-struct SmoothCost {
-  double setup_ms_per_vertex = 0.0;
-  double iteration_ms_per_vertex = 0.0;
-  int samples = 0;
-  double iterations_sum = 0.0;
-  double iteration_ms_sum = 0.0;
+// What the smoothing stage did, for the summary (written by the smooth thread only, read after the join).
+struct SmoothTally {
   int smoothed = 0;
+  double iterations_sum = 0.0;
+  double ms_per_iteration_sum = 0.0;
+  int timed = 0;
+  int warm_started = 0;
+  int time_limited = 0;
+  double distance_sum = 0.0;  // relative E − E* estimates, over results with a finite one
+  int distances = 0;
 };
 
 }  // namespace
-
-int SmoothIterationsForBudget(double budget_ms, double setup_ms, double ms_per_iteration, int cap) {
-  int n = 1;
-  if (ms_per_iteration > 0.0 && std::isfinite(ms_per_iteration)) {
-    const double fit = std::floor((budget_ms - setup_ms) / ms_per_iteration);
-    n = fit >= 1e7 ? 10'000'000 : std::max(1, static_cast<int>(fit));
-  }
-  return cap > 0 ? std::min(n, cap) : n;
-}
 
 CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor) {
   RB_CHECK(factor == 1 || factor == 2 || factor == 4 || factor == 8, "stereo downsample must be 1, 2, 4 or 8, got ",
@@ -364,7 +358,8 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
     return s;
   };
 
-  SmoothCost smooth_cost;  // written by the smooth thread only, read after the join
+  SmoothTally smooth_tally;  // written by the smooth thread only, read after the join
+  WarmStart warm_start;      // the smooth thread's memory of the previous frame
   std::array<std::thread, 7> threads;
   int next_thread = 0;
   threads[next_thread++] = std::thread([&] {
@@ -554,31 +549,31 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       SmoothOptions smoothing = options.smoothing;
       // Per frame the pipeline runs the plain solve: the adaptive-ε pre-pass is not part of a frame's budget.
       smoothing.adaptive_epsilon = false;
-      const double vertices = static_cast<double>(std::max(1, item.result.raw_mesh.mesh.num_vertices()));
-      const double budget_ms = item.settings.smooth_budget_ms;
-      if (budget_ms > 0.0) {
-        smoothing.max_iterations =
-            smooth_cost.samples == 0
-                ? std::min(kSmoothBudgetProbeIterations,
-                           options.smoothing.max_iterations > 0 ? options.smoothing.max_iterations
-                                                                : kSmoothBudgetProbeIterations)
-                : SmoothIterationsForBudget(budget_ms, smooth_cost.setup_ms_per_vertex * vertices,
-                                            smooth_cost.iteration_ms_per_vertex * vertices,
-                                            options.smoothing.max_iterations);
-      }
+      // The budget is a deadline for the whole solve (stages and levels included): it buys the most converged
+      // result it can, and the summary says how far from converged it stopped.
+      if (item.settings.smooth_budget_ms > 0.0) smoothing.time_limit_s = 1e-3 * item.settings.smooth_budget_ms;
+      Vertices start;
+      const bool warm = options.smooth_warm_start && warm_start.Initial(item.result.raw_mesh, &start);
+      if (warm) smoothing.initial_positions = &start;
       SmoothSummary ss;
       item.result.smoothed = Smooth(item.result.raw_mesh, smoothing, &ss);
-      const double setup_ms = 1000.0 * ss.setup_time_s;
-      const double iteration_ms = ss.iterations > 0 ? 1000.0 * (ss.time_s - ss.setup_time_s) / ss.iterations : 0.0;
-      ++smooth_cost.smoothed;
-      smooth_cost.iterations_sum += ss.iterations;
+      if (options.smooth_warm_start) warm_start.Remember(item.result.raw_mesh, *item.result.smoothed);
+      item.result.smooth_iterations = ss.iterations;
+      item.result.smooth_warm_started = warm;
+      item.result.smooth_time_limited = ss.termination == SmoothTermination::kTimeLimit;
+      item.result.smooth_distance =
+          ss.energy.empty() ? 0.0 : ss.remaining_decrease / std::max(std::abs(ss.energy.back()), 1e-300);
+      ++smooth_tally.smoothed;
+      smooth_tally.iterations_sum += ss.iterations;
+      smooth_tally.warm_started += warm ? 1 : 0;
+      smooth_tally.time_limited += item.result.smooth_time_limited ? 1 : 0;
+      if (std::isfinite(item.result.smooth_distance)) {
+        smooth_tally.distance_sum += item.result.smooth_distance;
+        ++smooth_tally.distances;
+      }
       if (ss.iterations > 0) {
-        // A running mean, weighted toward recent frames, so that a change in load or mesh size is followed.
-        const double w = smooth_cost.samples == 0 ? 1.0 : 0.3;
-        smooth_cost.setup_ms_per_vertex += w * (setup_ms / vertices - smooth_cost.setup_ms_per_vertex);
-        smooth_cost.iteration_ms_per_vertex += w * (iteration_ms / vertices - smooth_cost.iteration_ms_per_vertex);
-        smooth_cost.iteration_ms_sum += iteration_ms;
-        ++smooth_cost.samples;
+        smooth_tally.ms_per_iteration_sum += 1000.0 * (ss.time_s - ss.setup_time_s) / ss.iterations;
+        ++smooth_tally.timed;
       }
     });
   });
@@ -664,14 +659,21 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   const std::int64_t finished = summary.results + summary.failed;
   summary.latency_mean_ms = finished > 0 ? latency_sum_ms / static_cast<double>(finished) : 0.0;
   summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
-  if (smooth_cost.smoothed > 0) summary.smooth_iterations_mean = smooth_cost.iterations_sum / smooth_cost.smoothed;
-  if (smooth_cost.samples > 0) summary.smooth_ms_per_iteration_mean = smooth_cost.iteration_ms_sum / smooth_cost.samples;
-  if (options.smooth && options.smooth_budget_ms > 0.0) {
-    char line[200];
+  if (smooth_tally.smoothed > 0) {
+    summary.smooth_iterations_mean = smooth_tally.iterations_sum / smooth_tally.smoothed;
+    summary.smooth_warm_started = smooth_tally.warm_started;
+    summary.smooth_time_limited = smooth_tally.time_limited;
+  }
+  if (smooth_tally.timed > 0) summary.smooth_ms_per_iteration_mean = smooth_tally.ms_per_iteration_sum / smooth_tally.timed;
+  summary.smooth_distance_mean =
+      smooth_tally.distances > 0 ? smooth_tally.distance_sum / smooth_tally.distances : std::nan("");
+  if (options.smooth && smooth_tally.smoothed > 0) {
+    char line[300];
     std::snprintf(line, sizeof(line),
-                  "smoothing budget %.0f ms per frame: iterations capped from the measured cost (%.1f iterations "
-                  "per frame on average, %.2f ms each)",
-                  options.smooth_budget_ms, summary.smooth_iterations_mean, summary.smooth_ms_per_iteration_mean);
+                  "smoothing: %d of %d results warm-started from the previous frame, %d stopped by the %.0f ms budget, "
+                  "%.1f iterations per result, distance to the optimum %.2g of E on average (estimated)",
+                  smooth_tally.warm_started, smooth_tally.smoothed, smooth_tally.time_limited, options.smooth_budget_ms,
+                  summary.smooth_iterations_mean, summary.smooth_distance_mean);
     summary.notices.push_back(line);
   }
   if (ds > 1) {
@@ -705,6 +707,9 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["latency_mean_ms"] = summary.latency_mean_ms;
   j["smooth_iterations_mean"] = summary.smooth_iterations_mean;
   j["smooth_ms_per_iteration_mean"] = summary.smooth_ms_per_iteration_mean;
+  j["smooth_warm_started"] = summary.smooth_warm_started;
+  j["smooth_time_limited"] = summary.smooth_time_limited;
+  if (std::isfinite(summary.smooth_distance_mean)) j["smooth_distance_mean"] = summary.smooth_distance_mean;
   j["source_stats"] = {{"frames_delivered", summary.source_stats.frames_delivered},
                        {"frames_skipped", summary.source_stats.frames_skipped},
                        {"timeouts", summary.source_stats.timeouts},

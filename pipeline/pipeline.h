@@ -56,6 +56,13 @@ struct PipelineResult {
   std::string error_stage;
   bool full_quality = false;       // went through the full-quality path (PipelineControl::RequestFullQuality)
   int stereo_downsample = 1;       // the factor this result was matched at
+  // Smoothing (when it ran on the normal path): iterations of the final solve, whether it started from the
+  // previous frame's result, whether the budget stopped it, and its estimated distance to the optimum E − E*
+  // relative to E (SmoothSummary::remaining_decrease; infinity when unknown).
+  int smooth_iterations = 0;
+  bool smooth_warm_started = false;
+  bool smooth_time_limited = false;
+  double smooth_distance = 0.0;
 };
 
 // Receives finished results in frame order (from the sink thread; one call at a time).
@@ -86,11 +93,13 @@ struct PipelineOptions {
   TriangulateOptions triangulate;
   bool smooth = true;                // run Bayesian smoothing (bayes/smooth.h)
   SmoothOptions smoothing;
-  // ≥ 0 ms; 0: no budget. Else smoothing.max_iterations (or the preset's cap) is lowered per frame so that
-  // smoothing takes about this long: the smoother cannot be stopped by a deadline, so the cap comes from
-  // the per-iteration cost measured on the frames before (a running mean per vertex; the first frame gets
-  // kSmoothBudgetProbeIterations iterations to measure it). Results then depend on timing.
+  // ≥ 0 ms; 0: no budget. Else a deadline for each frame's smoothing (SmoothOptions::time_limit_s): it stops
+  // there with the most converged result it reached and says how far from converged (PipelineResult). Results
+  // then depend on timing.
   double smooth_budget_ms = 0.0;
+  // Start each frame's smoothing from the previous frame's result where the pixels' measurements agree
+  // (bayes/warm_start.h): successive frames of a static scene are nearly the same surface.
+  bool smooth_warm_start = true;
   bool decimate = true;              // run Bayesian decimation (bayes/decimation/decimate.h) on the smoothed mesh
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
@@ -138,14 +147,10 @@ struct PipelineSummary {
   double latency_mean_ms = 0.0;      // capture-to-sink time per result
   double smooth_iterations_mean = 0.0;  // smoothing iterations per smoothed result
   double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
+  int smooth_warm_started = 0;       // results started from the previous frame's (smooth_warm_start)
+  int smooth_time_limited = 0;       // results the budget stopped
+  double smooth_distance_mean = 0.0; // mean estimated distance to the optimum, relative to E (NaN: unknown)
 };
-
-// Iterations the first frame gets under PipelineOptions::smooth_budget_ms, to measure their cost.
-inline constexpr int kSmoothBudgetProbeIterations = 3;
-
-// The largest number of smoothing iterations that fits `budget_ms` when setup costs `setup_ms` and each
-// iteration `ms_per_iteration` (≥ 1; never above `cap` when cap > 0).
-int SmoothIterationsForBudget(double budget_ms, double setup_ms, double ms_per_iteration, int cap);
 
 // The rectified left camera of an image shrunk `factor` times (1, 2, 4, 8) by repeated cv::pyrDown: dst(x)
 // averages src around 2x, so f and c halve exactly per halving; the size is ((w + 1) / 2, (h + 1) / 2).

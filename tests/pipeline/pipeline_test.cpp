@@ -184,7 +184,7 @@ TEST(Pipeline, SpaceTimeWindowsCoverTheirFrames) {
   EXPECT_EQ(sink.results[0].last_index, 1);
   EXPECT_EQ(sink.results[1].index, 2);
   EXPECT_EQ(sink.results[1].frames, 2);
-  ASSERT_EQ(s.notices.size(), 2u);  // decimation off, and the fifth frame did not fill a window
+  ASSERT_EQ(s.notices.size(), 3u);  // decimation off, the fifth frame did not fill a window, smoothing
   EXPECT_NE(s.notices[1].find("the last 1 frame(s) did not fill"), std::string::npos) << s.notices[1];
 }
 
@@ -243,13 +243,6 @@ TEST(PipelineScaling, DownsampledIntrinsicsHalveCoordinatesPerLevel) {
   EXPECT_THROW(DownsampledIntrinsics(k, 3), Error);
 }
 
-TEST(PipelineScaling, SmoothIterationsForBudget) {
-  EXPECT_EQ(SmoothIterationsForBudget(40.0, 4.0, 3.0, 0), 12);
-  EXPECT_EQ(SmoothIterationsForBudget(40.0, 4.0, 3.0, 5), 5);    // the cap wins
-  EXPECT_EQ(SmoothIterationsForBudget(40.0, 50.0, 3.0, 0), 1);   // setup alone is over budget: one iteration
-  EXPECT_EQ(SmoothIterationsForBudget(40.0, 0.0, 0.0, 300), 1);  // unknown cost
-}
-
 // Matching at half resolution with the rig scaled to match gives the same depths: every vertex against the
 // ground truth at its (full-resolution) pixel.
 TEST(Pipeline, StereoDownsampleKeepsDepthsInMetres) {
@@ -296,23 +289,48 @@ TEST(Pipeline, StereoDownsampleKeepsDepthsInMetres) {
   EXPECT_NE(s.notices.back().find("1/2 resolution (96x72, 32 disparities)"), std::string::npos) << s.notices.back();
 }
 
-TEST(Pipeline, SmoothBudgetCapsIterations) {
+// A budget far below one iteration: every frame's solve stops at its first iteration of the final solve (the
+// continuation stages are skipped), says so, and still returns a finite mesh.
+TEST(Pipeline, SmoothBudgetStopsTheSolve) {
   const TempDir dir("pipe_budget");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
   PlaybackSource source(rec);
   CollectSink sink;
   PipelineOptions options = SmallOptions();
   options.decimate = false;
-  options.smooth_budget_ms = 1e-3;  // far below one iteration: every frame gets the minimum
+  options.smooth_budget_ms = 1e-3;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
   ASSERT_EQ(sink.results.size(), 3u);
-  for (const PipelineResult& r : sink.results) ASSERT_TRUE(r.smoothed.has_value());
-  // Frame 0 probes kSmoothBudgetProbeIterations; the others get one iteration each.
-  EXPECT_LE(s.smooth_iterations_mean, (kSmoothBudgetProbeIterations + 2.0) / 3.0 + 1e-9);
-  EXPECT_GT(s.smooth_ms_per_iteration_mean, 0.0);
+  for (const PipelineResult& r : sink.results) {
+    ASSERT_TRUE(r.smoothed.has_value());
+    EXPECT_TRUE(r.smoothed->V.allFinite());
+    EXPECT_TRUE(r.smooth_time_limited);
+    EXPECT_EQ(r.smooth_iterations, 1);
+  }
+  EXPECT_EQ(s.smooth_time_limited, 3);
+  EXPECT_DOUBLE_EQ(s.smooth_iterations_mean, 1.0);
   bool noticed = false;
-  for (const std::string& n : s.notices) noticed |= n.find("smoothing budget") != std::string::npos;
+  for (const std::string& n : s.notices) noticed |= n.find("3 stopped by the 0 ms budget") != std::string::npos;
   EXPECT_TRUE(noticed);
+}
+
+// A static scene: every frame after the first starts from the previous result; off, none does.
+TEST(Pipeline, StaticSceneFramesAreWarmStarted) {
+  const TempDir dir("pipe_warm");
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
+  for (const bool warm : {true, false}) {
+    PlaybackSource source(rec);
+    CollectSink sink;
+    PipelineOptions options = SmallOptions();
+    options.decimate = false;
+    options.smooth_warm_start = warm;
+    const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+    ASSERT_EQ(sink.results.size(), 3u);
+    EXPECT_EQ(s.smooth_warm_started, warm ? 2 : 0);
+    EXPECT_FALSE(sink.results[0].smooth_warm_started);
+    EXPECT_EQ(sink.results[2].smooth_warm_started, warm);
+    for (const PipelineResult& r : sink.results) EXPECT_FALSE(r.smooth_time_limited);
+  }
 }
 
 TEST(Pipeline, LiveQueuesAccountForEveryFrame) {
