@@ -46,7 +46,6 @@ struct PipelineCli {
   int downsample = 1;
   int stereo_downsample = 0;  // 0: 1, or 2 with --live-path
   bool no_smooth = false;
-  bool no_warm_start = false;
   double smooth_budget_ms = -1.0;  // < 0: none, or kLiveSmoothBudgetMs with --live-path
   std::string tolerance = "default";
   double prior_weight = SmoothOptions{}.prior_weight;
@@ -95,9 +94,6 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): a deadline; the summary says how far from converged it stopped "
                   "(-1: no budget, or 80 with --live-path)");
-  sub->add_flag("--no-warm-start", o->no_warm_start,
-                "Smooth every frame from its own measurements (default: start from the previous frame's result where "
-                "the measurements agree)");
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
@@ -139,7 +135,6 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.stereo_downsample = o.stereo_downsample > 0 ? o.stereo_downsample : 1;
   p.smooth_budget_ms = std::max(0.0, o.smooth_budget_ms);
   p.smooth = !o.no_smooth;
-  p.smooth_warm_start = !o.no_warm_start;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
   p.smoothing.prior_weight = o.prior_weight;
   if (!o.prior_file.empty()) {

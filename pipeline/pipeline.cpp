@@ -11,7 +11,6 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
-#include "bayes/warm_start.h"
 #include "core/error.h"
 #include "pipeline/pipeline_control.h"
 
@@ -190,7 +189,6 @@ struct SmoothTally {
   double iterations_sum = 0.0;
   double ms_per_iteration_sum = 0.0;
   int timed = 0;
-  int warm_started = 0;
   int time_limited = 0;
   double distance_sum = 0.0;  // relative E − E* estimates, over results with a finite one
   int distances = 0;
@@ -359,7 +357,6 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   };
 
   SmoothTally smooth_tally;  // written by the smooth thread only, read after the join
-  WarmStart warm_start;      // the smooth thread's memory of the previous frame
   std::array<std::thread, 7> threads;
   int next_thread = 0;
   threads[next_thread++] = std::thread([&] {
@@ -552,20 +549,14 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       // The budget is a deadline for the whole solve (stages and levels included): it buys the most converged
       // result it can, and the summary says how far from converged it stopped.
       if (item.settings.smooth_budget_ms > 0.0) smoothing.time_limit_s = 1e-3 * item.settings.smooth_budget_ms;
-      Vertices start;
-      const bool warm = options.smooth_warm_start && warm_start.Initial(item.result.raw_mesh, &start);
-      if (warm) smoothing.initial_positions = &start;
       SmoothSummary ss;
       item.result.smoothed = Smooth(item.result.raw_mesh, smoothing, &ss);
-      if (options.smooth_warm_start) warm_start.Remember(item.result.raw_mesh, *item.result.smoothed);
       item.result.smooth_iterations = ss.iterations;
-      item.result.smooth_warm_started = warm;
       item.result.smooth_time_limited = ss.termination == SmoothTermination::kTimeLimit;
       item.result.smooth_distance =
           ss.energy.empty() ? 0.0 : ss.remaining_decrease / std::max(std::abs(ss.energy.back()), 1e-300);
       ++smooth_tally.smoothed;
       smooth_tally.iterations_sum += ss.iterations;
-      smooth_tally.warm_started += warm ? 1 : 0;
       smooth_tally.time_limited += item.result.smooth_time_limited ? 1 : 0;
       if (std::isfinite(item.result.smooth_distance)) {
         smooth_tally.distance_sum += item.result.smooth_distance;
@@ -661,18 +652,17 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
   if (smooth_tally.smoothed > 0) {
     summary.smooth_iterations_mean = smooth_tally.iterations_sum / smooth_tally.smoothed;
-    summary.smooth_warm_started = smooth_tally.warm_started;
     summary.smooth_time_limited = smooth_tally.time_limited;
   }
   if (smooth_tally.timed > 0) summary.smooth_ms_per_iteration_mean = smooth_tally.ms_per_iteration_sum / smooth_tally.timed;
   summary.smooth_distance_mean =
       smooth_tally.distances > 0 ? smooth_tally.distance_sum / smooth_tally.distances : std::nan("");
-  if (options.smooth && smooth_tally.smoothed > 0) {
+  if (options.smooth && options.smooth_budget_ms > 0.0 && smooth_tally.smoothed > 0) {
     char line[300];
     std::snprintf(line, sizeof(line),
-                  "smoothing: %d of %d results warm-started from the previous frame, %d stopped by the %.0f ms budget, "
-                  "%.1f iterations per result, distance to the optimum %.2g of E on average (estimated)",
-                  smooth_tally.warm_started, smooth_tally.smoothed, smooth_tally.time_limited, options.smooth_budget_ms,
+                  "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations per result, "
+                  "distance to the optimum %.2g of E on average (estimated)",
+                  options.smooth_budget_ms, smooth_tally.time_limited, smooth_tally.smoothed,
                   summary.smooth_iterations_mean, summary.smooth_distance_mean);
     summary.notices.push_back(line);
   }
@@ -707,7 +697,6 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["latency_mean_ms"] = summary.latency_mean_ms;
   j["smooth_iterations_mean"] = summary.smooth_iterations_mean;
   j["smooth_ms_per_iteration_mean"] = summary.smooth_ms_per_iteration_mean;
-  j["smooth_warm_started"] = summary.smooth_warm_started;
   j["smooth_time_limited"] = summary.smooth_time_limited;
   if (std::isfinite(summary.smooth_distance_mean)) j["smooth_distance_mean"] = summary.smooth_distance_mean;
   j["source_stats"] = {{"frames_delivered", summary.source_stats.frames_delivered},

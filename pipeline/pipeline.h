@@ -56,11 +56,10 @@ struct PipelineResult {
   std::string error_stage;
   bool full_quality = false;       // went through the full-quality path (PipelineControl::RequestFullQuality)
   int stereo_downsample = 1;       // the factor this result was matched at
-  // Smoothing (when it ran on the normal path): iterations of the final solve, whether it started from the
-  // previous frame's result, whether the budget stopped it, and its estimated distance to the optimum E − E*
-  // relative to E (SmoothSummary::remaining_decrease; infinity when unknown).
+  // Smoothing (when it ran on the normal path): iterations of the final solve, whether the budget stopped it,
+  // and its estimated distance to the optimum E − E* relative to E (SmoothSummary::remaining_decrease; infinity
+  // when unknown).
   int smooth_iterations = 0;
-  bool smooth_warm_started = false;
   bool smooth_time_limited = false;
   double smooth_distance = 0.0;
 };
@@ -97,9 +96,6 @@ struct PipelineOptions {
   // there with the most converged result it reached and says how far from converged (PipelineResult). Results
   // then depend on timing.
   double smooth_budget_ms = 0.0;
-  // Start each frame's smoothing from the previous frame's result where the pixels' measurements agree
-  // (bayes/warm_start.h): successive frames of a static scene are nearly the same surface.
-  bool smooth_warm_start = true;
   bool decimate = true;              // run Bayesian decimation (bayes/decimation/decimate.h) on the smoothed mesh
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
@@ -147,7 +143,6 @@ struct PipelineSummary {
   double latency_mean_ms = 0.0;      // capture-to-sink time per result
   double smooth_iterations_mean = 0.0;  // smoothing iterations per smoothed result
   double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
-  int smooth_warm_started = 0;       // results started from the previous frame's (smooth_warm_start)
   int smooth_time_limited = 0;       // results the budget stopped
   double smooth_distance_mean = 0.0; // mean estimated distance to the optimum, relative to E (NaN: unknown)
 };
