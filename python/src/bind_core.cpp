@@ -8,9 +8,33 @@
 namespace rangebayes::python {
 namespace {
 
-Normals NormalsFromArray(py::handle obj) {
+// Normals: None gives (0, 3); else (n, 3) for n vertices (any n when num_vertices < 0).
+Normals NormalsFromArray(py::handle obj, Eigen::Index num_vertices) {
   if (obj.is_none()) return Normals(0, 3);
-  return VerticesFromArray(obj, "N");
+  Normals N = VerticesFromArray(obj, "N");
+  if (num_vertices >= 0 && N.rows() != 0 && N.rows() != num_vertices) {
+    throw py::value_error("N: " + std::to_string(N.rows()) + " normals for " + std::to_string(num_vertices) +
+                          " vertices (give one per vertex, or None)");
+  }
+  return N;
+}
+
+std::vector<Eigen::Matrix3d> CovariancesFor(py::handle obj, Eigen::Index num_vertices) {
+  std::vector<Eigen::Matrix3d> covariance = CovariancesFromArray(obj, "covariances");
+  if (!covariance.empty() && static_cast<Eigen::Index>(covariance.size()) != num_vertices) {
+    throw py::value_error("covariances: " + std::to_string(covariance.size()) + " matrices for " +
+                          std::to_string(num_vertices) + " vertices (give one per vertex, or None)");
+  }
+  return covariance;
+}
+
+// A Mesh from arrays: V first, so that F's indices and N's rows are checked against it.
+Mesh MeshFromArrays(py::handle V, py::handle F, py::handle N) {
+  Mesh mesh;
+  mesh.V = VerticesFromArray(V, "V");
+  mesh.F = FacesFromArray(F, "F", mesh.V.rows());
+  mesh.N = NormalsFromArray(N, mesh.V.rows());
+  return mesh;
 }
 
 MeshWriteOptions WriteOptions(const std::string& ply_encoding) {
@@ -31,27 +55,25 @@ void BindCore(py::module_& m) {
   py::class_<Mesh>(m, "Mesh", R"(A triangle mesh: V (n, 3) float64 positions in model units (metres for our cameras),
 F (m, 3) int32 vertex indices (counter-clockwise seen from outside), N (n, 3) or (0, 3) optional normals.
 
-Mesh(V, F, N=None) copies the arrays (any real dtype for V, any integer dtype for F, any strides).
+Mesh(V, F, N=None) copies the arrays in one pass (the C++ mesh owns its storage): float64 V and int32 F of
+any strides are read in place, other real / integer dtypes are converted by numpy first; the copy runs
+without the GIL (on several threads for large arrays). ValueError for NaN or infinite values, face indices
+outside [0, n) or N with another number of rows; TypeError for another dtype kind.
 Reading mesh.V / mesh.F / mesh.N gives a writable numpy view of the C++ storage (no copy) that keeps the
-mesh alive; assigning mesh.V = array copies the array in. A view is invalidated when its array is replaced
-by one of another shape.)")
-      .def(py::init([](py::handle V, py::handle F, py::handle N) {
-             Mesh mesh;
-             mesh.V = VerticesFromArray(V, "V");
-             mesh.F = FacesFromArray(F, "F");
-             mesh.N = NormalsFromArray(N);
-             return mesh;
-           }),
+mesh alive; assigning mesh.V = array copies the array in (assign V before an F that needs more vertices).
+A view is invalidated when its array is replaced by assignment. Library calls check the mesh again (values
+written through views) and raise ValueError for a mesh they could not use.)")
+      .def(py::init(&MeshFromArrays),
            py::arg("V"), py::arg("F"), py::arg("N") = py::none())
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<Mesh&>().V, self); },
           [](Mesh& mesh, py::handle a) { mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<Mesh&>().F, self); },
-          [](Mesh& mesh, py::handle a) { mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+          [](Mesh& mesh, py::handle a) { mesh.F = FacesFromArray(a, "F", mesh.V.rows()); }, "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<Mesh&>().N, self); },
-          [](Mesh& mesh, py::handle a) { mesh.N = NormalsFromArray(a); },
+          [](Mesh& mesh, py::handle a) { mesh.N = NormalsFromArray(a, mesh.V.rows()); },
           "(n, 3) float64 vertex normals, (0, 3) when absent (view)")
       .def_property_readonly("num_vertices", &Mesh::num_vertices)
       .def_property_readonly("num_faces", &Mesh::num_faces)
@@ -65,22 +87,21 @@ by one of another shape.)")
 covariance per vertex in model units squared (empty (0, 3, 3) when not known), pixel (n, 2) float32 image
 positions the vertices were triangulated from (or (0, 2)).
 
-NoisyMesh(V, F, covariances=None) and NoisyMesh(mesh, covariances=None) copy. V, F, N, covariances and pixel
-read as writable views of the C++ storage (no copy); assignment copies.)")
+NoisyMesh(V, F, covariances=None) and NoisyMesh(mesh, covariances=None) copy as Mesh(...) does (one pass,
+GIL released; covariances of any strides, one per vertex, finite). V, F, N, covariances and pixel read as
+writable views of the C++ storage (no copy); assignment copies.)")
       // The Mesh overload first: the array overload accepts any object.
       .def(py::init([](const Mesh& mesh, py::handle covariances) {
              NoisyMesh noisy;
              noisy.mesh = mesh;
-             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             if (!covariances.is_none()) noisy.covariance = CovariancesFor(covariances, mesh.V.rows());
              return noisy;
            }),
            py::arg("mesh"), py::arg("covariances") = py::none())
       .def(py::init([](py::handle V, py::handle F, py::handle covariances) {
              NoisyMesh noisy;
-             noisy.mesh.V = VerticesFromArray(V, "V");
-             noisy.mesh.F = FacesFromArray(F, "F");
-             noisy.mesh.N = Normals(0, 3);
-             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             noisy.mesh = MeshFromArrays(V, F, py::none());
+             if (!covariances.is_none()) noisy.covariance = CovariancesFor(covariances, noisy.mesh.V.rows());
              return noisy;
            }),
            py::arg("V"), py::arg("F"), py::arg("covariances") = py::none())
@@ -93,23 +114,25 @@ read as writable views of the C++ storage (no copy); assignment copies.)")
           [](NoisyMesh& n, py::handle a) { n.mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<NoisyMesh&>().mesh.F, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+          [](NoisyMesh& n, py::handle a) { n.mesh.F = FacesFromArray(a, "F", n.mesh.V.rows()); }, "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.N, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.N = NormalsFromArray(a); }, "(n, 3) float64 normals (view)")
+          [](NoisyMesh& n, py::handle a) { n.mesh.N = NormalsFromArray(a, n.mesh.V.rows()); }, "(n, 3) float64 normals (view)")
       .def_property(
           "covariances", [](py::object self) { return CovariancesView(self.cast<NoisyMesh&>().covariance, self); },
           [](NoisyMesh& n, py::handle a) {
-            n.covariance = a.is_none() ? std::vector<Eigen::Matrix3d>{} : CovariancesFromArray(a, "covariances");
+            n.covariance = a.is_none() ? std::vector<Eigen::Matrix3d>{} : CovariancesFor(a, n.mesh.V.rows());
           },
           "(n, 3, 3) float64 covariances, model units² (view; strides (72, 8, 24): each 3×3 is column-major)")
       .def_property(
           "pixel", [](py::object self) { return PixelsView(self.cast<NoisyMesh&>().pixel, self); },
           [](NoisyMesh& n, py::handle a) {
-            py::array_t<float, py::array::c_style | py::array::forcecast> c(py::reinterpret_borrow<py::object>(a));
-            if (c.ndim() != 2 || c.shape(1) != 2) throw py::value_error("pixel: expected shape (n, 2)");
-            n.pixel.resize(c.shape(0), 2);
-            std::copy(c.data(), c.data() + c.size(), n.pixel.data());
+            auto pixel = PixelsFromArray(a, "pixel");
+            if (pixel.rows() != 0 && pixel.rows() != n.mesh.V.rows()) {
+              throw py::value_error("pixel: " + std::to_string(pixel.rows()) + " rows for " +
+                                    std::to_string(n.mesh.V.rows()) + " vertices");
+            }
+            n.pixel = std::move(pixel);
           },
           "(n, 2) float32 (u, v) pixel of each vertex, or (0, 2) (view)")
       .def_property_readonly("has_covariance", &NoisyMesh::has_covariance)
@@ -149,10 +172,12 @@ read as writable views of the C++ storage (no copy); assignment copies.)")
         MeshWriteOptions options = WriteOptions(ply_encoding);
         if (py::isinstance<NoisyMesh>(mesh)) {
           const NoisyMesh noisy = mesh.cast<NoisyMesh>();
+          CheckNoisyMeshForLibrary(noisy, "write_mesh");
           py::gil_scoped_release nogil;
           WriteNoisyMesh(noisy, path, options);
         } else if (py::isinstance<Mesh>(mesh)) {
           const Mesh plain = mesh.cast<Mesh>();
+          CheckMeshForLibrary(plain, "write_mesh");
           py::gil_scoped_release nogil;
           WriteMesh(plain, path, options);
         } else if (py::hasattr(mesh, "corner_normals") && py::hasattr(mesh, "mesh")) {
