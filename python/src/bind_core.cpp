@@ -28,6 +28,38 @@ std::vector<Eigen::Matrix3d> CovariancesFor(py::handle obj, Eigen::Index num_ver
   return covariance;
 }
 
+// The storage of an array that already holds values keeps its size (numpy views of it stay valid).
+void CheckSameRows(Eigen::Index rows, Eigen::Index new_rows, const std::string& what) {
+  if (rows != 0 && rows != new_rows) {
+    throw py::value_error(what + ": the storage has " + std::to_string(rows) + " rows, the new value " +
+                          std::to_string(new_rows) + "; assign one with as many rows (views of the storage stay " +
+                          "valid) or build a new mesh");
+  }
+}
+
+// mesh.N = array: in place when N has values (checked against the vertex count first).
+void AssignNormals(py::handle a, Mesh* mesh) {
+  if (a.is_none()) {
+    CheckSameRows(mesh->N.rows(), 0, "N");
+    return;
+  }
+  const py::tuple shape = py::module_::import("numpy").attr("shape")(a);
+  const Eigen::Index rows = shape.empty() ? -1 : shape[0].cast<Eigen::Index>();
+  if (rows != 0 && rows != mesh->V.rows()) {
+    throw py::value_error("N: " + std::to_string(rows) + " normals for " + std::to_string(mesh->V.rows()) +
+                          " vertices (give one per vertex, or None)");
+  }
+  AssignVertices(a, "N", &mesh->N);
+}
+
+// noisy.mesh = mesh: copies into the existing storage (Eigen reallocates only on another size, refused here).
+void AssignMesh(const Mesh& from, Mesh* to) {
+  CheckSameRows(to->V.rows(), from.V.rows(), "mesh.V");
+  CheckSameRows(to->F.rows(), from.F.rows(), "mesh.F");
+  CheckSameRows(to->N.rows(), from.N.rows(), "mesh.N");
+  *to = from;
+}
+
 // A Mesh from arrays: V first, so that F's indices and N's rows are checked against it.
 Mesh MeshFromArrays(py::handle V, py::handle F, py::handle N) {
   Mesh mesh;
@@ -60,20 +92,22 @@ any strides are read in place, other real / integer dtypes are converted by nump
 without the GIL (on several threads for large arrays). ValueError for NaN or infinite values, face indices
 outside [0, n) or N with another number of rows; TypeError for another dtype kind.
 Reading mesh.V / mesh.F / mesh.N gives a writable numpy view of the C++ storage (no copy) that keeps the
-mesh alive; assigning mesh.V = array copies the array in (assign V before an F that needs more vertices).
-A view is invalidated when its array is replaced by assignment. Library calls check the mesh again (values
+mesh alive. Assigning mesh.V = array (or F, or NoisyMesh.covariances) of the same shape copies into the
+existing storage: no allocation, views stay valid and see the new values, all values are checked before any
+is written. An array that holds values never changes its size (its views would dangle): another shape is a
+ValueError; build a new Mesh instead. Empty arrays (N of (0, 3), no covariances) take any size. Library calls check the mesh again (values
 written through views) and raise ValueError for a mesh they could not use.)")
       .def(py::init(&MeshFromArrays),
            py::arg("V"), py::arg("F"), py::arg("N") = py::none())
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<Mesh&>().V, self); },
-          [](Mesh& mesh, py::handle a) { mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+          [](Mesh& mesh, py::handle a) { AssignVertices(a, "V", &mesh.V); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<Mesh&>().F, self); },
-          [](Mesh& mesh, py::handle a) { mesh.F = FacesFromArray(a, "F", mesh.V.rows()); }, "(m, 3) int32 faces (view)")
+          [](Mesh& mesh, py::handle a) { AssignFaces(a, "F", mesh.V.rows(), &mesh.F); }, "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<Mesh&>().N, self); },
-          [](Mesh& mesh, py::handle a) { mesh.N = NormalsFromArray(a, mesh.V.rows()); },
+          [](Mesh& mesh, py::handle a) { AssignNormals(a, &mesh); },
           "(n, 3) float64 vertex normals, (0, 3) when absent (view)")
       .def_property_readonly("num_vertices", &Mesh::num_vertices)
       .def_property_readonly("num_faces", &Mesh::num_faces)
@@ -107,32 +141,43 @@ writable views of the C++ storage (no copy); assignment copies.)")
            py::arg("V"), py::arg("F"), py::arg("covariances") = py::none())
       .def_property(
           "mesh", [](NoisyMesh& noisy) -> Mesh& { return noisy.mesh; },
-          [](NoisyMesh& noisy, const Mesh& mesh) { noisy.mesh = mesh; }, py::return_value_policy::reference_internal,
+          [](NoisyMesh& noisy, const Mesh& mesh) { AssignMesh(mesh, &noisy.mesh); }, py::return_value_policy::reference_internal,
           "the Mesh inside (a reference: changes show in both)")
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.V, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+          [](NoisyMesh& n, py::handle a) { AssignVertices(a, "V", &n.mesh.V); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<NoisyMesh&>().mesh.F, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.F = FacesFromArray(a, "F", n.mesh.V.rows()); }, "(m, 3) int32 faces (view)")
+          [](NoisyMesh& n, py::handle a) { AssignFaces(a, "F", n.mesh.V.rows(), &n.mesh.F); }, "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.N, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.N = NormalsFromArray(a, n.mesh.V.rows()); }, "(n, 3) float64 normals (view)")
+          [](NoisyMesh& n, py::handle a) { AssignNormals(a, &n.mesh); }, "(n, 3) float64 normals (view)")
       .def_property(
           "covariances", [](py::object self) { return CovariancesView(self.cast<NoisyMesh&>().covariance, self); },
           [](NoisyMesh& n, py::handle a) {
-            n.covariance = a.is_none() ? std::vector<Eigen::Matrix3d>{} : CovariancesFor(a, n.mesh.V.rows());
+            if (a.is_none()) {
+              CheckSameRows(static_cast<Eigen::Index>(n.covariance.size()), 0, "covariances");
+              return;
+            }
+            const py::tuple shape = py::module_::import("numpy").attr("shape")(a);
+            const Eigen::Index count = shape.empty() ? -1 : shape[0].cast<Eigen::Index>();
+            if (count != 0 && count != n.mesh.V.rows()) {
+              throw py::value_error("covariances: " + std::to_string(count) + " matrices for " +
+                                    std::to_string(n.mesh.V.rows()) + " vertices (give one per vertex, or None)");
+            }
+            AssignCovariances(a, "covariances", &n.covariance);
           },
           "(n, 3, 3) float64 covariances, model units² (view; strides (72, 8, 24): each 3×3 is column-major)")
       .def_property(
           "pixel", [](py::object self) { return PixelsView(self.cast<NoisyMesh&>().pixel, self); },
           [](NoisyMesh& n, py::handle a) {
-            auto pixel = PixelsFromArray(a, "pixel");
+            const auto pixel = PixelsFromArray(a, "pixel");
             if (pixel.rows() != 0 && pixel.rows() != n.mesh.V.rows()) {
               throw py::value_error("pixel: " + std::to_string(pixel.rows()) + " rows for " +
                                     std::to_string(n.mesh.V.rows()) + " vertices");
             }
-            n.pixel = std::move(pixel);
+            CheckSameRows(n.pixel.rows(), pixel.rows(), "pixel");
+            n.pixel = pixel;  // a copy into the same storage (or into empty storage)
           },
           "(n, 2) float32 (u, v) pixel of each vertex, or (0, 2) (view)")
       .def_property_readonly("has_covariance", &NoisyMesh::has_covariance)

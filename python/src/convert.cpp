@@ -8,6 +8,7 @@
 #include <limits>
 #include <system_error>
 #include <thread>
+#include <type_traits>
 
 namespace rangebayes::python {
 namespace {
@@ -109,26 +110,27 @@ py::ssize_t ForRowRanges(py::ssize_t n, size_t bytes, const Rows& rows) {
   return -1;
 }
 
-// Rows [b, e) of an (n, kCols) float64 array with byte strides (s0, s1) into row-major dst; returns the first
-// row with a non-finite value, or -1.
-template <int kCols>
-py::ssize_t CopyDoubleRows(const char* src, py::ssize_t s0, py::ssize_t s1, double* dst, py::ssize_t b,
-                           py::ssize_t e) {
+// The row functions below copy rows [b, e) of a numpy array into row-major dst (kWrite) or only check them
+// (!kWrite, dst unused), and return the first bad row in [b, e) or -1.
+
+// (n, kCols) float64 with byte strides (s0, s1); bad: a non-finite value.
+template <int kCols, bool kWrite>
+py::ssize_t DoubleRows(const char* src, py::ssize_t s0, py::ssize_t s1, double* dst, py::ssize_t b, py::ssize_t e) {
+  constexpr py::ssize_t d = sizeof(double);
   bool bad = false;
-  if (s1 == sizeof(double) && s0 == kCols * static_cast<py::ssize_t>(sizeof(double))) {
+  if (s1 == d && s0 == kCols * d) {
     const char* in = src + b * s0;
-    double* out = dst + b * kCols;
     const py::ssize_t count = (e - b) * kCols;
     for (py::ssize_t k = 0; k < count; ++k) {
-      const double x = Load<double>(in + k * static_cast<py::ssize_t>(sizeof(double)));
-      out[k] = x;
+      const double x = Load<double>(in + k * d);
+      if constexpr (kWrite) dst[b * kCols + k] = x;
       bad |= NonFinite(x);
     }
   } else {
     for (py::ssize_t i = b; i < e; ++i) {
       for (int c = 0; c < kCols; ++c) {
         const double x = Load<double>(src + i * s0 + c * s1);
-        dst[i * kCols + c] = x;
+        if constexpr (kWrite) dst[i * kCols + c] = x;
         bad |= NonFinite(x);
       }
     }
@@ -136,53 +138,53 @@ py::ssize_t CopyDoubleRows(const char* src, py::ssize_t s0, py::ssize_t s1, doub
   if (!bad) return -1;
   for (py::ssize_t i = b; i < e; ++i) {
     for (int c = 0; c < kCols; ++c) {
-      if (NonFinite(dst[i * kCols + c])) return i;
+      if (NonFinite(Load<double>(src + i * s0 + c * s1))) return i;
     }
   }
   return -1;
 }
 
-// Element (r, c) of the 3×3 at `block` with byte strides (s1, s2), into column-major out.
-inline bool CopyCovariance(const char* block, py::ssize_t s1, py::ssize_t s2, double* out) {
+// (n, 3, 3) float64 into column-major 3×3 blocks; bad: a non-finite value.
+template <bool kWrite>
+inline bool CovarianceBlock(const char* block, py::ssize_t s1, py::ssize_t s2, double* out) {
   bool bad = false;
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
       const double x = Load<double>(block + r * s1 + c * s2);
-      out[3 * c + r] = x;
+      if constexpr (kWrite) out[3 * c + r] = x;
       bad |= NonFinite(x);
     }
   }
   return bad;
 }
 
-py::ssize_t CopyCovarianceRows(const char* src, py::ssize_t s0, py::ssize_t s1, py::ssize_t s2, double* dst,
-                               py::ssize_t b, py::ssize_t e) {
+template <bool kWrite>
+py::ssize_t CovarianceRows(const char* src, py::ssize_t s0, py::ssize_t s1, py::ssize_t s2, double* dst,
+                           py::ssize_t b, py::ssize_t e) {
   constexpr py::ssize_t d = sizeof(double);
   bool bad = false;
   if (s0 == 9 * d && s1 == 3 * d && s2 == d) {  // C order: constant strides, so the compiler unrolls
-    for (py::ssize_t i = b; i < e; ++i) bad |= CopyCovariance(src + i * 9 * d, 3 * d, d, dst + 9 * i);
+    for (py::ssize_t i = b; i < e; ++i) bad |= CovarianceBlock<kWrite>(src + i * 9 * d, 3 * d, d, dst + 9 * i);
   } else {
-    for (py::ssize_t i = b; i < e; ++i) bad |= CopyCovariance(src + i * s0, s1, s2, dst + 9 * i);
+    for (py::ssize_t i = b; i < e; ++i) bad |= CovarianceBlock<kWrite>(src + i * s0, s1, s2, dst + 9 * i);
   }
   if (!bad) return -1;
+  double block[9];
   for (py::ssize_t i = b; i < e; ++i) {
-    for (int k = 0; k < 9; ++k) {
-      if (NonFinite(dst[9 * i + k])) return i;
-    }
+    if (CovarianceBlock<true>(src + i * s0, s1, s2, block)) return i;
   }
   return -1;
 }
 
-// Rows [b, e) of an (m, 3) integer array of Int into row-major int faces; returns the first row with an index
-// outside [lo, hi), or -1.
-template <typename Int>
-py::ssize_t CopyFaceRows(const char* src, py::ssize_t s0, py::ssize_t s1, int* dst, py::ssize_t b, py::ssize_t e,
-                         long long lo, long long hi) {
+// (m, 3) integers of type Int; bad: an index outside [lo, hi).
+template <typename Int, bool kWrite>
+py::ssize_t FaceRows(const char* src, py::ssize_t s0, py::ssize_t s1, int* dst, py::ssize_t b, py::ssize_t e,
+                     long long lo, long long hi) {
   bool bad = false;
   for (py::ssize_t i = b; i < e; ++i) {
     for (int c = 0; c < 3; ++c) {
       const long long v = Load<Int>(src + i * s0 + c * s1);
-      dst[3 * i + c] = static_cast<int>(v);
+      if constexpr (kWrite) dst[3 * i + c] = static_cast<int>(v);
       bad |= (v < lo) | (v >= hi);
     }
   }
@@ -200,29 +202,74 @@ std::string RowText(const py::array& a, py::ssize_t row) {
   return py::str(a[py::int_(row)]).cast<std::string>();
 }
 
-}  // namespace
-
-Vertices VerticesFromArray(py::handle obj, const std::string& what) {
-  const py::array a = RealArray(obj, {-1, 3}, what);
-  const py::ssize_t n = a.shape(0);
-  Vertices V(n, 3);
-  const size_t bytes = sizeof(double) * static_cast<size_t>(V.size());
-  AdviseHugePages(V.data(), bytes);
-  const char* src = static_cast<const char*>(a.data());
-  const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
-  double* dst = V.data();
-  py::ssize_t bad;
-  {
-    py::gil_scoped_release nogil;
-    bad = ForRowRanges(n, bytes, [&](py::ssize_t b, py::ssize_t e) { return CopyDoubleRows<3>(src, s0, s1, dst, b, e); });
+// Whether the array's elements may lie in [dst, dst + bytes) (the source is a view of the destination).
+bool MayOverlap(const py::array& a, const void* dst, size_t bytes) {
+  if (a.size() == 0 || bytes == 0) return false;
+  auto lo = reinterpret_cast<std::intptr_t>(a.data());
+  std::intptr_t hi = lo + static_cast<std::intptr_t>(a.itemsize());
+  for (py::ssize_t k = 0; k < a.ndim(); ++k) {
+    const std::intptr_t span = static_cast<std::intptr_t>(a.strides(k)) * (a.shape(k) - 1);
+    (span < 0 ? lo : hi) += span;
   }
-  if (bad >= 0) {
-    throw py::value_error(what + ": row " + std::to_string(bad) + " is not finite: " + RowText(a, bad));
-  }
-  return V;
+  const auto d = reinterpret_cast<std::intptr_t>(dst);
+  return lo < d + static_cast<std::intptr_t>(bytes) && d < hi;
 }
 
-Faces FacesFromArray(py::handle obj, const std::string& what, Eigen::Index num_vertices) {
+// Fills n rows of `out` with rows(write, out, b, e) without the GIL. With check_first (filling storage that
+// holds values already), a first pass checks every row, so a bad value leaves the storage untouched.
+// Returns the first bad row or -1.
+template <typename T, typename Rows>
+py::ssize_t Fill(py::ssize_t n, size_t bytes, T* out, bool check_first, const Rows& rows) {
+  py::gil_scoped_release nogil;
+  if (check_first) {
+    const py::ssize_t bad =
+        ForRowRanges(n, bytes, [&](py::ssize_t b, py::ssize_t e) { return rows(std::false_type{}, out, b, e); });
+    if (bad >= 0) return bad;
+  }
+  return ForRowRanges(n, bytes, [&](py::ssize_t b, py::ssize_t e) { return rows(std::true_type{}, out, b, e); });
+}
+
+// How an array of n rows is copied into storage that has `rows` rows at `data`. Storage that holds values
+// never changes its size from Python (numpy views of it would point into freed memory): another non-empty
+// size is a ValueError. Same size: in place, through a temporary when the array is a view of the storage.
+struct Placement {
+  bool in_place;       // into the existing storage
+  bool through_fresh;  // via fresh storage (a new size, or a source overlapping the existing storage)
+};
+Placement Place(const py::array& a, py::ssize_t n, py::ssize_t rows, const void* data, size_t bytes,
+                const std::string& what) {
+  if (rows != 0 && rows != n) {
+    throw py::value_error(what + ": the storage has " + std::to_string(rows) + " rows, the array " +
+                          std::to_string(n) + "; assign one with as many rows (views of the storage stay valid) " +
+                          "or build a new mesh");
+  }
+  Placement p;
+  p.in_place = n > 0 && rows == n;
+  p.through_fresh = !p.in_place || MayOverlap(a, data, bytes);
+  return p;
+}
+
+}  // namespace
+
+void AssignVertices(py::handle obj, const std::string& what, Vertices* V) {
+  const py::array a = RealArray(obj, {-1, 3}, what);
+  const py::ssize_t n = a.shape(0);
+  const size_t bytes = sizeof(double) * 3 * static_cast<size_t>(n);
+  const Placement place = Place(a, n, V->rows(), V->data(), bytes, what);
+  Vertices fresh(place.through_fresh ? n : 0, 3);
+  AdviseHugePages(fresh.data(), bytes);
+  const char* src = static_cast<const char*>(a.data());
+  const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
+  const py::ssize_t bad = Fill(n, bytes, place.through_fresh ? fresh.data() : V->data(), !place.through_fresh,
+                               [&](auto write, double* out, py::ssize_t b, py::ssize_t e) {
+                                 return DoubleRows<3, decltype(write)::value>(src, s0, s1, out, b, e);
+                               });
+  if (bad >= 0) throw py::value_error(what + ": row " + std::to_string(bad) + " is not finite: " + RowText(a, bad));
+  if (place.in_place && place.through_fresh) std::memcpy(V->data(), fresh.data(), bytes);
+  if (!place.in_place) *V = std::move(fresh);
+}
+
+void AssignFaces(py::handle obj, const std::string& what, Eigen::Index num_vertices, Faces* F) {
   py::array a = CheckedArray(obj, what);
   const char k = a.dtype().kind();
   if (k != 'i' && k != 'u') throw py::type_error(what + ": expected an integer array, got dtype " + DtypeName(a));
@@ -233,20 +280,18 @@ Faces FacesFromArray(py::handle obj, const std::string& what, Eigen::Index num_v
   const long long hi = num_vertices >= 0 ? static_cast<long long>(num_vertices)
                                          : static_cast<long long>(std::numeric_limits<int>::max()) + 1;
   const py::ssize_t m = a.shape(0);
-  Faces F(m, 3);
-  const size_t bytes = sizeof(int) * static_cast<size_t>(F.size());
-  AdviseHugePages(F.data(), bytes);
+  const size_t bytes = sizeof(int) * 3 * static_cast<size_t>(m);
+  const Placement place = Place(a, m, F->rows(), F->data(), bytes, what);
+  Faces fresh(place.through_fresh ? m : 0, 3);
+  AdviseHugePages(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
-  int* dst = F.data();
-  py::ssize_t bad;
-  {
-    py::gil_scoped_release nogil;
-    bad = ForRowRanges(m, bytes, [&](py::ssize_t b, py::ssize_t e) {
-      return int32 ? CopyFaceRows<std::int32_t>(src, s0, s1, dst, b, e, lo, hi)
-                   : CopyFaceRows<std::int64_t>(src, s0, s1, dst, b, e, lo, hi);
-    });
-  }
+  const py::ssize_t bad = Fill(m, bytes, place.through_fresh ? fresh.data() : F->data(), !place.through_fresh,
+                               [&](auto write, int* out, py::ssize_t b, py::ssize_t e) {
+                                 constexpr bool kWrite = decltype(write)::value;
+                                 return int32 ? FaceRows<std::int32_t, kWrite>(src, s0, s1, out, b, e, lo, hi)
+                                              : FaceRows<std::int64_t, kWrite>(src, s0, s1, out, b, e, lo, hi);
+                               });
   if (bad >= 0) {
     const std::string row = what + ": row " + std::to_string(bad) + " " + RowText(a, bad);
     if (num_vertices >= 0) {
@@ -255,29 +300,49 @@ Faces FacesFromArray(py::handle obj, const std::string& what, Eigen::Index num_v
     }
     throw py::value_error(row + " has an index that does not fit in int32");
   }
+  if (place.in_place && place.through_fresh) std::memcpy(F->data(), fresh.data(), bytes);
+  if (!place.in_place) *F = std::move(fresh);
+}
+
+void AssignCovariances(py::handle obj, const std::string& what, std::vector<Eigen::Matrix3d>* covariance) {
+  static_assert(sizeof(Eigen::Matrix3d) == 9 * sizeof(double), "the copy writes 9 doubles per vertex");
+  const py::array a = RealArray(obj, {-1, 3, 3}, what);
+  const py::ssize_t n = a.shape(0);
+  const size_t bytes = sizeof(Eigen::Matrix3d) * static_cast<size_t>(n);
+  const Placement place =
+      Place(a, n, static_cast<py::ssize_t>(covariance->size()), covariance->data(), bytes, what);
+  // Eigen leaves the elements uninitialised, so the pages are first touched by the copy.
+  std::vector<Eigen::Matrix3d> fresh(place.through_fresh ? static_cast<size_t>(n) : 0);
+  AdviseHugePages(fresh.data(), bytes);
+  const char* src = static_cast<const char*>(a.data());
+  const py::ssize_t s0 = a.strides(0), s1 = a.strides(1), s2 = a.strides(2);
+  double* out = place.through_fresh ? (fresh.empty() ? nullptr : fresh[0].data()) : (*covariance)[0].data();
+  const py::ssize_t bad = Fill(n, bytes, out, !place.through_fresh, [&](auto write, double* o, py::ssize_t b, py::ssize_t e) {
+    return CovarianceRows<decltype(write)::value>(src, s0, s1, s2, o, b, e);
+  });
+  if (bad >= 0) {
+    throw py::value_error(what + ": matrix " + std::to_string(bad) + " is not finite: " + RowText(a, bad));
+  }
+  if (place.in_place && place.through_fresh) std::memcpy((*covariance)[0].data(), fresh[0].data(), bytes);
+  if (!place.in_place) *covariance = std::move(fresh);
+}
+
+Vertices VerticesFromArray(py::handle obj, const std::string& what) {
+  Vertices V(0, 3);
+  AssignVertices(obj, what, &V);
+  return V;
+}
+
+Faces FacesFromArray(py::handle obj, const std::string& what, Eigen::Index num_vertices) {
+  Faces F(0, 3);
+  AssignFaces(obj, what, num_vertices, &F);
   return F;
 }
 
 std::vector<Eigen::Matrix3d> CovariancesFromArray(py::handle obj, const std::string& what) {
-  const py::array a = RealArray(obj, {-1, 3, 3}, what);
-  const py::ssize_t n = a.shape(0);
-  std::vector<Eigen::Matrix3d> out(static_cast<size_t>(n));  // Eigen leaves the elements uninitialised
-  const size_t bytes = sizeof(Eigen::Matrix3d) * out.size();
-  AdviseHugePages(out.data(), bytes);
-  static_assert(sizeof(Eigen::Matrix3d) == 9 * sizeof(double), "the copy writes 9 doubles per vertex");
-  const char* src = static_cast<const char*>(a.data());
-  const py::ssize_t s0 = a.strides(0), s1 = a.strides(1), s2 = a.strides(2);
-  double* dst = n > 0 ? out[0].data() : nullptr;
-  py::ssize_t bad;
-  {
-    py::gil_scoped_release nogil;
-    bad = ForRowRanges(n, bytes,
-                       [&](py::ssize_t b, py::ssize_t e) { return CopyCovarianceRows(src, s0, s1, s2, dst, b, e); });
-  }
-  if (bad >= 0) {
-    throw py::value_error(what + ": matrix " + std::to_string(bad) + " is not finite: " + RowText(a, bad));
-  }
-  return out;
+  std::vector<Eigen::Matrix3d> covariance;
+  AssignCovariances(obj, what, &covariance);
+  return covariance;
 }
 
 Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> PixelsFromArray(py::handle obj, const std::string& what) {
@@ -285,7 +350,7 @@ Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> PixelsFromArray(py::han
   const py::ssize_t n = a.shape(0);
   Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> wide(n, 2);
   const py::ssize_t bad =
-      CopyDoubleRows<2>(static_cast<const char*>(a.data()), a.strides(0), a.strides(1), wide.data(), 0, n);
+      DoubleRows<2, true>(static_cast<const char*>(a.data()), a.strides(0), a.strides(1), wide.data(), 0, n);
   if (bad >= 0) throw py::value_error(what + ": row " + std::to_string(bad) + " is not finite: " + RowText(a, bad));
   return wide.cast<float>();
 }

@@ -29,6 +29,13 @@ Vertices VerticesFromArray(py::handle array, const std::string& what);
 Faces FacesFromArray(py::handle array, const std::string& what, Eigen::Index num_vertices = -1);
 // Copies an (n, 3, 3) array into one 3×3 matrix per vertex (ValueError on a non-finite value).
 std::vector<Eigen::Matrix3d> CovariancesFromArray(py::handle array, const std::string& what);
+// Assignment from Python (mesh.V = array, ...) with the same checks. Into empty storage: fresh storage. Into
+// storage of as many rows: in place (no allocation, so numpy views of it stay valid; all values are checked
+// before any is written, so an error leaves it as it was; through a temporary when the array is a view of
+// it). Storage with values never changes size (its views would dangle): ValueError.
+void AssignVertices(py::handle array, const std::string& what, Vertices* V);
+void AssignFaces(py::handle array, const std::string& what, Eigen::Index num_vertices, Faces* F);
+void AssignCovariances(py::handle array, const std::string& what, std::vector<Eigen::Matrix3d>* covariance);
 // Copies an (n, 2) array into float32 pixel positions.
 Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> PixelsFromArray(py::handle array, const std::string& what);
 

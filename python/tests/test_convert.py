@@ -69,7 +69,7 @@ def test_face_indices_and_counts_are_checked():
         rb.Mesh(V, F, V[:2])
     m = rb.Mesh(V, F)
     with pytest.raises(ValueError, match="outside"):
-        m.F = [[0, 1, 9]]  # assign V first when F needs more vertices
+        m.F = [[0, 1, 9]] * 4
     with pytest.raises(TypeError, match="expected an integer array"):
         rb.Mesh(V, F.astype(bool))
     with pytest.raises(TypeError, match="V: expected a real-valued array, got dtype <U8"):
@@ -100,3 +100,38 @@ def test_empty_arrays():
     assert m.V.shape == (0, 3) and m.F.shape == (0, 3)
     n = rb.NoisyMesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), np.zeros((0, 3, 3)))
     assert n.covariances.shape == (0, 3, 3)
+
+
+def test_assignment_of_the_same_shape_is_in_place_and_keeps_views():
+    verts, faces, cov = grid(50)
+    n = rb.NoisyMesh(verts, faces, cov)
+    V_view, F_view, C_view = n.V, n.F, n.covariances
+    n.V = verts * 2.0
+    n.F = faces[:, ::-1]
+    n.covariances = cov * 3.0
+    np.testing.assert_array_equal(V_view, verts * 2.0)  # the old views see the new values: same storage
+    np.testing.assert_array_equal(F_view, faces[:, ::-1])
+    np.testing.assert_array_equal(C_view, cov * 3.0)
+    bad = verts.copy()
+    bad[-1, 0] = np.nan
+    with pytest.raises(ValueError, match=f"V: row {len(verts) - 1} is not finite"):
+        n.V = bad
+    np.testing.assert_array_equal(n.V, verts * 2.0)  # checked before writing: unchanged
+    n.V = n.V[::-1]  # a view of the storage itself: copied through fresh storage, not overwritten in place
+    np.testing.assert_array_equal(n.V, (verts * 2.0)[::-1])
+    np.testing.assert_array_equal(V_view, (verts * 2.0)[::-1])
+    # Storage with values keeps its size, so that no view can point into freed memory.
+    with pytest.raises(ValueError, match=r"V: the storage has 2500 rows, the array 10.*build a new mesh"):
+        n.V = verts[:10]
+    with pytest.raises(ValueError, match="covariances: 3 matrices for 2500 vertices"):
+        n.covariances = cov[:3]
+    with pytest.raises(ValueError, match="covariances: the storage has 2500 rows"):
+        n.covariances = None
+    with pytest.raises(ValueError, match="mesh.V: the storage has 2500 rows"):
+        n.mesh = rb.Mesh(V, F)
+    m = rb.Mesh(V, F)
+    m.N = V * 0.5  # empty (0, 3) normals take the vertex count
+    np.testing.assert_array_equal(m.N, V * 0.5)
+    plain = rb.NoisyMesh(V, F)
+    plain.covariances = np.broadcast_to(np.eye(3), (4, 3, 3))  # no covariances yet: any count
+    assert plain.has_covariance
