@@ -54,6 +54,16 @@ def convert(args):
         ("NoisyMesh(V, F, cov) int64 F", lambda: rb.NoisyMesh(V, F64, cov)),
         ("NoisyMesh(V, F, cov) Fortran cov", lambda: rb.NoisyMesh(V, F, covF)),
     ]
+    target = rb.NoisyMesh(V, F, cov)
+
+    def assign():
+        target.V, target.F, target.covariances = V, F, cov  # same shapes: into the existing storage
+
+    np_V, np_F, np_cov = np.empty_like(V), np.empty_like(F), np.empty_like(cov)
+    rows += [
+        ("numpy copyto() into existing arrays", lambda: (np.copyto(np_V, V), np.copyto(np_F, F), np.copyto(np_cov, cov))),
+        ("assign V, F, covariances (same size)", assign),
+    ]
     for label, make in rows:
         wall, cpu = best_of(args.repeat, make)
         print(f"{label:38s} wall {wall * 1e3:6.1f} ms, CPU {cpu * 1e3:6.1f} ms")
