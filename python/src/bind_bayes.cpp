@@ -189,8 +189,14 @@ generic model even when covariances are given), initial_positions ((n, 3) start)
 TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
   m.attr("SMOOTH_OPTIONS") = FieldsToDict(SmoothOptionFields(), SmoothOptions{});
 
-  m.def("estimate_noise_level", [](py::handle mesh) { return EstimateNoiseLevel(ToMesh(mesh, "estimate_noise_level")); },
-        py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable).");
+  m.def(
+      "estimate_noise_level",
+      [](py::handle mesh) {
+        const Mesh plain = ToMesh(mesh, "estimate_noise_level");
+        py::gil_scoped_release nogil;
+        return EstimateNoiseLevel(plain);
+      },
+      py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable). GIL released.");
   m.def(
       "make_generic_noisy_mesh",
       [](py::handle mesh, py::handle noise, py::handle sigma, double across_ratio) {
