@@ -229,7 +229,8 @@ CLI flags map as --num-disparities N: sgbm={"num_disparities": N} (or spacetime=
 sgbm={"block_size_px": B} / spacetime={"window_px": B}, --downsample N: triangulate={"downsample": N},
 --tolerance T / --max-iterations I / --prior-weight W: smoothing={...}, --lambda L: decimation={"lambda": L},
 --first/--count/--repeat: playback={...}. The GIL is released while the pipeline runs; frames that fail are
-PipelineResult.error and summary.errors, as in the CLI.)");
+PipelineResult.error and summary.errors, as in the CLI. Ctrl-C (KeyboardInterrupt) or an exception raised by
+progress stops the run and is raised once the pipeline has ended.)");
   m.attr("PIPELINE_OPTIONS") = FieldsToDict(PipelineOptionFields(), PipelineOptions{});
 }
 

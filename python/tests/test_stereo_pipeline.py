@@ -1,5 +1,7 @@
 """Rigs, noise models, recordings, stereo, triangulation, replay, decimation and learning from Python."""
 
+import os
+import signal
 import subprocess
 import threading
 import time
@@ -201,3 +203,17 @@ def test_replay_bad_input_is_a_clear_error(tmp_path, recording_dir):
         rb.replay(str(recording_dir), smoothing={"prior": "nonsense"})
     with pytest.raises(rb.Error):
         rb.replay(str(recording_dir), smoothing={"prior": str(tmp_path / "missing.yaml")})
+
+
+def test_replay_stops_on_ctrl_c(recording_dir):
+    sent = []
+
+    def interrupt_once(fraction, stage):  # on the pipeline's sink thread: SIGINT as from Ctrl-C
+        if not sent:
+            sent.append(stage)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        rb.replay(str(recording_dir), progress=interrupt_once, playback={"count": 8, "repeats": 4},
+                  triangulate={"downsample": 4}, smoothing={"tolerance": "fast"}, decimate=False)
+    assert sent
