@@ -89,7 +89,7 @@ F (m, 3) int32 vertex indices (counter-clockwise seen from outside), N (n, 3) or
 
 Mesh(V, F, N=None) copies the arrays in one pass (the C++ mesh owns its storage): float64 V and int32 F of
 any strides are read in place, other real / integer dtypes are converted by numpy first; the copy runs
-without the GIL (on several threads for large arrays). ValueError for NaN or infinite values, face indices
+without the GIL. ValueError for NaN or infinite values, face indices
 outside [0, n) or N with another number of rows; TypeError for another dtype kind.
 Reading mesh.V / mesh.F / mesh.N gives a writable numpy view of the C++ storage (no copy) that keeps the
 mesh alive. Assigning mesh.V = array (or F, or NoisyMesh.covariances) of the same shape copies into the

@@ -6,8 +6,6 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
-#include <system_error>
-#include <thread>
 #include <type_traits>
 
 namespace rangebayes::python {
@@ -78,36 +76,6 @@ inline T Load(const char* p) {
   T x;
   std::memcpy(&x, p, sizeof x);  // numpy arrays need not be aligned
   return x;
-}
-
-// One thread does not reach the memory bandwidth of a copy into fresh pages (the kernel zeroes each page in
-// the thread that first touches it), so large copies are split into row ranges on a few threads.
-constexpr size_t kBytesPerCopyThread = size_t{8} << 20;
-constexpr unsigned kMaxCopyThreads = 4;
-
-// Runs rows(begin, end), which returns the first bad row in [begin, end) or -1, over [0, n); returns the
-// first bad row of all, or -1. Call without the GIL; rows must not throw.
-template <typename Rows>
-py::ssize_t ForRowRanges(py::ssize_t n, size_t bytes, const Rows& rows) {
-  unsigned threads = static_cast<unsigned>(std::min<size_t>(bytes / kBytesPerCopyThread + 1, kMaxCopyThreads));
-  threads = std::min(threads, std::max(1u, std::thread::hardware_concurrency()));
-  if (threads <= 1 || n < static_cast<py::ssize_t>(threads)) return rows(0, n);
-  std::vector<py::ssize_t> bad(threads, -1);
-  auto range = [&](unsigned t) { bad[t] = rows(n * t / threads, n * (t + 1) / threads); };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) {
-    try {
-      pool.emplace_back(range, t);
-    } catch (const std::system_error&) {
-      range(t);  // no thread to be had: this one does the range
-    }
-  }
-  range(0);
-  for (std::thread& thread : pool) thread.join();
-  for (py::ssize_t b : bad) {
-    if (b >= 0) return b;
-  }
-  return -1;
 }
 
 // The row functions below copy rows [b, e) of a numpy array into row-major dst (kWrite) or only check them
@@ -234,15 +202,15 @@ bool MayOverlap(const py::array& a, const void* dst, size_t bytes) {
 // Fills n rows of `out` with rows(write, out, b, e) without the GIL. With check_first (filling storage that
 // holds values already), a first pass checks every row, so a bad value leaves the storage untouched.
 // Returns the first bad row or -1.
+// One thread: a second one (tried, 2 cores under load) added CPU time and no wall time (BENCHMARKS.md).
 template <typename T, typename Rows>
-py::ssize_t Fill(py::ssize_t n, size_t bytes, T* out, bool check_first, const Rows& rows) {
+py::ssize_t Fill(py::ssize_t n, T* out, bool check_first, const Rows& rows) {
   py::gil_scoped_release nogil;
   if (check_first) {
-    const py::ssize_t bad =
-        ForRowRanges(n, bytes, [&](py::ssize_t b, py::ssize_t e) { return rows(std::false_type{}, out, b, e); });
+    const py::ssize_t bad = rows(std::false_type{}, out, 0, n);
     if (bad >= 0) return bad;
   }
-  return ForRowRanges(n, bytes, [&](py::ssize_t b, py::ssize_t e) { return rows(std::true_type{}, out, b, e); });
+  return rows(std::true_type{}, out, 0, n);
 }
 
 // How an array of n rows is copied into storage that has `rows` rows at `data`. Storage that holds values
@@ -276,7 +244,7 @@ void AssignVertices(py::handle obj, const std::string& what, Vertices* V) {
   AdviseHugePages(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
-  const py::ssize_t bad = Fill(n, bytes, place.through_fresh ? fresh.data() : V->data(), !place.through_fresh,
+  const py::ssize_t bad = Fill(n, place.through_fresh ? fresh.data() : V->data(), !place.through_fresh,
                                [&](auto write, double* out, py::ssize_t b, py::ssize_t e) {
                                  return DoubleRows<3, decltype(write)::value>(src, s0, s1, out, b, e);
                                });
@@ -302,7 +270,7 @@ void AssignFaces(py::handle obj, const std::string& what, Eigen::Index num_verti
   AdviseHugePages(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
-  const py::ssize_t bad = Fill(m, bytes, place.through_fresh ? fresh.data() : F->data(), !place.through_fresh,
+  const py::ssize_t bad = Fill(m, place.through_fresh ? fresh.data() : F->data(), !place.through_fresh,
                                [&](auto write, int* out, py::ssize_t b, py::ssize_t e) {
                                  constexpr bool kWrite = decltype(write)::value;
                                  return int32 ? FaceRows<std::int32_t, kWrite>(src, s0, s1, out, b, e, lo, hi)
@@ -333,7 +301,7 @@ void AssignCovariances(py::handle obj, const std::string& what, std::vector<Eige
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1), s2 = a.strides(2);
   double* out = place.through_fresh ? (fresh.empty() ? nullptr : fresh[0].data()) : (*covariance)[0].data();
-  const py::ssize_t bad = Fill(n, bytes, out, !place.through_fresh, [&](auto write, double* o, py::ssize_t b, py::ssize_t e) {
+  const py::ssize_t bad = Fill(n, out, !place.through_fresh, [&](auto write, double* o, py::ssize_t b, py::ssize_t e) {
     return CovarianceRows<decltype(write)::value>(src, s0, s1, s2, o, b, e);
   });
   if (bad >= 0) {

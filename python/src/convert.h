@@ -3,7 +3,7 @@
 //
 // numpy -> C++ is one pass over the input (the library's types own their storage, so a copy cannot be
 // avoided): a float64 / int32 array of any strides is read in place, other dtypes are first converted by
-// numpy. The pass runs without the GIL, on several threads for large arrays, and checks values as it copies
+// numpy. The pass runs without the GIL (on one thread) and checks values as it copies
 // (non-finite numbers, face indices out of range), so bad input is a ValueError naming the array and row,
 // never a crash in the library.
 #pragma once

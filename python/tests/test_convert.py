@@ -10,7 +10,7 @@ F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int32)
 
 
 def grid(n):
-    """An n x n vertex grid (2 (n-1)^2 faces) with random covariances: large enough to be copied on threads."""
+    """An n x n vertex grid (2 (n-1)^2 faces) with random covariances."""
     rng = np.random.default_rng(7)
     u, v = np.meshgrid(np.arange(n, dtype=np.float64), np.arange(n, dtype=np.float64))
     verts = np.column_stack([u.ravel(), v.ravel(), rng.normal(size=n * n)])
@@ -22,7 +22,7 @@ def grid(n):
 
 
 def test_every_layout_copies_exactly():
-    verts, faces, cov = grid(400)  # 160k vertices: 3.8 MB of positions, 11.5 MB of covariances (threaded copy)
+    verts, faces, cov = grid(400)  # 160k vertices: 3.8 MB of positions, 11.5 MB of covariances
     layouts_v = [verts, np.asfortranarray(verts), verts[::-1][::-1], np.ascontiguousarray(verts[::-1])[::-1],
                  verts.astype(">f8")]
     for vv in layouts_v:
@@ -38,7 +38,7 @@ def test_every_layout_copies_exactly():
 
 def test_non_finite_values_are_rejected_with_the_row():
     verts, faces, cov = grid(400)
-    for row in (0, 3, verts.shape[0] - 1):  # first, early and last row (the last thread's range)
+    for row in (0, 3, verts.shape[0] - 1):  # first, early and last row
         bad = verts.copy()
         bad[row, 1] = np.nan
         with pytest.raises(ValueError, match=rf"V: row {row} is not finite"):
