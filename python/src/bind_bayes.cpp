@@ -152,8 +152,7 @@ void BindBayes(py::module_& m) {
       .def_readonly("prior_energy", &SmoothSummary::prior_energy)
       .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
       .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
-      .def_property_readonly("termination",
-                             [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
+      .def_property_readonly("termination", [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
       .def_readonly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
       .def_readonly("flipped_faces", &SmoothSummary::flipped_faces)
       .def_readonly("input_flipped_faces", &SmoothSummary::input_flipped_faces)
@@ -289,8 +288,9 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
       .def_readwrite("date", &LearnedPrior::date);
   m.def("read_learned_prior", &ReadLearnedPrior, py::arg("path"));
-  m.def("write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
-        py::arg("path"), py::arg("prior"));
+  m.def(
+      "write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
+      py::arg("path"), py::arg("prior"));
   m.def(
       "learn_prior",
       [](const py::sequence& pairs, py::handle initial_theta, py::kwargs kwargs) {

@@ -97,8 +97,7 @@ existing storage: no allocation, views stay valid and see the new values, all va
 is written. An array that holds values never changes its size (its views would dangle): another shape is a
 ValueError; build a new Mesh instead. Empty arrays (N of (0, 3), no covariances) take any size. Library calls check the mesh again (values
 written through views) and raise ValueError for a mesh they could not use.)")
-      .def(py::init(&MeshFromArrays),
-           py::arg("V"), py::arg("F"), py::arg("N") = py::none())
+      .def(py::init(&MeshFromArrays), py::arg("V"), py::arg("F"), py::arg("N") = py::none())
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<Mesh&>().V, self); },
           [](Mesh& mesh, py::handle a) { AssignVertices(a, "V", &mesh.V); }, "(n, 3) float64 positions (view)")
@@ -111,13 +110,15 @@ written through views) and raise ValueError for a mesh they could not use.)")
           "(n, 3) float64 vertex normals, (0, 3) when absent (view)")
       .def_property_readonly("num_vertices", &Mesh::num_vertices)
       .def_property_readonly("num_faces", &Mesh::num_faces)
-      .def("copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
+      .def(
+          "copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
       .def("__repr__", [](const Mesh& mesh) {
         return "<rangebayes.Mesh " + std::to_string(mesh.num_vertices()) + " vertices, " +
                std::to_string(mesh.num_faces()) + " faces>";
       });
 
-  py::class_<NoisyMesh>(m, "NoisyMesh", R"(A mesh whose vertices are noisy measurements: covariances (n, 3, 3) float64, one 3×3
+  py::class_<NoisyMesh>(m, "NoisyMesh",
+                        R"(A mesh whose vertices are noisy measurements: covariances (n, 3, 3) float64, one 3×3
 covariance per vertex in model units squared (empty (0, 3, 3) when not known), pixel (n, 2) float32 image
 positions the vertices were triangulated from (or (0, 2)).
 
@@ -141,14 +142,15 @@ writable views of the C++ storage (no copy); assignment copies.)")
            py::arg("V"), py::arg("F"), py::arg("covariances") = py::none())
       .def_property(
           "mesh", [](NoisyMesh& noisy) -> Mesh& { return noisy.mesh; },
-          [](NoisyMesh& noisy, const Mesh& mesh) { AssignMesh(mesh, &noisy.mesh); }, py::return_value_policy::reference_internal,
-          "the Mesh inside (a reference: changes show in both)")
+          [](NoisyMesh& noisy, const Mesh& mesh) { AssignMesh(mesh, &noisy.mesh); },
+          py::return_value_policy::reference_internal, "the Mesh inside (a reference: changes show in both)")
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.V, self); },
           [](NoisyMesh& n, py::handle a) { AssignVertices(a, "V", &n.mesh.V); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<NoisyMesh&>().mesh.F, self); },
-          [](NoisyMesh& n, py::handle a) { AssignFaces(a, "F", n.mesh.V.rows(), &n.mesh.F); }, "(m, 3) int32 faces (view)")
+          [](NoisyMesh& n, py::handle a) { AssignFaces(a, "F", n.mesh.V.rows(), &n.mesh.F); },
+          "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.N, self); },
           [](NoisyMesh& n, py::handle a) { AssignNormals(a, &n.mesh); }, "(n, 3) float64 normals (view)")
@@ -183,11 +185,12 @@ writable views of the C++ storage (no copy); assignment copies.)")
       .def_property_readonly("has_covariance", &NoisyMesh::has_covariance)
       .def_property_readonly("num_vertices", [](const NoisyMesh& n) { return n.mesh.num_vertices(); })
       .def_property_readonly("num_faces", [](const NoisyMesh& n) { return n.mesh.num_faces(); })
-      .def("copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
+      .def(
+          "copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
       .def("__repr__", [](const NoisyMesh& n) {
         return "<rangebayes.NoisyMesh " + std::to_string(n.mesh.num_vertices()) + " vertices, " +
-               std::to_string(n.mesh.num_faces()) + " faces, " +
-               (n.has_covariance() ? "with" : "without") + " covariances>";
+               std::to_string(n.mesh.num_faces()) + " faces, " + (n.has_covariance() ? "with" : "without") +
+               " covariances>";
       });
 
   m.def(
@@ -241,7 +244,8 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
 
   py::class_<CornerNormals>(m, "CornerNormals", "Per-corner shading normals: normals (k, 3), normal_index (m, 3).")
       .def(py::init<>())
-      .def_property_readonly("normals", [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
+      .def_property_readonly("normals",
+                             [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
       .def_property_readonly("normal_index",
                              [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); });
 }

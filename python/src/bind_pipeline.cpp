@@ -117,7 +117,8 @@ void BindPipeline(py::module_& m) {
       .def_readonly("timestamp_right_ns", &StereoFrame::timestamp_right_ns)
       .def_readonly("pattern_id", &StereoFrame::pattern_id);
 
-  py::class_<Recording>(m, "Recording", R"(A recorded session (recordings/README.md): rig (StereoRig or None), meta (dict),
+  py::class_<Recording>(m, "Recording",
+                        R"(A recorded session (recordings/README.md): rig (StereoRig or None), meta (dict),
 len(recording) frames; recording[i] / iteration load frames as StereoFrame (images decoded from disk).)")
       .def_readonly("folder", &Recording::folder)
       .def_readwrite("rig", &Recording::rig)
@@ -131,11 +132,12 @@ len(recording) frames; recording[i] / iteration load frames as StereoFrame (imag
              return LoadRecordingFrame(r, i);
            })
       .def("__iter__", [](py::object self) {
-        return py::module_::import("builtins").attr("map")(self.attr("__getitem__"),
-                                                            py::module_::import("builtins").attr("range")(py::len(self)));
+        return py::module_::import("builtins")
+            .attr("map")(self.attr("__getitem__"), py::module_::import("builtins").attr("range")(py::len(self)));
       });
-  m.def("open_recording", [](const std::string& folder) { return OpenRecording(folder); }, py::arg("folder"),
-        "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
+  m.def(
+      "open_recording", [](const std::string& folder) { return OpenRecording(folder); }, py::arg("folder"),
+      "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
 
   py::class_<PipelineResult>(m, "PipelineResult", R"(One pipeline result: index, last_index, timestamp_ns, frames,
 left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh or None), decimated

@@ -27,7 +27,8 @@ void CheckShape(const py::array& a, const std::vector<py::ssize_t>& shape, const
   for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || a.shape(static_cast<py::ssize_t>(i)) == shape[i];
   if (ok) return;
   std::string want = "(";
-  for (size_t i = 0; i < shape.size(); ++i) want += (i ? ", " : "") + (shape[i] < 0 ? std::string("n") : std::to_string(shape[i]));
+  for (size_t i = 0; i < shape.size(); ++i)
+    want += (i ? ", " : "") + (shape[i] < 0 ? std::string("n") : std::to_string(shape[i]));
   want += ")";
   std::string got = "(";
   for (py::ssize_t i = 0; i < a.ndim(); ++i) got += (i ? ", " : "") + std::to_string(a.shape(i));
@@ -127,8 +128,8 @@ inline bool CovarianceBlock(const char* block, py::ssize_t s1, py::ssize_t s2, d
 }
 
 template <bool kWrite>
-py::ssize_t CovarianceRows(const char* src, py::ssize_t s0, py::ssize_t s1, py::ssize_t s2, double* dst,
-                           py::ssize_t b, py::ssize_t e) {
+py::ssize_t CovarianceRows(const char* src, py::ssize_t s0, py::ssize_t s1, py::ssize_t s2, double* dst, py::ssize_t b,
+                           py::ssize_t e) {
   constexpr py::ssize_t d = sizeof(double);
   bool bad = false;
   if (s0 == 9 * d && s1 == 3 * d && s2 == d) {  // C order: constant strides, so the compiler unrolls
@@ -182,9 +183,7 @@ py::ssize_t FaceRows(const char* src, py::ssize_t s0, py::ssize_t s1, int* dst, 
   return -1;
 }
 
-std::string RowText(const py::array& a, py::ssize_t row) {
-  return py::str(a[py::int_(row)]).cast<std::string>();
-}
+std::string RowText(const py::array& a, py::ssize_t row) { return py::str(a[py::int_(row)]).cast<std::string>(); }
 
 // Whether the array's elements may lie in [dst, dst + bytes) (the source is a view of the destination).
 bool MayOverlap(const py::array& a, const void* dst, size_t bytes) {
@@ -223,9 +222,8 @@ struct Placement {
 Placement Place(const py::array& a, py::ssize_t n, py::ssize_t rows, const void* data, size_t bytes,
                 const std::string& what) {
   if (rows != 0 && rows != n) {
-    throw py::value_error(what + ": the storage has " + std::to_string(rows) + " rows, the array " +
-                          std::to_string(n) + "; assign one with as many rows (views of the storage stay valid) " +
-                          "or build a new mesh");
+    throw py::value_error(what + ": the storage has " + std::to_string(rows) + " rows, the array " + std::to_string(n) +
+                          "; assign one with as many rows (views of the storage stay valid) " + "or build a new mesh");
   }
   Placement p;
   p.in_place = n > 0 && rows == n;
@@ -293,8 +291,7 @@ void AssignCovariances(py::handle obj, const std::string& what, std::vector<Eige
   const py::array a = RealArray(obj, {-1, 3, 3}, what);
   const py::ssize_t n = a.shape(0);
   const size_t bytes = sizeof(Eigen::Matrix3d) * static_cast<size_t>(n);
-  const Placement place =
-      Place(a, n, static_cast<py::ssize_t>(covariance->size()), covariance->data(), bytes, what);
+  const Placement place = Place(a, n, static_cast<py::ssize_t>(covariance->size()), covariance->data(), bytes, what);
   // Eigen leaves the elements uninitialised, so the pages are first touched by the copy.
   std::vector<Eigen::Matrix3d> fresh(place.through_fresh ? static_cast<size_t>(n) : 0);
   AdviseHugePages(fresh.data(), bytes);
@@ -350,8 +347,8 @@ void CheckMeshForLibrary(const Mesh& mesh, const std::string& what) {
     for (int c = 0; c < 3; ++c) {
       const int v = mesh.F(f, c);
       if (v < 0 || v >= n) {
-        throw py::value_error(what + ": face " + std::to_string(f) + " refers to vertex " + std::to_string(v) +
-                              " of " + std::to_string(n));
+        throw py::value_error(what + ": face " + std::to_string(f) + " refers to vertex " + std::to_string(v) + " of " +
+                              std::to_string(n));
       }
     }
   }
@@ -430,13 +427,27 @@ py::object ArrayFromMat(const cv::Mat& mat) {
   py::capsule owner(held, [](void* p) { delete static_cast<cv::Mat*>(p); });
   py::dtype dtype;
   switch (mat.depth()) {
-    case CV_8U: dtype = py::dtype::of<std::uint8_t>(); break;
-    case CV_8S: dtype = py::dtype::of<std::int8_t>(); break;
-    case CV_16U: dtype = py::dtype::of<std::uint16_t>(); break;
-    case CV_16S: dtype = py::dtype::of<std::int16_t>(); break;
-    case CV_32S: dtype = py::dtype::of<std::int32_t>(); break;
-    case CV_32F: dtype = py::dtype::of<float>(); break;
-    default: dtype = py::dtype::of<double>(); break;
+    case CV_8U:
+      dtype = py::dtype::of<std::uint8_t>();
+      break;
+    case CV_8S:
+      dtype = py::dtype::of<std::int8_t>();
+      break;
+    case CV_16U:
+      dtype = py::dtype::of<std::uint16_t>();
+      break;
+    case CV_16S:
+      dtype = py::dtype::of<std::int16_t>();
+      break;
+    case CV_32S:
+      dtype = py::dtype::of<std::int32_t>();
+      break;
+    case CV_32F:
+      dtype = py::dtype::of<float>();
+      break;
+    default:
+      dtype = py::dtype::of<double>();
+      break;
   }
   const auto elem = static_cast<py::ssize_t>(mat.elemSize1());
   std::vector<py::ssize_t> shape = {mat.rows, mat.cols};
