@@ -49,6 +49,7 @@ struct PipelineCli {
   double smooth_budget_ms = -1.0;  // < 0: none, or kLiveSmoothBudgetMs with --live-path
   std::string tolerance = "default";
   double prior_weight = SmoothOptions{}.prior_weight;
+  bool prior_weight_given = false;  // --prior-weight on the command line (else a learned prior's own beta)
   std::string prior_file;  // a learned prior (rangebayes learn-prior); empty: the square root
   mutable std::shared_ptr<const SplinePotential> learned_prior;  // kept alive for the run's SmoothOptions
   int max_iterations = 0;
@@ -84,7 +85,8 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_flag("--no-smooth", o->no_smooth, "Skip Bayesian smoothing");
   sub->add_option("--tolerance", o->tolerance, "Smoothing stopping preset: fast, default or tight")
       ->check(CLI::IsMember({"fast", "default", "tight"}));
-  sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)");
+  sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)")
+      ->each([o](const std::string&) { o->prior_weight_given = true; });
   sub->add_option("--prior", o->prior_file,
                   "Learned smoothing prior FILE.yaml from 'rangebayes learn-prior' (its beta unless --prior-weight "
                   "is given; default: the square root)");
@@ -141,8 +143,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
     const LearnedPrior prior = ReadLearnedPrior(o.prior_file);
     o.learned_prior = std::make_shared<const SplinePotential>(prior.spline, prior.theta);
     p.smoothing.potential = o.learned_prior.get();
-    const bool beta_given = o.prior_weight != SmoothOptions{}.prior_weight;
-    if (prior.prior_weight > 0 && !beta_given) p.smoothing.prior_weight = prior.prior_weight;
+    if (prior.prior_weight > 0 && !o.prior_weight_given) p.smoothing.prior_weight = prior.prior_weight;
   }
   p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;

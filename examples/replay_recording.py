@@ -2,7 +2,7 @@
 """Replay a recording through the pipeline (stereo, triangulation, smoothing, decimation) and collect the
 meshes as Python objects.
 
-    python3 examples/replay_recording.py [RECORDING] [--out DIR] [--count N]
+    python3 examples/replay_recording.py [RECORDING] [--out DIR] [--count N] [--prior PRIOR.yaml]
 
 RECORDING defaults to the bundled synthetic recording; writes DIR/frame_<index>.ply (smoothed) per frame.
 """
@@ -22,6 +22,7 @@ def main():
     p.add_argument("recording", nargs="?", default=str(ROOT / "recordings/synth_planes_320x240"))
     p.add_argument("--out", default="replay_out")
     p.add_argument("--count", type=int, default=3, help="frames to replay (-1: all)")
+    p.add_argument("--prior", default="sqrt", help="smoothing prior: sqrt, or a learned prior .yaml (learn-prior)")
     args = p.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -31,7 +32,7 @@ def main():
     print(f"{args.recording}: {len(rec)} frames of {first.left.shape}, scene {rec.meta.get('scene', '?')}")
     # A preview: every second pixel and the fast stopping preset (drop both for full-resolution meshes).
     results, summary = rb.replay(rec, playback={"count": args.count}, triangulate={"downsample": 2},
-                                 smoothing={"tolerance": "fast"}, progress=lambda f, stage: None)
+                                 smoothing={"tolerance": "fast", "prior": args.prior}, progress=lambda f, stage: None)
     meshes = []
     for r in results:
         if r.error:

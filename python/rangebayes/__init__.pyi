@@ -264,6 +264,8 @@ class PipelineResult:
     smoothed: Optional[Mesh]
     decimated: Optional[DecimatedMesh]
     error: str
+    error_stage: str
+    stereo_downsample: int
 
 class StageTiming:
     name: str
@@ -275,18 +277,27 @@ class StageTiming:
 class PipelineSummary:
     source: str
     frames_captured: int
+    frames_skipped: int
     results: int
     failed: int
+    dropped: int
+    stopped: bool
+    fatal_error: str
     errors: list[str]
     stages: list[StageTiming]
     notices: list[str]
     wall_s: float
     frames_per_s: float
+    latency_mean_ms: float
+    smooth_iterations_mean: float
 
 PIPELINE_OPTIONS: dict[str, Any]
 def replay(
     recording: Union[str, Recording], rig: Optional[StereoRig] = ..., *, progress: Optional[Progress] = ...,
-    **options: Any
+    sgbm: dict[str, Any] = ..., spacetime: dict[str, Any] = ..., depth: dict[str, Any] = ...,
+    triangulate: dict[str, Any] = ..., smoothing: dict[str, Any] = ...,  # SmoothOptions fields and "prior"
+    decimation: dict[str, Any] = ..., playback: dict[str, Any] = ...,
+    **options: Any  # the PipelineOptions fields: see PIPELINE_OPTIONS
 ) -> Tuple[list[PipelineResult], PipelineSummary]: ...
 
 # Open3D interop (needs open3d)

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
@@ -12,20 +13,34 @@
 namespace rangebayes::python {
 namespace {
 
+// A copy of the C++ mesh behind a Python Mesh or NoisyMesh (the call runs without the GIL, so it must not
+// share storage that Python threads may resize), checked for what the library needs.
 NoisyMesh ToNoisyMesh(py::handle mesh, const char* what) {
-  if (py::isinstance<NoisyMesh>(mesh)) return mesh.cast<NoisyMesh>();
-  if (py::isinstance<Mesh>(mesh)) {
-    NoisyMesh noisy;
+  NoisyMesh noisy;
+  if (py::isinstance<NoisyMesh>(mesh)) {
+    noisy = mesh.cast<NoisyMesh>();
+  } else if (py::isinstance<Mesh>(mesh)) {
     noisy.mesh = mesh.cast<Mesh>();
-    return noisy;
+  } else {
+    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
+                         py::str(py::type::of(mesh)).cast<std::string>());
   }
-  throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh");
+  CheckNoisyMeshForLibrary(noisy, what);
+  return noisy;
 }
 
 Mesh ToMesh(py::handle mesh, const char* what) {
-  if (py::isinstance<Mesh>(mesh)) return mesh.cast<Mesh>();
-  if (py::isinstance<NoisyMesh>(mesh)) return mesh.cast<NoisyMesh>().mesh;
-  throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh");
+  Mesh out;
+  if (py::isinstance<Mesh>(mesh)) {
+    out = mesh.cast<Mesh>();
+  } else if (py::isinstance<NoisyMesh>(mesh)) {
+    out = mesh.cast<const NoisyMesh&>().mesh;
+  } else {
+    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
+                         py::str(py::type::of(mesh)).cast<std::string>());
+  }
+  CheckMeshForLibrary(out, what);
+  return out;
 }
 
 double OptionalNumber(py::handle value, const char* name) {
@@ -39,6 +54,34 @@ bool IsPriorFile(const std::string& prior) {
   };
   return ends(".yaml") || ends(".yml");
 }
+
+}  // namespace
+
+void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
+                         std::unique_ptr<SplinePotential>* learned, const std::string& what) {
+  std::optional<LearnedPrior> read;
+  const LearnedPrior* p = nullptr;
+  if (py::isinstance<LearnedPrior>(prior)) {
+    p = &prior.cast<const LearnedPrior&>();
+  } else if (py::isinstance<py::str>(prior)) {
+    const std::string name = prior.cast<std::string>();
+    if (IsPriorFile(name)) {
+      read = ReadLearnedPrior(name);
+      p = &*read;
+    } else {
+      options->prior = ParsePriorKind(name);
+      options->potential = nullptr;
+      return;
+    }
+  } else {
+    throw py::type_error(what + ": prior must be 'sqrt', 'quadratic', 'cauchy', a .yaml path or a LearnedPrior");
+  }
+  *learned = std::make_unique<SplinePotential>(p->spline, p->theta);
+  options->potential = learned->get();
+  if (!beta_given && p->prior_weight > 0) options->prior_weight = p->prior_weight;
+}
+
+namespace {
 
 // The keywords smooth() takes besides the SmoothOptions table.
 constexpr const char* kSmoothExtraKeywords = "across_ratio, ignore_covariance, initial_positions, progress";
@@ -59,28 +102,10 @@ py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::hand
   py::object progress = PopKeyword(kw, "progress");
 
   SmoothOptions options;
-  std::unique_ptr<SplinePotential> learned;
-  double learned_beta = 0;
-  if (py::isinstance<LearnedPrior>(prior)) {
-    const auto& p = prior.cast<const LearnedPrior&>();
-    learned = std::make_unique<SplinePotential>(p.spline, p.theta);
-    learned_beta = p.prior_weight;
-  } else if (py::isinstance<py::str>(prior)) {
-    const std::string name = prior.cast<std::string>();
-    if (IsPriorFile(name)) {
-      const LearnedPrior p = ReadLearnedPrior(name);
-      learned = std::make_unique<SplinePotential>(p.spline, p.theta);
-      learned_beta = p.prior_weight;
-    } else {
-      options.prior = ParsePriorKind(name);
-    }
-  } else {
-    throw py::type_error("smooth(): prior must be 'sqrt', 'quadratic', 'cauchy', a .yaml path or a LearnedPrior");
-  }
-  options.potential = learned.get();
   const bool beta_given = kw.contains("prior_weight");
   ApplyKeywords(SmoothOptionFields(), kw, &options, "smooth", kSmoothExtraKeywords);
-  if (learned && !beta_given && learned_beta > 0) options.prior_weight = learned_beta;
+  std::unique_ptr<SplinePotential> learned;
+  ApplySmoothingPrior(prior, beta_given, &options, &learned, "smooth()");
   Vertices start;
   if (!initial.is_none()) {
     start = VerticesFromArray(initial, "initial_positions");
@@ -127,8 +152,7 @@ void BindBayes(py::module_& m) {
       .def_readonly("prior_energy", &SmoothSummary::prior_energy)
       .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
       .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
-      .def_property_readonly("termination",
-                             [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
+      .def_property_readonly("termination", [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
       .def_readonly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
       .def_readonly("flipped_faces", &SmoothSummary::flipped_faces)
       .def_readonly("input_flipped_faces", &SmoothSummary::input_flipped_faces)
@@ -164,8 +188,14 @@ generic model even when covariances are given), initial_positions ((n, 3) start)
 TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
   m.attr("SMOOTH_OPTIONS") = FieldsToDict(SmoothOptionFields(), SmoothOptions{});
 
-  m.def("estimate_noise_level", [](py::handle mesh) { return EstimateNoiseLevel(ToMesh(mesh, "estimate_noise_level")); },
-        py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable).");
+  m.def(
+      "estimate_noise_level",
+      [](py::handle mesh) {
+        const Mesh plain = ToMesh(mesh, "estimate_noise_level");
+        py::gil_scoped_release nogil;
+        return EstimateNoiseLevel(plain);
+      },
+      py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable). GIL released.");
   m.def(
       "make_generic_noisy_mesh",
       [](py::handle mesh, py::handle noise, py::handle sigma, double across_ratio) {
@@ -258,8 +288,9 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
       .def_readwrite("date", &LearnedPrior::date);
   m.def("read_learned_prior", &ReadLearnedPrior, py::arg("path"));
-  m.def("write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
-        py::arg("path"), py::arg("prior"));
+  m.def(
+      "write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
+      py::arg("path"), py::arg("prior"));
   m.def(
       "learn_prior",
       [](const py::sequence& pairs, py::handle initial_theta, py::kwargs kwargs) {

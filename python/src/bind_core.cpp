@@ -8,9 +8,65 @@
 namespace rangebayes::python {
 namespace {
 
-Normals NormalsFromArray(py::handle obj) {
+// Normals: None gives (0, 3); else (n, 3) for n vertices (any n when num_vertices < 0).
+Normals NormalsFromArray(py::handle obj, Eigen::Index num_vertices) {
   if (obj.is_none()) return Normals(0, 3);
-  return VerticesFromArray(obj, "N");
+  Normals N = VerticesFromArray(obj, "N");
+  if (num_vertices >= 0 && N.rows() != 0 && N.rows() != num_vertices) {
+    throw py::value_error("N: " + std::to_string(N.rows()) + " normals for " + std::to_string(num_vertices) +
+                          " vertices (give one per vertex, or None)");
+  }
+  return N;
+}
+
+std::vector<Eigen::Matrix3d> CovariancesFor(py::handle obj, Eigen::Index num_vertices) {
+  std::vector<Eigen::Matrix3d> covariance = CovariancesFromArray(obj, "covariances");
+  if (!covariance.empty() && static_cast<Eigen::Index>(covariance.size()) != num_vertices) {
+    throw py::value_error("covariances: " + std::to_string(covariance.size()) + " matrices for " +
+                          std::to_string(num_vertices) + " vertices (give one per vertex, or None)");
+  }
+  return covariance;
+}
+
+// The storage of an array that already holds values keeps its size (numpy views of it stay valid).
+void CheckSameRows(Eigen::Index rows, Eigen::Index new_rows, const std::string& what) {
+  if (rows != 0 && rows != new_rows) {
+    throw py::value_error(what + ": the storage has " + std::to_string(rows) + " rows, the new value " +
+                          std::to_string(new_rows) + "; assign one with as many rows (views of the storage stay " +
+                          "valid) or build a new mesh");
+  }
+}
+
+// mesh.N = array: in place when N has values (checked against the vertex count first).
+void AssignNormals(py::handle a, Mesh* mesh) {
+  if (a.is_none()) {
+    CheckSameRows(mesh->N.rows(), 0, "N");
+    return;
+  }
+  const py::tuple shape = py::module_::import("numpy").attr("shape")(a);
+  const Eigen::Index rows = shape.empty() ? -1 : shape[0].cast<Eigen::Index>();
+  if (rows != 0 && rows != mesh->V.rows()) {
+    throw py::value_error("N: " + std::to_string(rows) + " normals for " + std::to_string(mesh->V.rows()) +
+                          " vertices (give one per vertex, or None)");
+  }
+  AssignVertices(a, "N", &mesh->N);
+}
+
+// noisy.mesh = mesh: copies into the existing storage (Eigen reallocates only on another size, refused here).
+void AssignMesh(const Mesh& from, Mesh* to) {
+  CheckSameRows(to->V.rows(), from.V.rows(), "mesh.V");
+  CheckSameRows(to->F.rows(), from.F.rows(), "mesh.F");
+  CheckSameRows(to->N.rows(), from.N.rows(), "mesh.N");
+  *to = from;
+}
+
+// A Mesh from arrays: V first, so that F's indices and N's rows are checked against it.
+Mesh MeshFromArrays(py::handle V, py::handle F, py::handle N) {
+  Mesh mesh;
+  mesh.V = VerticesFromArray(V, "V");
+  mesh.F = FacesFromArray(F, "F", mesh.V.rows());
+  mesh.N = NormalsFromArray(N, mesh.V.rows());
+  return mesh;
 }
 
 MeshWriteOptions WriteOptions(const std::string& ply_encoding) {
@@ -31,95 +87,110 @@ void BindCore(py::module_& m) {
   py::class_<Mesh>(m, "Mesh", R"(A triangle mesh: V (n, 3) float64 positions in model units (metres for our cameras),
 F (m, 3) int32 vertex indices (counter-clockwise seen from outside), N (n, 3) or (0, 3) optional normals.
 
-Mesh(V, F, N=None) copies the arrays (any real dtype for V, any integer dtype for F, any strides).
+Mesh(V, F, N=None) copies the arrays in one pass (the C++ mesh owns its storage): float64 V and int32 F of
+any strides are read in place, other real / integer dtypes are converted by numpy first; the copy runs
+without the GIL. ValueError for NaN or infinite values, face indices
+outside [0, n) or N with another number of rows; TypeError for another dtype kind.
 Reading mesh.V / mesh.F / mesh.N gives a writable numpy view of the C++ storage (no copy) that keeps the
-mesh alive; assigning mesh.V = array copies the array in. A view is invalidated when its array is replaced
-by one of another shape.)")
-      .def(py::init([](py::handle V, py::handle F, py::handle N) {
-             Mesh mesh;
-             mesh.V = VerticesFromArray(V, "V");
-             mesh.F = FacesFromArray(F, "F");
-             mesh.N = NormalsFromArray(N);
-             return mesh;
-           }),
-           py::arg("V"), py::arg("F"), py::arg("N") = py::none())
+mesh alive. Assigning mesh.V = array (or F, or NoisyMesh.covariances) of the same shape copies into the
+existing storage: no allocation, views stay valid and see the new values, all values are checked before any
+is written. An array that holds values never changes its size (its views would dangle): another shape is a
+ValueError; build a new Mesh instead. Empty arrays (N of (0, 3), no covariances) take any size. Library calls check the mesh again (values
+written through views) and raise ValueError for a mesh they could not use.)")
+      .def(py::init(&MeshFromArrays), py::arg("V"), py::arg("F"), py::arg("N") = py::none())
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<Mesh&>().V, self); },
-          [](Mesh& mesh, py::handle a) { mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+          [](Mesh& mesh, py::handle a) { AssignVertices(a, "V", &mesh.V); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<Mesh&>().F, self); },
-          [](Mesh& mesh, py::handle a) { mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+          [](Mesh& mesh, py::handle a) { AssignFaces(a, "F", mesh.V.rows(), &mesh.F); }, "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<Mesh&>().N, self); },
-          [](Mesh& mesh, py::handle a) { mesh.N = NormalsFromArray(a); },
+          [](Mesh& mesh, py::handle a) { AssignNormals(a, &mesh); },
           "(n, 3) float64 vertex normals, (0, 3) when absent (view)")
       .def_property_readonly("num_vertices", &Mesh::num_vertices)
       .def_property_readonly("num_faces", &Mesh::num_faces)
-      .def("copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
+      .def(
+          "copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
       .def("__repr__", [](const Mesh& mesh) {
         return "<rangebayes.Mesh " + std::to_string(mesh.num_vertices()) + " vertices, " +
                std::to_string(mesh.num_faces()) + " faces>";
       });
 
-  py::class_<NoisyMesh>(m, "NoisyMesh", R"(A mesh whose vertices are noisy measurements: covariances (n, 3, 3) float64, one 3×3
+  py::class_<NoisyMesh>(m, "NoisyMesh",
+                        R"(A mesh whose vertices are noisy measurements: covariances (n, 3, 3) float64, one 3×3
 covariance per vertex in model units squared (empty (0, 3, 3) when not known), pixel (n, 2) float32 image
 positions the vertices were triangulated from (or (0, 2)).
 
-NoisyMesh(V, F, covariances=None) and NoisyMesh(mesh, covariances=None) copy. V, F, N, covariances and pixel
-read as writable views of the C++ storage (no copy); assignment copies.)")
+NoisyMesh(V, F, covariances=None) and NoisyMesh(mesh, covariances=None) copy as Mesh(...) does (one pass,
+GIL released; covariances of any strides, one per vertex, finite). V, F, N, covariances and pixel read as
+writable views of the C++ storage (no copy); assignment copies.)")
       // The Mesh overload first: the array overload accepts any object.
       .def(py::init([](const Mesh& mesh, py::handle covariances) {
              NoisyMesh noisy;
              noisy.mesh = mesh;
-             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             if (!covariances.is_none()) noisy.covariance = CovariancesFor(covariances, mesh.V.rows());
              return noisy;
            }),
            py::arg("mesh"), py::arg("covariances") = py::none())
       .def(py::init([](py::handle V, py::handle F, py::handle covariances) {
              NoisyMesh noisy;
-             noisy.mesh.V = VerticesFromArray(V, "V");
-             noisy.mesh.F = FacesFromArray(F, "F");
-             noisy.mesh.N = Normals(0, 3);
-             if (!covariances.is_none()) noisy.covariance = CovariancesFromArray(covariances, "covariances");
+             noisy.mesh = MeshFromArrays(V, F, py::none());
+             if (!covariances.is_none()) noisy.covariance = CovariancesFor(covariances, noisy.mesh.V.rows());
              return noisy;
            }),
            py::arg("V"), py::arg("F"), py::arg("covariances") = py::none())
       .def_property(
           "mesh", [](NoisyMesh& noisy) -> Mesh& { return noisy.mesh; },
-          [](NoisyMesh& noisy, const Mesh& mesh) { noisy.mesh = mesh; }, py::return_value_policy::reference_internal,
-          "the Mesh inside (a reference: changes show in both)")
+          [](NoisyMesh& noisy, const Mesh& mesh) { AssignMesh(mesh, &noisy.mesh); },
+          py::return_value_policy::reference_internal, "the Mesh inside (a reference: changes show in both)")
       .def_property(
           "V", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.V, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.V = VerticesFromArray(a, "V"); }, "(n, 3) float64 positions (view)")
+          [](NoisyMesh& n, py::handle a) { AssignVertices(a, "V", &n.mesh.V); }, "(n, 3) float64 positions (view)")
       .def_property(
           "F", [](py::object self) { return FacesView(self.cast<NoisyMesh&>().mesh.F, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.F = FacesFromArray(a, "F"); }, "(m, 3) int32 faces (view)")
+          [](NoisyMesh& n, py::handle a) { AssignFaces(a, "F", n.mesh.V.rows(), &n.mesh.F); },
+          "(m, 3) int32 faces (view)")
       .def_property(
           "N", [](py::object self) { return VerticesView(self.cast<NoisyMesh&>().mesh.N, self); },
-          [](NoisyMesh& n, py::handle a) { n.mesh.N = NormalsFromArray(a); }, "(n, 3) float64 normals (view)")
+          [](NoisyMesh& n, py::handle a) { AssignNormals(a, &n.mesh); }, "(n, 3) float64 normals (view)")
       .def_property(
           "covariances", [](py::object self) { return CovariancesView(self.cast<NoisyMesh&>().covariance, self); },
           [](NoisyMesh& n, py::handle a) {
-            n.covariance = a.is_none() ? std::vector<Eigen::Matrix3d>{} : CovariancesFromArray(a, "covariances");
+            if (a.is_none()) {
+              CheckSameRows(static_cast<Eigen::Index>(n.covariance.size()), 0, "covariances");
+              return;
+            }
+            const py::tuple shape = py::module_::import("numpy").attr("shape")(a);
+            const Eigen::Index count = shape.empty() ? -1 : shape[0].cast<Eigen::Index>();
+            if (count != 0 && count != n.mesh.V.rows()) {
+              throw py::value_error("covariances: " + std::to_string(count) + " matrices for " +
+                                    std::to_string(n.mesh.V.rows()) + " vertices (give one per vertex, or None)");
+            }
+            AssignCovariances(a, "covariances", &n.covariance);
           },
           "(n, 3, 3) float64 covariances, model units² (view; strides (72, 8, 24): each 3×3 is column-major)")
       .def_property(
           "pixel", [](py::object self) { return PixelsView(self.cast<NoisyMesh&>().pixel, self); },
           [](NoisyMesh& n, py::handle a) {
-            py::array_t<float, py::array::c_style | py::array::forcecast> c(py::reinterpret_borrow<py::object>(a));
-            if (c.ndim() != 2 || c.shape(1) != 2) throw py::value_error("pixel: expected shape (n, 2)");
-            n.pixel.resize(c.shape(0), 2);
-            std::copy(c.data(), c.data() + c.size(), n.pixel.data());
+            const auto pixel = PixelsFromArray(a, "pixel");
+            if (pixel.rows() != 0 && pixel.rows() != n.mesh.V.rows()) {
+              throw py::value_error("pixel: " + std::to_string(pixel.rows()) + " rows for " +
+                                    std::to_string(n.mesh.V.rows()) + " vertices");
+            }
+            CheckSameRows(n.pixel.rows(), pixel.rows(), "pixel");
+            n.pixel = pixel;  // a copy into the same storage (or into empty storage)
           },
           "(n, 2) float32 (u, v) pixel of each vertex, or (0, 2) (view)")
       .def_property_readonly("has_covariance", &NoisyMesh::has_covariance)
       .def_property_readonly("num_vertices", [](const NoisyMesh& n) { return n.mesh.num_vertices(); })
       .def_property_readonly("num_faces", [](const NoisyMesh& n) { return n.mesh.num_faces(); })
-      .def("copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
+      .def(
+          "copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
       .def("__repr__", [](const NoisyMesh& n) {
         return "<rangebayes.NoisyMesh " + std::to_string(n.mesh.num_vertices()) + " vertices, " +
-               std::to_string(n.mesh.num_faces()) + " faces, " +
-               (n.has_covariance() ? "with" : "without") + " covariances>";
+               std::to_string(n.mesh.num_faces()) + " faces, " + (n.has_covariance() ? "with" : "without") +
+               " covariances>";
       });
 
   m.def(
@@ -149,10 +220,12 @@ read as writable views of the C++ storage (no copy); assignment copies.)")
         MeshWriteOptions options = WriteOptions(ply_encoding);
         if (py::isinstance<NoisyMesh>(mesh)) {
           const NoisyMesh noisy = mesh.cast<NoisyMesh>();
+          CheckNoisyMeshForLibrary(noisy, "write_mesh");
           py::gil_scoped_release nogil;
           WriteNoisyMesh(noisy, path, options);
         } else if (py::isinstance<Mesh>(mesh)) {
           const Mesh plain = mesh.cast<Mesh>();
+          CheckMeshForLibrary(plain, "write_mesh");
           py::gil_scoped_release nogil;
           WriteMesh(plain, path, options);
         } else if (py::hasattr(mesh, "corner_normals") && py::hasattr(mesh, "mesh")) {
@@ -171,7 +244,8 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
 
   py::class_<CornerNormals>(m, "CornerNormals", "Per-corner shading normals: normals (k, 3), normal_index (m, 3).")
       .def(py::init<>())
-      .def_property_readonly("normals", [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
+      .def_property_readonly("normals",
+                             [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
       .def_property_readonly("normal_index",
                              [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); });
 }

@@ -1,7 +1,14 @@
 // capture/ recordings and pipeline/ replay.
 #include <pybind11/stl.h>
 
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <exception>
+#include <memory>
 #include <mutex>
+#include <string_view>
+#include <thread>
 
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
@@ -35,6 +42,70 @@ void ApplyNested(py::dict& kw, const char* name, const FieldTable<Options>& tabl
   ApplyKeywords(table, value.cast<py::dict>(), options, std::string("replay(") + name + "=...)");
 }
 
+// RunPipeline on a worker thread while this (Python) thread waits without the GIL: every 50 ms it takes the
+// GIL to let Python run its signal handlers, so Ctrl-C (KeyboardInterrupt) stops the run. An exception from
+// the progress function (called on the pipeline's sink thread) also stops the run; either is raised here once
+// the pipeline has ended. The pipeline's own threads never see a Python exception.
+PipelineSummary RunReplay(Recording recording, const StereoRig& rig, const PlaybackOptions& playback,
+                          PipelineOptions options, PipelineSink* sink) {
+  std::atomic<bool> stop{false};
+  std::mutex mutex;
+  std::condition_variable finished_cv;
+  bool finished = false;
+  std::exception_ptr python_error;  // from the progress function or a signal handler
+  std::exception_ptr run_error;     // from RunPipeline (invalid options, a rig that does not fit)
+  auto fail = [&](std::exception_ptr e) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!python_error) python_error = std::move(e);
+    stop = true;
+  };
+  options.stop = &stop;
+  if (options.progress) {
+    options.progress = [user = std::move(options.progress), &fail](double fraction, std::string_view stage) {
+      try {
+        user(fraction, stage);
+      } catch (...) {
+        fail(std::current_exception());
+      }
+    };
+  }
+  PipelineSummary summary;
+  {
+    py::gil_scoped_release nogil;
+    std::thread runner([&] {
+      try {
+        PlaybackSource source(std::move(recording), playback);
+        summary = RunPipeline(source, rig, options, {sink});
+      } catch (...) {
+        run_error = std::current_exception();
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      finished = true;
+      finished_cv.notify_all();
+    });
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!finished_cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return finished; })) {
+      lock.unlock();
+      {
+        py::gil_scoped_acquire gil;
+        if (PyErr_CheckSignals() != 0) {
+          try {
+            throw py::error_already_set();
+          } catch (...) {
+            fail(std::current_exception());
+          }
+        }
+      }
+      lock.lock();
+    }
+    lock.unlock();
+    runner.join();
+  }
+  if (python_error) std::rethrow_exception(python_error);
+  if (run_error) std::rethrow_exception(run_error);
+  return summary;
+}
+
 }  // namespace
 
 void BindPipeline(py::module_& m) {
@@ -46,7 +117,8 @@ void BindPipeline(py::module_& m) {
       .def_readonly("timestamp_right_ns", &StereoFrame::timestamp_right_ns)
       .def_readonly("pattern_id", &StereoFrame::pattern_id);
 
-  py::class_<Recording>(m, "Recording", R"(A recorded session (recordings/README.md): rig (StereoRig or None), meta (dict),
+  py::class_<Recording>(m, "Recording",
+                        R"(A recorded session (recordings/README.md): rig (StereoRig or None), meta (dict),
 len(recording) frames; recording[i] / iteration load frames as StereoFrame (images decoded from disk).)")
       .def_readonly("folder", &Recording::folder)
       .def_readwrite("rig", &Recording::rig)
@@ -60,11 +132,12 @@ len(recording) frames; recording[i] / iteration load frames as StereoFrame (imag
              return LoadRecordingFrame(r, i);
            })
       .def("__iter__", [](py::object self) {
-        return py::module_::import("builtins").attr("map")(self.attr("__getitem__"),
-                                                            py::module_::import("builtins").attr("range")(py::len(self)));
+        return py::module_::import("builtins")
+            .attr("map")(self.attr("__getitem__"), py::module_::import("builtins").attr("range")(py::len(self)));
       });
-  m.def("open_recording", [](const std::string& folder) { return OpenRecording(folder); }, py::arg("folder"),
-        "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
+  m.def(
+      "open_recording", [](const std::string& folder) { return OpenRecording(folder); }, py::arg("folder"),
+      "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
 
   py::class_<PipelineResult>(m, "PipelineResult", R"(One pipeline result: index, last_index, timestamp_ns, frames,
 left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh or None), decimated
@@ -78,7 +151,9 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       .def_readonly("raw_mesh", &PipelineResult::raw_mesh)
       .def_readonly("smoothed", &PipelineResult::smoothed)
       .def_readonly("decimated", &PipelineResult::decimated)
-      .def_readonly("error", &PipelineResult::error);
+      .def_readonly("error", &PipelineResult::error)
+      .def_readonly("error_stage", &PipelineResult::error_stage)
+      .def_readonly("stereo_downsample", &PipelineResult::stereo_downsample);
 
   py::class_<StageTiming>(m, "StageTiming")
       .def_readonly("name", &StageTiming::name)
@@ -89,13 +164,19 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
   py::class_<PipelineSummary>(m, "PipelineSummary")
       .def_readonly("source", &PipelineSummary::source)
       .def_readonly("frames_captured", &PipelineSummary::frames_captured)
+      .def_readonly("frames_skipped", &PipelineSummary::frames_skipped, "frames the source could not deliver")
       .def_readonly("results", &PipelineSummary::results)
       .def_readonly("failed", &PipelineSummary::failed)
-      .def_readonly("errors", &PipelineSummary::errors)
+      .def_readonly("dropped", &PipelineSummary::dropped)
+      .def_readonly("stopped", &PipelineSummary::stopped)
+      .def_readonly("fatal_error", &PipelineSummary::fatal_error)
+      .def_readonly("errors", &PipelineSummary::errors, "one line per failed or skipped frame (first 100)")
       .def_readonly("stages", &PipelineSummary::stages)
       .def_readonly("notices", &PipelineSummary::notices)
-      .def_readonly("wall_s", &PipelineSummary::wall_s)
-      .def_readonly("frames_per_s", &PipelineSummary::frames_per_s);
+      .def_readonly("wall_s", &PipelineSummary::wall_s, "seconds")
+      .def_readonly("frames_per_s", &PipelineSummary::frames_per_s)
+      .def_readonly("latency_mean_ms", &PipelineSummary::latency_mean_ms, "capture-to-result time per result, ms")
+      .def_readonly("smooth_iterations_mean", &PipelineSummary::smooth_iterations_mean);
 
   m.def(
       "replay",
@@ -112,7 +193,18 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         ApplyNested(kw, "spacetime", SpaceTimeOptionFields(), &options.spacetime);
         ApplyNested(kw, "depth", DepthOptionFields(), &options.depth);
         ApplyNested(kw, "triangulate", TriangulateOptionFields(), &options.triangulate);
-        ApplyNested(kw, "smoothing", SmoothOptionFields(), &options.smoothing);
+        std::unique_ptr<SplinePotential> learned;  // the learned prior options.smoothing.potential points to
+        py::object smoothing = PopKeyword(kw, "smoothing");
+        if (!smoothing.is_none()) {
+          if (!py::isinstance<py::dict>(smoothing)) throw py::type_error("replay: smoothing must be a dict");
+          py::dict sd = smoothing.attr("copy")();
+          py::object prior = PopKeyword(sd, "prior");
+          const bool beta_given = sd.contains("prior_weight");
+          ApplyKeywords(SmoothOptionFields(), sd, &options.smoothing, "replay(smoothing=...)", "prior");
+          if (!prior.is_none()) {
+            ApplySmoothingPrior(prior, beta_given, &options.smoothing, &learned, "replay(smoothing=...)");
+          }
+        }
         ApplyNested(kw, "decimation", DecimateOptionFields(), &options.decimation);
         PlaybackOptions playback;
         ApplyNested(kw, "playback", PlaybackOptionFields(), &playback);
@@ -122,20 +214,25 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         playback.Check();
         const StereoRig r = *rec.rig;
         CollectingSink sink;
-        PipelineSummary summary;
-        {
-          py::gil_scoped_release nogil;
-          PlaybackSource source(std::move(rec), playback);
-          summary = RunPipeline(source, r, options, {&sink});
-        }
+        PipelineSummary summary = RunReplay(std::move(rec), r, playback, options, &sink);
         return std::make_pair(sink.Take(), std::move(summary));
       },
       py::arg("recording"), py::arg("rig") = py::none(),
       R"(Replays a recording (a Recording or a folder) through the pipeline (rectify, stereo, triangulate, smooth,
 decimate) as `rangebayes replay` does, without dropping frames: (list of PipelineResult, PipelineSummary).
-Keywords: rangebayes.PIPELINE_OPTIONS fields (matcher 'sgbm'/'spacetime', window_frames, smooth, decimate,
-...), nested dicts sgbm, spacetime, depth, triangulate, smoothing, decimation, playback (first_position,
-count, repeats), progress. GIL released while the pipeline runs.)");
+The defaults are the library's (PipelineOptions{}), which are the CLI's: replay(rec, **kw) gives the meshes
+`rangebayes replay REC --out DIR` writes for the same options (python/tests compare the bytes).
+Keywords: rangebayes.PIPELINE_OPTIONS fields (matcher 'sgbm'/'spacetime', window_frames, stereo_downsample,
+smooth, decimate, ...), nested dicts sgbm, spacetime, depth, triangulate, smoothing, decimation, playback
+(first_position, count, repeats), progress (a function (fraction, stage), called with the GIL).
+smoothing takes the SmoothOptions fields and prior as smooth() does ('sqrt', 'quadratic', 'cauchy', a learned
+prior .yaml path or a LearnedPrior, whose β is used unless prior_weight is given: `replay --prior FILE`).
+CLI flags map as --num-disparities N: sgbm={"num_disparities": N} (or spacetime=...), --block B:
+sgbm={"block_size_px": B} / spacetime={"window_px": B}, --downsample N: triangulate={"downsample": N},
+--tolerance T / --max-iterations I / --prior-weight W: smoothing={...}, --lambda L: decimation={"lambda": L},
+--first/--count/--repeat: playback={...}. The GIL is released while the pipeline runs; frames that fail are
+PipelineResult.error and summary.errors, as in the CLI. Ctrl-C (KeyboardInterrupt) or an exception raised by
+progress stops the run and is raised once the pipeline has ended.)");
   m.attr("PIPELINE_OPTIONS") = FieldsToDict(PipelineOptionFields(), PipelineOptions{});
 }
 

@@ -5,9 +5,11 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 #include <string_view>
 
 #include "core/progress.h"
+#include "python/src/library.h"
 
 namespace rangebayes::python {
 
@@ -21,6 +23,13 @@ void BindPipeline(py::module_& m);
 // A ProgressCallback that calls a Python function (fraction, stage) with the GIL held; None gives an empty
 // callback. Copies of the callback share one reference to the function, so copying it needs no GIL.
 ProgressCallback PythonProgress(py::object function);
+
+// The smoothing prior given from Python as smooth(prior=...) and replay(smoothing={"prior": ...}) take it: 'sqrt',
+// 'quadratic', 'cauchy', a learned-prior .yaml path or a LearnedPrior. A learned prior becomes
+// options->potential (owned by *learned, which must outlive the call) and its β options->prior_weight unless
+// beta_given (the rule of `rangebayes smooth --prior` / `replay --prior`). `what` names the call in errors.
+void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
+                         std::unique_ptr<SplinePotential>* learned, const std::string& what);
 
 // Pops `name` from kwargs (None when absent).
 py::object PopKeyword(py::dict& kwargs, const char* name);

@@ -1,5 +1,11 @@
 // numpy <-> rangebayes data: meshes, covariances and images. What copies and what does not is stated per
 // function; the bindings repeat it in their docstrings.
+//
+// numpy -> C++ is one pass over the input (the library's types own their storage, so a copy cannot be
+// avoided): a float64 / int32 array of any strides is read in place, other dtypes are first converted by
+// numpy. The pass runs without the GIL (on one thread) and checks values as it copies
+// (non-finite numbers, face indices out of range), so bad input is a ValueError naming the array and row,
+// never a crash in the library.
 #pragma once
 
 #include <pybind11/numpy.h>
@@ -15,13 +21,29 @@ namespace rangebayes::python {
 
 namespace py = pybind11;
 
-// Copies an (n, 3) array of any real dtype, any strides, into positions (one memcpy when C-contiguous float64).
-// TypeError/ValueError naming `what` on another shape or dtype.
+// Copies an (n, 3) array of any real dtype, any strides, into positions. TypeError/ValueError naming `what`
+// on another shape or dtype, ValueError on a NaN or infinite value.
 Vertices VerticesFromArray(py::handle array, const std::string& what);
-// Copies an (m, 3) integer array into faces (int32; larger values are a ValueError).
-Faces FacesFromArray(py::handle array, const std::string& what);
-// Copies an (n, 3, 3) array into one 3×3 matrix per vertex.
+// Copies an (m, 3) integer array into faces. ValueError when an index does not fit in int32 or, with
+// num_vertices ≥ 0, lies outside [0, num_vertices).
+Faces FacesFromArray(py::handle array, const std::string& what, Eigen::Index num_vertices = -1);
+// Copies an (n, 3, 3) array into one 3×3 matrix per vertex (ValueError on a non-finite value).
 std::vector<Eigen::Matrix3d> CovariancesFromArray(py::handle array, const std::string& what);
+// Assignment from Python (mesh.V = array, ...) with the same checks. Into empty storage: fresh storage. Into
+// storage of as many rows: in place (no allocation, so numpy views of it stay valid; all values are checked
+// before any is written, so an error leaves it as it was; through a temporary when the array is a view of
+// it). Storage with values never changes size (its views would dangle): ValueError.
+void AssignVertices(py::handle array, const std::string& what, Vertices* V);
+void AssignFaces(py::handle array, const std::string& what, Eigen::Index num_vertices, Faces* F);
+void AssignCovariances(py::handle array, const std::string& what, std::vector<Eigen::Matrix3d>* covariance);
+// Copies an (n, 2) array into float32 pixel positions.
+Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> PixelsFromArray(py::handle array, const std::string& what);
+
+// Checks what a library call needs of a mesh whose arrays may have been written through views since it was
+// made: finite positions, face indices in [0, #V), normals and covariances absent or one per vertex.
+// ValueError naming `what` (the call) otherwise.
+void CheckMeshForLibrary(const Mesh& mesh, const std::string& what);
+void CheckNoisyMeshForLibrary(const NoisyMesh& noisy, const std::string& what);
 
 // Views (no copy) of the C++ storage, kept alive by `owner` (a Python object that owns the storage).
 py::array VerticesView(Vertices& V, py::handle owner);

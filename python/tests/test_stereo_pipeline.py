@@ -1,5 +1,11 @@
 """Rigs, noise models, recordings, stereo, triangulation, replay, decimation and learning from Python."""
 
+import os
+import signal
+import subprocess
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -103,3 +109,111 @@ def test_learn_prior_runs(trim_star):
                                    tolerance="fast")
     assert prior.theta.shape == (prior.num_knots,)
     assert summary["iterations"] >= 1
+
+
+def write_test_prior(path, prior_weight):
+    p = rb.LearnedPrior()
+    p.num_knots = 5
+    theta = np.sqrt(np.linspace(0.0, 2.0, 5) ** 2 + p.epsilon_squared)
+    theta[1:-1] *= 1.1  # the ends are the square root's (SplinePotential's contract)
+    p.theta = theta
+    p.prior_weight = prior_weight
+    rb.write_learned_prior(str(path), p)
+    return p
+
+
+@pytest.mark.parametrize("prior_weight_flag", [None, 2.4])  # the learned prior's β, then an explicit one
+def test_replay_same_bytes_as_the_cli_with_a_learned_prior(tmp_path, cli, recording_dir, prior_weight_flag):
+    prior = tmp_path / "prior.yaml"
+    write_test_prior(prior, prior_weight=1.5)
+    flags = ["--count", "1", "--downsample", "2", "--tolerance", "fast", "--prior", str(prior), "--no-previews", "-q"]
+    smoothing = {"tolerance": "fast", "prior": str(prior)}
+    if prior_weight_flag is not None:
+        flags += ["--prior-weight", str(prior_weight_flag)]
+        smoothing["prior_weight"] = prior_weight_flag
+    out = tmp_path / "cli"
+    subprocess.run([str(cli), "replay", str(recording_dir), "--out", str(out), *flags], check=True,
+                   stdout=subprocess.DEVNULL)
+    results, summary = rb.replay(str(recording_dir), playback={"count": 1}, triangulate={"downsample": 2},
+                                 smoothing=smoothing)
+    assert summary.results == 1 and results[0].error == ""
+    r = results[0]
+    for folder, mesh, ext in [("raw", r.raw_mesh, "ply"), ("smoothed", r.smoothed, "ply"),
+                              ("decimated", r.decimated, "obj")]:
+        py_file = tmp_path / f"py_{folder}.{ext}"
+        rb.write_mesh(str(py_file), mesh)
+        assert py_file.read_bytes() == (out / folder / f"000000.{ext}").read_bytes(), folder
+    # The learned prior changed the result (its β 1.5 unless 2.4 was given).
+    plain, _ = rb.replay(str(recording_dir), playback={"count": 1}, triangulate={"downsample": 2},
+                         smoothing={"tolerance": "fast"})
+    assert not np.array_equal(plain[0].smoothed.V, r.smoothed.V)
+    smoothing["prior"] = rb.read_learned_prior(str(prior))  # a LearnedPrior object gives the same
+    again, _ = rb.replay(str(recording_dir), playback={"count": 1}, triangulate={"downsample": 2},
+                         smoothing=smoothing)
+    np.testing.assert_array_equal(again[0].smoothed.V, r.smoothed.V)
+
+
+def test_replay_progress_exception_stops_the_run(recording_dir):
+    seen = []
+
+    def boom(fraction, stage):
+        seen.append(stage)
+        raise KeyError("stop the replay")
+
+    options = dict(playback={"count": 3}, triangulate={"downsample": 4}, smoothing={"tolerance": "fast"},
+                   decimate=False)
+    with pytest.raises(KeyError, match="stop the replay"):
+        rb.replay(str(recording_dir), progress=boom, **options)
+    assert len(seen) == 1  # the first result's progress raised; the run was stopped there
+    results, summary = rb.replay(str(recording_dir), progress=lambda f, s: None, **options)  # still usable
+    assert summary.results == 3
+
+
+def test_replay_releases_the_gil(recording_dir):
+    ticks = []
+    done = threading.Event()
+
+    def ticker():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=ticker)
+    t.start()
+    try:
+        start = time.perf_counter()
+        _, summary = rb.replay(str(recording_dir), playback={"count": 2}, triangulate={"downsample": 2},
+                               smoothing={"tolerance": "fast"})
+        end = time.perf_counter()
+    finally:
+        done.set()
+        t.join()
+    assert summary.results == 2
+    assert len([x for x in ticks if start < x < end]) >= 5
+
+
+def test_replay_bad_input_is_a_clear_error(tmp_path, recording_dir):
+    with pytest.raises(rb.Error, match="missing"):
+        rb.replay(str(tmp_path / "missing"))
+    with pytest.raises(TypeError, match="smoothing must be a dict"):
+        rb.replay(str(recording_dir), smoothing="fast")
+    with pytest.raises(TypeError, match=r"replay\(smoothing=...\)\(\) got an unexpected keyword argument 'tol'"):
+        rb.replay(str(recording_dir), smoothing={"tol": "fast"})
+    with pytest.raises(rb.Error, match="prior"):
+        rb.replay(str(recording_dir), smoothing={"prior": "nonsense"})
+    with pytest.raises(rb.Error):
+        rb.replay(str(recording_dir), smoothing={"prior": str(tmp_path / "missing.yaml")})
+
+
+def test_replay_stops_on_ctrl_c(recording_dir):
+    sent = []
+
+    def interrupt_once(fraction, stage):  # on the pipeline's sink thread: SIGINT as from Ctrl-C
+        if not sent:
+            sent.append(stage)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        rb.replay(str(recording_dir), progress=interrupt_once, playback={"count": 8, "repeats": 4},
+                  triangulate={"downsample": 4}, smoothing={"tolerance": "fast"}, decimate=False)
+    assert sent
