@@ -266,6 +266,9 @@ class PipelineResult:
     error: str
     error_stage: str
     stereo_downsample: int
+    smooth_iterations: int
+    smooth_time_limited: bool
+    smooth_distance: float
 
 class StageTiming:
     name: str
@@ -290,6 +293,8 @@ class PipelineSummary:
     frames_per_s: float
     latency_mean_ms: float
     smooth_iterations_mean: float
+    smooth_time_limited: int
+    smooth_distance_mean: float
 
 PIPELINE_OPTIONS: dict[str, Any]
 def replay(

@@ -153,7 +153,11 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       .def_readonly("decimated", &PipelineResult::decimated)
       .def_readonly("error", &PipelineResult::error)
       .def_readonly("error_stage", &PipelineResult::error_stage)
-      .def_readonly("stereo_downsample", &PipelineResult::stereo_downsample);
+      .def_readonly("stereo_downsample", &PipelineResult::stereo_downsample)
+      .def_readonly("smooth_iterations", &PipelineResult::smooth_iterations, "iterations of the final solve")
+      .def_readonly("smooth_time_limited", &PipelineResult::smooth_time_limited, "the smoothing budget stopped it")
+      .def_readonly("smooth_distance", &PipelineResult::smooth_distance,
+                    "estimated distance to the optimum, relative to E (inf: unknown)");
 
   py::class_<StageTiming>(m, "StageTiming")
       .def_readonly("name", &StageTiming::name)
@@ -176,7 +180,10 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       .def_readonly("wall_s", &PipelineSummary::wall_s, "seconds")
       .def_readonly("frames_per_s", &PipelineSummary::frames_per_s)
       .def_readonly("latency_mean_ms", &PipelineSummary::latency_mean_ms, "capture-to-result time per result, ms")
-      .def_readonly("smooth_iterations_mean", &PipelineSummary::smooth_iterations_mean);
+      .def_readonly("smooth_iterations_mean", &PipelineSummary::smooth_iterations_mean)
+      .def_readonly("smooth_time_limited", &PipelineSummary::smooth_time_limited, "results the budget stopped")
+      .def_readonly("smooth_distance_mean", &PipelineSummary::smooth_distance_mean,
+                    "mean estimated distance to the optimum, relative to E (NaN: unknown)");
 
   m.def(
       "replay",
