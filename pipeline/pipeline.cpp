@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <fstream>
 #include <mutex>
@@ -240,6 +241,16 @@ void PipelineOptions::Check() const {
   triangulate.Check();
   if (smooth) smoothing.Check();
   if (decimate) decimation.Check();
+}
+
+void ApplyLivePathPreset(PipelineOptions* options) {
+  options->queue_policy = QueueFullPolicy::kDropOldest;
+  options->queue_capacity = 1;
+  options->stereo_downsample = kLiveStereoDownsample;
+  options->triangulate.downsample = kLiveTriangulateDownsample;
+  options->smoothing.tolerance = SmoothTolerance::kFast;
+  options->smooth_budget_ms = kLiveSmoothBudgetMs;
+  options->decimate = false;
 }
 
 PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
@@ -683,6 +694,32 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
                                      " pixel(s) of it"));
   }
   return summary;
+}
+
+std::string PipelineSummary::BriefReport() const {
+  std::string out;
+  char line[512];
+  out += source + "\n";
+  std::snprintf(line, sizeof(line),
+                "%lld frames in, %lld results, %lld failed, %lld skipped, %lld dropped, %.1f s, %.2f frames/s end "
+                "to end, latency %.0f ms\n",
+                static_cast<long long>(frames_captured), static_cast<long long>(results),
+                static_cast<long long>(failed), static_cast<long long>(frames_skipped),
+                static_cast<long long>(dropped), wall_s, frames_per_s, latency_mean_ms);
+  out += line;
+  std::snprintf(line, sizeof(line), "  %-12s %7s %7s %10s %10s %9s\n", "stage", "items", "errors", "mean ms",
+                "max ms", "items/s");
+  out += line;
+  for (const StageTiming& t : stages) {
+    std::snprintf(line, sizeof(line), "  %-12s %7lld %7lld %10.1f %10.1f %9.2f\n", t.name.c_str(),
+                  static_cast<long long>(t.items), static_cast<long long>(t.errors), t.mean_ms(), t.max_ms,
+                  t.total_ms > 0 ? 1000.0 * static_cast<double>(t.items) / t.total_ms : 0.0);
+    out += line;
+  }
+  for (const std::string& n : notices) out += "note: " + n + "\n";
+  for (const std::string& e : errors) out += e + "\n";
+  if (stopped) out += "stopped by request; finished results are complete\n";
+  return out;
 }
 
 void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path) {

@@ -108,6 +108,16 @@ struct PipelineOptions {
   void Check() const;
 };
 
+// The live-path preset (what `rangebayes live` and `replay --live-path` run; BENCHMARKS.md "Capture and
+// pipeline" has the measurements): a preview needs a usable surface per frame, not a converged one. Sets on
+// `options`: queue_policy kDropOldest with one item per queue, stereo_downsample kLiveStereoDownsample,
+// triangulate.downsample 4, the fast smoothing tolerance within smooth_budget_ms = kLiveSmoothBudgetMs, and
+// decimation off (far over the 2-core frame budget). Everything else is left as it is.
+inline constexpr int kLiveStereoDownsample = 2;
+inline constexpr int kLiveTriangulateDownsample = 4;
+inline constexpr double kLiveSmoothBudgetMs = 80.0;
+void ApplyLivePathPreset(PipelineOptions* options);
+
 struct StageTiming {
   std::string name;
   std::int64_t items = 0;            // items that went through the stage (successfully or not)
@@ -138,6 +148,9 @@ struct PipelineSummary {
   double latency_mean_ms = 0.0;      // capture-to-sink time per result
   double smooth_iterations_mean = 0.0;  // smoothing iterations per smoothed result
   double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
+
+  // The source, the counts, a table of the stages, then notices, errors and a stop request, one per line.
+  std::string BriefReport() const;
 };
 
 // Iterations the first frame gets under PipelineOptions::smooth_budget_ms, to measure their cost.

@@ -17,6 +17,10 @@ void TriangulateOptions::Check() const {
   RB_CHECK(default_sigma_disparity_px > 0.0, "default_sigma_disparity_px must be positive");
 }
 
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, TriangulateOptions* options) {
+  if (model.form == NoiseForm::kConstant) options->default_sigma_disparity_px = model.sigma_px;
+}
+
 NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options, TriangulateSummary* summary) {
   options.Check();
   RB_CHECK(!frame.empty() && frame.depth_m.type() == CV_32F, "depth frame ", frame.frame_id, " is empty");

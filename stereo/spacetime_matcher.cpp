@@ -48,6 +48,22 @@ SpaceTimeMatcherOptions SpaceTimeStaticSceneOptions(int frames) {
   return o;
 }
 
+void SetSubpixelIterations(int iterations, SpaceTimeMatcherOptions* options) {
+  if (iterations == options->subpixel_iterations) return;
+  const SpaceTimeMatcherOptions parabola;
+  options->subpixel_iterations = iterations;
+  options->sigma_floor_px = iterations > 0 ? kGaussNewtonSigmaFloorPx : parabola.sigma_floor_px;
+  options->sigma_scale = iterations > 0 ? kGaussNewtonSigmaScale : parabola.sigma_scale;
+}
+
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, SpaceTimeMatcherOptions* options) {
+  const bool constant = model.form == NoiseForm::kConstant;
+  options->sigma_floor_px = constant ? model.sigma_px : model.floor_px;
+  options->sigma_scale =
+      constant ? 1e-9
+               : model.scale * (model.image_noise_gray > 0 ? model.image_noise_gray / options->image_noise_gray : 1.0);
+}
+
 SpaceTimeMatcher::SpaceTimeMatcher(const SpaceTimeMatcherOptions& options) : options_(options) {
   options_.Check();
 }

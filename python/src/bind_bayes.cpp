@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
@@ -60,17 +61,15 @@ py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::hand
 
   SmoothOptions options;
   std::unique_ptr<SplinePotential> learned;
-  double learned_beta = 0;
+  std::optional<LearnedPrior> learned_prior;
   if (py::isinstance<LearnedPrior>(prior)) {
-    const auto& p = prior.cast<const LearnedPrior&>();
-    learned = std::make_unique<SplinePotential>(p.spline, p.theta);
-    learned_beta = p.prior_weight;
+    learned_prior = prior.cast<const LearnedPrior&>();
+    learned = std::make_unique<SplinePotential>(learned_prior->spline, learned_prior->theta);
   } else if (py::isinstance<py::str>(prior)) {
     const std::string name = prior.cast<std::string>();
     if (IsPriorFile(name)) {
-      const LearnedPrior p = ReadLearnedPrior(name);
-      learned = std::make_unique<SplinePotential>(p.spline, p.theta);
-      learned_beta = p.prior_weight;
+      learned_prior = ReadLearnedPrior(name);
+      learned = std::make_unique<SplinePotential>(learned_prior->spline, learned_prior->theta);
     } else {
       options.prior = ParsePriorKind(name);
     }
@@ -80,7 +79,8 @@ py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::hand
   options.potential = learned.get();
   const bool beta_given = kw.contains("prior_weight");
   ApplyKeywords(SmoothOptionFields(), kw, &options, "smooth", kSmoothExtraKeywords);
-  if (learned && !beta_given && learned_beta > 0) options.prior_weight = learned_beta;
+  options.prior_weight = ResolvePriorWeight(beta_given ? std::optional<double>(options.prior_weight) : std::nullopt,
+                                            learned_prior ? &*learned_prior : nullptr);
   Vertices start;
   if (!initial.is_none()) {
     start = VerticesFromArray(initial, "initial_positions");
