@@ -161,54 +161,53 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Adaptive
 
 namespace {
 
-std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilonOptions& options,
-                                     const RuleTopology& topology, AdaptiveEpsilonSummary* summary) {
-  const auto start = std::chrono::steady_clock::now();
-  const int nf = reference.num_faces(), nv = reference.num_vertices();
-  std::vector<Eigen::Vector3d> normal;
-  std::vector<char> valid;
-  FaceNormals(reference, &normal, &valid);
-  // Crease protection reads the raw normals (before step 0).
-  const std::vector<Eigen::Vector3d> crease_normal = normal;
-  const std::vector<char>& crease_valid = valid;
-  const Adjacency& vertex_faces = topology.vertex_faces;
-  const Adjacency& rings = topology.rings;
-
-  // Step 0: area-weighted averages of the face normals over the faces sharing a vertex, normal_smoothing_rings
-  // times. The total turning of a surface survives averaging (a smoothly curved region keeps the gradient of
-  // its normal field) while the facets and small creases of a pre-smoothed scan, and noise, average out.
-  if (options.normal_smoothing_rings > 0) {
-    std::vector<double> area(static_cast<size_t>(nf), 0.0);
-    for (int f = 0; f < nf; ++f) {
-      if (!valid[static_cast<size_t>(f)]) continue;
-      const Eigen::Vector3d pa = reference.V.row(reference.F(f, 0)).transpose();
-      area[static_cast<size_t>(f)] = (reference.V.row(reference.F(f, 1)).transpose() - pa)
-                                         .cross(reference.V.row(reference.F(f, 2)).transpose() - pa)
-                                         .norm();
-    }
-    std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
-    for (int iteration = 0; iteration < options.normal_smoothing_rings; ++iteration) {
-      tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
-        for (int f = r.begin(); f != r.end(); ++f) {
-          next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
-          if (!valid[static_cast<size_t>(f)]) continue;
-          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-          for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
-            if (!valid[static_cast<size_t>(*g)]) continue;
-            sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
-          }
-          const double length = sum.norm();
-          if (length > 0) next[static_cast<size_t>(f)] = sum / length;
-        }
-      });
-      normal.swap(next);
-    }
+// Step 0: area-weighted averages of the face normals over the faces sharing a vertex, `passes` times. The
+// total turning of a surface survives averaging (a smoothly curved region keeps the gradient of its normal
+// field) while the facets and small creases of a pre-smoothed scan, and noise, average out.
+void AverageNormals(const Mesh& reference, const std::vector<char>& valid, const Adjacency& rings, int passes,
+                    std::vector<Eigen::Vector3d>* normals) {
+  const int nf = reference.num_faces();
+  std::vector<Eigen::Vector3d>& normal = *normals;
+  std::vector<double> area(static_cast<size_t>(nf), 0.0);
+  for (int f = 0; f < nf; ++f) {
+    if (!valid[static_cast<size_t>(f)]) continue;
+    const Eigen::Vector3d pa = reference.V.row(reference.F(f, 0)).transpose();
+    area[static_cast<size_t>(f)] = (reference.V.row(reference.F(f, 1)).transpose() - pa)
+                                       .cross(reference.V.row(reference.F(f, 2)).transpose() - pa)
+                                       .norm();
   }
+  std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
+  for (int iteration = 0; iteration < passes; ++iteration) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
+      for (int f = r.begin(); f != r.end(); ++f) {
+        next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
+        if (!valid[static_cast<size_t>(f)]) continue;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
+          if (!valid[static_cast<size_t>(*g)]) continue;
+          sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
+        }
+        const double length = sum.norm();
+        if (length > 0) next[static_cast<size_t>(f)] = sum / length;
+      }
+    });
+    normal.swap(next);
+  }
+}
 
-  // Step 1: mean normal difference to the edge neighbours; crease pairs from the unsmoothed normals.
-  const IndexPairs& pairs = topology.pairs;
-  std::vector<char> crease(static_cast<size_t>(nf), 0);
+// Step 1: per face the mean normal difference d to its edge neighbours (typical; has_value where it has one),
+// and the pairs whose raw normals differ by more than protect_normal_difference (crease pairs).
+struct PairDifferences {
+  std::vector<double> typical;
+  std::vector<char> has_value;
   std::vector<Eigen::Index> crease_pairs;
+};
+
+PairDifferences MeanPairDifferences(int nf, const IndexPairs& pairs, const std::vector<Eigen::Vector3d>& normal,
+                                    const std::vector<char>& valid, const std::vector<Eigen::Vector3d>& crease_normal,
+                                    const std::vector<char>& crease_valid, const AdaptiveEpsilonOptions& options) {
+  PairDifferences out;
+  std::vector<Eigen::Index>& crease_pairs = out.crease_pairs;
   // Per face the d of its valid pairs, in pair order (a CSR list: offsets, then values).
   std::vector<int> offsets(static_cast<size_t>(nf) + 1, 0);
   std::vector<double> pair_d(static_cast<size_t>(pairs.rows()), -1.0);
@@ -243,8 +242,10 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilo
     }
   }
   std::vector<double>().swap(pair_d);
-  std::vector<double> typical(static_cast<size_t>(nf), 0.0);
-  std::vector<char> has_value(static_cast<size_t>(nf), 0);
+  std::vector<double>& typical = out.typical;
+  std::vector<char>& has_value = out.has_value;
+  typical.assign(static_cast<size_t>(nf), 0.0);
+  has_value.assign(static_cast<size_t>(nf), 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
     for (int f = r.begin(); f != r.end(); ++f) {
       const int begin = offsets[static_cast<size_t>(f)], end = offsets[static_cast<size_t>(f) + 1];
@@ -256,8 +257,13 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilo
     }
   });
   std::vector<double>().swap(differences);
+  return out;
+}
 
-  // Step 2: truncated mean over the faces sharing a vertex (each face once).
+// Step 2: the truncated mean over the faces sharing a vertex (each face once), ring_iterations times.
+void RingMeans(int nf, const Adjacency& rings, const std::vector<char>& has_value, const AdaptiveEpsilonOptions& options,
+               std::vector<double>* typical_values) {
+  std::vector<double>& typical = *typical_values;
   std::vector<double> next(static_cast<size_t>(nf));
   for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
@@ -281,50 +287,76 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilo
     });
     typical.swap(next);
   }
+}
 
-  // Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings.
-  if (options.protect_rings >= 0) {
-    std::vector<std::array<int, 2>> crease_edges(crease_pairs.size(), {-1, -1});
-    std::vector<int> crease_degree(static_cast<size_t>(nv), 0);
-    for (size_t e = 0; e < crease_pairs.size(); ++e) {
-      const int s = pairs(crease_pairs[e], 0), t = pairs(crease_pairs[e], 1);
-      int found = 0;
-      for (int a = 0; a < 3 && found < 2; ++a) {
-        for (int b = 0; b < 3; ++b) {
-          if (reference.F(s, a) == reference.F(t, b)) {
-            crease_edges[e][static_cast<size_t>(found++)] = reference.F(s, a);
-            break;
-          }
+// Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings;
+// none when protect_rings < 0.
+std::vector<char> ProtectedFaces(const Mesh& reference, const IndexPairs& pairs,
+                                 const std::vector<Eigen::Index>& crease_pairs, const Adjacency& vertex_faces,
+                                 const AdaptiveEpsilonOptions& options) {
+  const int nf = reference.num_faces(), nv = reference.num_vertices();
+  std::vector<char> crease(static_cast<size_t>(nf), 0);
+  if (options.protect_rings < 0) return crease;
+  std::vector<std::array<int, 2>> crease_edges(crease_pairs.size(), {-1, -1});
+  std::vector<int> crease_degree(static_cast<size_t>(nv), 0);
+  for (size_t e = 0; e < crease_pairs.size(); ++e) {
+    const int s = pairs(crease_pairs[e], 0), t = pairs(crease_pairs[e], 1);
+    int found = 0;
+    for (int a = 0; a < 3 && found < 2; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        if (reference.F(s, a) == reference.F(t, b)) {
+          crease_edges[e][static_cast<size_t>(found++)] = reference.F(s, a);
+          break;
         }
       }
-      if (found < 2) continue;
-      ++crease_degree[static_cast<size_t>(crease_edges[e][0])];
-      ++crease_degree[static_cast<size_t>(crease_edges[e][1])];
     }
-    for (size_t e = 0; e < crease_pairs.size(); ++e) {
-      if (options.protect_min_crease_degree > 0 &&
-          (crease_edges[e][1] < 0 ||
-           crease_degree[static_cast<size_t>(crease_edges[e][0])] < options.protect_min_crease_degree ||
-           crease_degree[static_cast<size_t>(crease_edges[e][1])] < options.protect_min_crease_degree)) {
-        continue;
-      }
-      crease[static_cast<size_t>(pairs(crease_pairs[e], 0))] = 1;
-      crease[static_cast<size_t>(pairs(crease_pairs[e], 1))] = 1;
-    }
-    for (int ring = 0; ring < options.protect_rings; ++ring) {
-      std::vector<char> grown = crease;
-      for (int f = 0; f < nf; ++f) {
-        if (!crease[static_cast<size_t>(f)]) continue;
-        for (int k = 0; k < 3; ++k) {
-          const int v = reference.F(f, k);
-          for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) grown[static_cast<size_t>(*g)] = 1;
-        }
-      }
-      crease.swap(grown);
-    }
-  } else {
-    std::fill(crease.begin(), crease.end(), 0);
+    if (found < 2) continue;
+    ++crease_degree[static_cast<size_t>(crease_edges[e][0])];
+    ++crease_degree[static_cast<size_t>(crease_edges[e][1])];
   }
+  for (size_t e = 0; e < crease_pairs.size(); ++e) {
+    if (options.protect_min_crease_degree > 0 &&
+        (crease_edges[e][1] < 0 ||
+         crease_degree[static_cast<size_t>(crease_edges[e][0])] < options.protect_min_crease_degree ||
+         crease_degree[static_cast<size_t>(crease_edges[e][1])] < options.protect_min_crease_degree)) {
+      continue;
+    }
+    crease[static_cast<size_t>(pairs(crease_pairs[e], 0))] = 1;
+    crease[static_cast<size_t>(pairs(crease_pairs[e], 1))] = 1;
+  }
+  for (int ring = 0; ring < options.protect_rings; ++ring) {
+    std::vector<char> grown = crease;
+    for (int f = 0; f < nf; ++f) {
+      if (!crease[static_cast<size_t>(f)]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int v = reference.F(f, k);
+        for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) grown[static_cast<size_t>(*g)] = 1;
+      }
+    }
+    crease.swap(grown);
+  }
+  return crease;
+}
+
+std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilonOptions& options,
+                                     const RuleTopology& topology, AdaptiveEpsilonSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  const int nf = reference.num_faces();
+  std::vector<Eigen::Vector3d> normal;
+  std::vector<char> valid;
+  FaceNormals(reference, &normal, &valid);
+  // Crease protection reads the raw normals (before step 0).
+  const std::vector<Eigen::Vector3d> crease_normal = normal;
+  if (options.normal_smoothing_rings > 0) {
+    AverageNormals(reference, valid, topology.rings, options.normal_smoothing_rings, &normal);
+  }
+  PairDifferences differences =
+      MeanPairDifferences(nf, topology.pairs, normal, valid, crease_normal, valid, options);
+  std::vector<double>& typical = differences.typical;
+  const std::vector<char>& has_value = differences.has_value;
+  RingMeans(nf, topology.rings, has_value, options, &typical);
+  const std::vector<char> crease =
+      ProtectedFaces(reference, topology.pairs, differences.crease_pairs, topology.vertex_faces, options);
 
   // Step 3: ε² = c · (m² − d₀²), clamped.
   std::vector<double> epsilon_squared(static_cast<size_t>(nf), options.min_epsilon_squared);
