@@ -87,49 +87,10 @@ void RunRig(const RigArgs& a) {
   }
   WriteStereoRig(rig, a.out);
 
-  std::printf("%-28s %9s %9s %9s  %s\n", "view (left image)", "left px", "right px", "stereo px", "note");
-  for (const CalibrationView& v : s.views) {
-    const std::string name = std::filesystem::path(v.left).filename().string();
-    if (!v.skip_reason.empty()) {
-      std::printf("%-28s %9s %9s %9s  skipped: %s\n", name.c_str(), "-", "-", "-", v.skip_reason.c_str());
-      continue;
-    }
-    std::string note = v.flagged ? "FLAGGED: far above the rest" : "";
-    if (v.dropped) note += " (dropped)";
-    if (v.dropped) {
-      std::printf("%-28s %9s %9s %9.3f  %s\n", name.c_str(), "-", "-", v.rms_stereo_px, note.c_str());
-    } else {
-      std::printf("%-28s %9.3f %9.3f %9.3f  %s\n", name.c_str(), v.rms_left_px, v.rms_right_px, v.rms_stereo_px,
-                  note.c_str());
-    }
-  }
+  std::fputs(s.BriefReport().c_str(), stdout);
   int flagged = 0;
   for (const CalibrationView& v : s.views) flagged += v.flagged;
-  std::printf("pairs: %zu given, %d with the board in both images, %d used\n", pairs.size(), s.pairs_found,
-              s.pairs_used);
-  std::printf("RMS reprojection error: left %.3f px, right %.3f px, stereo %.3f px\n", s.rms_left_px, s.rms_right_px,
-              s.rms_stereo_px);
-  if (options.board.type == BoardType::kChessboard) {
-    const char* used = s.detector_used == ChessboardDetector::kClassic ? "classic" : "sb";
-    if (options.board.detector == ChessboardDetector::kBest) {
-      const auto rms = [](double v) { return v < 0 ? std::string("too few pairs") : std::to_string(v).substr(0, 5) + " px"; };
-      std::printf("corner detector: %s kept (stereo RMS sb %s, classic %s)\n", used,
-                  rms(s.rms_stereo_sector_based_px).c_str(), rms(s.rms_stereo_classic_px).c_str());
-    } else {
-      std::printf("corner detector: %s\n", used);
-    }
-  }
-  if (s.pairs_used != s.pairs_found) {
-    std::printf("stereo RMS with all %d views: %.3f px\n", s.pairs_found, s.rms_stereo_all_px);
-  }
-  std::printf("flag threshold %.3f px (median view %.3f px): %d view(s) flagged%s\n", s.flag_threshold_px,
-              s.median_view_rms_px, flagged,
-              flagged > 0 && !a.drop_outliers ? "; rerun with --drop-outliers to calibrate without them" : "");
-  std::printf("board coverage: left %.0f%% of the image (%.0f%% of %dx%d cells), right %.0f%% (%.0f%%)\n",
-              100 * s.coverage_left, 100 * s.grid_coverage_left, options.coverage_grid, options.coverage_grid,
-              100 * s.coverage_right, 100 * s.grid_coverage_right);
-  std::printf("epipolar error after rectification: mean %.3f px, max %.3f px\n", s.epipolar_error_mean_px,
-              s.epipolar_error_max_px);
+  if (flagged > 0 && !a.drop_outliers) std::printf("rerun with --drop-outliers to calibrate without them\n");
   std::printf("baseline %.4f m, rectified f %.1f px\n", rig.baseline_m(), rig.P1(0, 0));
   std::printf("wrote %s\n", a.out.c_str());
   if (!a.png.empty()) {
