@@ -9,23 +9,20 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "calibration/disparity_noise_model.h"
 #include "calibration/middlebury.h"
-#include "calibration/plane_target.h"
 #include "calibration/stereo_calibration.h"
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
 #include "core/error.h"
 #include "pipeline/png.h"
-#include "stereo/matcher.h"
-#include "stereo/rectify.h"
-#include "stereo/sgbm_matcher.h"
-#include "stereo/spacetime_matcher.h"
+#include "stereo/noise_calibration.h"
+#include "stereo/noise_report.h"
 
 namespace rangebayes::apps {
 namespace {
@@ -90,49 +87,10 @@ void RunRig(const RigArgs& a) {
   }
   WriteStereoRig(rig, a.out);
 
-  std::printf("%-28s %9s %9s %9s  %s\n", "view (left image)", "left px", "right px", "stereo px", "note");
-  for (const CalibrationView& v : s.views) {
-    const std::string name = std::filesystem::path(v.left).filename().string();
-    if (!v.skip_reason.empty()) {
-      std::printf("%-28s %9s %9s %9s  skipped: %s\n", name.c_str(), "-", "-", "-", v.skip_reason.c_str());
-      continue;
-    }
-    std::string note = v.flagged ? "FLAGGED: far above the rest" : "";
-    if (v.dropped) note += " (dropped)";
-    if (v.dropped) {
-      std::printf("%-28s %9s %9s %9.3f  %s\n", name.c_str(), "-", "-", v.rms_stereo_px, note.c_str());
-    } else {
-      std::printf("%-28s %9.3f %9.3f %9.3f  %s\n", name.c_str(), v.rms_left_px, v.rms_right_px, v.rms_stereo_px,
-                  note.c_str());
-    }
-  }
+  std::fputs(s.BriefReport().c_str(), stdout);
   int flagged = 0;
   for (const CalibrationView& v : s.views) flagged += v.flagged;
-  std::printf("pairs: %zu given, %d with the board in both images, %d used\n", pairs.size(), s.pairs_found,
-              s.pairs_used);
-  std::printf("RMS reprojection error: left %.3f px, right %.3f px, stereo %.3f px\n", s.rms_left_px, s.rms_right_px,
-              s.rms_stereo_px);
-  if (options.board.type == BoardType::kChessboard) {
-    const char* used = s.detector_used == ChessboardDetector::kClassic ? "classic" : "sb";
-    if (options.board.detector == ChessboardDetector::kBest) {
-      const auto rms = [](double v) { return v < 0 ? std::string("too few pairs") : std::to_string(v).substr(0, 5) + " px"; };
-      std::printf("corner detector: %s kept (stereo RMS sb %s, classic %s)\n", used,
-                  rms(s.rms_stereo_sector_based_px).c_str(), rms(s.rms_stereo_classic_px).c_str());
-    } else {
-      std::printf("corner detector: %s\n", used);
-    }
-  }
-  if (s.pairs_used != s.pairs_found) {
-    std::printf("stereo RMS with all %d views: %.3f px\n", s.pairs_found, s.rms_stereo_all_px);
-  }
-  std::printf("flag threshold %.3f px (median view %.3f px): %d view(s) flagged%s\n", s.flag_threshold_px,
-              s.median_view_rms_px, flagged,
-              flagged > 0 && !a.drop_outliers ? "; rerun with --drop-outliers to calibrate without them" : "");
-  std::printf("board coverage: left %.0f%% of the image (%.0f%% of %dx%d cells), right %.0f%% (%.0f%%)\n",
-              100 * s.coverage_left, 100 * s.grid_coverage_left, options.coverage_grid, options.coverage_grid,
-              100 * s.coverage_right, 100 * s.grid_coverage_right);
-  std::printf("epipolar error after rectification: mean %.3f px, max %.3f px\n", s.epipolar_error_mean_px,
-              s.epipolar_error_max_px);
+  if (flagged > 0 && !a.drop_outliers) std::printf("rerun with --drop-outliers to calibrate without them\n");
   std::printf("baseline %.4f m, rectified f %.1f px\n", rig.baseline_m(), rig.P1(0, 0));
   std::printf("wrote %s\n", a.out.c_str());
   if (!a.png.empty()) {
@@ -175,7 +133,7 @@ void AddRig(CLI::App* calibrate) {
   sub->add_flag("--rational", a->rational, "8-coefficient rational distortion model (needs many views)");
   sub->add_option("--out", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
   sub->add_option("--png", a->png, "write the first used pair, rectified, with horizontal epipolar lines");
-  sub->add_flag("--quiet", a->quiet, "no progress on stderr");
+  AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { RunRig(*a); });
 }
 
@@ -198,125 +156,26 @@ struct NoiseArgs {
   bool quiet = false;
 };
 
-RgbImage FromRgbMat(const cv::Mat& m) {
-  RgbImage out(m.cols, m.rows);
-  for (int y = 0; y < m.rows; ++y) std::copy(m.ptr<std::uint8_t>(y), m.ptr<std::uint8_t>(y) + 3 * m.cols, out.at(0, y));
-  return out;
-}
-
-// Left: histogram of the residuals (grey) against the fitted model's density (red: the chosen form, blue: the
-// constant form). Right: σ_d fitted per depth bin (dots) against depth, the constant fit (blue line) and the
-// least-squares line (red).
-RgbImage NoiseReport(const std::vector<NoiseSample>& samples, const DisparityNoiseModel& model,
-                     const NoiseFitSummary& fit) {
-  const int w = 480, h = 360, margin = 40;
-  cv::Mat canvas(h, 2 * w, CV_8UC3, cv::Scalar(255, 255, 255));
-  const double half = std::max(4.0 * fit.constant_sigma_px, 1e-3);
-  const int bins = 80;
-  std::vector<double> hist(bins, 0.0);
-  std::vector<double> residuals, preds;
-  for (const NoiseSample& s : samples) {
-    if (!std::isfinite(s.residual_px)) continue;
-    residuals.push_back(s.residual_px);
-    preds.push_back(s.sigma_pred_px);
-    const int b = static_cast<int>((s.residual_px + half) / (2 * half) * bins);
-    if (b >= 0 && b < bins) hist[static_cast<size_t>(b)] += 1.0;
-  }
-  const double n = static_cast<double>(std::max<size_t>(residuals.size(), 1));
-  const double bin_w = 2 * half / bins;
-  for (double& v : hist) v /= n * bin_w;  // density
-  const double range = std::max_element(residuals.begin(), residuals.end(),
-                                        [](double a, double b) { return std::abs(a) < std::abs(b); }) != residuals.end()
-                           ? std::abs(*std::max_element(residuals.begin(), residuals.end(),
-                                                        [](double a, double b) { return std::abs(a) < std::abs(b); }))
-                           : 1.0;
-  const auto density = [&](double x, const DisparityNoiseModel& m) {
-    double g = 0;
-    const size_t step = std::max<size_t>(1, preds.size() / 2000);
-    size_t count = 0;
-    for (size_t i = 0; i < preds.size(); i += step, ++count) {
-      const double sd = std::max(m.Apply(preds[i]), 1e-9);
-      g += std::exp(-0.5 * x * x / (sd * sd)) / (sd * std::sqrt(2 * M_PI));
-    }
-    g /= std::max<size_t>(count, 1);
-    return (1 - m.outlier_fraction) * g + m.outlier_fraction / (2 * std::max(range, 1e-9));
-  };
-  DisparityNoiseModel constant = model;
-  constant.form = NoiseForm::kConstant;
-  constant.sigma_px = fit.constant_sigma_px;
-  double top = *std::max_element(hist.begin(), hist.end());
-  top = std::max(top, density(0.0, model));
-  top = std::max(top, density(0.0, constant)) * 1.1;
-  const auto px = [&](double x) { return margin + static_cast<int>((x + half) / (2 * half) * (w - 2 * margin)); };
-  const auto py = [&](double y) { return h - margin - static_cast<int>(y / top * (h - 2 * margin)); };
-  for (int b = 0; b < bins; ++b) {
-    const double x0 = -half + b * bin_w;
-    cv::rectangle(canvas, cv::Point(px(x0), py(hist[static_cast<size_t>(b)])), cv::Point(px(x0 + bin_w), py(0)),
-                  cv::Scalar(180, 180, 180), cv::FILLED);
-  }
-  for (const auto& [m, colour] : {std::pair{constant, cv::Scalar(0, 0, 220)}, std::pair{model, cv::Scalar(220, 0, 0)}}) {
-    cv::Point prev;
-    for (int i = 0; i <= 200; ++i) {
-      const double x = -half + 2 * half * i / 200.0;
-      const cv::Point p(px(x), py(density(x, m)));
-      if (i > 0) cv::line(canvas, prev, p, colour, 2, cv::LINE_AA);
-      prev = p;
-    }
-  }
-  cv::line(canvas, cv::Point(margin, h - margin), cv::Point(w - margin, h - margin), cv::Scalar(0, 0, 0));
-  char text[160];
-  std::snprintf(text, sizeof(text), "disparity residual, +-%.2f px", half);
-  cv::putText(canvas, text, cv::Point(margin, h - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
-  std::snprintf(text, sizeof(text), "const sigma %.3f px", fit.constant_sigma_px);
-  cv::putText(canvas, text, cv::Point(margin, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 220), 1);
-  if (model.form == NoiseForm::kFloorPlusScale) {
-    std::snprintf(text, sizeof(text), "floor %.3f px, k %.2f", model.floor_px, model.scale);
-    cv::putText(canvas, text, cv::Point(margin + 200, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(220, 0, 0), 1);
-  }
-
-  // σ against depth.
-  if (!fit.depth_bins.empty()) {
-    double zlo = fit.depth_bins.front().depth_m, zhi = fit.depth_bins.back().depth_m;
-    if (zhi - zlo < 1e-6) {
-      zlo -= 0.05;
-      zhi += 0.05;
-    }
-    const double pad = 0.1 * (zhi - zlo);
-    zlo -= pad;
-    zhi += pad;
-    double smax = fit.constant_sigma_px;
-    for (const NoiseDepthBin& b : fit.depth_bins) smax = std::max(smax, b.sigma_px);
-    smax *= 1.3;
-    const auto qx = [&](double z) { return w + margin + static_cast<int>((z - zlo) / (zhi - zlo) * (w - 2 * margin)); };
-    const auto qy = [&](double s) { return h - margin - static_cast<int>(s / smax * (h - 2 * margin)); };
-    cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(2 * w - margin, h - margin), cv::Scalar(0, 0, 0));
-    cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(w + margin, margin), cv::Scalar(0, 0, 0));
-    cv::line(canvas, cv::Point(qx(zlo), qy(fit.constant_sigma_px)), cv::Point(qx(zhi), qy(fit.constant_sigma_px)),
-             cv::Scalar(0, 0, 220), 1, cv::LINE_AA);
-    double mz = 0, ms = 0, cnt = 0;
-    for (const NoiseDepthBin& b : fit.depth_bins) {
-      mz += b.count * b.depth_m;
-      ms += b.count * b.sigma_px;
-      cnt += b.count;
-    }
-    mz /= cnt;
-    ms /= cnt;
-    const double slope = fit.depth_slope_px_per_m;
-    cv::line(canvas, cv::Point(qx(zlo), qy(ms + slope * (zlo - mz))), cv::Point(qx(zhi), qy(ms + slope * (zhi - mz))),
-             cv::Scalar(220, 0, 0), 1, cv::LINE_AA);
-    for (const NoiseDepthBin& b : fit.depth_bins) {
-      cv::circle(canvas, cv::Point(qx(b.depth_m), qy(b.sigma_px)), 4, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
-    }
-    std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope %.3f px/m", zlo, zhi, slope);
-    cv::putText(canvas, text, cv::Point(w + margin, h - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
-    std::snprintf(text, sizeof(text), "max %.3f px", smax);
-    cv::putText(canvas, text, cv::Point(w + margin, margin - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
-  }
-  return FromRgbMat(canvas);
-}
-
 void RunNoise(const NoiseArgs& a) {
   if (a.target != "plane") UsageError("--target: only 'plane' is supported");
+  NoiseCalibrationOptions options;
+  options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
+  if (a.form != "auto") options.form = ParseNoiseForm(a.form);
+  if (options.form == NoiseForm::kFloorPlusScale && options.matcher == NoiseCalibrationMatcher::kSgbm) {
+    UsageError("--form floor-plus-scale needs a matcher that predicts sigma_d (block or spacetime), not " + a.matcher);
+  }
+  options.first_frame = a.frame;
+  options.frames = a.frames;
+  options.min_disparity_px = a.min_disparity_px;
+  options.num_disparities = a.num_disparities;
+  options.window_px = a.window_px;
+  options.image_noise_gray = a.image_noise_gray;
+  if (!a.roi.empty()) {
+    if (a.roi.size() != 4) UsageError("--roi takes four numbers: x y width height");
+    options.roi = cv::Rect(a.roi[0], a.roi[1], a.roi[2], a.roi[3]);
+  }
+  options.stride_px = a.stride_px;
+
   RecordingReadSummary read_summary;
   const Recording rec = OpenRecording(a.recording, &read_summary);
   for (const std::string& n : read_summary.notices) Notice(a.quiet, n);
@@ -329,92 +188,13 @@ void RunNoise(const NoiseArgs& a) {
   }
   RB_CHECK(a.frame >= 0 && a.frame < rec.num_frames(), a.recording, ": frame ", a.frame, " not in [0, ",
            rec.num_frames(), ")");
-  const bool spacetime = a.matcher == "spacetime";
-  int count = 1;
-  if (spacetime) count = a.frames > 0 ? std::min(a.frames, rec.num_frames() - a.frame) : rec.num_frames() - a.frame;
-  const Rectifier rectifier(rig);
-  std::vector<cv::Mat> left, right;
-  for (int i = a.frame; i < a.frame + count; ++i) {
-    const StereoFrame f = LoadRecordingFrame(rec, i);
-    cv::Mat l, r;
-    rectifier.Rectify(f.left, f.right, &l, &r);
-    left.push_back(l);
-    right.push_back(r);
-  }
-
-  std::unique_ptr<StereoMatcher> matcher;
-  if (a.matcher == "sgbm") {
-    SgbmMatcherOptions o;
-    o.min_disparity_px = a.min_disparity_px;
-    o.num_disparities = a.num_disparities;
-    o.block_size_px = std::min(a.window_px, 11);
-    matcher = std::make_unique<SgbmMatcher>(o);
-  } else {
-    SpaceTimeMatcherOptions o;
-    o.min_disparity_px = a.min_disparity_px;
-    o.num_disparities = a.num_disparities;
-    o.window_px = a.window_px;
-    o.image_noise_gray = a.image_noise_gray;
-    // The raw curvature prediction: the fit supplies floor and scale.
-    o.sigma_floor_px = 0.0;
-    o.sigma_scale = 1.0;
-    o.max_sigma_disparity_px = 0.0;
-    matcher = std::make_unique<SpaceTimeMatcher>(o);
-  }
-  const DisparityResult match = matcher->Match(left, right);
-
-  ObservationSelection selection;
-  if (!a.roi.empty()) {
-    if (a.roi.size() != 4) UsageError("--roi takes four numbers: x y width height");
-    selection.roi = cv::Rect(a.roi[0], a.roi[1], a.roi[2], a.roi[3]);
-  }
-  selection.stride_px = a.stride_px;
-  const std::vector<DisparityObservation> obs =
-      ObservationsFromDisparity(match.disparity_px, match.sigma_disparity_px, selection);
-  DisparityGeometry geometry;
-  geometry.camera = rectifier.intrinsics();
-  geometry.baseline_m = rectifier.baseline_m();
-  geometry.doffs_px = rectifier.doffs_px();
-  PlaneTargetSummary plane;
-  const std::vector<NoiseSample> samples = PlaneDisparityResiduals(obs, geometry, {}, &plane);
-
-  const bool has_pred = !match.sigma_disparity_px.empty();
-  NoiseFitOptions fit_options;
-  if (a.form == "auto") {
-    fit_options.form = has_pred ? NoiseForm::kFloorPlusScale : NoiseForm::kConstant;
-  } else {
-    fit_options.form = ParseNoiseForm(a.form);
-    if (fit_options.form == NoiseForm::kFloorPlusScale && !has_pred) {
-      UsageError("--form floor-plus-scale needs a matcher that predicts sigma_d (block or spacetime), not " +
-                 a.matcher);
-    }
-  }
-  // SGBM reports disparities in 1/16 px steps: its error cannot be resolved below the step's own σ.
-  if (a.matcher == "sgbm") fit_options.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
-  NoiseFitSummary fit;
-  DisparityNoiseModel model = FitDisparityNoiseModel(samples, fit_options, &fit);
-  model.matcher = a.matcher;
-  if (a.matcher != "sgbm") model.image_noise_gray = a.image_noise_gray;
+  NoiseCalibrationSummary summary;
+  const DisparityNoiseModel model = CalibrateDisparityNoise(rec, rig, options, &summary);
   WriteDisparityNoiseModel(model, a.out);
-
-  std::printf("matcher %s over %d frame(s): %d valid disparities (%.1f%%)\n", a.matcher.c_str(), count,
-              static_cast<int>(obs.size()), 100.0 * match.valid_fraction);
-  std::printf("plane: normal (%.4f, %.4f, %.4f), offset %.4f m; RANSAC %d of %d inliers, least-squares %d inliers, "
-              "inlier RMS %.3f px\n",
-              plane.plane[0], plane.plane[1], plane.plane[2], plane.plane[3], plane.ransac_inliers, plane.observations,
-              plane.inliers, plane.inlier_rms_px);
-  std::printf("constant sigma_d %.4f px (robust 1.4826*MAD %.4f px), outlier fraction %.3f\n", fit.constant_sigma_px,
-              fit.robust_sigma_px, fit_options.form == NoiseForm::kConstant ? fit.outlier_fraction : model.outlier_fraction);
-  if (model.form == NoiseForm::kFloorPlusScale) {
-    std::printf("floor-plus-scale: sigma_d = sqrt(%.4f^2 + (%.3f * sigma_pred)^2), outlier fraction %.3f\n",
-                model.floor_px, model.scale, model.outlier_fraction);
-  }
-  std::printf("sigma_d by depth:");
-  for (const NoiseDepthBin& b : fit.depth_bins) std::printf(" %.3f m: %.4f px;", b.depth_m, b.sigma_px);
-  std::printf(" slope %.4f px/m\n", fit.depth_slope_px_per_m);
+  std::fputs(summary.BriefReport(model).c_str(), stdout);
   std::printf("wrote %s (%s, %d samples)\n", a.out.c_str(), NoiseFormName(model.form), model.samples);
   if (!a.png.empty()) {
-    WritePng(NoiseReport(samples, model, fit), a.png);
+    WritePng(NoiseReportFigure(summary.samples, model, summary.fit), a.png);
     std::printf("wrote %s\n", a.png.c_str());
   }
 }
@@ -439,13 +219,13 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("--min-disparity", a->min_disparity_px, "smallest disparity searched (px)");
   sub->add_option("--num-disparities", a->num_disparities, "disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
-  sub->add_option("--window", a->window_px, "matching window side (px, odd)")->check(CLI::Range(1, 31));
+  AddWindowOption(sub, &a->window_px, "default 5; sgbm uses at most 11", 1);
   sub->add_option("--image-noise", a->image_noise_gray, "image noise sigma_n for the predicted sigma_d (grey levels)");
   sub->add_option("--roi", a->roi, "region of the target in the rectified left image: x y width height (px)")
       ->expected(4);
   sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--png", a->png, "report picture: residual histogram against the model, sigma_d against depth");
-  sub->add_flag("--quiet,-q", a->quiet, "no notices on stderr");
+  AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { RunNoise(*a); });
 }
 

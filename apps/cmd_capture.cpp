@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/learn_prior_io.h"
 #include "capture/device_list.h"
@@ -18,6 +19,7 @@
 #include "capture/recorder.h"
 #include "capture/recording.h"
 #include "capture/stop_signal.h"
+#include "capture/tee_source.h"
 #include "capture/v4l2_source.h"
 #include "console/console.h"
 #include "console/protocol.h"
@@ -31,10 +33,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Live-path defaults (BENCHMARKS.md "Capture and pipeline" has the measurements behind them).
-constexpr int kLiveStereoDownsample = 2;
-constexpr double kLiveSmoothBudgetMs = 80.0;
-
 // Pipeline settings shared by replay and live.
 struct PipelineCli {
   std::string matcher = "sgbm";
@@ -42,14 +40,13 @@ struct PipelineCli {
   int window_step_frames = 0;
   int num_disparities = 64;
   int min_disparity_px = 0;
-  int block_px = 5;
+  int window_px = 5;
   int downsample = 1;
   int stereo_downsample = 0;  // 0: 1, or 2 with --live-path
   bool no_smooth = false;
   double smooth_budget_ms = -1.0;  // < 0: none, or kLiveSmoothBudgetMs with --live-path
   std::string tolerance = "default";
-  double prior_weight = SmoothOptions{}.prior_weight;
-  bool prior_weight_given = false;  // --prior-weight on the command line (else a learned prior's own beta)
+  std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
   std::string prior_file;  // a learned prior (rangebayes learn-prior); empty: the square root
   mutable std::shared_ptr<const SplinePotential> learned_prior;  // kept alive for the run's SmoothOptions
   int max_iterations = 0;
@@ -75,7 +72,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
       ->check(CLI::Range(0, 256));
   sub->add_option("--num-disparities", o->num_disparities, "Disparities searched (px)")->check(CLI::Range(3, 1024));
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
-  sub->add_option("--block", o->block_px, "Matching window side (px, odd)")->check(CLI::Range(1, 31));
+  AddWindowOption(sub, &o->window_px, "default 5", 1);
   sub->add_option("--downsample", o->downsample, "Triangulate every n-th pixel (1-64, full-resolution pixels)")
       ->check(CLI::Range(1, 64));
   sub->add_option("--stereo-downsample", o->stereo_downsample,
@@ -83,15 +80,13 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
                   "to match; 0: 1, or 2 with --live-path)")
       ->check(CLI::IsMember({0, 1, 2, 4, 8}));
   sub->add_flag("--no-smooth", o->no_smooth, "Skip Bayesian smoothing");
-  sub->add_option("--tolerance", o->tolerance, "Smoothing stopping preset: fast, default or tight")
-      ->check(CLI::IsMember({"fast", "default", "tight"}));
-  sub->add_option("--prior-weight", o->prior_weight, "Smoothing prior weight beta (unitless)")
-      ->each([o](const std::string&) { o->prior_weight_given = true; });
+  AddToleranceOption(sub, &o->tolerance);
+  AddPriorWeightOption(sub, &o->prior_weight);
   sub->add_option("--prior", o->prior_file,
                   "Learned smoothing prior FILE.yaml from 'rangebayes learn-prior' (its beta unless --prior-weight "
                   "is given; default: the square root)");
   sub->add_option("--max-iterations", o->max_iterations,
-                  "Smoothing iteration cap (0: the tolerance preset's; --live-path: 25 unless given)")
+                  "Smoothing iteration cap (0: the tolerance preset's)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): a deadline; the summary says how far from converged it stopped "
@@ -108,7 +103,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--preview-width", o->preview_width_px,
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
-  sub->add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+  AddQuietFlag(sub, &o->quiet);
   sub->add_option("--ui", o->ui,
                   "Serve the operator's console (a live web page with controls) on [ADDR:]PORT (ADDR default "
                   "127.0.0.1; 0.0.0.0 exposes it to the network); the control token is printed at start; the "
@@ -129,34 +124,30 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.window_step_frames = o.window_step_frames;
   p.sgbm.num_disparities = o.num_disparities;
   p.sgbm.min_disparity_px = o.min_disparity_px;
-  p.sgbm.block_size_px = o.block_px;
+  p.sgbm.block_size_px = o.window_px;
   p.spacetime.num_disparities = o.num_disparities;
   p.spacetime.min_disparity_px = o.min_disparity_px;
-  p.spacetime.window_px = o.block_px;
+  p.spacetime.window_px = o.window_px;
   p.triangulate.downsample = o.downsample;
   p.stereo_downsample = o.stereo_downsample > 0 ? o.stereo_downsample : 1;
   p.smooth_budget_ms = std::max(0.0, o.smooth_budget_ms);
   p.smooth = !o.no_smooth;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
-  p.smoothing.prior_weight = o.prior_weight;
+  std::optional<LearnedPrior> prior;
   if (!o.prior_file.empty()) {
-    const LearnedPrior prior = ReadLearnedPrior(o.prior_file);
-    o.learned_prior = std::make_shared<const SplinePotential>(prior.spline, prior.theta);
+    prior = ReadLearnedPrior(o.prior_file);
+    o.learned_prior = std::make_shared<const SplinePotential>(prior->spline, prior->theta);
     p.smoothing.potential = o.learned_prior.get();
-    if (prior.prior_weight > 0 && !o.prior_weight_given) p.smoothing.prior_weight = prior.prior_weight;
   }
+  p.smoothing.prior_weight = ResolvePriorWeight(o.prior_weight, prior ? &*prior : nullptr);
   p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;
   p.decimation.lambda = o.lambda;
   if (o.live_path) {
-    p.queue_policy = QueueFullPolicy::kDropOldest;
-    p.queue_capacity = 1;
-    p.triangulate.downsample = 4;
-    p.smoothing.tolerance = SmoothTolerance::kFast;
-    // A preview needs a usable surface per frame, not a converged one: smoothing gets a time budget, the
-    // stereo pair is matched at half resolution, and decimation (far over budget) is off unless asked for.
-    if (o.stereo_downsample == 0) p.stereo_downsample = kLiveStereoDownsample;
-    if (o.smooth_budget_ms < 0.0) p.smooth_budget_ms = kLiveSmoothBudgetMs;
+    ApplyLivePathPreset(&p);
+    // The flags the preset documents as winning over it.
+    if (o.stereo_downsample > 0) p.stereo_downsample = o.stereo_downsample;
+    if (o.smooth_budget_ms >= 0.0) p.smooth_budget_ms = o.smooth_budget_ms;
     p.decimate = o.decimate && !o.no_decimate;
   }
   return p;
@@ -164,26 +155,11 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
 
 void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool quiet) {
   if (quiet) return;
-  std::fprintf(stderr, "rangebayes: %s\n", s.source.c_str());
-  std::fprintf(stderr,
-               "rangebayes: %lld frames in, %lld results, %lld failed, %lld skipped, %lld dropped, %.1f s, "
-               "%.2f frames/s end to end, latency %.0f ms\n",
-               static_cast<long long>(s.frames_captured), static_cast<long long>(s.results),
-               static_cast<long long>(s.failed), static_cast<long long>(s.frames_skipped),
-               static_cast<long long>(s.dropped), s.wall_s, s.frames_per_s, s.latency_mean_ms);
-  std::fprintf(stderr, "  %-12s %7s %7s %10s %10s %9s\n", "stage", "items", "errors", "mean ms", "max ms", "items/s");
-  for (const StageTiming& t : s.stages) {
-    std::fprintf(stderr, "  %-12s %7lld %7lld %10.1f %10.1f %9.2f\n", t.name.c_str(), static_cast<long long>(t.items),
-                 static_cast<long long>(t.errors), t.mean_ms(), t.max_ms,
-                 t.total_ms > 0 ? 1000.0 * static_cast<double>(t.items) / t.total_ms : 0.0);
-  }
-  for (const std::string& n : s.notices) std::fprintf(stderr, "rangebayes: note: %s\n", n.c_str());
-  for (const std::string& e : s.errors) std::fprintf(stderr, "rangebayes: %s\n", e.c_str());
-  if (s.stopped) std::fprintf(stderr, "rangebayes: stopped by request; finished results are complete\n");
+  std::fputs(s.BriefReport().c_str(), stderr);
   if (!out_dir.empty()) {
     std::fprintf(stderr,
-                 "rangebayes: results in %s: shaded/ (raw | smoothed | decimated renderings), depth/, raw/ and "
-                 "smoothed/ (PLY), decimated/ (OBJ), results.csv, summary.json\n",
+                 "results in %s: shaded/ (raw | smoothed | decimated renderings), depth/, raw/ and smoothed/ (PLY), "
+                 "decimated/ (OBJ), results.csv, summary.json\n",
                  out_dir.c_str());
   }
 }
@@ -360,7 +336,7 @@ void AddRecord(CLI::App& app) {
   sub->add_option("--out,-o", o->out, "Recording folder to create")->required();
   sub->add_option("--frames", o->max_frames, "Stop after this many frames (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
   sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
-  sub->add_flag("--quiet,-q", o->quiet, "No progress on stderr");
+  AddQuietFlag(sub, &o->quiet);
   sub->callback([o] {
     const std::optional<StereoRig> rig = ReadOptionalRig(o->camera.rig);
     InstallStopSignalHandlers();
@@ -374,10 +350,7 @@ void AddRecord(CLI::App& app) {
     ProgressPrinter progress(o->quiet);
     const RecorderSummary s = Record(*source, writer, options, progress.callback());
     progress.Finish();
-    Notice(o->quiet, StrCat("recorded ", s.frames_written, " frames into ", o->out, " in ", s.elapsed_s, " s (",
-                            ToString(s.stop), "); dropped by the drivers: left ", s.source.dropped_left, ", right ",
-                            s.source.dropped_right, "; unpaired: left ", s.source.unpaired_left, ", right ",
-                            s.source.unpaired_right, "; timeouts ", s.timeouts));
+    Notice(o->quiet, StrCat("recorded into ", o->out, ": ", s.BriefReport()));
     if (!s.error.empty()) {
       RB_FAIL(s.error, " (the recording is kept up to frame ", s.frames_written, ")");
     }
@@ -406,22 +379,7 @@ void AddLive(CLI::App& app) {
     cli.live_path = true;
     std::unique_ptr<RecordingWriter> writer;
     if (!o->record.empty()) writer = std::make_unique<RecordingWriter>(o->record, rig, camera->Meta());
-    // Recording happens in the capture thread, before any frame can be dropped downstream.
-    class Tee : public FrameSource {
-     public:
-      Tee(FrameSource& inner, RecordingWriter* w) : inner_(inner), writer_(w) {}
-      FrameResult Next() override {
-        FrameResult r = inner_.Next();
-        if (writer_ != nullptr && r.status == FrameStatus::kFrame) writer_->Write(r.frame);
-        return r;
-      }
-      std::string Describe() const override { return inner_.Describe(); }
-      FrameSourceStats stats() const override { return inner_.stats(); }
-      bool realtime() const override { return inner_.realtime(); }
-     private:
-      FrameSource& inner_;
-      RecordingWriter* writer_;
-    } tee(*camera, writer.get());
+    TeeSource tee(*camera, writer.get());
     RunToFolder(tee, rig, MakePipelineOptions(cli), cli, o->out);
     if (writer) writer->Finish();
   });

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/decimation/decimate.h"
 #include "core/error.h"
@@ -137,37 +138,8 @@ void Run(const DecimateArgs& a) {
     written.push_back(a.png);
   }
 
-  std::printf("input: %d faces%s\n", s.input_faces,
-              animated ? (", " + std::to_string(poses.size()) + " poses sharing one patch map").c_str() : "");
-  std::printf("patches: %d; output: %d faces, %d vertices (%.2f%% of the input faces)%s\n", s.num_patches,
-              s.output_faces, s.output_vertices, 100.0 * s.output_faces / std::max(1, s.input_faces),
-              a.polygons ? "; written as one polygon per patch" : "");
-  std::printf("lambda: %.6g%s; energy %.6g (data %.6g + lambda x patches %.6g)\n", s.lambda,
-              a.target_faces > 0 ? (" (found in " + std::to_string(s.bisection_steps) + " full decimations)").c_str()
-                                 : "",
-              s.energy, s.data_energy, s.energy - s.data_energy);
-  if (a.target_faces > 0) {
-    std::printf("lambda search: straightened patches need %d faces at lambda %.6g, %d at lambda %.6g (budget %d of "
-                "%d; chain vertices kept up to chain error %.3g%% of the diagonal)\n",
-                s.faces_too_many, s.lambda_too_many, s.faces_fits, s.lambda_fits, s.budget_faces, a.target_faces,
-                100.0 * s.max_chain_error_rel);
-  }
-  std::printf("moves: %lld fuses, %lld splits, %lld swaps; %lld refused because they would disconnect a patch; "
-              "%d rounds%s\n",
-              s.fuses, s.splits, s.swaps, s.rejected_disconnecting, s.rounds,
-              s.converged ? ", converged" : ", stopped at max_rounds");
-  std::printf("vertices: %d where patches meet, %d more kept for chain shape or to avoid flipped triangles\n",
-              s.kept_corner_vertices, s.blocked_vertices);
-  if (!a.no_refit) {
-    std::printf("vertex refit: %d moved, %d kept in place by the flip guard; quadric error %.4g -> %.4g, "
-                "fit RMS %.4g -> %.4g\n",
-                s.refit_moved, s.refit_blocked, s.refit_quadric_before, s.refit_quadric_after, s.refit_rms_before,
-                s.refit_rms_after);
-  }
-  std::printf("time: %.3f s partition, %.3f s geometry (all lambdas: %.3f s, %.3f s), %.3f s refit and shading, "
-              "%.3f s total\n",
-              s.seconds_partition, s.seconds_geometry, s.seconds_search_partition, s.seconds_search_geometry,
-              s.seconds_refit_and_shading, s.seconds_total);
+  std::fputs(s.BriefReport().c_str(), stdout);
+  if (a.polygons) std::printf("written as one polygon per patch\n");
   for (const std::string& w : written) std::printf("wrote %s\n", w.c_str());
 }
 
@@ -204,7 +176,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                 "keep the kept vertices where they are in the input (no quadric refit of their positions)");
   sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
   sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
-  sub->add_flag("--quiet", a->quiet, "no progress or notices on stderr");
+  AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { Run(*a); });
 });
 

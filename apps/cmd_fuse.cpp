@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/decimation/decimate.h"
 #include "bayes/smooth.h"
@@ -187,7 +188,7 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
   sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray (> 0)");
   sub->add_option("--threads", args->threads, "worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
   sub->add_option("--view", args->view, "view direction x y z of the pictures (world frame)")->expected(3);
-  sub->add_flag("--quiet,-q", args->quiet, "no progress on stderr");
+  AddQuietFlag(sub, &args->quiet);
   sub->callback([args] { RunFuse(*args); });
 });
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/learning/learn_prior.h"
@@ -191,7 +192,7 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(4, 200));
     sub->add_option("--max-cells", args->max_cells, "Largest object extent in edge lengths, [min-cells, 200]")
         ->check(CLI::Range(4, 200));
-    sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");
+    AddQuietFlag(sub, &args->quiet);
     sub->callback([args] {
       if (args->max_cells < args->min_cells) UsageError("--max-cells must not be below --min-cells");
       if (args->k_max > 0 && args->k_max <= args->k) UsageError("--noise-max must be above --noise");
@@ -248,7 +249,7 @@ void AddCommands(CLI::App& app) {
         ->delimiter(',')
         ->check(CLI::Range(1e-9, 2.0 - 1e-9));
     sub->add_option("--threads", args->threads, "Smoother threads (0: all cores)")->check(CLI::Range(0, 1024));
-    sub->add_flag("--quiet,-q", args->quiet, "No progress on stderr");
+    AddQuietFlag(sub, &args->quiet);
     sub->callback([args] { RunLearn(*args); });
   }
 }

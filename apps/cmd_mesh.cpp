@@ -8,6 +8,7 @@
 #include <string>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
@@ -175,7 +176,7 @@ void AddCommands(CLI::App& app) {
         ->required();
     sub->add_flag("--ascii", args->ascii, "write ascii PLY (17 significant digits, exact)");
     sub->add_flag("--big-endian", args->big_endian, "write binary big-endian PLY");
-    sub->add_flag("--quiet,-q", args->quiet, "Print nothing on success");
+    AddQuietFlag(sub, &args->quiet);
     sub->callback([args] { RunConvert(*args); });
   }
 }

@@ -4,11 +4,13 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/learn_prior_io.h"
@@ -30,8 +32,7 @@ struct SmoothArgs {
   double sigma = std::nan("");
   std::string prior = "sqrt";
   std::string tolerance = "default";
-  double beta = SmoothOptions{}.prior_weight;
-  bool beta_given = false;  // --beta on the command line (else a learned prior's own beta is used)
+  std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
   bool adaptive_epsilon = true;
   bool multilevel = SmoothOptions{}.multilevel;
@@ -65,18 +66,16 @@ void RunSmooth(const SmoothArgs& args) {
   const Eigen::Vector3d view = ViewDirection(args.view);
   SmoothOptions options;
   std::unique_ptr<SplinePotential> learned;
-  double learned_beta = 0;
+  std::optional<LearnedPrior> prior;
   if (IsPriorFile(args.prior)) {
-    const LearnedPrior prior = ReadLearnedPrior(args.prior);
-    learned = std::make_unique<SplinePotential>(prior.spline, prior.theta);
-    learned_beta = prior.prior_weight;
+    prior = ReadLearnedPrior(args.prior);
+    learned = std::make_unique<SplinePotential>(prior->spline, prior->theta);
     options.potential = learned.get();
   } else {
     options.prior = ParsePriorKind(args.prior);
   }
   options.tolerance = ParseSmoothTolerance(args.tolerance);
-  options.prior_weight = args.beta;
-  if (learned && !args.beta_given && learned_beta > 0) options.prior_weight = learned_beta;
+  options.prior_weight = ResolvePriorWeight(args.prior_weight, prior ? &*prior : nullptr);
   options.sqrt_epsilon_squared = args.epsilon_squared;
   options.num_threads = args.threads;
   options.Check();
@@ -130,7 +129,7 @@ void RunSmooth(const SmoothArgs& args) {
   if (summary.flipped_faces > 0) {
     Notice(false, "warning: " + std::to_string(summary.flipped_faces) +
                       " faces flipped in the result (folded against their neighbours; the input had " +
-                      std::to_string(summary.input_flipped_faces) + "); try a lower --noise or --beta");
+                      std::to_string(summary.input_flipped_faces) + "); try a lower --noise or --prior-weight");
   }
   if (!args.png.empty()) {
     RenderOptions render;
@@ -190,15 +189,14 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise");
   sub->add_option("--prior", args->prior,
                   "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
-                  "'rangebayes learn-prior' (its beta is used unless --beta is given)")
+                  "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")
       ->check([](const std::string& v) {
         return (v == "sqrt" || v == "quadratic" || v == "cauchy" || IsPriorFile(v))
                    ? std::string()
                    : std::string("expected sqrt, quadratic, cauchy or a .yaml learned prior");
       });
-  sub->add_option("--tolerance", args->tolerance, "stopping preset: fast, default, tight")
-      ->check(CLI::IsMember({"fast", "default", "tight"}));
-  sub->add_option("--beta", args->beta, "prior weight beta (unitless), [0, 1e6]; the default is the measured rule");
+  AddToleranceOption(sub, &args->tolerance);
+  AddPriorWeightOption(sub, &args->prior_weight);
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
                 "on by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
@@ -224,11 +222,8 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--view", args->view, "view direction x y z for --png (model coordinates)")->expected(3);
   sub->add_flag("--ignore-covariance", args->ignore_covariance,
                 "use the generic noise model even when the file has covariances");
-  sub->add_flag("--quiet,-q", args->quiet, "no progress or notices on stderr");
-  sub->callback([args, sub] {
-    args->beta_given = sub->count("--beta") > 0;
-    RunSmooth(*args);
-  });
+  AddQuietFlag(sub, &args->quiet);
+  sub->callback([args] { RunSmooth(*args); });
 
   auto eval_args = std::make_shared<EvalArgs>();
   auto* eval = app.add_subcommand(

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "apps/progress.h"
 #include "calibration/disparity_noise_model.h"
 #include "calibration/stereo_rig.h"
@@ -60,9 +61,8 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
   sub->add_option("--num-disparities", o->num_disparities, "Number of disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
-  sub->add_option("--window", o->window_px, "Spatial window side w (px, odd, 1-31; 0: the default, " +
-                                                 std::string(by_frames ? "7 for T < 16 frames, 5 for T >= 16)" : "5)"))
-      ->check(CLI::Range(0, 31));
+  AddWindowOption(sub, &o->window_px,
+                  by_frames ? "0: the default, 7 for T < 16 frames, 5 for T >= 16" : "0: the default, 5", 0);
   sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
   sub->add_option("--sigma-floor", o->sigma_floor_px,
                   "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03 (0.01 "
@@ -89,7 +89,7 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   sub->add_option("--noise-model", o->noise_model,
                   "noise.yaml from 'rangebayes calibrate noise': replaces --sigma-floor/--sigma-scale (and the sigma_d "
                   "of matchers without one)");
-  sub->add_flag("--quiet,-q", o->quiet, "No progress or notices on stderr");
+  AddQuietFlag(sub, &o->quiet);
 }
 
 SpaceTimeCost ParseCost(const std::string& name) {
@@ -108,25 +108,13 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
   if (o.window_px > 0) m.window_px = o.window_px;
   m.cost = ParseCost(o.cost);
   m.image_noise_gray = o.image_noise_gray;
-  if (o.subpixel_iterations >= 0 && o.subpixel_iterations != m.subpixel_iterations) {
-    // The σ_d model belongs to the sub-pixel method (kGaussNewtonSigma* with steps, the parabola's without).
-    const SpaceTimeMatcherOptions parabola;
-    m.subpixel_iterations = o.subpixel_iterations;
-    m.sigma_floor_px = m.subpixel_iterations > 0 ? kGaussNewtonSigmaFloorPx : parabola.sigma_floor_px;
-    m.sigma_scale = m.subpixel_iterations > 0 ? kGaussNewtonSigmaScale : parabola.sigma_scale;
-  }
+  if (o.subpixel_iterations >= 0) SetSubpixelIterations(o.subpixel_iterations, &m);
   if (o.sigma_floor_px >= 0.0) m.sigma_floor_px = o.sigma_floor_px;
   if (o.sigma_scale >= 0.0) m.sigma_scale = o.sigma_scale;
   m.max_sigma_disparity_px = o.max_sigma_px;
   if (o.edge_reject_px >= 0.0) m.edge_reject_jump_px = o.edge_reject_px;
   if (std::isfinite(o.doubtful_jump_px)) m.doubtful_jump_px = o.doubtful_jump_px;
-  if (!o.noise_model.empty()) {
-    const DisparityNoiseModel n = ReadDisparityNoiseModel(o.noise_model);
-    const bool constant = n.form == NoiseForm::kConstant;
-    m.sigma_floor_px = constant ? n.sigma_px : n.floor_px;
-    // A constant model ignores the prediction (the matcher needs a positive scale).
-    m.sigma_scale = constant ? 1e-9 : n.scale * (n.image_noise_gray > 0 ? n.image_noise_gray / o.image_noise_gray : 1.0);
-  }
+  if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &m);
   return m;
 }
 
@@ -166,10 +154,7 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
   TriangulateOptions t;
   t.downsample = o.downsample;
   t.max_jump_sigma = o.max_jump_sigma;
-  if (!o.noise_model.empty()) {
-    const DisparityNoiseModel n = ReadDisparityNoiseModel(o.noise_model);
-    if (n.form == NoiseForm::kConstant) t.default_sigma_disparity_px = n.sigma_px;
-  }
+  if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &t);
   TriangulateSummary ts;
   const auto start = std::chrono::steady_clock::now();
   const NoisyMesh mesh = TriangulateDepth(frame, t, &ts);
@@ -196,7 +181,6 @@ void AddStereo(CLI::App& app) {
   struct Opts {
     std::string left, right, rig, out, matcher = "sgbm";
     MatchCliOptions m;
-    int sgbm_block = 5;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand("stereo", "Match one stereo pair: disparity, depth, sigma, pictures and mesh");
@@ -206,7 +190,6 @@ void AddStereo(CLI::App& app) {
   sub->add_option("--out", o->out, "Output folder")->required();
   sub->add_option("--matcher", o->matcher, "sgbm (OpenCV SGBM 3-way) or block (our block matcher with sigma)")
       ->check(CLI::IsMember({"sgbm", "block"}));
-  sub->add_option("--sgbm-block", o->sgbm_block, "SGBM block size (px, odd, 1-11)");
   AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o] {
@@ -228,7 +211,7 @@ void AddStereo(CLI::App& app) {
       SgbmMatcherOptions s;
       s.min_disparity_px = o->m.min_disparity_px;
       s.num_disparities = o->m.num_disparities;
-      s.block_size_px = o->sgbm_block;
+      if (o->m.window_px > 0) s.block_size_px = o->m.window_px;
       matcher = std::make_unique<SgbmMatcher>(s);
     } else {
       matcher = std::make_unique<SpaceTimeMatcher>(BlockOptions(o->m, SpaceTimeMatcherOptions{}));
@@ -314,7 +297,7 @@ void AddSynth(CLI::App& app) {
       ->check(CLI::Range(1.0, 256.0));
   sub->add_option("--out", o->out, "Output recording folder")->required();
   sub->add_flag("--overwrite", o->overwrite, "Replace a recording already in the folder");
-  sub->add_flag("--quiet,-q", o->quiet, "No notices on stderr");
+  AddQuietFlag(sub, &o->quiet);
   sub->callback([o] {
     o->s.scene = ParseSynthScene(o->scene);
     o->s.pattern = ParseSynthPattern(o->pattern);
@@ -386,14 +369,7 @@ void AddEvalDepth(CLI::App& app) {
       std::printf("%s\n", j.dump(2).c_str());
       return;
     }
-    std::printf("evaluated %ld pixels, coverage %.2f%%, RMS %.3f px, mean |error| %.3f px\n", ev.evaluated_pixels,
-                100.0 * ev.coverage, ev.rms_px, ev.mean_abs_px);
-    std::printf("%-10s %18s %18s\n", "threshold", "holes as errors", "holes excluded");
-    for (size_t i = 0; i < ev.thresholds_px.size(); ++i) {
-      char name[32];
-      std::snprintf(name, sizeof name, "bad-%g", ev.thresholds_px[i]);
-      std::printf("%-10s %17.2f%% %17.2f%%\n", name, 100.0 * ev.bad_with_holes[i], 100.0 * ev.bad_valid_only[i]);
-    }
+    std::fputs(ev.BriefReport().c_str(), stdout);
   });
 }
 

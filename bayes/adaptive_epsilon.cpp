@@ -15,17 +15,6 @@
 #include "core/topology.h"
 
 namespace rangebayes {
-namespace {
-
-// Lower median (the smaller middle value for an even count): with two neighbours, one across a crease and one
-// not, it takes the one that is not.
-double LowerMedian(std::vector<double>* values) {
-  const size_t mid = (values->size() - 1) / 2;
-  std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(mid), values->end());
-  return (*values)[mid];
-}
-
-}  // namespace
 
 void AdaptiveEpsilonOptions::Check() const {
   RB_CHECK(normal_smoothing_rings >= 0 && normal_smoothing_rings <= 50, "adaptive epsilon: normal_smoothing_rings ",
@@ -121,74 +110,10 @@ void GatherRing(const Mesh& mesh, const Adjacency& vertex_faces, int f, std::vec
   }
 }
 
-// ComputeVertexFaces (core/topology.h) by a counting sort: per vertex its faces ascending, each once. Same
-// result, without the O(n log n) sort of (vertex, face) pairs. Face indices must be valid.
-Adjacency VertexFaces(const Mesh& mesh) {
-  const int nf = mesh.num_faces(), nv = mesh.num_vertices();
-  auto repeated = [&](int f, int k) {  // corner k repeats an earlier corner's vertex
-    return (k >= 1 && mesh.F(f, k) == mesh.F(f, 0)) || (k == 2 && mesh.F(f, 2) == mesh.F(f, 1));
-  };
-  Adjacency adjacency;
-  adjacency.offsets.assign(static_cast<size_t>(nv) + 1, 0);
-  for (int f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) {
-      if (!repeated(f, k)) ++adjacency.offsets[static_cast<size_t>(mesh.F(f, k)) + 1];
-    }
-  }
-  for (int v = 0; v < nv; ++v)
-    adjacency.offsets[static_cast<size_t>(v) + 1] += adjacency.offsets[static_cast<size_t>(v)];
-  adjacency.items.resize(static_cast<size_t>(adjacency.offsets.back()));
-  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
-  for (int f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) {
-      if (!repeated(f, k)) adjacency.items[static_cast<size_t>(fill[static_cast<size_t>(mesh.F(f, k))]++)] = f;
-    }
-  }
-  return adjacency;
-}
-
-// ComputeFacePairs (core/topology.h) from the vertex-face lists: (s, t), s < t, sharing an edge, sorted, each
-// pair once. Same rows; a triangle holds an edge {a, b} (a ≠ b) exactly when it holds both vertices.
-IndexPairs FacePairs(const Mesh& mesh, const Adjacency& vertex_faces) {
-  // Blocks of faces in parallel, each into its own list (s ascending within a block, blocks in order).
-  const int nf = mesh.num_faces();
-  constexpr int kBlock = 4096;
-  const int blocks = (nf + kBlock - 1) / kBlock;
-  std::vector<std::vector<int>> block_flat(static_cast<size_t>(blocks));
-  tbb::parallel_for(0, blocks, [&](int block) {
-    std::vector<int>& flat = block_flat[static_cast<size_t>(block)];
-    flat.reserve(static_cast<size_t>(kBlock) * 3);
-    std::vector<int> partners;
-    for (int s = block * kBlock; s < std::min(nf, (block + 1) * kBlock); ++s) {
-      partners.clear();
-      for (int k = 0; k < 3; ++k) {
-        const int a = mesh.F(s, k), b = mesh.F(s, (k + 1) % 3);
-        if (a == b) continue;
-        for (const int* t = vertex_faces.begin(a); t != vertex_faces.end(a); ++t) {
-          if (*t <= s) continue;
-          if (mesh.F(*t, 0) == b || mesh.F(*t, 1) == b || mesh.F(*t, 2) == b) partners.push_back(*t);
-        }
-      }
-      std::sort(partners.begin(), partners.end());
-      partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
-      for (int t : partners) {
-        flat.push_back(s);
-        flat.push_back(t);
-      }
-    }
-  });
-  size_t total = 0;
-  for (const std::vector<int>& flat : block_flat) total += flat.size();
-  IndexPairs pairs(static_cast<Eigen::Index>(total / 2), 2);
-  int* out = pairs.data();
-  for (const std::vector<int>& flat : block_flat) out = std::copy(flat.begin(), flat.end(), out);
-  return pairs;
-}
-
 RuleTopology MakeRuleTopology(const Mesh& mesh) {
   RuleTopology topology;
-  topology.vertex_faces = VertexFaces(mesh);
-  topology.pairs = FacePairs(mesh, topology.vertex_faces);
+  topology.vertex_faces = ComputeVertexFaces(mesh);
+  topology.pairs = ComputeFacePairs(mesh, topology.vertex_faces);
   // One gathering pass per block of faces into the block's own list, then the lists joined in block order.
   const int nf = mesh.num_faces();
   constexpr int kBlock = 4096;
@@ -217,28 +142,17 @@ RuleTopology MakeRuleTopology(const Mesh& mesh) {
   return topology;
 }
 
-std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_reference,
-                                     const AdaptiveEpsilonOptions& options, const RuleTopology& topology,
-                                     AdaptiveEpsilonSummary* summary);
+std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilonOptions& options,
+                                     const RuleTopology& topology, AdaptiveEpsilonSummary* summary);
 
 }  // namespace
 
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options,
                                            AdaptiveEpsilonSummary* summary) {
-  return AdaptiveEpsilonSquared(reference, reference, options, summary);
-}
-
-std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& crease_reference,
-                                           const AdaptiveEpsilonOptions& options, AdaptiveEpsilonSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
   CheckFaces(reference);
-  RB_CHECK(&crease_reference == &reference || crease_reference.F == reference.F,
-           "adaptive epsilon: the crease reference has other faces than the reference (", crease_reference.num_faces(),
-           " vs ", reference.num_faces(), ")");
-  if (&crease_reference != &reference) CheckFaces(crease_reference);  // same faces, but its vertex count may differ
-  std::vector<double> epsilon_squared =
-      EpsilonSquaredOn(reference, crease_reference, options, MakeRuleTopology(reference), summary);
+  std::vector<double> epsilon_squared = EpsilonSquaredOn(reference, options, MakeRuleTopology(reference), summary);
   if (summary != nullptr) {
     summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
@@ -247,60 +161,53 @@ std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& cr
 
 namespace {
 
-std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_reference,
-                                     const AdaptiveEpsilonOptions& options, const RuleTopology& topology,
-                                     AdaptiveEpsilonSummary* summary) {
-  const auto start = std::chrono::steady_clock::now();
-  const int nf = reference.num_faces(), nv = reference.num_vertices();
-  std::vector<Eigen::Vector3d> normal, crease_normal;
-  std::vector<char> valid, crease_valid;
-  FaceNormals(reference, &normal, &valid);
-  if (&crease_reference != &reference) {
-    FaceNormals(crease_reference, &crease_normal, &crease_valid);
-  } else {
-    crease_normal = normal;
-    crease_valid = valid;
+// Step 0: area-weighted averages of the face normals over the faces sharing a vertex, `passes` times. The
+// total turning of a surface survives averaging (a smoothly curved region keeps the gradient of its normal
+// field) while the facets and small creases of a pre-smoothed scan, and noise, average out.
+void AverageNormals(const Mesh& reference, const std::vector<char>& valid, const Adjacency& rings, int passes,
+                    std::vector<Eigen::Vector3d>* normals) {
+  const int nf = reference.num_faces();
+  std::vector<Eigen::Vector3d>& normal = *normals;
+  std::vector<double> area(static_cast<size_t>(nf), 0.0);
+  for (int f = 0; f < nf; ++f) {
+    if (!valid[static_cast<size_t>(f)]) continue;
+    const Eigen::Vector3d pa = reference.V.row(reference.F(f, 0)).transpose();
+    area[static_cast<size_t>(f)] = (reference.V.row(reference.F(f, 1)).transpose() - pa)
+                                       .cross(reference.V.row(reference.F(f, 2)).transpose() - pa)
+                                       .norm();
   }
-  const Adjacency& vertex_faces = topology.vertex_faces;
-  const Adjacency& rings = topology.rings;
-
-  // Step 0: area-weighted averages of the face normals over the faces sharing a vertex, normal_smoothing_rings
-  // times. The total turning of a surface survives averaging (a smoothly curved region keeps the gradient of
-  // its normal field) while the facets and small creases of a pre-smoothed scan, and noise, average out.
-  if (options.normal_smoothing_rings > 0) {
-    std::vector<double> area(static_cast<size_t>(nf), 0.0);
-    for (int f = 0; f < nf; ++f) {
-      if (!valid[static_cast<size_t>(f)]) continue;
-      const Eigen::Vector3d pa = reference.V.row(reference.F(f, 0)).transpose();
-      area[static_cast<size_t>(f)] = (reference.V.row(reference.F(f, 1)).transpose() - pa)
-                                         .cross(reference.V.row(reference.F(f, 2)).transpose() - pa)
-                                         .norm();
-    }
-    std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
-    for (int iteration = 0; iteration < options.normal_smoothing_rings; ++iteration) {
-      tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
-        for (int f = r.begin(); f != r.end(); ++f) {
-          next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
-          if (!valid[static_cast<size_t>(f)]) continue;
-          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-          for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
-            if (!valid[static_cast<size_t>(*g)]) continue;
-            sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
-          }
-          const double length = sum.norm();
-          if (length > 0) next[static_cast<size_t>(f)] = sum / length;
+  std::vector<Eigen::Vector3d> next(static_cast<size_t>(nf));
+  for (int iteration = 0; iteration < passes; ++iteration) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
+      for (int f = r.begin(); f != r.end(); ++f) {
+        next[static_cast<size_t>(f)] = normal[static_cast<size_t>(f)];
+        if (!valid[static_cast<size_t>(f)]) continue;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
+          if (!valid[static_cast<size_t>(*g)]) continue;
+          sum += area[static_cast<size_t>(*g)] * normal[static_cast<size_t>(*g)];
         }
-      });
-      normal.swap(next);
-    }
+        const double length = sum.norm();
+        if (length > 0) next[static_cast<size_t>(f)] = sum / length;
+      }
+    });
+    normal.swap(next);
   }
+}
 
-  // Step 1: median (or mean) normal difference to the edge neighbours; crease pairs from the unsmoothed
-  // normals (of crease_reference).
-  const bool use_median = options.statistic == AdaptiveEpsilonStatistic::kMedian;
-  const IndexPairs& pairs = topology.pairs;
-  std::vector<char> crease(static_cast<size_t>(nf), 0);
+// Step 1: per face the mean normal difference d to its edge neighbours (typical; has_value where it has one),
+// and the pairs whose raw normals differ by more than protect_normal_difference (crease pairs).
+struct PairDifferences {
+  std::vector<double> typical;
+  std::vector<char> has_value;
   std::vector<Eigen::Index> crease_pairs;
+};
+
+PairDifferences MeanPairDifferences(int nf, const IndexPairs& pairs, const std::vector<Eigen::Vector3d>& normal,
+                                    const std::vector<char>& valid, const std::vector<Eigen::Vector3d>& crease_normal,
+                                    const std::vector<char>& crease_valid, const AdaptiveEpsilonOptions& options) {
+  PairDifferences out;
+  std::vector<Eigen::Index>& crease_pairs = out.crease_pairs;
   // Per face the d of its valid pairs, in pair order (a CSR list: offsets, then values).
   std::vector<int> offsets(static_cast<size_t>(nf) + 1, 0);
   std::vector<double> pair_d(static_cast<size_t>(pairs.rows()), -1.0);
@@ -335,27 +242,28 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_r
     }
   }
   std::vector<double>().swap(pair_d);
-  std::vector<double> typical(static_cast<size_t>(nf), 0.0);
-  std::vector<char> has_value(static_cast<size_t>(nf), 0);
+  std::vector<double>& typical = out.typical;
+  std::vector<char>& has_value = out.has_value;
+  typical.assign(static_cast<size_t>(nf), 0.0);
+  has_value.assign(static_cast<size_t>(nf), 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
-    std::vector<double> d;
     for (int f = r.begin(); f != r.end(); ++f) {
       const int begin = offsets[static_cast<size_t>(f)], end = offsets[static_cast<size_t>(f) + 1];
       if (begin == end) continue;
-      if (use_median) {
-        d.assign(differences.begin() + begin, differences.begin() + end);
-        typical[static_cast<size_t>(f)] = LowerMedian(&d);
-      } else {
-        double sum = 0;
-        for (int i = begin; i < end; ++i) sum += differences[static_cast<size_t>(i)];
-        typical[static_cast<size_t>(f)] = sum / static_cast<double>(end - begin);
-      }
+      double sum = 0;
+      for (int i = begin; i < end; ++i) sum += differences[static_cast<size_t>(i)];
+      typical[static_cast<size_t>(f)] = sum / static_cast<double>(end - begin);
       has_value[static_cast<size_t>(f)] = 1;
     }
   });
   std::vector<double>().swap(differences);
+  return out;
+}
 
-  // Step 2: median filter (or truncated mean) over the faces sharing a vertex (each face once).
+// Step 2: the truncated mean over the faces sharing a vertex (each face once), ring_iterations times.
+void RingMeans(int nf, const Adjacency& rings, const std::vector<char>& has_value, const AdaptiveEpsilonOptions& options,
+               std::vector<double>* typical_values) {
+  std::vector<double>& typical = *typical_values;
   std::vector<double> next(static_cast<size_t>(nf));
   for (int iteration = 0; iteration < options.ring_iterations; ++iteration) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& r) {
@@ -367,66 +275,88 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_r
         for (const int* g = rings.begin(f); g != rings.end(f); ++g) {
           if (has_value[static_cast<size_t>(*g)]) window.push_back(typical[static_cast<size_t>(*g)]);
         }
-        if (use_median) {
-          next[static_cast<size_t>(f)] = LowerMedian(&window);
-        } else {
-          double sum = 0;
-          int count = 0;
-          for (double x : window) {
-            if (x > options.truncate_normal_difference) continue;
-            sum += x;
-            ++count;
-          }
-          next[static_cast<size_t>(f)] = count > 0 ? sum / count : 0.0;
+        double sum = 0;
+        int count = 0;
+        for (double x : window) {
+          if (x > options.truncate_normal_difference) continue;
+          sum += x;
+          ++count;
         }
+        next[static_cast<size_t>(f)] = count > 0 ? sum / count : 0.0;
       }
     });
     typical.swap(next);
   }
+}
 
-  // Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings.
-  if (options.protect_rings >= 0) {
-    std::vector<std::array<int, 2>> crease_edges(crease_pairs.size(), {-1, -1});
-    std::vector<int> crease_degree(static_cast<size_t>(nv), 0);
-    for (size_t e = 0; e < crease_pairs.size(); ++e) {
-      const int s = pairs(crease_pairs[e], 0), t = pairs(crease_pairs[e], 1);
-      int found = 0;
-      for (int a = 0; a < 3 && found < 2; ++a) {
-        for (int b = 0; b < 3; ++b) {
-          if (reference.F(s, a) == reference.F(t, b)) {
-            crease_edges[e][static_cast<size_t>(found++)] = reference.F(s, a);
-            break;
-          }
+// Crease protection: the faces of crease pairs (on crease lines when asked), grown by protect_rings rings;
+// none when protect_rings < 0.
+std::vector<char> ProtectedFaces(const Mesh& reference, const IndexPairs& pairs,
+                                 const std::vector<Eigen::Index>& crease_pairs, const Adjacency& vertex_faces,
+                                 const AdaptiveEpsilonOptions& options) {
+  const int nf = reference.num_faces(), nv = reference.num_vertices();
+  std::vector<char> crease(static_cast<size_t>(nf), 0);
+  if (options.protect_rings < 0) return crease;
+  std::vector<std::array<int, 2>> crease_edges(crease_pairs.size(), {-1, -1});
+  std::vector<int> crease_degree(static_cast<size_t>(nv), 0);
+  for (size_t e = 0; e < crease_pairs.size(); ++e) {
+    const int s = pairs(crease_pairs[e], 0), t = pairs(crease_pairs[e], 1);
+    int found = 0;
+    for (int a = 0; a < 3 && found < 2; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        if (reference.F(s, a) == reference.F(t, b)) {
+          crease_edges[e][static_cast<size_t>(found++)] = reference.F(s, a);
+          break;
         }
       }
-      if (found < 2) continue;
-      ++crease_degree[static_cast<size_t>(crease_edges[e][0])];
-      ++crease_degree[static_cast<size_t>(crease_edges[e][1])];
     }
-    for (size_t e = 0; e < crease_pairs.size(); ++e) {
-      if (options.protect_min_crease_degree > 0 &&
-          (crease_edges[e][1] < 0 ||
-           crease_degree[static_cast<size_t>(crease_edges[e][0])] < options.protect_min_crease_degree ||
-           crease_degree[static_cast<size_t>(crease_edges[e][1])] < options.protect_min_crease_degree)) {
-        continue;
-      }
-      crease[static_cast<size_t>(pairs(crease_pairs[e], 0))] = 1;
-      crease[static_cast<size_t>(pairs(crease_pairs[e], 1))] = 1;
-    }
-    for (int ring = 0; ring < options.protect_rings; ++ring) {
-      std::vector<char> grown = crease;
-      for (int f = 0; f < nf; ++f) {
-        if (!crease[static_cast<size_t>(f)]) continue;
-        for (int k = 0; k < 3; ++k) {
-          const int v = reference.F(f, k);
-          for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) grown[static_cast<size_t>(*g)] = 1;
-        }
-      }
-      crease.swap(grown);
-    }
-  } else {
-    std::fill(crease.begin(), crease.end(), 0);
+    if (found < 2) continue;
+    ++crease_degree[static_cast<size_t>(crease_edges[e][0])];
+    ++crease_degree[static_cast<size_t>(crease_edges[e][1])];
   }
+  for (size_t e = 0; e < crease_pairs.size(); ++e) {
+    if (options.protect_min_crease_degree > 0 &&
+        (crease_edges[e][1] < 0 ||
+         crease_degree[static_cast<size_t>(crease_edges[e][0])] < options.protect_min_crease_degree ||
+         crease_degree[static_cast<size_t>(crease_edges[e][1])] < options.protect_min_crease_degree)) {
+      continue;
+    }
+    crease[static_cast<size_t>(pairs(crease_pairs[e], 0))] = 1;
+    crease[static_cast<size_t>(pairs(crease_pairs[e], 1))] = 1;
+  }
+  for (int ring = 0; ring < options.protect_rings; ++ring) {
+    std::vector<char> grown = crease;
+    for (int f = 0; f < nf; ++f) {
+      if (!crease[static_cast<size_t>(f)]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int v = reference.F(f, k);
+        for (const int* g = vertex_faces.begin(v); g != vertex_faces.end(v); ++g) grown[static_cast<size_t>(*g)] = 1;
+      }
+    }
+    crease.swap(grown);
+  }
+  return crease;
+}
+
+std::vector<double> EpsilonSquaredOn(const Mesh& reference, const AdaptiveEpsilonOptions& options,
+                                     const RuleTopology& topology, AdaptiveEpsilonSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  const int nf = reference.num_faces();
+  std::vector<Eigen::Vector3d> normal;
+  std::vector<char> valid;
+  FaceNormals(reference, &normal, &valid);
+  // Crease protection reads the raw normals (before step 0).
+  const std::vector<Eigen::Vector3d> crease_normal = normal;
+  if (options.normal_smoothing_rings > 0) {
+    AverageNormals(reference, valid, topology.rings, options.normal_smoothing_rings, &normal);
+  }
+  PairDifferences differences =
+      MeanPairDifferences(nf, topology.pairs, normal, valid, crease_normal, valid, options);
+  std::vector<double>& typical = differences.typical;
+  const std::vector<char>& has_value = differences.has_value;
+  RingMeans(nf, topology.rings, has_value, options, &typical);
+  const std::vector<char> crease =
+      ProtectedFaces(reference, topology.pairs, differences.crease_pairs, topology.vertex_faces, options);
 
   // Step 3: ε² = c · (m² − d₀²), clamped.
   std::vector<double> epsilon_squared(static_cast<size_t>(nf), options.min_epsilon_squared);
@@ -463,17 +393,7 @@ std::vector<double> EpsilonSquaredOn(const Mesh& reference, const Mesh& crease_r
 
 }  // namespace
 
-AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions() {
-  AdaptiveEpsilonOptions options;
-  options.statistic = AdaptiveEpsilonStatistic::kTruncatedMean;
-  options.scale = 8.0;
-  options.ring_iterations = 3;
-  options.truncate_normal_difference = 0.3;
-  options.protect_normal_difference = 0.7;
-  options.protect_rings = 1;
-  options.protect_min_crease_degree = 2;
-  return options;
-}
+AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions() { return AdaptiveEpsilonOptions{}; }
 
 std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const SmoothOptions& options,
                                                const AdaptiveEpsilonOptions& rule, AdaptiveEpsilonSummary* summary) {
@@ -489,29 +409,16 @@ std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const Smo
   return epsilon_squared;
 }
 
-std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothOptions& options,
-                                           const AdaptiveEpsilonOptions& first, const AdaptiveEpsilonOptions& second,
-                                           AdaptiveEpsilonSummary* summary) {
-  second.Check();
-  const auto start = std::chrono::steady_clock::now();
-  SmoothOptions pass = FastPrepassOptions(options, 0);
-  pass.face_epsilon_squared = AdaptiveEpsilonFromPrepass(noisy, options, first);
-  const Mesh smoothed = Smooth(noisy, pass);
-  std::vector<double> epsilon_squared = AdaptiveEpsilonSquared(smoothed, second, summary);
-  if (summary != nullptr) {
-    summary->time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
-  return epsilon_squared;
-}
-
 AdaptiveEpsilonOptions DetailAdaptiveEpsilonOptions() {
   AdaptiveEpsilonOptions options;
-  options.statistic = AdaptiveEpsilonStatistic::kTruncatedMean;
   options.truncate_normal_difference = 2.0;  // nothing truncated (d ≤ 2 always); ring_iterations 0 anyway
   options.normal_smoothing_rings = 4;
   options.ring_iterations = 0;
   options.scale = 24.0;
   options.max_epsilon_squared = 1.0;
+  options.protect_rings = -1;  // no crease protection
+  options.protect_normal_difference = 0.5;
+  options.protect_min_crease_degree = 0;
   return options;
 }
 
@@ -554,7 +461,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
   AdaptiveEpsilonSummary gate_summary;
   arena.execute([&] {
     topology = MakeRuleTopology(noisy.mesh);
-    EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary);
+    EpsilonSquaredOn(smoothed, rule.gate, topology, &gate_summary);
   });
   bool curved = gate_summary.median_epsilon_squared >= rule.early_curved_gate_median_epsilon_squared;
   if (early && !curved && pre_summary.termination == SmoothTermination::kMaxIterations) {
@@ -567,7 +474,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     prepass_iterations += pre_summary.iterations;
     prepass_evaluations += pre_summary.evaluations;
     prepass_time_s += pre_summary.time_s;
-    arena.execute([&] { EpsilonSquaredOn(smoothed, smoothed, rule.gate, topology, &gate_summary); });
+    arena.execute([&] { EpsilonSquaredOn(smoothed, rule.gate, topology, &gate_summary); });
   }
   if (!curved) curved = gate_summary.median_epsilon_squared >= rule.min_gate_median_epsilon_squared;
   std::vector<double> epsilon_squared;
@@ -579,7 +486,7 @@ std::vector<double> AdaptiveEpsilonAuto(const NoisyMesh& noisy, const SmoothOpti
     detail.min_epsilon_squared = options.sqrt_epsilon_squared;
     detail.max_epsilon_squared = std::max(detail.max_epsilon_squared, detail.min_epsilon_squared);
     detail.Check();
-    arena.execute([&] { epsilon_squared = EpsilonSquaredOn(smoothed, smoothed, detail, topology, &s); });
+    arena.execute([&] { epsilon_squared = EpsilonSquaredOn(smoothed, detail, topology, &s); });
     s.per_face = true;
   }
   s.gate_median_epsilon_squared = gate_summary.median_epsilon_squared;

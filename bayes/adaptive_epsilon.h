@@ -9,12 +9,10 @@
 // an oracle experiment, or the noisy input after a fast default pre-pass):
 //   0. optionally (normal_smoothing_rings > 0) the face normals are first averaged, area weighted, over the faces
 //      sharing a vertex, that many times (crease protection still reads the raw normals);
-//   1. per face t, a_t = the median (kMedian) or mean (kTruncatedMean) of d = ‖n_t − n_s‖ over its edge
-//      neighbours s (at a crease one of the three is large and the median ignores it; in a curved region all
-//      three are similar);
-//   2. m_t = a_t filtered `ring_iterations` times over the faces that share a vertex with t: median, or mean of
-//      the values ≤ truncate_normal_difference (a crease line is a minority of any neighbourhood, so m stays
-//      near 0 beside it; a curved region keeps its typical d);
+//   1. per face t, a_t = the mean of d = ‖n_t − n_s‖ over its edge neighbours s;
+//   2. m_t = a_t filtered `ring_iterations` times over the faces that share a vertex with t: the mean of the
+//      values ≤ truncate_normal_difference (a crease line is a minority of any neighbourhood and is left out, so
+//      m stays near 0 beside it; a curved region keeps its typical d);
 //   3. ε_t² = clamp(scale · max(0, m_t² − floor_normal_difference²), min, max), and the minimum on and
 //      protect_rings around crease pairs (d > protect_normal_difference) when protection is on.
 // Cost: O(#F · ring_iterations · 13 log 13), ≈ 10–50 ms at 100k faces, plus the pre-pass when there is one.
@@ -27,12 +25,8 @@
 // estimated; on child 166 evaluations in all against 276 for the global ε² alone. The library's Smooth() and the
 // pipeline keep the global ε² (the live path has a time budget).
 //
-// History of the rules (all kept, all measured in BENCHMARKS.md): with the ground truth as reference (median,
-// scale 4: an upper bound) every target is met (igea 9.70°, child 6.85°). On the default pre-pass the raw d is
-// gone: it flattens igea's gentle curvature into facets (median pair d 0.016 against the ground truth's 0.11),
-// and the noise swamps it in the input (0.56). The truncated mean of the facet pattern (ScanAdaptiveEpsilonOptions,
-// "one pass") and a second median pass on its result (AdaptiveEpsilonTwoPass, the second session's opt-in) reached
-// 7 of 8 targets (igea 10.28°). Averaging the normals first reads the curvature the facets still add up to.
+// The rules measured and rejected on the way (a median statistic made for a clean reference, a second pass,
+// crease protection read from another mesh) are in docs/journal/adaptive-epsilon.md.
 #pragma once
 
 #include <vector>
@@ -42,30 +36,23 @@
 
 namespace rangebayes {
 
-// How a face's typical normal difference m_t is gathered (see the rule above).
-enum class AdaptiveEpsilonStatistic {
-  kMedian,         // median over the edge neighbours, then vertex-ring medians (made for a clean reference)
-  kTruncatedMean,  // mean over the edge neighbours, then vertex-ring means of the values ≤ truncate (creases
-                   // left out); sees the small, scattered creases a pre-smoothed curved surface is made of
-};
-
+// The defaults are the scan rule (ScanAdaptiveEpsilonOptions, the gate of AdaptiveEpsilonAuto).
 struct AdaptiveEpsilonOptions {
-  AdaptiveEpsilonStatistic statistic = AdaptiveEpsilonStatistic::kMedian;
   // Area-weighted averaging passes of the reference's face normals over the faces sharing a vertex before d is
   // read, [0, 50]; 0: the raw normals. Crease protection always reads the raw normals.
   int normal_smoothing_rings = 0;
   int ring_iterations = 3;                  // vertex-ring passes, [0, 20]; 3 ≈ a three-ring neighbourhood
-  double scale = 4.0;                       // c in ε² = c · m², [0, 1e4]; 4 measured best with the ground truth
-  double truncate_normal_difference = 0.3;  // kTruncatedMean: ring values above it are left out, (0, 2]
+  double scale = 8.0;                       // c in ε² = c · m², [0, 1e4]
+  double truncate_normal_difference = 0.3;  // ring values above it are left out, (0, 2]
   // Faces within protect_rings vertex rings of a pair with d > protect_normal_difference get the minimum ε²
   // (a crease of the reference keeps the paper's sharp prior). protect_rings = -1: off. d in (0, 2], rings
   // [-1, 10].
-  double protect_normal_difference = 0.5;
-  int protect_rings = -1;
+  double protect_normal_difference = 0.7;
+  int protect_rings = 1;
   // Only crease edges whose two end vertices each touch at least this many crease edges protect (2: parts of
   // crease lines; isolated sharp pairs, as a detailed scan's pre-pass has many, do not). 0: every crease pair.
   // [0, 10].
-  int protect_min_crease_degree = 0;
+  int protect_min_crease_degree = 2;
   double floor_normal_difference = 0.0;  // d₀ subtracted in quadrature (a noise floor of the reference), [0, 2]
   double min_epsilon_squared = 1e-4;     // lower clamp, (0, 4]; 1e-4 is the paper's global value
   double max_epsilon_squared = 0.2;      // upper clamp, [min_epsilon_squared, 4]
@@ -80,15 +67,8 @@ struct AdaptiveEpsilonOptions {
 std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const AdaptiveEpsilonOptions& options = {},
                                            AdaptiveEpsilonSummary* summary = nullptr);
 
-// The same with the crease protection read from another mesh with the same faces (`crease_reference`, e.g. a
-// square-root result that keeps creases sharp) while m_t is read from `reference` (e.g. a large-ε result that
-// keeps gentle curvature but blurs creases into bands). Throws Error when the faces differ.
-std::vector<double> AdaptiveEpsilonSquared(const Mesh& reference, const Mesh& crease_reference,
-                                           const AdaptiveEpsilonOptions& options,
-                                           AdaptiveEpsilonSummary* summary = nullptr);
-
-// The scan rule (the gate of AdaptiveEpsilonAuto, and the first pass of AdaptiveEpsilonTwoPass):
-// truncated mean (≤ 0.3), scale 8, three rings, crease lines of d > 0.7 protected with one ring. Chosen on the
+// The scan rule, AdaptiveEpsilonOptions{} (the gate of AdaptiveEpsilonAuto): truncated mean (≤ 0.3), scale 8,
+// three rings, crease lines of d > 0.7 protected with one ring. Chosen on the
 // whole benchmark table, not per mesh (BENCHMARKS.md "Adaptive ε"). Alone: child 0.3 7.44°, igea 0.3 10.22°,
 // fandisk 0.3 2.31°, but block 0.4 4.05° and trim-star 0.3 5.49° miss their targets.
 AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions();
@@ -99,16 +79,6 @@ AdaptiveEpsilonOptions ScanAdaptiveEpsilonOptions();
 std::vector<double> AdaptiveEpsilonFromPrepass(const NoisyMesh& noisy, const SmoothOptions& options,
                                                const AdaptiveEpsilonOptions& rule,
                                                AdaptiveEpsilonSummary* summary = nullptr);
-
-// Two passes (the second session's opt-in `--adaptive-eps`, superseded by AdaptiveEpsilonAuto): ε² from
-// AdaptiveEpsilonFromPrepass(first), a fast smoothing run with it, then `second` (default: the median rule, scale
-// 4, as with the ground truth) on that result. The first adaptive result keeps more of a scan's curvature than the
-// default pre-pass and keeps the CAD creases, so the median rule reads it better. Costs two fast smoothing runs
-// (child: ≈ 1.6× the default run's CPU time on top of it).
-std::vector<double> AdaptiveEpsilonTwoPass(const NoisyMesh& noisy, const SmoothOptions& options,
-                                           const AdaptiveEpsilonOptions& first = ScanAdaptiveEpsilonOptions(),
-                                           const AdaptiveEpsilonOptions& second = {},
-                                           AdaptiveEpsilonSummary* summary = nullptr);
 
 // The detail rule of AdaptiveEpsilonAuto: the pre-pass's face normals averaged over 4 vertex rings (area
 // weighted), per face the mean of d over its edge neighbours, no ring filter, scale 24, ε² in [1e-4, 1], no

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <vector>
 
+#include "bayes/smooth.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -227,6 +228,12 @@ void WritePairsList(const PairsList& list, const std::string& path) {
   for (size_t i = 0; i < list.noisy.size(); ++i) out << list.noisy[i] << " " << list.truth[i] << "\n";
   out.close();
   RB_CHECK(!out.fail(), "cannot write pairs list '", path, "'");
+}
+
+double ResolvePriorWeight(std::optional<double> explicit_prior_weight, const LearnedPrior* learned) {
+  if (explicit_prior_weight.has_value()) return *explicit_prior_weight;
+  if (learned != nullptr && learned->prior_weight > 0) return learned->prior_weight;
+  return SmoothOptions{}.prior_weight;
 }
 
 }  // namespace rangebayes

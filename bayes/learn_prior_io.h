@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,11 @@ void WriteLearnedPrior(const LearnedPrior& prior, const std::string& path);
 // Throws Error naming the file and line on a malformed file, a missing key, or θ that does not fit N
 // (or whose ends are not the square root's).
 LearnedPrior ReadLearnedPrior(const std::string& path);
+
+// The prior weight β of a smoothing run, one rule for every command: an explicit value always wins; without
+// one, a learned prior's own β (when it records one, > 0); otherwise SmoothOptions{}.prior_weight.
+// learned may be null (no learned prior).
+double ResolvePriorWeight(std::optional<double> explicit_prior_weight, const LearnedPrior* learned);
 
 // A list of training pairs: one `NOISY GROUND_TRUTH` per line (paths without spaces, relative ones taken from
 // the list's folder), blank lines and `#` comments skipped. A comment `# noise: KIND k=K` (what synth-meshes

@@ -1,26 +1,20 @@
 // Adaptive ε benchmark (BENCHMARKS.md "Bayesian smoothing" → "Adaptive ε"): the square-root prior with one ε²
 // per face from bayes/adaptive_epsilon.h, on every denoising case of the benchmark meshes.
 //
-//   bench_adaptive quality [--data DIR] [--reference gt|prepass|twice|auto|smoothref|none] [--rule scan] [--statistic
-//   median|mean]
+//   bench_adaptive quality [--data DIR] [--reference gt|prepass|auto|smoothref|none] [--rule scan]
 //                          [--scale C] [--rings R] [--truncate T] [--protect D] [--protect-rings N] [--floor D0]
 //                          [--max E2] [--cases a,b,...] [--estimate] [--baseline]
 //     --reference gt       the rule on the ground truth: an upper bound of what any per-face ε can do
 //     --reference prepass  the rule on the noisy input smoothed once with the default (global ε² = 1e-4,
 //                          fast tolerance): what a real run can do; the pre-pass time is included
-//     --reference twice    AdaptiveEpsilonTwoPass: the --rule result (fast) as the reference of the median rule
-//                          (scale --second-scale, default 4); the second session's opt-in (superseded by auto)
 //     --reference auto     AdaptiveEpsilonAuto (what `rangebayes smooth` does by default for --prior sqrt): one
 //                          fast pre-pass, the gate, then the detail rule or the global ε²
 //     --reference smoothref  the rule on a smoother reference (--ref-eps2 E global ε² or --ref-prior quadratic,
-//                          --ref-beta, --ref-tolerance), crease protection from the default pre-pass
-//                          (--protect-from prepass|self); prints the reference's pair-d median / q90 and MAE
+//                          --ref-beta, --ref-tolerance); prints the reference's pair-d median / q90 and MAE
 //     --reference none     the default smoother (global ε²), for comparison
 //     --normal-rings N     average the reference's face normals over N vertex rings first (the detail rule: 4)
-//     --beta B             prior weight of every run (default 2.4); --second-scale / --second-normal-rings /
-//                          --second-rings / --second-protect D set the second rule of --reference twice,
-//                          --extra-passes N repeats it on a fast run with its own ε²
-//     --rule scan          start from ScanAdaptiveEpsilonOptions() (the gate rule of auto)
+//     --beta B             prior weight of every run (default 2.4)
+//     --rule scan          the scan rule (the gate of auto; AdaptiveEpsilonOptions{}, also without --rule)
 //     --baseline           also run the default smoother and print its MAE beside
 //     --held-out           the held-out meshes (trim-star 0.5, buste, impulsive nicolo) instead of the table
 //     with --reference auto (SmoothAdaptiveEpsilon, as `rangebayes smooth`; prints pre-pass and final iterations /
@@ -122,9 +116,9 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 int Quality(std::map<std::string, std::string>& flags) {
   const std::string data = flags.count("--data") ? flags["--data"] : "../shared/data/meshes";
   const std::string reference = flags.count("--reference") ? flags["--reference"] : "prepass";
-  if (reference != "gt" && reference != "prepass" && reference != "none" && reference != "twice" &&
-      reference != "smoothref" && reference != "auto") {
-    std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass, twice, auto, smoothref or none\n");
+  if (reference != "gt" && reference != "prepass" && reference != "none" && reference != "smoothref" &&
+      reference != "auto") {
+    std::fprintf(stderr, "bench_adaptive: --reference must be gt, prepass, auto, smoothref or none\n");
     return 2;
   }
   AdaptiveEpsilonOptions rule;
@@ -134,14 +128,6 @@ int Quality(std::map<std::string, std::string>& flags) {
       return 2;
     }
     rule = ScanAdaptiveEpsilonOptions();
-  }
-  if (flags.count("--statistic")) {
-    const std::string s = flags["--statistic"];
-    if (s != "median" && s != "mean") {
-      std::fprintf(stderr, "bench_adaptive: --statistic must be median or mean\n");
-      return 2;
-    }
-    rule.statistic = s == "median" ? AdaptiveEpsilonStatistic::kMedian : AdaptiveEpsilonStatistic::kTruncatedMean;
   }
   if (flags.count("--scale")) rule.scale = std::stod(flags["--scale"]);
   if (flags.count("--normal-rings")) rule.normal_smoothing_rings = std::stoi(flags["--normal-rings"]);
@@ -159,9 +145,9 @@ int Quality(std::map<std::string, std::string>& flags) {
 
   std::printf("normal smoothing rings %d\n", rule.normal_smoothing_rings);
   std::printf(
-      "reference %s, statistic %s, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
+      "reference %s, truncated mean, scale %g, rings %d, truncate %g, protect %g (rings %d, degree %d), floor %g, "
       "eps2 in [%g, %g], noise level %s\n",
-      reference.c_str(), rule.statistic == AdaptiveEpsilonStatistic::kMedian ? "median" : "mean", rule.scale,
+      reference.c_str(), rule.scale,
       rule.ring_iterations, rule.truncate_normal_difference, rule.protect_normal_difference, rule.protect_rings,
       rule.protect_min_crease_degree, rule.floor_normal_difference, rule.min_epsilon_squared, rule.max_epsilon_squared,
       estimate ? "estimated" : "given");
@@ -222,7 +208,7 @@ int Quality(std::map<std::string, std::string>& flags) {
                  (rule_summary.per_face ? ": per-face eps2" : ": global eps2 kept");
     } else if (reference == "smoothref") {
       // The rule on a smoother reference (global --ref-eps2, or --ref-prior quadratic), protection read from the
-      // default fast pre-pass (--protect-from prepass) or from the reference itself.
+      // reference itself.
       SmoothOptions ref = options;
       ref.tolerance =
           flags.count("--ref-tolerance") ? ParseSmoothTolerance(flags["--ref-tolerance"]) : SmoothTolerance::kFast;
@@ -233,35 +219,7 @@ int Quality(std::map<std::string, std::string>& flags) {
       const auto [d50, d90] = PairDifferenceQuantiles(reference_mesh);
       ref_info = "ref d50 " + std::to_string(d50).substr(0, 5) + " d90 " + std::to_string(d90).substr(0, 5) + " MAE " +
                  std::to_string(MeanAngularErrorDeg(reference_mesh, gt)).substr(0, 5);
-      const std::string from = flags.count("--protect-from") ? flags["--protect-from"] : "prepass";
-      if (from == "prepass") {
-        SmoothOptions pre = options;
-        pre.tolerance = SmoothTolerance::kFast;
-        const Mesh prepass = Smooth(input, pre);
-        options.face_epsilon_squared = AdaptiveEpsilonSquared(reference_mesh, prepass, rule, &rule_summary);
-      } else {
-        options.face_epsilon_squared = AdaptiveEpsilonSquared(reference_mesh, rule, &rule_summary);
-      }
-      prepass_s = Seconds(start);
-    } else if (reference == "twice") {
-      // The --rule result (fast) as the reference of a second rule (the median rule, scale --second-scale).
-      AdaptiveEpsilonOptions second;
-      if (flags.count("--second-scale")) second.scale = std::stod(flags["--second-scale"]);
-      if (flags.count("--second-normal-rings"))
-        second.normal_smoothing_rings = std::stoi(flags["--second-normal-rings"]);
-      if (flags.count("--second-rings")) second.ring_iterations = std::stoi(flags["--second-rings"]);
-      if (flags.count("--second-protect")) {
-        second.protect_normal_difference = std::stod(flags["--second-protect"]);
-        second.protect_rings = 1;
-        second.protect_min_crease_degree = 2;
-      }
-      options.face_epsilon_squared = AdaptiveEpsilonTwoPass(input, options, rule, second, &rule_summary);
-      const int extra = flags.count("--extra-passes") ? std::stoi(flags["--extra-passes"]) : 0;
-      for (int pass = 0; pass < extra; ++pass) {
-        SmoothOptions fast = options;
-        fast.tolerance = SmoothTolerance::kFast;
-        options.face_epsilon_squared = AdaptiveEpsilonSquared(Smooth(input, fast), second, &rule_summary);
-      }
+      options.face_epsilon_squared = AdaptiveEpsilonSquared(reference_mesh, rule, &rule_summary);
       prepass_s = Seconds(start);
     }
     const Mesh result = Smooth(input, options);

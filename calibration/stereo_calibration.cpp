@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <numeric>
@@ -14,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <string>
 #include <regex>
 #include <set>
 
@@ -502,11 +504,26 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
 
 }  // namespace
 
+namespace {
+
+void RecordSettings(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
+                    StereoCalibrationSummary* summary) {
+  if (summary == nullptr) return;
+  summary->pairs_given = static_cast<int>(pairs.size());
+  summary->chessboard = options.board.type == BoardType::kChessboard;
+  summary->detectors_compared = summary->chessboard && options.board.detector == ChessboardDetector::kBest;
+  summary->coverage_grid = options.coverage_grid;
+}
+
+}  // namespace
+
 StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
                              StereoCalibrationSummary* summary, const ProgressCallback& progress) {
   options.Check();
   if (options.board.type != BoardType::kChessboard || options.board.detector != ChessboardDetector::kBest) {
-    return CalibrateWithDetector(pairs, options, summary, progress);
+    StereoRig rig = CalibrateWithDetector(pairs, options, summary, progress);
+    RecordSettings(pairs, options, summary);
+    return rig;
   }
   // Both detectors, each through the whole calibration; the lower final stereo RMS wins. A detector that
   // finds too few pairs drops out (its error is rethrown only when both fail).
@@ -538,7 +555,72 @@ StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, con
   best_sum.rms_stereo_sector_based_px = rms[0];
   best_sum.rms_stereo_classic_px = rms[1];
   if (summary) *summary = std::move(best_sum);
+  RecordSettings(pairs, options, summary);
   return *best;
+}
+
+std::string StereoCalibrationSummary::BriefReport() const {
+  std::string out;
+  char line[512];
+  std::snprintf(line, sizeof(line), "%-28s %9s %9s %9s  %s\n", "view (left image)", "left px", "right px",
+                "stereo px", "note");
+  out += line;
+  int flagged = 0;
+  for (const CalibrationView& v : views) {
+    flagged += v.flagged;
+    const std::string name = std::filesystem::path(v.left).filename().string();
+    if (!v.skip_reason.empty()) {
+      std::snprintf(line, sizeof(line), "%-28s %9s %9s %9s  skipped: %s\n", name.c_str(), "-", "-", "-",
+                    v.skip_reason.c_str());
+      out += line;
+      continue;
+    }
+    std::string note = v.flagged ? "FLAGGED: far above the rest" : "";
+    if (v.dropped) note += " (dropped)";
+    if (v.dropped) {
+      std::snprintf(line, sizeof(line), "%-28s %9s %9s %9.3f  %s\n", name.c_str(), "-", "-", v.rms_stereo_px,
+                    note.c_str());
+    } else {
+      std::snprintf(line, sizeof(line), "%-28s %9.3f %9.3f %9.3f  %s\n", name.c_str(), v.rms_left_px,
+                    v.rms_right_px, v.rms_stereo_px, note.c_str());
+    }
+    out += line;
+  }
+  std::snprintf(line, sizeof(line), "pairs: %d given, %d with the board in both images, %d used\n", pairs_given,
+                pairs_found, pairs_used);
+  out += line;
+  std::snprintf(line, sizeof(line), "RMS reprojection error: left %.3f px, right %.3f px, stereo %.3f px\n",
+                rms_left_px, rms_right_px, rms_stereo_px);
+  out += line;
+  if (chessboard) {
+    const char* used = detector_used == ChessboardDetector::kClassic ? "classic" : "sb";
+    if (detectors_compared) {
+      const auto rms = [](double v) {
+        return v < 0 ? std::string("too few pairs") : std::to_string(v).substr(0, 5) + " px";
+      };
+      std::snprintf(line, sizeof(line), "corner detector: %s kept (stereo RMS sb %s, classic %s)\n", used,
+                    rms(rms_stereo_sector_based_px).c_str(), rms(rms_stereo_classic_px).c_str());
+    } else {
+      std::snprintf(line, sizeof(line), "corner detector: %s\n", used);
+    }
+    out += line;
+  }
+  if (pairs_used != pairs_found) {
+    std::snprintf(line, sizeof(line), "stereo RMS with all %d views: %.3f px\n", pairs_found, rms_stereo_all_px);
+    out += line;
+  }
+  std::snprintf(line, sizeof(line), "flag threshold %.3f px (median view %.3f px): %d view(s) flagged\n",
+                flag_threshold_px, median_view_rms_px, flagged);
+  out += line;
+  std::snprintf(line, sizeof(line),
+                "board coverage: left %.0f%% of the image (%.0f%% of %dx%d cells), right %.0f%% (%.0f%%)\n",
+                100 * coverage_left, 100 * grid_coverage_left, coverage_grid, coverage_grid, 100 * coverage_right,
+                100 * grid_coverage_right);
+  out += line;
+  std::snprintf(line, sizeof(line), "epipolar error after rectification: mean %.3f px, max %.3f px\n",
+                epipolar_error_mean_px, epipolar_error_max_px);
+  out += line;
+  return out;
 }
 
 RgbImage RenderRectifiedPair(const StereoRig& rig, const CalibrationImagePair& pair,

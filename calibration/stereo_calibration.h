@@ -105,6 +105,16 @@ struct StereoCalibrationSummary {
   ChessboardDetector detector_used = ChessboardDetector::kSectorBased;
   double rms_stereo_sector_based_px = -1.0;
   double rms_stereo_classic_px = -1.0;
+  // The run's settings the report names: pairs given, a chessboard, both detectors compared (kBest),
+  // StereoCalibrationOptions::coverage_grid.
+  int pairs_given = 0;
+  bool chessboard = true;
+  bool detectors_compared = false;
+  int coverage_grid = 0;
+
+  // A table of the views (file name, left / right / stereo RMS, flagged or dropped), then pairs, RMS, the
+  // detector, flagging, board coverage and the epipolar error after rectification, one per line.
+  std::string BriefReport() const;
 };
 
 // Calibrates the rig: detection (chessboard: see ChessboardDetector; kBest runs everything below once per

@@ -101,4 +101,10 @@ RecorderSummary Record(FrameSource& source, RecordingWriter& writer, const Recor
   return summary;
 }
 
+std::string RecorderSummary::BriefReport() const {
+  return StrCat(frames_written, " frames in ", elapsed_s, " s (", ToString(stop), "); dropped by the drivers: left ",
+                source.dropped_left, ", right ", source.dropped_right, "; unpaired: left ", source.unpaired_left,
+                ", right ", source.unpaired_right, "; timeouts ", timeouts);
+}
+
 }  // namespace rangebayes

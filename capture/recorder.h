@@ -30,6 +30,9 @@ struct RecorderSummary {
   std::string error;                 // kSourceError / kStalled / a write failure: one line
   FrameSourceStats source;           // the source's counters at the end
   double elapsed_s = 0.0;
+
+  // One line: frames, time, why it stopped, the drivers' drops, unpaired frames and timeouts.
+  std::string BriefReport() const;
 };
 
 const char* ToString(RecorderStop stop);

@@ -162,14 +162,56 @@ Adjacency ComputeVertexNeighbours(const Mesh& mesh, const EdgeTopology& topology
 
 Adjacency ComputeVertexFaces(const Mesh& mesh) {
   CheckIndices(mesh);
-  std::vector<std::pair<int, int>> pairs;
-  pairs.reserve(static_cast<size_t>(mesh.num_faces()) * 3);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    for (int k = 0; k < 3; ++k) pairs.emplace_back(mesh.F(f, k), f);
+  // A counting sort: faces ascending per vertex, a corner that repeats an earlier corner's vertex skipped.
+  const int nf = mesh.num_faces(), nv = mesh.num_vertices();
+  auto repeated = [&](int f, int k) {
+    return (k >= 1 && mesh.F(f, k) == mesh.F(f, 0)) || (k == 2 && mesh.F(f, 2) == mesh.F(f, 1));
+  };
+  Adjacency adjacency;
+  adjacency.offsets.assign(static_cast<size_t>(nv) + 1, 0);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (!repeated(f, k)) ++adjacency.offsets[static_cast<size_t>(mesh.F(f, k)) + 1];
+    }
   }
-  std::sort(pairs.begin(), pairs.end());
-  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-  return BuildAdjacency(mesh.num_vertices(), pairs);
+  for (int v = 0; v < nv; ++v) {
+    adjacency.offsets[static_cast<size_t>(v) + 1] += adjacency.offsets[static_cast<size_t>(v)];
+  }
+  adjacency.items.resize(static_cast<size_t>(adjacency.offsets.back()));
+  std::vector<int> fill(adjacency.offsets.begin(), adjacency.offsets.end() - 1);
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (!repeated(f, k)) adjacency.items[static_cast<size_t>(fill[static_cast<size_t>(mesh.F(f, k))]++)] = f;
+    }
+  }
+  return adjacency;
+}
+
+IndexPairs ComputeFacePairs(const Mesh& mesh, const Adjacency& vertex_faces) {
+  const int nf = mesh.num_faces();
+  std::vector<int> flat;
+  flat.reserve(static_cast<size_t>(nf) * 3);
+  std::vector<int> partners;
+  for (int s = 0; s < nf; ++s) {
+    partners.clear();
+    for (int k = 0; k < 3; ++k) {
+      const int a = mesh.F(s, k), b = mesh.F(s, (k + 1) % 3);
+      if (a == b) continue;
+      for (const int* t = vertex_faces.begin(a); t != vertex_faces.end(a); ++t) {
+        if (*t <= s) continue;
+        if (mesh.F(*t, 0) == b || mesh.F(*t, 1) == b || mesh.F(*t, 2) == b) partners.push_back(*t);
+      }
+    }
+    std::sort(partners.begin(), partners.end());
+    partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
+    for (int t : partners) {
+      flat.push_back(s);
+      flat.push_back(t);
+    }
+  }
+  IndexPairs pairs(static_cast<Eigen::Index>(flat.size() / 2), 2);
+  std::copy(flat.begin(), flat.end(), pairs.data());
+  return pairs;
 }
 
 Components ComputeComponents(const Mesh& mesh, Connectivity connectivity) {

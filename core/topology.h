@@ -37,6 +37,9 @@ EdgeTopology ComputeEdgeTopology(const Mesh& mesh);
 // k(k−1)/2 pairs. Row (s, t) with s < t, sorted. These are the pairs the smoothing prior runs over.
 IndexPairs ComputeFacePairs(const EdgeTopology& topology);
 IndexPairs ComputeFacePairs(const Mesh& mesh);
+// The same rows from the per-vertex face lists (ComputeVertexFaces(mesh)), without building the edges: a
+// triangle holds an edge {a, b} (a ≠ b) exactly when it holds both vertices. Faster on large meshes.
+IndexPairs ComputeFacePairs(const Mesh& mesh, const Adjacency& vertex_faces);
 
 // Boundary loops: chains of vertices along edges with exactly one incident face. A loop is closed (its
 // last vertex connects to its first). Where the boundary is not a simple cycle (a vertex with more than two

@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <fstream>
 #include <mutex>
@@ -183,7 +184,7 @@ cv::Mat Shrink(const cv::Mat& image, int factor) {
   return out;
 }
 
-// What the smoothing stage did, for the summary (written by the smooth thread only, read after the join).
+// What the smoothing stage did, for the summary (written by the smooth stage only, read after the join).
 struct SmoothTally {
   int smoothed = 0;
   double iterations_sum = 0.0;
@@ -234,104 +235,113 @@ void PipelineOptions::Check() const {
   if (decimate) decimation.Check();
 }
 
-PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
-                            const std::vector<PipelineSink*>& sinks) {
-  options.Check();
-  const Rectifier rectifier(rig, options.rectify);
-  const int ds = options.stereo_downsample;
-  // One setup per downsample factor (a control may change it between frames), and one for the full-quality path.
-  std::array<MatchSetup, 4> setups;
-  for (const int f : {1, 2, 4, 8}) {
-    setups[DsSlot(f)] = MakeMatchSetup(options, rectifier.intrinsics(), f, options.triangulate.downsample);
-  }
-  const MatchSetup full_quality_setup =
-      MakeMatchSetup(options, rectifier.intrinsics(), 1, options.full_quality_triangulate_downsample);
-  const MatchSetup& default_setup = setups[DsSlot(ds)];
-  const int window = options.window_frames;
-  const int step = options.window_step_frames > 0 ? options.window_step_frames : window;
-  PipelineControl* control = options.control;
-  const std::optional<std::int64_t> frames_total = source.frames_total();
+void ApplyLivePathPreset(PipelineOptions* options) {
+  options->queue_policy = QueueFullPolicy::kDropOldest;
+  options->queue_capacity = 1;
+  options->stereo_downsample = kLiveStereoDownsample;
+  options->triangulate.downsample = kLiveTriangulateDownsample;
+  options->smoothing.tolerance = SmoothTolerance::kFast;
+  options->smooth_budget_ms = kLiveSmoothBudgetMs;
+  options->decimate = false;
+}
 
-  Run run(options, sinks);
-  PipelineSummary& summary = run.summary();
-  summary.source = source.Describe();
-  const std::vector<std::string> names = {"capture", "rectify", "stereo", "triangulate", "smooth", "decimate",
-                                          "sinks"};
-  summary.stages.resize(names.size());
-  for (size_t i = 0; i < names.size(); ++i) summary.stages[i].name = names[i];
-  StageTiming* t_capture = &summary.stages[0];
-  StageTiming* t_rectify = &summary.stages[1];
-  StageTiming* t_stereo = &summary.stages[2];
-  StageTiming* t_triangulate = &summary.stages[3];
-  StageTiming* t_smooth = &summary.stages[4];
-  StageTiming* t_decimate = &summary.stages[5];
-  StageTiming* t_sinks = &summary.stages[6];
-  if (!options.smooth) summary.notices.push_back("smoothing switched off: smoothed meshes are not written");
-  if (!options.decimate) summary.notices.push_back("decimation switched off: decimated meshes are not written");
+namespace {
 
-  // The first frame is read before the threads start so that a rig that does not fit the recording is one
-  // clear error instead of a failure per frame.
-  const auto run_start = Clock::now();
-  std::optional<FrameResult> first;
-  {
-    const auto start = Clock::now();
-    FrameResult r = source.Next();
-    t_capture->total_ms += MsSince(start);
-    if (r.status == FrameStatus::kFrame) {
-      RB_CHECK(r.frame.left.cols == rig.width && r.frame.left.rows == rig.height, "the rig is for ", rig.width, "x",
-               rig.height, " images but frame ", r.frame.index, " is ", r.frame.left.cols, "x", r.frame.left.rows,
-               " (wrong rig.yaml?)");
+// One run of the pipeline: the settings, the queues between the stages and the summary they fill, with one
+// member function per stage thread. Constructed (and the first frame read) before any thread starts.
+class Stages {
+ public:
+  Stages(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
+         const std::vector<PipelineSink*>& sinks)
+      : source(source),
+        rig(rig),
+        options(options),
+        sinks(sinks),
+        rectifier(rig, options.rectify),
+        ds(options.stereo_downsample),
+        window(options.window_frames),
+        step(options.window_step_frames > 0 ? options.window_step_frames : options.window_frames),
+        control(options.control),
+        frames_total(source.frames_total()),
+        run(options, sinks),
+        summary(run.summary()) {
+    // One setup per downsample factor (a control may change it between frames), and one for the full-quality
+    // path.
+    for (const int f : {1, 2, 4, 8}) {
+      setups[DsSlot(f)] = MakeMatchSetup(options, rectifier.intrinsics(), f, options.triangulate.downsample);
     }
-    first = std::move(r);
-  }
+    full_quality_setup = MakeMatchSetup(options, rectifier.intrinsics(), 1, options.full_quality_triangulate_downsample);
+    summary.source = source.Describe();
+    const std::vector<std::string> names = {"capture", "rectify", "stereo", "triangulate", "smooth", "decimate",
+                                            "sinks"};
+    summary.stages.resize(names.size());
+    for (size_t i = 0; i < names.size(); ++i) summary.stages[i].name = names[i];
+    t_capture = &summary.stages[0];
+    t_rectify = &summary.stages[1];
+    t_stereo = &summary.stages[2];
+    t_triangulate = &summary.stages[3];
+    t_smooth = &summary.stages[4];
+    t_decimate = &summary.stages[5];
+    t_sinks = &summary.stages[6];
+    if (!options.smooth) summary.notices.push_back("smoothing switched off: smoothed meshes are not written");
+    if (!options.decimate) summary.notices.push_back("decimation switched off: decimated meshes are not written");
 
-  std::vector<std::unique_ptr<ItemQueue>> queues;
-  // Live drops only where frames enter: a stage downstream waits for the next one rather than work on a
-  // frame that would be thrown away, so the pipeline runs at the pace of its slowest stage and no CPU time
-  // goes to frames that never come out. A source that is not real time (a recording played as fast as
-  // possible) is never dropped from: it is simply asked for the next frame when there is room.
-  const bool drop_at_capture = options.queue_policy == QueueFullPolicy::kDropOldest && source.realtime();
-  for (int i = 0; i < 6; ++i) {
-    queues.push_back(std::make_unique<ItemQueue>(
-        options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock));
-  }
-  if (options.queue_policy == QueueFullPolicy::kDropOldest && !source.realtime()) {
-    summary.notices.push_back(
-        "live settings on a source that is not real time: frames are read when the pipeline has room, none dropped");
-  }
-  ItemQueue& q_captured = *queues[0];
-  ItemQueue& q_rectified = *queues[1];
-  ItemQueue& q_matched = *queues[2];
-  ItemQueue& q_triangulated = *queues[3];
-  ItemQueue& q_smoothed = *queues[4];
-  ItemQueue& q_decimated = *queues[5];
-
-  if (control != nullptr) {
-    control->Begin(options, [&]() {
-      PipelineSnapshot snap;
-      snap.running = true;
-      snap.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
-      for (const auto& q : queues) {
-        snap.queue_fill.push_back(static_cast<int>(q->size()));
-        snap.dropped += q->dropped();
+    // The first frame is read before the threads start so that a rig that does not fit the recording is one
+    // clear error instead of a failure per frame.
+    run_start = Clock::now();
+    {
+      const auto start = Clock::now();
+      FrameResult r = source.Next();
+      t_capture->total_ms += MsSince(start);
+      if (r.status == FrameStatus::kFrame) {
+        RB_CHECK(r.frame.left.cols == rig.width && r.frame.left.rows == rig.height, "the rig is for ", rig.width, "x",
+                 rig.height, " images but frame ", r.frame.index, " is ", r.frame.left.cols, "x", r.frame.left.rows,
+                 " (wrong rig.yaml?)");
       }
-      snap.queue_capacity = options.queue_capacity;
-      std::lock_guard<std::mutex> lock(run.mutex());
-      snap.frames_captured = summary.frames_captured;
-      snap.frames_skipped = summary.frames_skipped;
-      snap.timeouts = summary.timeouts;
-      snap.results = summary.results;
-      snap.failed = summary.failed;
-      snap.full_quality_done = run.full_quality_done();
-      snap.stages = summary.stages;
-      const size_t n = summary.errors.size();
-      snap.errors.assign(summary.errors.begin() + static_cast<std::ptrdiff_t>(n > 20 ? n - 20 : 0),
-                         summary.errors.end());
-      return snap;
-    });
+      first = std::move(r);
+    }
+
+    // Live drops only where frames enter: a stage downstream waits for the next one rather than work on a
+    // frame that would be thrown away, so the pipeline runs at the pace of its slowest stage and no CPU time
+    // goes to frames that never come out. A source that is not real time (a recording played as fast as
+    // possible) is never dropped from: it is simply asked for the next frame when there is room.
+    const bool drop_at_capture = options.queue_policy == QueueFullPolicy::kDropOldest && source.realtime();
+    for (int i = 0; i < 6; ++i) {
+      queues.push_back(std::make_unique<ItemQueue>(
+          options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock));
+    }
+    if (options.queue_policy == QueueFullPolicy::kDropOldest && !source.realtime()) {
+      summary.notices.push_back(
+          "live settings on a source that is not real time: frames are read when the pipeline has room, none dropped");
+    }
   }
+
+  // What a PipelineControl shows while the run goes on.
+  PipelineSnapshot Snapshot() {
+    PipelineSnapshot snap;
+    snap.running = true;
+    snap.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+    for (const auto& q : queues) {
+      snap.queue_fill.push_back(static_cast<int>(q->size()));
+      snap.dropped += q->dropped();
+    }
+    snap.queue_capacity = options.queue_capacity;
+    std::lock_guard<std::mutex> lock(run.mutex());
+    snap.frames_captured = summary.frames_captured;
+    snap.frames_skipped = summary.frames_skipped;
+    snap.timeouts = summary.timeouts;
+    snap.results = summary.results;
+    snap.failed = summary.failed;
+    snap.full_quality_done = run.full_quality_done();
+    snap.stages = summary.stages;
+    const size_t n = summary.errors.size();
+    snap.errors.assign(summary.errors.begin() + static_cast<std::ptrdiff_t>(n > 20 ? n - 20 : 0),
+                       summary.errors.end());
+    return snap;
+  }
+
   // The settings a frame entering now is processed with.
-  const auto settings_now = [&]() {
+  ItemSettings SettingsNow() {
     ItemSettings s;
     s.ds = ds;
     s.matcher = options.matcher;
@@ -354,12 +364,9 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       }
     }
     return s;
-  };
+  }
 
-  SmoothTally smooth_tally;  // written by the smooth thread only, read after the join
-  std::array<std::thread, 7> threads;
-  int next_thread = 0;
-  threads[next_thread++] = std::thread([&] {
+  void CaptureStage() {
     int consecutive_timeouts = 0;
     while (!run.Stopping()) {
       if (control != nullptr && control->settings().paused) {
@@ -414,7 +421,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       }
       const double ms = MsSince(start);
       ItemPtr item = MakeItem(std::move(r.frame));
-      item->settings = settings_now();
+      item->settings = SettingsNow();
       item->result.full_quality = item->settings.full_quality;
       item->result.stereo_downsample = item->settings.ds;
       {
@@ -424,13 +431,13 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
         t_capture->max_ms = std::max(t_capture->max_ms, ms);
         ++summary.frames_captured;
       }
-      q_captured.Push(std::move(item));
+      (*queues[0]).Push(std::move(item));
     }
-    q_captured.Close();
-  });
+    (*queues[0]).Close();
+  }
 
-  threads[next_thread++] = std::thread([&] {
-    run.Stage(q_captured, q_rectified, t_rectify, [&](Item& item) {
+  void RectifyStage() {
+    run.Stage((*queues[0]), (*queues[1]), t_rectify, [&](Item& item) {
       const StereoFrame& f = item.frames.front();
       RB_CHECK(f.left.size() == f.right.size(), "frame ", f.index, ": left is ", f.left.cols, "x", f.left.rows,
                " but right is ", f.right.cols, "x", f.right.rows);
@@ -441,9 +448,9 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       item.right_rect.push_back(Shrink(r, item.settings.ds));
       item.frames.clear();  // the raw images are not needed downstream
     });
-  });
+  }
 
-  threads[next_thread++] = std::thread([&] {
+  void StereoStage() {
     // One matcher per (matcher, downsample) pair, made when a frame first needs it.
     std::array<std::array<std::unique_ptr<StereoMatcher>, 4>, 2> matchers;
     const auto matcher_for = [&](const ItemSettings& s) -> StereoMatcher& {
@@ -476,7 +483,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
     const auto same_window = [](const ItemSettings& a, const ItemSettings& b) {
       return a.ds == b.ds && a.matcher == b.matcher && a.window == b.window && a.step == b.step;
     };
-    while (auto popped = q_rectified.Pop()) {
+    while (auto popped = (*queues[1]).Pop()) {
       ItemPtr item = std::move(*popped);
       if (run.Stopping()) {
         run.AddAbandoned();
@@ -484,7 +491,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       }
       if (!item->result.error.empty() || item->settings.window == 1 || item->settings.full_quality) {
         run.Process(*item, t_stereo, match);
-        q_matched.Push(std::move(item));
+        (*queues[2]).Push(std::move(item));
         continue;
       }
       if (!buffer.empty() && !same_window(buffer.front()->settings, item->settings)) {
@@ -510,7 +517,7 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       }
       for (int i = 0; i < merged->settings.step && !buffer.empty(); ++i) buffer.pop_front();
       run.Process(*merged, t_stereo, match);
-      q_matched.Push(std::move(merged));
+      (*queues[2]).Push(std::move(merged));
     }
     if (!buffer.empty() && !run.Stopping()) {
       std::lock_guard<std::mutex> lock(run.mutex());
@@ -518,11 +525,11 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
                                        buffer.front()->settings.window,
                                        "-frame space-time window and were not matched"));
     }
-    q_matched.Close();
-  });
+    (*queues[2]).Close();
+  }
 
-  threads[next_thread++] = std::thread([&] {
-    run.Stage(q_matched, q_triangulated, t_triangulate, [&](Item& item) {
+  void TriangulateStage() {
+    run.Stage((*queues[2]), (*queues[3]), t_triangulate, [&](Item& item) {
       TriangulateSummary ts;
       const int f = item.settings.ds;
       const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
@@ -532,10 +539,10 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
       RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index,
                ": no surface (", ts.vertices, " valid depth pixels, no triangle)");
     });
-  });
+  }
 
-  threads[next_thread++] = std::thread([&] {
-    run.Stage(q_triangulated, q_smoothed, t_smooth, [&](Item& item) {
+  void SmoothStage() {
+    run.Stage((*queues[3]), (*queues[4]), t_smooth, [&](Item& item) {
       if (item.settings.full_quality) {
         SmoothOptions smoothing = options.smoothing;
         smoothing.tolerance = SmoothOptions{}.tolerance;
@@ -567,21 +574,19 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
         ++smooth_tally.timed;
       }
     });
-  });
+  }
 
-  threads[next_thread++] = std::thread([&] {
-    run.Stage(q_smoothed, q_decimated, t_decimate, [&](Item& item) {
+  void DecimateStage() {
+    run.Stage((*queues[4]), (*queues[5]), t_decimate, [&](Item& item) {
       if (!options.decimate && !item.settings.full_quality) return;
       const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
       item.result.decimated = Decimate(input, options.decimation);
     });
-  });
+  }
 
-  double latency_sum_ms = 0.0;
-  std::int64_t frames_done = 0;
-  threads[next_thread++] = std::thread([&] {
+  void SinkStage() {
     // The sink finishes the result it is writing even after a stop, so every file it wrote is complete.
-    while (auto popped = q_decimated.Pop()) {
+    while (auto popped = (*queues[5]).Pop()) {
       Item& item = **popped;
       if (run.Stopping()) {
         run.AddAbandoned();
@@ -631,50 +636,124 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
         run.AddError(StrCat("sink finish: ", e.what()));
       }
     }
-  });
+  }
 
+  // The summary's totals, rates and notices, after every stage has finished.
+  void FinishSummary() {
+    const MatchSetup& default_setup = setups[DsSlot(ds)];
+    summary.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+    summary.stopped = options.stop != nullptr && options.stop->load();
+    summary.source_stats = source.stats();
+    for (const auto& q : queues) {
+      summary.dropped_per_queue.push_back(q->dropped());
+      summary.dropped += q->dropped();
+    }
+    const std::int64_t finished = summary.results + summary.failed;
+    summary.latency_mean_ms = finished > 0 ? latency_sum_ms / static_cast<double>(finished) : 0.0;
+    summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
+    if (smooth_tally.smoothed > 0) {
+      summary.smooth_iterations_mean = smooth_tally.iterations_sum / smooth_tally.smoothed;
+      summary.smooth_time_limited = smooth_tally.time_limited;
+    }
+    if (smooth_tally.timed > 0) {
+      summary.smooth_ms_per_iteration_mean = smooth_tally.ms_per_iteration_sum / smooth_tally.timed;
+    }
+    summary.smooth_distance_mean =
+        smooth_tally.distances > 0 ? smooth_tally.distance_sum / smooth_tally.distances : std::nan("");
+    if (options.smooth && options.smooth_budget_ms > 0.0 && smooth_tally.smoothed > 0) {
+      char line[300];
+      std::snprintf(line, sizeof(line),
+                    "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations per result, "
+                    "distance to the optimum %.2g of E on average (estimated)",
+                    options.smooth_budget_ms, smooth_tally.time_limited, smooth_tally.smoothed,
+                    summary.smooth_iterations_mean, summary.smooth_distance_mean);
+      summary.notices.push_back(line);
+    }
+    if (ds > 1) {
+      summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",
+                                       default_setup.intrinsics.height, ", ",
+                                       options.matcher == PipelineMatcher::kSgbm ? default_setup.sgbm.num_disparities
+                                                                                 : default_setup.spacetime.num_disparities,
+                                       " disparities), triangulated every ", default_setup.triangulate.downsample,
+                                       " pixel(s) of it"));
+    }
+  }
+
+  FrameSource& source;
+  const StereoRig& rig;
+  const PipelineOptions& options;
+  const std::vector<PipelineSink*>& sinks;
+  const Rectifier rectifier;
+  const int ds;
+  std::array<MatchSetup, 4> setups;
+  MatchSetup full_quality_setup;
+  const int window;
+  const int step;
+  PipelineControl* control;
+  const std::optional<std::int64_t> frames_total;
+  Run run;
+  PipelineSummary& summary;
+  StageTiming* t_capture = nullptr;
+  StageTiming* t_rectify = nullptr;
+  StageTiming* t_stereo = nullptr;
+  StageTiming* t_triangulate = nullptr;
+  StageTiming* t_smooth = nullptr;
+  StageTiming* t_decimate = nullptr;
+  StageTiming* t_sinks = nullptr;
+  Clock::time_point run_start;
+  std::optional<FrameResult> first;
+  std::vector<std::unique_ptr<ItemQueue>> queues;
+  SmoothTally smooth_tally;  // written by the smooth stage only, read after the join
+  double latency_sum_ms = 0.0;   // sink stage only
+  std::int64_t frames_done = 0;  // sink stage only
+};
+
+}  // namespace
+
+PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
+                            const std::vector<PipelineSink*>& sinks) {
+  options.Check();
+  Stages stages(source, rig, options, sinks);
+  if (options.control != nullptr) options.control->Begin(options, [&stages]() { return stages.Snapshot(); });
+  std::array<std::thread, 7> threads = {
+      std::thread([&stages] { stages.CaptureStage(); }),     std::thread([&stages] { stages.RectifyStage(); }),
+      std::thread([&stages] { stages.StereoStage(); }),      std::thread([&stages] { stages.TriangulateStage(); }),
+      std::thread([&stages] { stages.SmoothStage(); }),      std::thread([&stages] { stages.DecimateStage(); }),
+      std::thread([&stages] { stages.SinkStage(); })};
   for (std::thread& t : threads) t.join();
-  if (control != nullptr) {
-    PipelineSnapshot last = control->Snapshot();
+  if (options.control != nullptr) {
+    PipelineSnapshot last = options.control->Snapshot();
     last.running = false;
-    control->End(std::move(last));
+    options.control->End(std::move(last));
   }
+  stages.FinishSummary();
+  return stages.summary;
+}
 
-  summary.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
-  summary.stopped = options.stop != nullptr && options.stop->load();
-  summary.source_stats = source.stats();
-  for (const auto& q : queues) {
-    summary.dropped_per_queue.push_back(q->dropped());
-    summary.dropped += q->dropped();
+std::string PipelineSummary::BriefReport() const {
+  std::string out;
+  char line[512];
+  out += source + "\n";
+  std::snprintf(line, sizeof(line),
+                "%lld frames in, %lld results, %lld failed, %lld skipped, %lld dropped, %.1f s, %.2f frames/s end "
+                "to end, latency %.0f ms\n",
+                static_cast<long long>(frames_captured), static_cast<long long>(results),
+                static_cast<long long>(failed), static_cast<long long>(frames_skipped),
+                static_cast<long long>(dropped), wall_s, frames_per_s, latency_mean_ms);
+  out += line;
+  std::snprintf(line, sizeof(line), "  %-12s %7s %7s %10s %10s %9s\n", "stage", "items", "errors", "mean ms",
+                "max ms", "items/s");
+  out += line;
+  for (const StageTiming& t : stages) {
+    std::snprintf(line, sizeof(line), "  %-12s %7lld %7lld %10.1f %10.1f %9.2f\n", t.name.c_str(),
+                  static_cast<long long>(t.items), static_cast<long long>(t.errors), t.mean_ms(), t.max_ms,
+                  t.total_ms > 0 ? 1000.0 * static_cast<double>(t.items) / t.total_ms : 0.0);
+    out += line;
   }
-  const std::int64_t finished = summary.results + summary.failed;
-  summary.latency_mean_ms = finished > 0 ? latency_sum_ms / static_cast<double>(finished) : 0.0;
-  summary.frames_per_s = summary.wall_s > 0 ? static_cast<double>(frames_done) / summary.wall_s : 0.0;
-  if (smooth_tally.smoothed > 0) {
-    summary.smooth_iterations_mean = smooth_tally.iterations_sum / smooth_tally.smoothed;
-    summary.smooth_time_limited = smooth_tally.time_limited;
-  }
-  if (smooth_tally.timed > 0) summary.smooth_ms_per_iteration_mean = smooth_tally.ms_per_iteration_sum / smooth_tally.timed;
-  summary.smooth_distance_mean =
-      smooth_tally.distances > 0 ? smooth_tally.distance_sum / smooth_tally.distances : std::nan("");
-  if (options.smooth && options.smooth_budget_ms > 0.0 && smooth_tally.smoothed > 0) {
-    char line[300];
-    std::snprintf(line, sizeof(line),
-                  "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations per result, "
-                  "distance to the optimum %.2g of E on average (estimated)",
-                  options.smooth_budget_ms, smooth_tally.time_limited, smooth_tally.smoothed,
-                  summary.smooth_iterations_mean, summary.smooth_distance_mean);
-    summary.notices.push_back(line);
-  }
-  if (ds > 1) {
-    summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",
-                                     default_setup.intrinsics.height, ", ",
-                                     options.matcher == PipelineMatcher::kSgbm ? default_setup.sgbm.num_disparities
-                                                                               : default_setup.spacetime.num_disparities,
-                                     " disparities), triangulated every ", default_setup.triangulate.downsample,
-                                     " pixel(s) of it"));
-  }
-  return summary;
+  for (const std::string& n : notices) out += "note: " + n + "\n";
+  for (const std::string& e : errors) out += e + "\n";
+  if (stopped) out += "stopped by request; finished results are complete\n";
+  return out;
 }
 
 void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path) {

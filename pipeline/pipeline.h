@@ -113,6 +113,16 @@ struct PipelineOptions {
   void Check() const;
 };
 
+// The live-path preset (what `rangebayes live` and `replay --live-path` run; BENCHMARKS.md "Capture and
+// pipeline" has the measurements): a preview needs a usable surface per frame, not a converged one. Sets on
+// `options`: queue_policy kDropOldest with one item per queue, stereo_downsample kLiveStereoDownsample,
+// triangulate.downsample 4, the fast smoothing tolerance within smooth_budget_ms = kLiveSmoothBudgetMs, and
+// decimation off (far over the 2-core frame budget). Everything else is left as it is.
+inline constexpr int kLiveStereoDownsample = 2;
+inline constexpr int kLiveTriangulateDownsample = 4;
+inline constexpr double kLiveSmoothBudgetMs = 80.0;
+void ApplyLivePathPreset(PipelineOptions* options);
+
 struct StageTiming {
   std::string name;
   std::int64_t items = 0;            // items that went through the stage (successfully or not)
@@ -145,6 +155,9 @@ struct PipelineSummary {
   double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
   int smooth_time_limited = 0;       // results the budget stopped
   double smooth_distance_mean = 0.0; // mean estimated distance to the optimum, relative to E (NaN: unknown)
+
+  // The source, the counts, a table of the stages, then notices, errors and a stop request, one per line.
+  std::string BriefReport() const;
 };
 
 // The rectified left camera of an image shrunk `factor` times (1, 2, 4, 8) by repeated cv::pyrDown: dst(x)

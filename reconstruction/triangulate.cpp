@@ -17,25 +17,34 @@ void TriangulateOptions::Check() const {
   RB_CHECK(default_sigma_disparity_px > 0.0, "default_sigma_disparity_px must be positive");
 }
 
-NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options, TriangulateSummary* summary) {
-  options.Check();
-  RB_CHECK(!frame.empty() && frame.depth_m.type() == CV_32F, "depth frame ", frame.frame_id, " is empty");
-  RB_CHECK(frame.sigma_depth_m.size() == frame.depth_m.size() && frame.sigma_depth_m.type() == CV_32F,
-           "depth frame ", frame.frame_id, ": sigma_depth size differs from the depth");
-  const CameraIntrinsics& K = frame.intrinsics;
-  RB_CHECK(K.fx_px > 0 && K.fy_px > 0 && K.width == frame.width() && K.height == frame.height(), "depth frame ",
-           frame.frame_id, ": intrinsics do not match the ", frame.width(), "x", frame.height(), " image");
-  const int s = options.downsample;
-  const int gw = (frame.width() + s - 1) / s;
-  const int gh = (frame.height() + s - 1) / s;
-  const double fb = K.fx_px * frame.baseline_m;
-  const double sigma_px = options.sigma_pixel_px >= 0.0 ? options.sigma_pixel_px : frame.sigma_pixel_px;
-  const double slope = std::tan(options.max_slope_deg * M_PI / 180.0) * s / K.fx_px;
-  const double k2 = options.max_jump_sigma * options.max_jump_sigma;
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, TriangulateOptions* options) {
+  if (model.form == NoiseForm::kConstant) options->default_sigma_disparity_px = model.sigma_px;
+}
 
-  // Depth and σ_Z on the grid; σ_Z from the default σ_d where the matcher gave none.
-  std::vector<float> z(static_cast<size_t>(gw) * gh), sz(z.size());
-  std::vector<int> row_vertices(gh + 1, 0);
+namespace {
+
+// Depth and σ_Z on the grid of every s-th pixel (NaN where there is no vertex), and the first vertex of
+// each grid row.
+struct DepthGrid {
+  int s = 1, gw = 0, gh = 0;
+  std::vector<float> z, sz;
+  std::vector<int> row_vertices;  // gh + 1 prefix sums
+  int num_vertices() const { return row_vertices.back(); }
+};
+
+// σ_Z from the default σ_d where the matcher gave none.
+DepthGrid SampleDepthGrid(const DepthFrame& frame, const TriangulateOptions& options) {
+  DepthGrid grid;
+  const int s = grid.s = options.downsample;
+  const int gw = grid.gw = (frame.width() + s - 1) / s;
+  const int gh = grid.gh = (frame.height() + s - 1) / s;
+  const double fb = frame.intrinsics.fx_px * frame.baseline_m;
+  std::vector<float>& z = grid.z;
+  std::vector<float>& sz = grid.sz;
+  z.resize(static_cast<size_t>(gw) * gh);
+  sz.resize(z.size());
+  std::vector<int>& row_vertices = grid.row_vertices;
+  row_vertices.assign(gh + 1, 0);
   tbb::parallel_for(0, gh, [&](int gy) {
     const float* depth = frame.depth_m.ptr<float>(gy * s);
     const float* sigma = frame.sigma_depth_m.ptr<float>(gy * s);
@@ -54,13 +63,25 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
     row_vertices[gy + 1] = count;
   });
   for (int gy = 0; gy < gh; ++gy) row_vertices[gy + 1] += row_vertices[gy];
-  const int nv = row_vertices[gh];
+  return grid;
+}
 
-  NoisyMesh out;
+// The vertices (back-projected grid points), their ray-aligned covariances and pixels; index[g] = the vertex
+// of grid point g, or −1.
+void BackProject(const DepthFrame& frame, const DepthGrid& grid, double sigma_px, NoisyMesh* mesh,
+                 std::vector<int>* vertex_index) {
+  const CameraIntrinsics& K = frame.intrinsics;
+  const int s = grid.s, gw = grid.gw, gh = grid.gh;
+  const std::vector<float>& z = grid.z;
+  const std::vector<float>& sz = grid.sz;
+  const std::vector<int>& row_vertices = grid.row_vertices;
+  const int nv = grid.num_vertices();
+  NoisyMesh& out = *mesh;
   out.mesh.V.resize(nv, 3);
   out.covariance.resize(nv);
   out.pixel.resize(nv, 2);
-  std::vector<int> index(z.size(), -1);
+  std::vector<int>& index = *vertex_index;
+  index.assign(z.size(), -1);
   const double inv_fx = 1.0 / K.fx_px, inv_fy = 1.0 / K.fy_px;
   tbb::parallel_for(0, gh, [&](int gy) {
     int i = row_vertices[gy];
@@ -104,6 +125,14 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
     }
   });
 
+}
+
+// Per grid point a bit mask of its connected edges (see below); an edge is cut where the depth jump exceeds
+// k·σ plus the slope allowance.
+std::vector<std::uint8_t> ConnectedEdges(const DepthGrid& grid, double slope, double k2) {
+  const int gw = grid.gw, gh = grid.gh;
+  const std::vector<float>& z = grid.z;
+  const std::vector<float>& sz = grid.sz;
   const auto connected = [&](size_t a, size_t b) {
     const double za = z[a], zb = z[b];
     if (!(za == za) || !(zb == zb)) return false;  // NaN: no vertex
@@ -139,12 +168,28 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
     }
   });
 
-  // Faces per row of 2×2 blocks: counted, then written, so rows can run in parallel.
+  return edges;
+}
+
+// Per 2×2 block the triangles to emit, and per row the faces and cut edges.
+struct BlockTriangles {
+  std::vector<int> row_faces;           // block rows + 1 prefix sums
+  std::vector<int> row_cuts;            // per grid row
+  std::vector<std::uint8_t> block_code;  // per block: 1: A, 2: B, 4: C, 8: D
+};
+
+BlockTriangles ChooseTriangles(const DepthGrid& grid, const std::vector<int>& index,
+                               const std::vector<std::uint8_t>& edges, const NoisyMesh& out) {
+  const int gw = grid.gw, gh = grid.gh;
+  BlockTriangles blocks;
   const int block_rows = std::max(0, gh - 1);
-  std::vector<int> row_faces(block_rows + 1, 0);
-  std::vector<int> row_cuts(gh, 0);
-  // Per block: bit mask of emitted triangles (1: A, 2: B, 4: C, 8: D below), computed once.
-  std::vector<std::uint8_t> block_code(static_cast<size_t>(std::max(0, gw - 1)) * block_rows, 0);
+  std::vector<int>& row_faces = blocks.row_faces;
+  std::vector<int>& row_cuts = blocks.row_cuts;
+  std::vector<std::uint8_t>& block_code = blocks.block_code;
+  row_faces.assign(block_rows + 1, 0);
+  row_cuts.assign(gh, 0);
+  block_code.assign(static_cast<size_t>(std::max(0, gw - 1)) * block_rows, 0);
+  // Faces per row of 2×2 blocks: counted, then written, so rows can run in parallel.
   tbb::parallel_for(0, gh, [&](int gy) {
     // Cut edges: grid edges between two valid vertices that are not connected (top and left edges here).
     int cuts = 0;
@@ -192,9 +237,17 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
     row_faces[gy + 1] = faces;
   });
   for (int gy = 0; gy < block_rows; ++gy) row_faces[gy + 1] += row_faces[gy];
-  out.mesh.F.resize(row_faces[block_rows], 3);
+  return blocks;
+}
+
+void WriteFaces(const DepthGrid& grid, const std::vector<int>& index, const BlockTriangles& blocks, Faces* faces) {
+  const int gw = grid.gw;
+  const int block_rows = std::max(0, grid.gh - 1);
+  const std::vector<int>& row_faces = blocks.row_faces;
+  const std::vector<std::uint8_t>& block_code = blocks.block_code;
+  faces->resize(row_faces[block_rows], 3);
   tbb::parallel_for(0, block_rows, [&](int gy) {
-    int* f = out.mesh.F.data() + 3 * static_cast<size_t>(row_faces[gy]);
+    int* f = faces->data() + 3 * static_cast<size_t>(row_faces[gy]);
     const size_t row = static_cast<size_t>(gy) * gw;
     for (int gx = 0; gx + 1 < gw; ++gx) {
       const std::uint8_t code = block_code[static_cast<size_t>(gy) * (gw - 1) + gx];
@@ -213,11 +266,35 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
       if (code & 0b1000) put(i1, i2, i3);
     }
   });
+}
+
+}  // namespace
+
+NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options, TriangulateSummary* summary) {
+  options.Check();
+  RB_CHECK(!frame.empty() && frame.depth_m.type() == CV_32F, "depth frame ", frame.frame_id, " is empty");
+  RB_CHECK(frame.sigma_depth_m.size() == frame.depth_m.size() && frame.sigma_depth_m.type() == CV_32F,
+           "depth frame ", frame.frame_id, ": sigma_depth size differs from the depth");
+  const CameraIntrinsics& K = frame.intrinsics;
+  RB_CHECK(K.fx_px > 0 && K.fy_px > 0 && K.width == frame.width() && K.height == frame.height(), "depth frame ",
+           frame.frame_id, ": intrinsics do not match the ", frame.width(), "x", frame.height(), " image");
+  const int s = options.downsample;
+  const double sigma_px = options.sigma_pixel_px >= 0.0 ? options.sigma_pixel_px : frame.sigma_pixel_px;
+  const double slope = std::tan(options.max_slope_deg * M_PI / 180.0) * s / K.fx_px;
+  const double k2 = options.max_jump_sigma * options.max_jump_sigma;
+
+  const DepthGrid grid = SampleDepthGrid(frame, options);
+  NoisyMesh out;
+  std::vector<int> index;
+  BackProject(frame, grid, sigma_px, &out, &index);
+  const std::vector<std::uint8_t> edges = ConnectedEdges(grid, slope, k2);
+  const BlockTriangles blocks = ChooseTriangles(grid, index, edges, out);
+  WriteFaces(grid, index, blocks, &out.mesh.F);
   if (summary) {
-    summary->vertices = nv;
+    summary->vertices = grid.num_vertices();
     summary->faces = static_cast<int>(out.mesh.F.rows());
     summary->cut_edges = 0;
-    for (int c : row_cuts) summary->cut_edges += c;
+    for (int c : blocks.row_cuts) summary->cut_edges += c;
   }
   return out;
 }

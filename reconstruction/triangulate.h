@@ -5,6 +5,7 @@
 // noise, so this is our own.
 #pragma once
 
+#include "calibration/disparity_noise_model.h"
 #include "core/mesh.h"
 #include "stereo/depth_frame.h"
 
@@ -40,6 +41,10 @@ struct TriangulateSummary {
 // Z/f·δ at its depth) across the ray, i.e. docs/design.md §2's Z/f·σ_px on the axis, ≈ 7% less at 53° off it.
 // NoisyMesh::pixel holds each vertex's (u, v) at full resolution. Throws Error on an empty frame or
 // inconsistent sizes.
+// A calibrated constant noise model (`rangebayes calibrate noise`) gives the σ_d of pixels without one; other
+// forms leave the options as they are (their σ_d comes with the matcher's σ).
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, TriangulateOptions* options);
+
 NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options = {},
                            TriangulateSummary* summary = nullptr);
 

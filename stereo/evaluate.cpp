@@ -1,6 +1,7 @@
 #include "stereo/evaluate.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 
@@ -61,6 +62,24 @@ DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& gr
   ev.rms_px = std::sqrt(sum2 / nv);
   ev.mean_abs_px = sum1 / nv;
   return ev;
+}
+
+std::string DisparityEvaluation::BriefReport() const {
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof(line), "evaluated %ld pixels, coverage %.2f%%, RMS %.3f px, mean |error| %.3f px\n",
+                evaluated_pixels, 100.0 * coverage, rms_px, mean_abs_px);
+  out += line;
+  std::snprintf(line, sizeof(line), "%-10s %18s %18s\n", "threshold", "holes as errors", "holes excluded");
+  out += line;
+  for (size_t i = 0; i < thresholds_px.size(); ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "bad-%g", thresholds_px[i]);
+    std::snprintf(line, sizeof(line), "%-10s %17.2f%% %17.2f%%\n", name, 100.0 * bad_with_holes[i],
+                  100.0 * bad_valid_only[i]);
+    out += line;
+  }
+  return out;
 }
 
 }  // namespace rangebayes

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 namespace rangebayes {
@@ -27,6 +28,9 @@ struct DisparityEvaluation {
   std::vector<double> bad_valid_only;
   double rms_px = 0.0;         // over estimated pixels
   double mean_abs_px = 0.0;    // over estimated pixels
+
+  // Pixels, coverage, RMS and mean error, then a table of bad-x with holes as errors and holes excluded.
+  std::string BriefReport() const;
 };
 
 // estimate, ground_truth: CV_32F of one size, NaN unknown. mask: empty or CV_8U of the same size. Throws

@@ -48,6 +48,22 @@ SpaceTimeMatcherOptions SpaceTimeStaticSceneOptions(int frames) {
   return o;
 }
 
+void SetSubpixelIterations(int iterations, SpaceTimeMatcherOptions* options) {
+  if (iterations == options->subpixel_iterations) return;
+  const SpaceTimeMatcherOptions parabola;
+  options->subpixel_iterations = iterations;
+  options->sigma_floor_px = iterations > 0 ? kGaussNewtonSigmaFloorPx : parabola.sigma_floor_px;
+  options->sigma_scale = iterations > 0 ? kGaussNewtonSigmaScale : parabola.sigma_scale;
+}
+
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, SpaceTimeMatcherOptions* options) {
+  const bool constant = model.form == NoiseForm::kConstant;
+  options->sigma_floor_px = constant ? model.sigma_px : model.floor_px;
+  options->sigma_scale =
+      constant ? 1e-9
+               : model.scale * (model.image_noise_gray > 0 ? model.image_noise_gray / options->image_noise_gray : 1.0);
+}
+
 SpaceTimeMatcher::SpaceTimeMatcher(const SpaceTimeMatcherOptions& options) : options_(options) {
   options_.Check();
 }
@@ -470,30 +486,19 @@ struct BandBuffers {
 
 }  // namespace
 
-DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right) {
-  CheckStereoSequence(left, right);
-  const auto start = std::chrono::steady_clock::now();
-  summary_ = {};
-  const int T = static_cast<int>(left.size());
-  SpaceTimeCost cost = options_.cost;
-  if (cost == SpaceTimeCost::kAuto) cost = T >= 3 ? SpaceTimeCost::kZnccTime : SpaceTimeCost::kSsd;
-  RB_CHECK(!(cost == SpaceTimeCost::kZnccTime && T < 2), "ZNCC over time needs at least 2 frames, got ", T);
-  summary_.cost_used = cost;
-  summary_.frames = T;
+namespace {
 
-  Sequence L = Interleave(left);
-  Sequence R = Interleave(right);
+// The rejection counts of one match (SpaceTimeMatchSummary).
+struct MatchCounts {
+  int valid = 0, left_right = 0, flat = 0, sigma = 0, ambiguous = 0, edge = 0, doubtful = 0;
+};
+
+// Pass 1: per band of rows, the w×w×T window costs of every disparity, winner-take-all with the parabola,
+// the checks, and σ_d from the curvature (with Gauss–Newton steps the coarse disparity only).
+void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, const Sequence& R,
+                    const std::vector<float>& noise_left, int T, DisparityResult* out, MatchCounts* counts) {
+  DisparityResult& result = *out;
   const int W = L.width, H = L.height;
-  std::vector<float> noise_left, noise_right;
-  if (cost == SpaceTimeCost::kZnccSpace) {
-    NormaliseSpatially(&L, options_.window_px, options_.image_noise_gray, &noise_left);
-    NormaliseSpatially(&R, options_.window_px, options_.image_noise_gray, &noise_right);
-  }
-  if (cost == SpaceTimeCost::kZnccTime) {
-    NormaliseTemporally(&L, options_.image_noise_gray, &noise_left);
-    NormaliseTemporally(&R, options_.image_noise_gray, &noise_right);
-  }
-
   const int D = options_.num_disparities;
   const int dmin = options_.min_disparity_px;
   const int w = options_.window_px;
@@ -502,13 +507,7 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   const int num_bands = (H + band - 1) / band;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const double window_samples = static_cast<double>(w) * w * T;
-
-  DisparityResult result;
-  result.disparity_px.create(H, W, CV_32F);
-  result.sigma_disparity_px.create(H, W, CV_32F);
-  result.frames_used = T;
   std::atomic<int> valid{0}, rej_lr{0}, rej_flat{0}, rej_sigma{0}, rej_ambiguous{0};
-
   tbb::enumerable_thread_specific<BandBuffers> buffers;
   tbb::parallel_for(tbb::blocked_range<int>(0, num_bands, 1), [&](const tbb::blocked_range<int>& range) {
     BandBuffers& b = buffers.local();
@@ -626,137 +625,198 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
       rej_ambiguous += band_ambiguous;
     }
   });
-  if (options_.subpixel_iterations > 0) {
-    const cv::Mat coarse = result.disparity_px.clone();
-    const PixelMajor Lp = ToPixelMajor(L), Rp = ToPixelMajor(R);
-    std::atomic<int> refined{0}, failed{0}, too_uncertain{0};
-    tbb::parallel_for(0, H, [&](int y) {
-      float* out_d = result.disparity_px.ptr<float>(y);
-      float* out_s = result.sigma_disparity_px.ptr<float>(y);
-      const float* c = coarse.ptr<float>(y);
-      int row_ok = 0, row_failed = 0, row_sigma = 0;
-      for (int x = 0; x < W; ++x) {
-        if (!std::isfinite(c[x])) continue;
-        double slope_x = 0.0, slope_y = 0.0;
-        WindowSlopes(coarse, x, y, r, &slope_x, &slope_y);
-        double disparity = c[x], sigma_pred = 0.0;
-        if (!RefineGaussNewton(Lp, Rp, noise_left, noise_right, x, y, r, options_.subpixel_iterations,
-                               options_.image_noise_gray, slope_x, slope_y, &disparity, &sigma_pred) ||
-            std::abs(disparity - c[x]) > 1.0) {
-          out_d[x] = nan;
-          ++row_failed;
-          continue;
-        }
-        const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
-                                       options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
-        if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
-          out_d[x] = nan;
-          ++row_sigma;
-          continue;
-        }
-        out_d[x] = static_cast<float>(disparity);
-        out_s[x] = static_cast<float>(sigma);
-        ++row_ok;
+  counts->valid = valid;
+  counts->left_right = rej_lr;
+  counts->flat = rej_flat;
+  counts->sigma = rej_sigma;
+  counts->ambiguous = rej_ambiguous;
+}
+
+// Pass 2 (subpixel_iterations > 0): Gauss–Newton steps from the coarse disparity, with their σ_d.
+void RefineSubpixelPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, const Sequence& R,
+                        const std::vector<float>& noise_left, const std::vector<float>& noise_right,
+                        DisparityResult* out, MatchCounts* counts) {
+  DisparityResult& result = *out;
+  const int W = L.width, H = L.height;
+  const int r = options_.window_px / 2;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const cv::Mat coarse = result.disparity_px.clone();
+  const PixelMajor Lp = ToPixelMajor(L), Rp = ToPixelMajor(R);
+  std::atomic<int> refined{0}, failed{0}, too_uncertain{0};
+  tbb::parallel_for(0, H, [&](int y) {
+    float* out_d = result.disparity_px.ptr<float>(y);
+    float* out_s = result.sigma_disparity_px.ptr<float>(y);
+    const float* c = coarse.ptr<float>(y);
+    int row_ok = 0, row_failed = 0, row_sigma = 0;
+    for (int x = 0; x < W; ++x) {
+      if (!std::isfinite(c[x])) continue;
+      double slope_x = 0.0, slope_y = 0.0;
+      WindowSlopes(coarse, x, y, r, &slope_x, &slope_y);
+      double disparity = c[x], sigma_pred = 0.0;
+      if (!RefineGaussNewton(Lp, Rp, noise_left, noise_right, x, y, r, options_.subpixel_iterations,
+                             options_.image_noise_gray, slope_x, slope_y, &disparity, &sigma_pred) ||
+          std::abs(disparity - c[x]) > 1.0) {
+        out_d[x] = nan;
+        ++row_failed;
+        continue;
       }
-      refined += row_ok;
-      failed += row_failed;
-      too_uncertain += row_sigma;
-    });
-    valid = refined.load();
-    rej_flat += failed.load();
-    rej_sigma += too_uncertain.load();
-  }
+      const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
+                                     options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
+      if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
+        out_d[x] = nan;
+        ++row_sigma;
+        continue;
+      }
+      out_d[x] = static_cast<float>(disparity);
+      out_s[x] = static_cast<float>(sigma);
+      ++row_ok;
+    }
+    refined += row_ok;
+    failed += row_failed;
+    too_uncertain += row_sigma;
+  });
+  counts->valid = refined.load();
+  counts->flat += failed.load();
+  counts->sigma += too_uncertain.load();
+}
+
+// Pass 3: the neighbour term of σ_d and the edge test (dropped, or kept as doubtful with an inflated σ_d).
+void NeighbourPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, const Sequence& R,
+                   DisparityResult* out, MatchCounts* counts) {
+  DisparityResult& result = *out;
+  const int W = L.width, H = L.height;
+  const int r = options_.window_px / 2;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const int D = options_.num_disparities;
+  const int dmin = options_.min_disparity_px;
   const bool edge_reject = options_.edge_reject_jump_px >= 0.0;
   const bool doubt = !edge_reject && options_.doubtful_jump_px >= 0.0;
-  if (options_.neighbour_jump_px >= 0.0 || edge_reject || doubt) {
-    // σ_d² += J: the mean over the valid w×w neighbours of (d_n − d)² for the differences beyond
-    // neighbour_jump_px (window straddling a depth edge, isolated mismatches). A pixel within r + 1 of a hole
-    // or of a neighbour more than the edge threshold per pixel of distance away straddles a depth edge or an
-    // occlusion (its cost mixes two surfaces): with edge_reject_jump_px it is dropped, with doubtful_jump_px
-    // it is kept and σ_d² gains doubtful_sigma_px² plus the largest such jump squared.
-    const cv::Mat d = result.disparity_px.clone();
-    const double jump = options_.neighbour_jump_px;
-    const double edge_jump = edge_reject ? options_.edge_reject_jump_px : options_.doubtful_jump_px;
-    const bool edge_test = edge_reject || doubt;
-    const bool add_j = options_.neighbour_jump_px >= 0.0;
-    const double doubt_var = options_.doubtful_sigma_px * options_.doubtful_sigma_px;
-    const int verify_r = options_.doubtful_verify_window_px > 0 ? options_.doubtful_verify_window_px / 2 : -1;
-    std::atomic<int> dropped{0}, dropped_edge{0}, doubtful{0};
-    tbb::parallel_for(0, H, [&](int y) {
-      float* out_d = result.disparity_px.ptr<float>(y);
-      float* out_s = result.sigma_disparity_px.ptr<float>(y);
-      const float* dr = d.ptr<float>(y);
-      int row_dropped = 0, row_edge = 0, row_doubtful = 0;
-      for (int x = 0; x < W; ++x) {
-        const float dc = dr[x];
-        if (!std::isfinite(dc)) continue;
-        double j2 = 0.0, max_jump2 = 0.0;
-        int n = 0;
-        bool straddles = false;
-        // The edge test looks one ring beyond the window: a band of wrong disparities can be r pixels wide
-        // (the window's reach into the other surface) plus the mixed pixel on the edge itself (measured on
-        // the box's grazing top face in bench_stereo --quality=synth: radius r left such pixels 6 px off).
-        const int re = edge_test ? r + 1 : r;
-        for (int yy = std::max(0, y - re); yy <= std::min(H - 1, y + re); ++yy) {
-          const float* row = d.ptr<float>(yy);
-          for (int xx = std::max(0, x - re); xx <= std::min(W - 1, x + re); ++xx) {
-            const double diff = row[xx] - dc;
-            const bool inner = std::abs(xx - x) <= r && std::abs(yy - y) <= r;
-            if (!std::isfinite(diff)) {
-              straddles = true;
-              continue;
-            }
-            if (inner) {
-              ++n;
-              j2 += std::abs(diff) > jump ? diff * diff : 0.0;
-            }
-            if (edge_test && std::abs(diff) > edge_jump * std::max(std::abs(xx - x), std::abs(yy - y))) {
-              straddles = true;
-              max_jump2 = std::max(max_jump2, diff * diff);
-            }
+  // σ_d² += J: the mean over the valid w×w neighbours of (d_n − d)² for the differences beyond
+  // neighbour_jump_px (window straddling a depth edge, isolated mismatches). A pixel within r + 1 of a hole
+  // or of a neighbour more than the edge threshold per pixel of distance away straddles a depth edge or an
+  // occlusion (its cost mixes two surfaces): with edge_reject_jump_px it is dropped, with doubtful_jump_px
+  // it is kept and σ_d² gains doubtful_sigma_px² plus the largest such jump squared.
+  const cv::Mat d = result.disparity_px.clone();
+  const double jump = options_.neighbour_jump_px;
+  const double edge_jump = edge_reject ? options_.edge_reject_jump_px : options_.doubtful_jump_px;
+  const bool edge_test = edge_reject || doubt;
+  const bool add_j = options_.neighbour_jump_px >= 0.0;
+  const double doubt_var = options_.doubtful_sigma_px * options_.doubtful_sigma_px;
+  const int verify_r = options_.doubtful_verify_window_px > 0 ? options_.doubtful_verify_window_px / 2 : -1;
+  std::atomic<int> dropped{0}, dropped_edge{0}, doubtful{0};
+  tbb::parallel_for(0, H, [&](int y) {
+    float* out_d = result.disparity_px.ptr<float>(y);
+    float* out_s = result.sigma_disparity_px.ptr<float>(y);
+    const float* dr = d.ptr<float>(y);
+    int row_dropped = 0, row_edge = 0, row_doubtful = 0;
+    for (int x = 0; x < W; ++x) {
+      const float dc = dr[x];
+      if (!std::isfinite(dc)) continue;
+      double j2 = 0.0, max_jump2 = 0.0;
+      int n = 0;
+      bool straddles = false;
+      // The edge test looks one ring beyond the window: a band of wrong disparities can be r pixels wide
+      // (the window's reach into the other surface) plus the mixed pixel on the edge itself (measured on
+      // the box's grazing top face in bench_stereo --quality=synth: radius r left such pixels 6 px off).
+      const int re = edge_test ? r + 1 : r;
+      for (int yy = std::max(0, y - re); yy <= std::min(H - 1, y + re); ++yy) {
+        const float* row = d.ptr<float>(yy);
+        for (int xx = std::max(0, x - re); xx <= std::min(W - 1, x + re); ++xx) {
+          const double diff = row[xx] - dc;
+          const bool inner = std::abs(xx - x) <= r && std::abs(yy - y) <= r;
+          if (!std::isfinite(diff)) {
+            straddles = true;
+            continue;
           }
-        }
-        if (edge_reject && straddles) {
-          out_d[x] = out_s[x] = nan;
-          ++row_edge;
-          continue;
-        }
-        double var = static_cast<double>(out_s[x]) * out_s[x];
-        if (add_j) var += j2 / n;
-        if (doubt && straddles) {
-          if (verify_r >= 0) {
-            const int ds = SmallWindowDisparity(L, R, x, y, verify_r, dmin, D);
-            if (!(std::abs(static_cast<double>(ds) - dc) <= 1.0)) {
-              out_d[x] = out_s[x] = nan;
-              ++row_edge;
-              continue;
-            }
+          if (inner) {
+            ++n;
+            j2 += std::abs(diff) > jump ? diff * diff : 0.0;
           }
-          var += doubt_var + max_jump2;
-          ++row_doubtful;
-        }
-        const double sigma = std::sqrt(var);
-        out_s[x] = static_cast<float>(sigma);
-        if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
-          out_d[x] = out_s[x] = nan;
-          ++row_dropped;
+          if (edge_test && std::abs(diff) > edge_jump * std::max(std::abs(xx - x), std::abs(yy - y))) {
+            straddles = true;
+            max_jump2 = std::max(max_jump2, diff * diff);
+          }
         }
       }
-      dropped += row_dropped;
-      dropped_edge += row_edge;
-      doubtful += row_doubtful;
-    });
-    valid -= dropped.load() + dropped_edge.load();
-    rej_sigma += dropped.load();
-    summary_.rejected_edge = dropped_edge.load();
-    summary_.doubtful = doubtful.load();
+      if (edge_reject && straddles) {
+        out_d[x] = out_s[x] = nan;
+        ++row_edge;
+        continue;
+      }
+      double var = static_cast<double>(out_s[x]) * out_s[x];
+      if (add_j) var += j2 / n;
+      if (doubt && straddles) {
+        if (verify_r >= 0) {
+          const int ds = SmallWindowDisparity(L, R, x, y, verify_r, dmin, D);
+          if (!(std::abs(static_cast<double>(ds) - dc) <= 1.0)) {
+            out_d[x] = out_s[x] = nan;
+            ++row_edge;
+            continue;
+          }
+        }
+        var += doubt_var + max_jump2;
+        ++row_doubtful;
+      }
+      const double sigma = std::sqrt(var);
+      out_s[x] = static_cast<float>(sigma);
+      if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
+        out_d[x] = out_s[x] = nan;
+        ++row_dropped;
+      }
+    }
+    dropped += row_dropped;
+    dropped_edge += row_edge;
+    doubtful += row_doubtful;
+  });
+  counts->valid -= dropped.load() + dropped_edge.load();
+  counts->sigma += dropped.load();
+  counts->edge = dropped_edge.load();
+  counts->doubtful = doubtful.load();
+}
+
+}  // namespace
+
+DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right) {
+  CheckStereoSequence(left, right);
+  const auto start = std::chrono::steady_clock::now();
+  summary_ = {};
+  const int T = static_cast<int>(left.size());
+  SpaceTimeCost cost = options_.cost;
+  if (cost == SpaceTimeCost::kAuto) cost = T >= 3 ? SpaceTimeCost::kZnccTime : SpaceTimeCost::kSsd;
+  RB_CHECK(!(cost == SpaceTimeCost::kZnccTime && T < 2), "ZNCC over time needs at least 2 frames, got ", T);
+  summary_.cost_used = cost;
+  summary_.frames = T;
+
+  Sequence L = Interleave(left);
+  Sequence R = Interleave(right);
+  std::vector<float> noise_left, noise_right;
+  if (cost == SpaceTimeCost::kZnccSpace) {
+    NormaliseSpatially(&L, options_.window_px, options_.image_noise_gray, &noise_left);
+    NormaliseSpatially(&R, options_.window_px, options_.image_noise_gray, &noise_right);
   }
-  summary_.valid_pixels = valid;
-  summary_.rejected_left_right = rej_lr;
-  summary_.rejected_flat = rej_flat;
-  summary_.rejected_sigma = rej_sigma;
-  summary_.rejected_ambiguous = rej_ambiguous;
-  result.valid_fraction = static_cast<double>(valid) / (static_cast<double>(W) * H);
+  if (cost == SpaceTimeCost::kZnccTime) {
+    NormaliseTemporally(&L, options_.image_noise_gray, &noise_left);
+    NormaliseTemporally(&R, options_.image_noise_gray, &noise_right);
+  }
+
+  DisparityResult result;
+  result.disparity_px.create(L.height, L.width, CV_32F);
+  result.sigma_disparity_px.create(L.height, L.width, CV_32F);
+  result.frames_used = T;
+  MatchCounts counts;
+  BlockMatchPass(options_, L, R, noise_left, T, &result, &counts);
+  if (options_.subpixel_iterations > 0) RefineSubpixelPass(options_, L, R, noise_left, noise_right, &result, &counts);
+  const bool edge_reject = options_.edge_reject_jump_px >= 0.0;
+  const bool doubt = !edge_reject && options_.doubtful_jump_px >= 0.0;
+  if (options_.neighbour_jump_px >= 0.0 || edge_reject || doubt) NeighbourPass(options_, L, R, &result, &counts);
+  summary_.valid_pixels = counts.valid;
+  summary_.rejected_left_right = counts.left_right;
+  summary_.rejected_flat = counts.flat;
+  summary_.rejected_sigma = counts.sigma;
+  summary_.rejected_ambiguous = counts.ambiguous;
+  summary_.rejected_edge = counts.edge;
+  summary_.doubtful = counts.doubtful;
+  result.valid_fraction = static_cast<double>(counts.valid) / (static_cast<double>(L.width) * L.height);
   result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -5,6 +5,7 @@
 // With T = 1 it is a single-frame block matcher that also yields σ_d.
 #pragma once
 
+#include "calibration/disparity_noise_model.h"
 #include "stereo/matcher.h"
 
 namespace rangebayes {
@@ -88,6 +89,16 @@ inline constexpr double kGaussNewtonSigmaScale = 1.8;
 // with an inflated σ_d where a 5×5×T (T < 16) or 3×3×T (T ≥ 16) window confirms them. Slower than SpaceTimeMatcherOptions{} (parabola only), which the live path keeps.
 // Measured: BENCHMARKS.md, space-time sections (`bench_stereo --quality=synth`, `--quality=coverage`).
 SpaceTimeMatcherOptions SpaceTimeStaticSceneOptions(int frames);
+
+// Sets subpixel_iterations together with the σ_d model that belongs to the sub-pixel method:
+// kGaussNewtonSigma* with Gauss–Newton steps, SpaceTimeMatcherOptions{}'s (the parabola's) without. Leaves
+// the options unchanged when `iterations` is already theirs.
+void SetSubpixelIterations(int iterations, SpaceTimeMatcherOptions* options);
+
+// Replaces the matcher's σ_d model by a calibrated one (`rangebayes calibrate noise`): floor-plus-scale gives
+// floor and scale (the scale rescaled from the model's image noise to options->image_noise_gray, when the
+// model records one); a constant model gives floor σ and a negligible scale (the matcher needs one > 0).
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, SpaceTimeMatcherOptions* options);
 
 struct SpaceTimeMatchSummary {
   SpaceTimeCost cost_used = SpaceTimeCost::kSsd;

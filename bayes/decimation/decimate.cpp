@@ -4,8 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numeric>
+#include <string>
 #include <unordered_map>
 
 #include "bayes/decimation/decimate_geometry.h"
@@ -450,6 +452,9 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   DecimateSummary& s = summary != nullptr ? *summary : local;
   s = DecimateSummary{};
   s.input_faces = poses[0].num_faces();
+  s.target_faces = options.target_faces;
+  s.refitted = options.refit_vertices;
+  s.poses = static_cast<int>(poses.size());
   const Prepared prep = Prepare(poses);
   s.notices = prep.notices;
   const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
@@ -777,6 +782,54 @@ double PatchShadingErrorDeg(const Mesh& pose, const std::vector<int>& dense_face
     total += area[f];
   }
   return total > 0.0 ? sum / total * 180.0 / M_PI : 0.0;
+}
+
+std::string DecimateSummary::BriefReport() const {
+  std::string out;
+  char line[512];
+  std::snprintf(line, sizeof(line), "input: %d faces%s\n", input_faces,
+                poses > 1 ? (", " + std::to_string(poses) + " poses sharing one patch map").c_str() : "");
+  out += line;
+  std::snprintf(line, sizeof(line), "patches: %d; output: %d faces, %d vertices (%.2f%% of the input faces)\n",
+                num_patches, output_faces, output_vertices, 100.0 * output_faces / std::max(1, input_faces));
+  out += line;
+  std::snprintf(line, sizeof(line), "lambda: %.6g%s; energy %.6g (data %.6g + lambda x patches %.6g)\n", lambda,
+                target_faces > 0 ? (" (found in " + std::to_string(bisection_steps) + " full decimations)").c_str()
+                                 : "",
+                energy, data_energy, energy - data_energy);
+  out += line;
+  if (target_faces > 0) {
+    std::snprintf(line, sizeof(line),
+                  "lambda search: straightened patches need %d faces at lambda %.6g, %d at lambda %.6g (budget %d of "
+                  "%d; chain vertices kept up to chain error %.3g%% of the diagonal)\n",
+                  faces_too_many, lambda_too_many, faces_fits, lambda_fits, budget_faces, target_faces,
+                  100.0 * max_chain_error_rel);
+    out += line;
+  }
+  std::snprintf(line, sizeof(line),
+                "moves: %lld fuses, %lld splits, %lld swaps; %lld refused because they would disconnect a patch; "
+                "%d rounds%s\n",
+                fuses, splits, swaps, rejected_disconnecting, rounds, converged ? ", converged" : ", stopped at max_rounds");
+  out += line;
+  std::snprintf(line, sizeof(line),
+                "vertices: %d where patches meet, %d more kept for chain shape or to avoid flipped triangles\n",
+                kept_corner_vertices, blocked_vertices);
+  out += line;
+  if (refitted) {
+    std::snprintf(line, sizeof(line),
+                  "vertex refit: %d moved, %d kept in place by the flip guard; quadric error %.4g -> %.4g, fit RMS "
+                  "%.4g -> %.4g\n",
+                  refit_moved, refit_blocked, refit_quadric_before, refit_quadric_after, refit_rms_before,
+                  refit_rms_after);
+    out += line;
+  }
+  std::snprintf(line, sizeof(line),
+                "time: %.3f s partition, %.3f s geometry (all lambdas: %.3f s, %.3f s), %.3f s refit and shading, "
+                "%.3f s total\n",
+                seconds_partition, seconds_geometry, seconds_search_partition, seconds_search_geometry,
+                seconds_refit_and_shading, seconds_total);
+  out += line;
+  return out;
 }
 
 }  // namespace rangebayes

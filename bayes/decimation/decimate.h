@@ -76,6 +76,9 @@ struct DecimateOptions {
 
 struct DecimateSummary {
   double lambda = 0.0;  // the λ used (found by the search when target_faces > 0)
+  int target_faces = 0;       // DecimateOptions::target_faces of the run (0: λ given)
+  bool refitted = false;      // DecimateOptions::refit_vertices of the run
+  int poses = 0;              // meshes decimated with one patch map
   int input_faces = 0;
   int num_patches = 0;
   int output_faces = 0;
@@ -110,6 +113,9 @@ struct DecimateSummary {
   double refit_rms_before = 0.0, refit_rms_after = 0.0;
   double seconds_total = 0.0;
   std::vector<std::string> notices;  // one line each: input problems found and how they were handled
+
+  // Input and output sizes, λ (and its search), moves, kept vertices, the refit and the times, one per line.
+  std::string BriefReport() const;
 };
 
 // One decimated pose.

@@ -78,7 +78,8 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
   }
   *learned = std::make_unique<SplinePotential>(p->spline, p->theta);
   options->potential = learned->get();
-  if (!beta_given && p->prior_weight > 0) options->prior_weight = p->prior_weight;
+  options->prior_weight =
+      ResolvePriorWeight(beta_given ? std::optional<double>(options->prior_weight) : std::nullopt, p);
 }
 
 namespace {

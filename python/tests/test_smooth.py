@@ -19,7 +19,7 @@ def cli_smooth(cli, src, out, *flags):
     "flags, kwargs",
     [
         ([], {}),  # noise estimated, adaptive ε: the CLI's defaults
-        (["--noise", "0.3", "--tolerance", "fast", "--no-adaptive-eps", "--beta", "1.7", "--eps2", "0.001"],
+        (["--noise", "0.3", "--tolerance", "fast", "--no-adaptive-eps", "--prior-weight", "1.7", "--eps2", "0.001"],
          dict(noise=0.3, tolerance="fast", adaptive_epsilon=False, prior_weight=1.7, sqrt_epsilon_squared=1e-3)),
         (["--sigma", "0.004", "--prior", "cauchy", "--threads", "1"],
          dict(sigma=0.004, prior="cauchy", num_threads=1)),

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 #include "core/error.h"
 
 namespace rangebayes {
@@ -103,6 +105,30 @@ TEST(Topology, OutOfRangeIndexThrows) {
   Mesh mesh = Tetrahedron();
   mesh.F(2, 1) = 17;
   EXPECT_THROW(ComputeEdgeTopology(mesh), Error);
+}
+
+// The face pairs from the vertex-face lists are ComputeFacePairs' rows, on a grid, a non-manifold fan, a fold
+// (two faces sharing two edges) and a face with a repeated index; ComputeVertexFaces lists each face once.
+TEST(Topology, FacePairsFromVertexFacesMatchTheEdgeTopology) {
+  std::vector<Mesh> meshes = {Grid(5), Tetrahedron()};
+  Mesh fan;
+  fan.V.resize(5, 3);
+  fan.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1;
+  fan.F.resize(4, 3);
+  fan.F << 0, 1, 2, 1, 0, 3, 0, 1, 4, 0, 2, 1;  // the last face folds onto the first
+  meshes.push_back(fan);
+  Mesh degenerate = Tetrahedron();
+  degenerate.F.row(3) << 1, 1, 3;
+  meshes.push_back(degenerate);
+  for (const Mesh& mesh : meshes) {
+    const Adjacency vf = ComputeVertexFaces(mesh);
+    EXPECT_EQ(ComputeFacePairs(mesh, vf), ComputeFacePairs(mesh));
+    for (int v = 0; v < vf.rows(); ++v) {
+      for (const int* f = vf.begin(v); f + 1 < vf.end(v); ++f) EXPECT_LT(*f, *(f + 1));
+    }
+  }
+  const Adjacency vf = ComputeVertexFaces(degenerate);
+  EXPECT_EQ(vf.size(1), 3);  // faces 0, 1 and the degenerate 3, once
 }
 
 }  // namespace

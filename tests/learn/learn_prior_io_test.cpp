@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "bayes/smooth.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -92,6 +93,21 @@ TEST(LearnPriorIo, PairsListResolvesRelativePaths) {
   }
   EXPECT_THROW(ReadPairsList(path), Error);
   std::remove(path.c_str());
+}
+
+// One rule for smooth, live, replay and Python: an explicit beta always wins, even when it equals the
+// default; else the learned prior's own; else the library default.
+TEST(ResolvePriorWeight, ExplicitWinsThenLearnedThenDefault) {
+  const double def = SmoothOptions{}.prior_weight;
+  LearnedPrior learned;
+  learned.prior_weight = 1.3;
+  EXPECT_EQ(ResolvePriorWeight(def, &learned), def);
+  EXPECT_EQ(ResolvePriorWeight(0.7, &learned), 0.7);
+  EXPECT_EQ(ResolvePriorWeight(std::nullopt, &learned), 1.3);
+  learned.prior_weight = 0;  // not recorded
+  EXPECT_EQ(ResolvePriorWeight(std::nullopt, &learned), def);
+  EXPECT_EQ(ResolvePriorWeight(std::nullopt, nullptr), def);
+  EXPECT_EQ(ResolvePriorWeight(0.5, nullptr), 0.5);
 }
 
 }  // namespace

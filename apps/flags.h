@@ -1,0 +1,24 @@
+// Flags that several subcommands share, each defined once here: one spelling, one meaning, one help text.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <optional>
+#include <string>
+
+namespace rangebayes::apps {
+
+// --quiet,-q: no progress bar and no notices on stderr (results on stdout and errors are still printed).
+void AddQuietFlag(CLI::App* sub, bool* quiet);
+
+// --prior-weight B: the smoothing prior weight β (unitless, [0, 1e6]). Left empty when not given, so that the
+// library's rule (bayes/learn_prior_io.h ResolvePriorWeight) picks a learned prior's own β or the default.
+void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight);
+
+// --tolerance fast|default|tight: the smoother's stopping preset (ParseSmoothTolerance).
+void AddToleranceOption(CLI::App* sub, std::string* tolerance);
+
+// --window W: the matching window side (px, odd, 1-31; 0 where allowed: the matcher's default).
+// default_note says what the default is for this subcommand.
+void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px);
+
+}  // namespace rangebayes::apps

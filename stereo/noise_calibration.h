@@ -1,0 +1,59 @@
+// Calibration of the disparity noise model (what `rangebayes calibrate noise` runs): match frames of a recording
+// of a known plane, fit the plane, and fit σ_d to the disparity residuals about it (calibration/plane_target.h,
+// calibration/disparity_noise_model.h; docs/design.md, the noise model).
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calibration/disparity_noise_model.h"
+#include "calibration/plane_target.h"
+#include "calibration/stereo_rig.h"
+#include "capture/recording.h"
+
+namespace rangebayes {
+
+enum class NoiseCalibrationMatcher {
+  kBlock,      // our block matcher on one frame; predicts σ_d
+  kSpaceTime,  // our space-time matcher over frames first_frame.. (a static scene); predicts σ_d
+  kSgbm,       // OpenCV SGBM on one frame; no prediction (constant form only)
+};
+NoiseCalibrationMatcher ParseNoiseCalibrationMatcher(const std::string& name);  // block | spacetime | sgbm
+const char* NoiseCalibrationMatcherName(NoiseCalibrationMatcher matcher);
+
+struct NoiseCalibrationOptions {
+  NoiseCalibrationMatcher matcher = NoiseCalibrationMatcher::kBlock;
+  std::optional<NoiseForm> form;  // empty: floor-plus-scale when the matcher predicts σ_d, else constant
+  int first_frame = 0;            // index into frames.csv; ≥ 0
+  int frames = 0;                 // space-time: frames from first_frame (0: all); ≥ 0
+  int min_disparity_px = 0;
+  int num_disparities = 64;       // [3, 1024]
+  int window_px = 5;              // odd, [1, 31]; SGBM uses at most 11
+  double image_noise_gray = 2.0;  // σ_n for the predicted σ_d (grey levels); > 0
+  cv::Rect roi;                   // the target in the rectified left image (px); empty: the whole image
+  int stride_px = 1;              // every n-th pixel in x and y; [1, 64]
+  void Check() const;             // throws Error naming the field
+};
+
+struct NoiseCalibrationSummary {
+  NoiseCalibrationMatcher matcher = NoiseCalibrationMatcher::kBlock;
+  int frames_used = 0;
+  int observations = 0;             // valid disparities used
+  double valid_fraction = 0.0;      // of the matched pixels
+  PlaneTargetSummary plane;
+  NoiseFitSummary fit;
+  double outlier_fraction = 0.0;    // of the returned model's fit
+  std::vector<NoiseSample> samples;  // the residuals the model was fitted to (for NoiseReportFigure)
+
+  // Matcher and valid pixels, the plane, the constant and the fitted model, σ_d by depth, one per line.
+  std::string BriefReport(const DisparityNoiseModel& model) const;
+};
+
+// Throws Error on a frame outside the recording, a form the matcher cannot support, or too few samples.
+DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const StereoRig& rig,
+                                            const NoiseCalibrationOptions& options,
+                                            NoiseCalibrationSummary* summary = nullptr);
+
+}  // namespace rangebayes
