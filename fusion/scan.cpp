@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "bayes/noise_model.h"
+#include "bayes/smooth.h"
 #include "core/error.h"
 #include "core/render.h"
 #include "core/topology.h"
@@ -55,6 +56,14 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   scan.name = name;
   scan.noisy.mesh.V = V;
   const int nv = static_cast<int>(V.rows());
+  // Grid cells as pixel positions: Smooth then solves the scan as an organized mesh (coarse to fine).
+  scan.noisy.pixel.setConstant(nv, 2, -1.0f);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+      if (v >= 0) scan.noisy.pixel.row(v) << static_cast<float>(x), static_cast<float>(y);
+    }
+  }
 
   // Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
   Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
@@ -209,6 +218,14 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   scan.ray = -scan.normal;
   scan.mean_edge = MeanEdgeLength(scan.noisy.mesh);
   return scan;
+}
+
+Scan SmoothScan(const Scan& scan, const SmoothOptions& options, SmoothSummary* summary) {
+  Scan out = scan;
+  out.noisy.mesh = Smooth(scan.noisy, options, summary);
+  out.noisy.mesh.N.resize(0, 3);
+  OrientTowardsSensor(&out);
+  return out;
 }
 
 Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, RangeGridScanSummary* summary) {

@@ -12,6 +12,7 @@
 
 #include <string>
 
+#include "bayes/smooth.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
 
@@ -64,6 +65,11 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
 // meshes from depth images), else the generic noise model and rays opposite to the vertex normals. Throws
 // Error naming the scan when it has no faces.
 Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name);
+
+// The scan smoothed by Bayesian smoothing (bayes/smooth.h) with its own covariances, before fusion: same
+// vertices, faces, rays and covariances, smoothed positions and their normals. Range-grid scans carry their grid
+// cells as pixel positions, so Smooth solves them as organized meshes.
+Scan SmoothScan(const Scan& scan, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
 // Reads a scan file: a PLY with range_grid → MakeRangeGridScan, any other mesh file → MakeScanFromMesh.
 // Throws Error naming the file when it is empty (no vertices or no faces after triangulation).
