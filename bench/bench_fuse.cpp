@@ -447,6 +447,8 @@ int RunAlign(const std::string& dir, const std::string& start_conf, const std::s
     else if (key == "iterations") ro.iterations_per_level = static_cast<int>(v);
     else if (key == "seed") ro.seed = static_cast<std::uint64_t>(v);
     else if (key == "last_level") ro.max_distance_edges.back() = v;
+    else if (key == "rings") ro.boundary_rings = static_cast<int>(v);
+    else if (key == "min_cos") so.min_cos_incidence = v;
     else RB_FAIL("unknown override ", key);
   }
   const std::vector<rb::ScanPose> conf = rb::ReadScanPoses(dir + "/bun.conf");

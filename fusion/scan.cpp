@@ -1,6 +1,7 @@
 #include "fusion/scan.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 
 #include "bayes/noise_model.h"
@@ -40,6 +41,8 @@ void RangeGridScanOptions::Check() const {
   RB_CHECK(sigma_range > 0 && std::isfinite(sigma_range), "sigma_range ", sigma_range, " must be positive");
   RB_CHECK(sigma_lateral > 0 && std::isfinite(sigma_lateral), "sigma_lateral ", sigma_lateral,
            " must be positive");
+  RB_CHECK(min_cos_incidence > 0 && min_cos_incidence <= 1, "min_cos_incidence ", min_cos_incidence,
+           " is outside (0, 1]");
   RB_CHECK(max_jump_sigma > 0, "max_jump_sigma ", max_jump_sigma, " must be positive");
   RB_CHECK(max_slope_deg >= 0 && max_slope_deg < 89.95, "max_slope_deg ", max_slope_deg, " is outside 0–89.9");
 }
@@ -189,6 +192,13 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   RB_CHECK(!faces.empty(), name, ": empty scan (no triangle: no two neighbouring grid cells hold vertices)");
   scan.noisy.mesh.F = Eigen::Map<const Faces>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
   OrientTowardsSensor(&scan);
+  if (options.min_cos_incidence < 1) {
+    for (int i = 0; i < nv; ++i) {
+      if (scan.normal.row(i).squaredNorm() < 0.5) continue;
+      const double c = std::max(-scan.normal.row(i).dot(scan.ray.row(i)), options.min_cos_incidence);
+      scan.noisy.covariance[i] = RayCovariance(scan.ray.row(i), options.sigma_range / c, options.sigma_lateral);
+    }
+  }
   local.vertices = nv;
   local.faces = scan.noisy.mesh.num_faces();
   local.cut_edges = cuts;
