@@ -4,6 +4,9 @@
 //   bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth]   ten scans in DIR (bun.conf); writes OUT/...
 //   bench_fuse score DIR POSES.conf MESH.ply               pose errors and mesh distances of any result (Open3D's)
 //   bench_fuse synthetic OUT                               rendered views of a known blob with ray noise
+//   bench_fuse align DIR START.conf OUT.conf [key=value..]  joint alignment from START with option overrides
+//   bench_fuse sequential DIR START.conf OUT.conf           scan by scan onto the union of the ones before
+//   bench_fuse residuals DIR A.conf [B.conf ...]           unweighted pair residuals of several pose sets
 #include <sys/resource.h>
 
 #include <Eigen/Geometry>
@@ -475,6 +478,56 @@ int RunAlign(const std::string& dir, const std::string& start_conf, const std::s
   return 0;
 }
 
+
+// Sequential alignment, for the joint-vs-sequential comparison: scan k is registered (our pairwise GICP) to the
+// union of scans 0..k−1 as already placed, in the order of kScans; no global refinement afterwards.
+int RunSequential(const std::string& dir, const std::string& start_conf, const std::string& out_conf) {
+  const Bunny b = ReadBunny(dir);
+  const std::vector<rb::ScanPose> start_file = rb::ReadScanPoses(start_conf);
+  std::vector<Eigen::Isometry3d> poses;
+  for (const char* name : kScans) poses.push_back(rb::FindScanPose(start_file, name, start_conf).world_from_scan);
+  const double cpu0 = CpuSeconds();
+  for (size_t k = 1; k < b.scans.size(); ++k) {
+    rb::Scan merged;
+    merged.name = "scans before " + std::string(kScans[k]);
+    int nv = 0, nf = 0;
+    for (size_t j = 0; j < k; ++j) {
+      nv += b.scans[j].num_vertices();
+      nf += b.scans[j].noisy.mesh.num_faces();
+    }
+    merged.noisy.mesh.V.resize(nv, 3);
+    merged.noisy.mesh.F.resize(nf, 3);
+    merged.ray.resize(nv, 3);
+    merged.normal.resize(nv, 3);
+    int v0 = 0, f0 = 0;
+    for (size_t j = 0; j < k; ++j) {
+      const rb::Scan& s = b.scans[j];
+      const Eigen::Matrix3d R = poses[j].linear();
+      for (int i = 0; i < s.num_vertices(); ++i) {
+        merged.noisy.mesh.V.row(v0 + i) = (poses[j] * Eigen::Vector3d(s.noisy.mesh.V.row(i))).transpose();
+        merged.ray.row(v0 + i) = (R * s.ray.row(i).transpose()).transpose();
+        merged.normal.row(v0 + i) = (R * s.normal.row(i).transpose()).transpose();
+        merged.noisy.covariance.push_back(R * s.noisy.covariance[i] * R.transpose());
+      }
+      merged.noisy.mesh.F.middleRows(f0, s.noisy.mesh.num_faces()) = s.noisy.mesh.F.array() + v0;
+      merged.mean_edge += s.mean_edge / k;
+      v0 += s.num_vertices();
+      f0 += s.noisy.mesh.num_faces();
+    }
+    const std::vector<rb::Scan> pair = {merged, b.scans[k]};
+    poses[k] = rb::RegisterScans(pair, {Eigen::Isometry3d::Identity(), poses[k]})[1];
+  }
+  const PoseStats after = Errors(poses, b.reference);
+  std::printf("sequential: worst %.4f deg / %.4f mm (%.1f s CPU)\n", after.max_deg, 1e3 * after.max_translation,
+              CpuSeconds() - cpu0);
+  for (size_t k = 1; k < poses.size(); ++k) {
+    const rb::PoseError e = rb::RelativePoseError(poses[0], poses[k], b.reference[0], b.reference[k]);
+    std::printf("  %-12s %.4f deg %.4f mm\n", kScans[k], e.rotation_deg, 1e3 * e.translation);
+  }
+  WritePoses(b.scans, poses, out_conf);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -496,6 +549,7 @@ int main(int argc, char** argv) {
       return RunBunny(args[1], args[2], seeds, smooth);
     }
     if (args.size() >= 3 && args[0] == "score") return RunScore(args[1], args[2], args.size() > 3 ? args[3] : "");
+    if (args.size() == 4 && args[0] == "sequential") return RunSequential(args[1], args[2], args[3]);
     if (args.size() >= 4 && args[0] == "align") {
       return RunAlign(args[1], args[2], args[3], std::vector<std::string>(args.begin() + 4, args.end()));
     }
@@ -505,7 +559,8 @@ int main(int argc, char** argv) {
     if (args.size() == 2 && args[0] == "synthetic") return RunSynthetic(args[1]);
     std::fprintf(stderr,
                  "usage: bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth] | score DIR POSES.conf [MESH.ply] | "
-                 "synthetic OUT\n");
+                 "synthetic OUT | align DIR START.conf OUT.conf [key=value...] | sequential DIR START.conf OUT.conf | "
+                 "residuals DIR A.conf [B.conf...]\n");
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_fuse: error: %s\n", e.what());
