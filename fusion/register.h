@@ -7,7 +7,7 @@
 // The energy Σ ρ(rᵀ C⁻¹ r) over all overlapping pairs of scans (both directions) is minimised by Gauss–Newton
 // over all poses at once, the first scan fixed; correspondences are rebuilt every iteration, coarse to fine
 // (the largest accepted distance shrinks level by level) with rejection by distance, by normal angle, and of
-// partners on the target's mesh boundary; ρ is Cauchy's loss in σ units.
+// samples and partners near a scan's mesh boundary (boundary_rings); ρ is Cauchy's loss in σ units.
 #pragma once
 
 #include <Eigen/Geometry>
