@@ -125,22 +125,27 @@ void RunFuse(const FuseArgs& args) {
   WriteScanPoses(out_poses, dir + "poses.conf");
   std::printf("poses:      %sposes.conf (first scan fixed)\n", dir.c_str());
 
-  FuseSummary fuse_summary;
-  NoisyMesh fused = FuseScans(scans, poses, fuse_options, &fuse_summary);
-  std::printf("fusion:     %s\n", fuse_summary.BriefReport().c_str());
-  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
-  Mesh model = fused.mesh;
+  // --smooth: each scan is smoothed with its own ray covariance before fusion (measured closer to the truth
+  // than smoothing the fused mesh: BENCHMARKS.md "Many scans, one model").
+  std::vector<Scan> smoothed;
   if (args.smooth) {
     SmoothOptions smooth;
     smooth.num_threads = args.threads;
-    ProgressPrinter progress(args.quiet);
-    smooth.progress = progress.callback();
-    SmoothSummary summary;
-    model = Smooth(fused, smooth, &summary);
-    progress.Finish();
-    std::printf("smoothing:  %d iterations, %.3f s, %s\n", summary.iterations, summary.time_s,
-                SmoothTerminationName(summary.termination).c_str());
+    for (const Scan& scan : scans) {
+      ProgressPrinter progress(args.quiet);
+      smooth.progress = progress.callback();
+      SmoothSummary summary;
+      smoothed.push_back(SmoothScan(scan, smooth, &summary));
+      progress.Finish();
+      std::printf("smoothing:  %s: %d iterations, %.3f s, %s\n", FileBaseName(scan.name).c_str(), summary.iterations,
+                  summary.time_s, SmoothTerminationName(summary.termination).c_str());
+    }
   }
+  FuseSummary fuse_summary;
+  const NoisyMesh fused = FuseScans(args.smooth ? smoothed : scans, poses, fuse_options, &fuse_summary);
+  std::printf("fusion:     %s\n", fuse_summary.BriefReport().c_str());
+  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
+  Mesh model = fused.mesh;
   if (args.decimate) {
     DecimateSummary summary;
     const DecimatedMesh decimated = Decimate(model, {}, &summary);
@@ -179,7 +184,9 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
                   "the scans are taken as roughly pre-aligned)");
   sub->add_option("--out", args->out_dir, "output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
       ->required();
-  sub->add_flag("--smooth", args->smooth, "Bayesian smoothing of the fused mesh (bayes/smooth.h defaults)");
+  sub->add_flag("--smooth", args->smooth,
+               "Bayesian smoothing (bayes/smooth.h defaults) of each scan with its own ray covariance, after "
+               "alignment and before fusion");
   sub->add_flag("--decimate", args->decimate, "Bayesian decimation of the (smoothed) fused mesh (defaults)");
   sub->add_flag("--no-align", args->no_align, "fuse with the given poses as they are");
   sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")

@@ -4,6 +4,9 @@
 //   bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth]   ten scans in DIR (bun.conf); writes OUT/...
 //   bench_fuse score DIR POSES.conf MESH.ply               pose errors and mesh distances of any result (Open3D's)
 //   bench_fuse synthetic OUT                               rendered views of a known blob with ray noise
+//   bench_fuse align DIR START.conf OUT.conf [key=value..]  joint alignment from START with option overrides
+//   bench_fuse sequential DIR START.conf OUT.conf           scan by scan onto the union of the ones before
+//   bench_fuse residuals DIR A.conf [B.conf ...]           unweighted pair residuals of several pose sets
 #include <sys/resource.h>
 
 #include <Eigen/Geometry>
@@ -21,6 +24,7 @@
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/scan_poses.h"
+#include "core/topology.h"
 #include "fusion/register.h"
 #include "fusion/scan.h"
 #include "fusion/synthetic_scan.h"
@@ -192,11 +196,20 @@ int RunBunny(const std::string& dir, const std::string& out, const std::vector<i
   const rb::Vertices union_points = ReferenceUnion(b, 4);
   ScoreMesh(fused.mesh, union_points, "ours (TSDF)");
   if (smooth) {
-    rb::SmoothSummary ss;
-    const rb::Mesh smoothed = rb::Smooth(fused, {}, &ss);
-    std::printf("smoothing: %d iterations, %.2f s\n", ss.iterations, ss.time_s);
-    rb::WriteMesh(smoothed, out + "/ours_fused_smoothed.ply");
-    ScoreMesh(smoothed, union_points, "ours (TSDF + smooth)");
+    cpu0 = CpuSeconds();
+    wall0 = std::chrono::steady_clock::now();
+    std::vector<rb::Scan> smoothed;
+    int iterations = 0;
+    for (const rb::Scan& scan : b.scans) {
+      rb::SmoothSummary ss;
+      smoothed.push_back(rb::SmoothScan(scan, {}, &ss));
+      iterations += ss.iterations;
+    }
+    const rb::NoisyMesh fused_smoothed = rb::FuseScans(smoothed, first_result, {}, nullptr);
+    std::printf("scans smoothed (%d iterations in all), then fused: %.2f s wall, %.2f s CPU\n", iterations,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(), CpuSeconds() - cpu0);
+    rb::WriteMesh(fused_smoothed.mesh, out + "/ours_fused_smoothed.ply");
+    ScoreMesh(fused_smoothed.mesh, union_points, "ours (scans smoothed, TSDF)");
   }
   return 0;
 }
@@ -259,6 +272,7 @@ int RunSynthetic(const std::string& out) {
     rb::RangeGridScanOptions go;
     go.sigma_range = sigma;
     go.sigma_lateral = sigma / 4;
+    go.min_cos_incidence = 1.0;  // the synthetic scanner's noise does not grow at grazing incidence
     scans.push_back(rb::MakeRangeGridScan(rb::RenderSyntheticScan(truth, poses[k], so), "view" + std::to_string(k),
                                           go));
   }
@@ -287,10 +301,33 @@ int RunSynthetic(const std::string& out) {
   const rb::NoisyMesh fused = rb::FuseScans(scans, poses, {}, &fs);
   std::printf("  %s\n", fs.BriefReport().c_str());
   score(fused.mesh, "fused (true poses)");
+  double cpu0 = CpuSeconds();
   rb::SmoothSummary ss;
   const rb::Mesh smoothed = rb::Smooth(fused, {}, &ss);
-  score(smoothed, "fused + smoothed");
+  std::printf("  smoothing the fused mesh: %d iterations, %.2f s CPU\n", ss.iterations, CpuSeconds() - cpu0);
+  score(smoothed, "fused, then smoothed");
   rb::WriteMesh(smoothed, out + "/fused_smoothed.ply");
+  cpu0 = CpuSeconds();
+  std::vector<rb::Scan> smoothed_scans;
+  int smooth_iterations = 0;
+  for (const rb::Scan& scan : scans) {
+    rb::SmoothSummary one;
+    smoothed_scans.push_back(rb::SmoothScan(scan, {}, &one));
+    smooth_iterations += one.iterations;
+  }
+  const rb::NoisyMesh fused_smoothed_scans = rb::FuseScans(smoothed_scans, poses, {}, nullptr);
+  std::printf("  smoothing each scan: %d iterations in all, %.2f s CPU (with fusion)\n", smooth_iterations,
+              CpuSeconds() - cpu0);
+  {
+    rb::Vertices pts = smoothed_scans[0].noisy.mesh.V;
+    for (int i = 0; i < pts.rows(); ++i) pts.row(i) = poses[0] * Eigen::Vector3d(pts.row(i));
+    const Eigen::VectorXd d = rb::DistanceToSurface(pts, truth);
+    std::vector<double> v(d.data(), d.data() + d.size());
+    std::printf("  single scan smoothed: median %.4f mm, p95 %.4f mm\n", 1e3 * Percentile(v, 0.5),
+                1e3 * Percentile(v, 0.95));
+  }
+  score(fused_smoothed_scans.mesh, "scans smoothed, then fused");
+  rb::WriteMesh(fused_smoothed_scans.mesh, out + "/smoothed_scans_fused.ply");
   // Alignment from poses perturbed by up to 5 deg / 1 cm.
   std::mt19937_64 rng(3);
   std::vector<Eigen::Isometry3d> start = poses;
@@ -301,9 +338,193 @@ int RunSynthetic(const std::string& out) {
   std::printf("  alignment: start worst %.2f deg / %.2f mm -> %.4f deg / %.4f mm (%s)\n", before.max_deg,
               1e3 * before.max_translation, after.max_deg, 1e3 * after.max_translation, rs.BriefReport().c_str());
   const rb::NoisyMesh fused_aligned = rb::FuseScans(scans, aligned, {}, nullptr);
-  rb::Mesh moved = fused_aligned.mesh;  // aligned frame has scan 0 at its true pose already
-  score(moved, "fused (aligned poses)");
-  score(rb::Smooth(fused_aligned, {}, nullptr), "fused (aligned) + smoothed");
+  score(fused_aligned.mesh, "fused (aligned poses)");
+  std::vector<rb::Scan> smoothed_for_aligned;
+  for (const rb::Scan& scan : scans) smoothed_for_aligned.push_back(rb::SmoothScan(scan));
+  score(rb::FuseScans(smoothed_for_aligned, aligned, {}, nullptr).mesh, "aligned, scans smoothed, fused");
+  return 0;
+}
+
+
+// Per ordered pair of scans: distances of a's interior, non-grazing vertices (every 4th) to b's triangulated
+// surface, for several pose sets on one common point set (the points within 1 mm of b under every pose set), so
+// that a pose set closer to the truth shows as smaller residuals. Unweighted: no noise model involved.
+int RunResiduals(const std::string& dir, const std::vector<std::string>& confs) {
+  const Bunny b = ReadBunny(dir);
+  std::vector<std::vector<Eigen::Isometry3d>> sets;
+  for (const std::string& conf : confs) {
+    const std::vector<rb::ScanPose> poses = rb::ReadScanPoses(conf);
+    std::vector<Eigen::Isometry3d> estimate;
+    for (const char* name : kScans) estimate.push_back(rb::FindScanPose(poses, name, conf).world_from_scan);
+    sets.push_back(estimate);
+  }
+  const size_t n = b.scans.size(), m = sets.size();
+  // Interior vertices: not within two rings of the mesh boundary.
+  std::vector<std::vector<char>> near_boundary(n);
+  for (size_t s = 0; s < n; ++s) {
+    const rb::Mesh& mesh = b.scans[s].noisy.mesh;
+    std::vector<char> mark(mesh.num_vertices(), 0);
+    const rb::EdgeTopology topology = rb::ComputeEdgeTopology(mesh);
+    for (int e = 0; e < topology.edges.rows(); ++e) {
+      if (topology.edge_faces.size(e) == 1) mark[topology.edges(e, 0)] = mark[topology.edges(e, 1)] = 1;
+    }
+    for (int ring = 0; ring < 2; ++ring) {
+      std::vector<char> next = mark;
+      for (int f = 0; f < mesh.num_faces(); ++f) {
+        const bool any = mark[mesh.F(f, 0)] || mark[mesh.F(f, 1)] || mark[mesh.F(f, 2)];
+        if (any) next[mesh.F(f, 0)] = next[mesh.F(f, 1)] = next[mesh.F(f, 2)] = 1;
+      }
+      mark = next;
+    }
+    near_boundary[s] = mark;
+  }
+  std::vector<double> total2(m, 0.0);
+  std::vector<std::vector<double>> all(m);
+  long long total_count = 0;
+  std::printf("# pair points  rms_mm(per pose set: %s)  median_mm\n", [&] {
+    std::string names;
+    for (const std::string& c : confs) names += rb::FileBaseName(c) + " ";
+    return names;
+  }().c_str());
+  for (size_t a = 0; a < n; ++a) {
+    const rb::Scan& sa = b.scans[a];
+    std::vector<int> ids;
+    for (int i = 0; i < sa.num_vertices(); i += 4) {
+      if (near_boundary[a][i] || sa.normal.row(i).squaredNorm() < 0.5) continue;
+      if (-sa.normal.row(i).dot(sa.ray.row(i)) < 0.3) continue;
+      ids.push_back(i);
+    }
+    for (size_t c = 0; c < n; ++c) {
+      if (c == a) continue;
+      std::vector<Eigen::VectorXd> d(m);
+      for (size_t k = 0; k < m; ++k) {
+        const Eigen::Isometry3d c_from_a = sets[k][c].inverse() * sets[k][a];
+        rb::Vertices pts(ids.size(), 3);
+        for (size_t j = 0; j < ids.size(); ++j) pts.row(j) = c_from_a * Eigen::Vector3d(sa.noisy.mesh.V.row(ids[j]));
+        d[k] = rb::DistanceToSurface(pts, b.scans[c].noisy.mesh);
+      }
+      std::vector<std::vector<double>> kept(m);
+      for (size_t j = 0; j < ids.size(); ++j) {
+        bool ok = true;
+        for (size_t k = 0; k < m; ++k) ok = ok && d[k](j) < 1e-3;
+        if (!ok) continue;
+        for (size_t k = 0; k < m; ++k) kept[k].push_back(d[k](j));
+      }
+      if (kept[0].size() < 50) continue;
+      total_count += kept[0].size();
+      std::printf("%-9s %-9s %6zu ", kScans[a], kScans[c], kept[0].size());
+      for (size_t k = 0; k < m; ++k) {
+        std::printf(" %.4f", 1e3 * Rms(kept[k]));
+        for (double x : kept[k]) total2[k] += x * x;
+        all[k].insert(all[k].end(), kept[k].begin(), kept[k].end());
+      }
+      std::printf("  |");
+      for (size_t k = 0; k < m; ++k) std::printf(" %.4f", 1e3 * Percentile(kept[k], 0.5));
+      std::printf("\n");
+    }
+  }
+  for (size_t k = 0; k < m; ++k) {
+    std::printf("%s: %lld points, RMS %.4f mm, median %.4f mm, p90 %.4f mm\n", confs[k].c_str(), total_count,
+                1e3 * std::sqrt(total2[k] / total_count), 1e3 * Percentile(all[k], 0.5), 1e3 * Percentile(all[k], 0.9));
+  }
+  return 0;
+}
+
+
+// Alignment from a given pose file with option overrides key=value (for the sensitivity runs in the journal).
+int RunAlign(const std::string& dir, const std::string& start_conf, const std::string& out_conf,
+             const std::vector<std::string>& overrides) {
+  rb::RangeGridScanOptions so;
+  rb::RegisterOptions ro;
+  for (const std::string& kv : overrides) {
+    const size_t eq = kv.find('=');
+    RB_CHECK(eq != std::string::npos, "override ", kv, " is not key=value");
+    const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
+    const double v = std::stod(value);
+    if (key == "sigma_range") so.sigma_range = v;
+    else if (key == "sigma_lateral") so.sigma_lateral = v;
+    else if (key == "slide") ro.slide_sigma_edges = v;
+    else if (key == "robust") ro.robust_scale_sigma = v;
+    else if (key == "normal_angle") ro.max_normal_angle_deg = v;
+    else if (key == "samples") ro.samples_per_scan = static_cast<int>(v);
+    else if (key == "final_samples") ro.final_samples_per_scan = static_cast<int>(v);
+    else if (key == "iterations") ro.iterations_per_level = static_cast<int>(v);
+    else if (key == "seed") ro.seed = static_cast<std::uint64_t>(v);
+    else if (key == "last_level") ro.max_distance_edges.back() = v;
+    else if (key == "rings") ro.boundary_rings = static_cast<int>(v);
+    else if (key == "min_cos") so.min_cos_incidence = v;
+    else RB_FAIL("unknown override ", key);
+  }
+  const std::vector<rb::ScanPose> conf = rb::ReadScanPoses(dir + "/bun.conf");
+  const std::vector<rb::ScanPose> start_file = rb::ReadScanPoses(start_conf);
+  std::vector<rb::Scan> scans;
+  std::vector<Eigen::Isometry3d> reference, start;
+  for (const char* name : kScans) {
+    scans.push_back(rb::ReadScan(dir + "/" + name, so));
+    reference.push_back(rb::FindScanPose(conf, name, "bun.conf").world_from_scan);
+    start.push_back(rb::FindScanPose(start_file, name, start_conf).world_from_scan);
+  }
+  const double cpu0 = CpuSeconds();
+  rb::RegisterSummary summary;
+  const std::vector<Eigen::Isometry3d> poses = rb::RegisterScans(scans, start, ro, &summary);
+  const PoseStats after = Errors(poses, reference);
+  std::printf("aligned worst %.4f deg / %.4f mm (%.1f s CPU; %s)\n", after.max_deg, 1e3 * after.max_translation,
+              CpuSeconds() - cpu0, summary.BriefReport().c_str());
+  for (size_t k = 1; k < poses.size(); ++k) {
+    const rb::PoseError e = rb::RelativePoseError(poses[0], poses[k], reference[0], reference[k]);
+    std::printf("  %-12s %.4f deg %.4f mm\n", kScans[k], e.rotation_deg, 1e3 * e.translation);
+  }
+  WritePoses(scans, poses, out_conf);
+  return 0;
+}
+
+
+// Sequential alignment, for the joint-vs-sequential comparison: scan k is registered (our pairwise GICP) to the
+// union of scans 0..k−1 as already placed, in the order of kScans; no global refinement afterwards.
+int RunSequential(const std::string& dir, const std::string& start_conf, const std::string& out_conf) {
+  const Bunny b = ReadBunny(dir);
+  const std::vector<rb::ScanPose> start_file = rb::ReadScanPoses(start_conf);
+  std::vector<Eigen::Isometry3d> poses;
+  for (const char* name : kScans) poses.push_back(rb::FindScanPose(start_file, name, start_conf).world_from_scan);
+  const double cpu0 = CpuSeconds();
+  for (size_t k = 1; k < b.scans.size(); ++k) {
+    rb::Scan merged;
+    merged.name = "scans before " + std::string(kScans[k]);
+    int nv = 0, nf = 0;
+    for (size_t j = 0; j < k; ++j) {
+      nv += b.scans[j].num_vertices();
+      nf += b.scans[j].noisy.mesh.num_faces();
+    }
+    merged.noisy.mesh.V.resize(nv, 3);
+    merged.noisy.mesh.F.resize(nf, 3);
+    merged.ray.resize(nv, 3);
+    merged.normal.resize(nv, 3);
+    int v0 = 0, f0 = 0;
+    for (size_t j = 0; j < k; ++j) {
+      const rb::Scan& s = b.scans[j];
+      const Eigen::Matrix3d R = poses[j].linear();
+      for (int i = 0; i < s.num_vertices(); ++i) {
+        merged.noisy.mesh.V.row(v0 + i) = (poses[j] * Eigen::Vector3d(s.noisy.mesh.V.row(i))).transpose();
+        merged.ray.row(v0 + i) = (R * s.ray.row(i).transpose()).transpose();
+        merged.normal.row(v0 + i) = (R * s.normal.row(i).transpose()).transpose();
+        merged.noisy.covariance.push_back(R * s.noisy.covariance[i] * R.transpose());
+      }
+      merged.noisy.mesh.F.middleRows(f0, s.noisy.mesh.num_faces()) = s.noisy.mesh.F.array() + v0;
+      merged.mean_edge += s.mean_edge / k;
+      v0 += s.num_vertices();
+      f0 += s.noisy.mesh.num_faces();
+    }
+    const std::vector<rb::Scan> pair = {merged, b.scans[k]};
+    poses[k] = rb::RegisterScans(pair, {Eigen::Isometry3d::Identity(), poses[k]})[1];
+  }
+  const PoseStats after = Errors(poses, b.reference);
+  std::printf("sequential: worst %.4f deg / %.4f mm (%.1f s CPU)\n", after.max_deg, 1e3 * after.max_translation,
+              CpuSeconds() - cpu0);
+  for (size_t k = 1; k < poses.size(); ++k) {
+    const rb::PoseError e = rb::RelativePoseError(poses[0], poses[k], b.reference[0], b.reference[k]);
+    std::printf("  %-12s %.4f deg %.4f mm\n", kScans[k], e.rotation_deg, 1e3 * e.translation);
+  }
+  WritePoses(b.scans, poses, out_conf);
   return 0;
 }
 
@@ -328,10 +549,18 @@ int main(int argc, char** argv) {
       return RunBunny(args[1], args[2], seeds, smooth);
     }
     if (args.size() >= 3 && args[0] == "score") return RunScore(args[1], args[2], args.size() > 3 ? args[3] : "");
+    if (args.size() == 4 && args[0] == "sequential") return RunSequential(args[1], args[2], args[3]);
+    if (args.size() >= 4 && args[0] == "align") {
+      return RunAlign(args[1], args[2], args[3], std::vector<std::string>(args.begin() + 4, args.end()));
+    }
+    if (args.size() >= 3 && args[0] == "residuals") {
+      return RunResiduals(args[1], std::vector<std::string>(args.begin() + 2, args.end()));
+    }
     if (args.size() == 2 && args[0] == "synthetic") return RunSynthetic(args[1]);
     std::fprintf(stderr,
                  "usage: bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth] | score DIR POSES.conf [MESH.ply] | "
-                 "synthetic OUT\n");
+                 "synthetic OUT | align DIR START.conf OUT.conf [key=value...] | sequential DIR START.conf OUT.conf | "
+                 "residuals DIR A.conf [B.conf...]\n");
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_fuse: error: %s\n", e.what());

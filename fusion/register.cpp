@@ -40,7 +40,7 @@ struct ScanIndex {
   Eigen::AlignedBox3d box;           // scan frame
 };
 
-void BuildIndex(const Scan& scan, std::uint64_t seed, ScanIndex* index) {
+void BuildIndex(const Scan& scan, std::uint64_t seed, int rings, ScanIndex* index) {
   const Mesh& mesh = scan.noisy.mesh;
   const int nv = mesh.num_vertices();
   index->boundary.assign(nv, 0);
@@ -50,6 +50,15 @@ void BuildIndex(const Scan& scan, std::uint64_t seed, ScanIndex* index) {
       index->boundary[topology.edges(e, 0)] = 1;
       index->boundary[topology.edges(e, 1)] = 1;
     }
+  }
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<char> grown = index->boundary;
+    for (int f = 0; f < mesh.num_faces(); ++f) {
+      if (index->boundary[mesh.F(f, 0)] || index->boundary[mesh.F(f, 1)] || index->boundary[mesh.F(f, 2)]) {
+        grown[mesh.F(f, 0)] = grown[mesh.F(f, 1)] = grown[mesh.F(f, 2)] = 1;
+      }
+    }
+    index->boundary.swap(grown);
   }
   index->cloud.reset(new pcl::PointCloud<pcl::PointXYZ>);
   for (int i = 0; i < nv; ++i) {
@@ -89,6 +98,7 @@ void RegisterOptions::Check() const {
   RB_CHECK(max_normal_angle_deg > 0 && max_normal_angle_deg <= 180, "max_normal_angle_deg is outside (0, 180]");
   RB_CHECK(slide_sigma_edges > 0, "slide_sigma_edges must be positive");
   RB_CHECK(robust_scale_sigma > 0, "robust_scale_sigma must be positive");
+  RB_CHECK(boundary_rings >= 0 && boundary_rings <= 20, "boundary_rings ", boundary_rings, " is outside 0–20");
   RB_CHECK(min_overlap >= 0 && min_overlap < 1, "min_overlap ", min_overlap, " is outside [0, 1)");
   RB_CHECK(converged_step >= 0, "converged_step must not be negative");
   RB_CHECK(num_threads >= 0, "num_threads must not be negative");
@@ -120,7 +130,7 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
     RB_CHECK(scans[s].normal.rows() == scans[s].num_vertices() && scans[s].ray.rows() == scans[s].num_vertices() &&
                  scans[s].noisy.has_covariance(),
              scans[s].name, ": scan lacks normals, rays or covariances");
-    BuildIndex(scans[s], options.seed + static_cast<std::uint64_t>(s), &index[s]);
+    BuildIndex(scans[s], options.seed + static_cast<std::uint64_t>(s), options.boundary_rings, &index[s]);
     edge += scans[s].mean_edge / n;
   }
   RB_CHECK(edge > 0, "alignment: the scans have no edges");

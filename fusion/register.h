@@ -7,7 +7,7 @@
 // The energy Σ ρ(rᵀ C⁻¹ r) over all overlapping pairs of scans (both directions) is minimised by Gauss–Newton
 // over all poses at once, the first scan fixed; correspondences are rebuilt every iteration, coarse to fine
 // (the largest accepted distance shrinks level by level) with rejection by distance, by normal angle, and of
-// partners on the target's mesh boundary; ρ is Cauchy's loss in σ units.
+// samples and partners near a scan's mesh boundary (boundary_rings); ρ is Cauchy's loss in σ units.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -29,6 +29,9 @@ struct RegisterOptions {
   double max_normal_angle_deg = 45.0;  // reject pairs whose normals differ more, (0, 180]
   double slide_sigma_edges = 10.0;     // s, in mean edge lengths, > 0
   double robust_scale_sigma = 3.0;     // Cauchy scale c in σ units, > 0
+  // Vertices within this many edge rings of a scan's mesh boundary (silhouettes, holes: where range scanners
+  // curl) are neither samples nor partners, [0, 20]. 2: measured on the bunny (docs/journal/fusion.md).
+  int boundary_rings = 2;
   // A scan whose samples find partners in every other scan for less than this share after alignment is an
   // error (it does not overlap the others, or its initial pose is too far off). [0, 1)
   double min_overlap = 0.02;

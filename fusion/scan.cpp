@@ -1,9 +1,11 @@
 #include "fusion/scan.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 
 #include "bayes/noise_model.h"
+#include "bayes/smooth.h"
 #include "core/error.h"
 #include "core/render.h"
 #include "core/topology.h"
@@ -39,6 +41,8 @@ void RangeGridScanOptions::Check() const {
   RB_CHECK(sigma_range > 0 && std::isfinite(sigma_range), "sigma_range ", sigma_range, " must be positive");
   RB_CHECK(sigma_lateral > 0 && std::isfinite(sigma_lateral), "sigma_lateral ", sigma_lateral,
            " must be positive");
+  RB_CHECK(min_cos_incidence > 0 && min_cos_incidence <= 1, "min_cos_incidence ", min_cos_incidence,
+           " is outside (0, 1]");
   RB_CHECK(max_jump_sigma > 0, "max_jump_sigma ", max_jump_sigma, " must be positive");
   RB_CHECK(max_slope_deg >= 0 && max_slope_deg < 89.95, "max_slope_deg ", max_slope_deg, " is outside 0–89.9");
 }
@@ -55,6 +59,14 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   scan.name = name;
   scan.noisy.mesh.V = V;
   const int nv = static_cast<int>(V.rows());
+  // Grid cells as pixel positions: Smooth then solves the scan as an organized mesh (coarse to fine).
+  scan.noisy.pixel.setConstant(nv, 2, -1.0f);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+      if (v >= 0) scan.noisy.pixel.row(v) << static_cast<float>(x), static_cast<float>(y);
+    }
+  }
 
   // Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
   Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
@@ -180,6 +192,13 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   RB_CHECK(!faces.empty(), name, ": empty scan (no triangle: no two neighbouring grid cells hold vertices)");
   scan.noisy.mesh.F = Eigen::Map<const Faces>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
   OrientTowardsSensor(&scan);
+  if (options.min_cos_incidence < 1) {
+    for (int i = 0; i < nv; ++i) {
+      if (scan.normal.row(i).squaredNorm() < 0.5) continue;
+      const double c = std::max(-scan.normal.row(i).dot(scan.ray.row(i)), options.min_cos_incidence);
+      scan.noisy.covariance[i] = RayCovariance(scan.ray.row(i), options.sigma_range / c, options.sigma_lateral);
+    }
+  }
   local.vertices = nv;
   local.faces = scan.noisy.mesh.num_faces();
   local.cut_edges = cuts;
@@ -209,6 +228,14 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   scan.ray = -scan.normal;
   scan.mean_edge = MeanEdgeLength(scan.noisy.mesh);
   return scan;
+}
+
+Scan SmoothScan(const Scan& scan, const SmoothOptions& options, SmoothSummary* summary) {
+  Scan out = scan;
+  out.noisy.mesh = Smooth(scan.noisy, options, summary);
+  out.noisy.mesh.N.resize(0, 3);
+  OrientTowardsSensor(&out);
+  return out;
 }
 
 Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, RangeGridScanSummary* summary) {

@@ -12,6 +12,7 @@
 
 #include <string>
 
+#include "bayes/smooth.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
 
@@ -33,6 +34,10 @@ struct RangeGridScanOptions {
   // are about √2·σ_ray; lateral position comes from a 0.25–0.5 mm grid of known motor steps.
   double sigma_range = 2e-4;    // > 0
   double sigma_lateral = 5e-5;  // > 0
+  // Triangulation scanners lose range precision where the surface turns away from the ray (the laser spot
+  // spreads as 1/cos θ): σ_range / max(cos θ, min_cos_incidence) along the ray, θ between the ray and the
+  // normal; 1: off. (0, 1]. 0.3: measured on the bunny (docs/journal/fusion.md).
+  double min_cos_incidence = 0.3;
   // Edge cut between grid neighbours a, b (as for depth images): cut when the jump along the ray exceeds
   // max_jump_sigma·sqrt(σ_a² + σ_b²) plus tan(max_slope_deg)·(their distance across the ray).
   double max_jump_sigma = 6.0;  // > 0
@@ -55,7 +60,8 @@ struct RangeGridScanSummary {
 // diagonal), none across a cut edge, one triangle for a block of three; counter-clockwise seen from the sensor.
 // Rays: on the Cyberware scans every grid row lies on one line of its column's (y, z) plane (RMS 3–14 µm), the
 // laser ray of that row; the rows fan out from one centre, fitted by least squares; the ray of a vertex runs
-// from that centre to it. Σ = σ_range² r rᵀ + σ_lateral² (I − r rᵀ). Vertices of no triangle are kept (they
+// from that centre to it. Σ = σ² r rᵀ + σ_lateral² (I − r rᵀ), σ = σ_range / max(cos θ, min_cos_incidence)
+// (σ_range for vertices without a normal). Vertices of no triangle are kept (they
 // carry no normal). Throws Error naming the scan on a file without a grid or without any vertex.
 Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const RangeGridScanOptions& options = {},
                        RangeGridScanSummary* summary = nullptr);
@@ -64,6 +70,11 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
 // meshes from depth images), else the generic noise model and rays opposite to the vertex normals. Throws
 // Error naming the scan when it has no faces.
 Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name);
+
+// The scan smoothed by Bayesian smoothing (bayes/smooth.h) with its own covariances, before fusion: same
+// vertices, faces, rays and covariances, smoothed positions and their normals. Range-grid scans carry their grid
+// cells as pixel positions, so Smooth solves them as organized meshes.
+Scan SmoothScan(const Scan& scan, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
 // Reads a scan file: a PLY with range_grid → MakeRangeGridScan, any other mesh file → MakeScanFromMesh.
 // Throws Error naming the file when it is empty (no vertices or no faces after triangulation).

@@ -75,6 +75,8 @@ NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Iso
   RB_CHECK(total <= options.max_voxels, "fusion: ", dims.x(), "x", dims.y(), "x", dims.z(), " = ", total,
            " voxels of ", voxel, " exceed max_voxels ", options.max_voxels, "; use a larger voxel size");
   std::vector<float> D(static_cast<size_t>(total), 0.0f), W(static_cast<size_t>(total), 0.0f);
+  // Σ w²·(variance of the measurement along its normal): the variance of the weighted mean is this / (Σw)².
+  std::vector<float> V2(static_cast<size_t>(total), 0.0f);
   const auto at = [&](int x, int y, int z) {
     return (static_cast<size_t>(z) * dims.y() + y) * dims.x() + x;
   };
@@ -92,6 +94,7 @@ NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Iso
       const double cos_ray = -n_s.dot(r_s);
       if (cos_ray < options.min_cos_ray) continue;
       const double w0 = cos_ray / r_s.dot(scan.noisy.covariance[i] * r_s);
+      const double variance_along_normal = n_s.dot(scan.noisy.covariance[i] * n_s);
       const Eigen::Vector3d p = world_from_scan[s] * Eigen::Vector3d(scan.noisy.mesh.V.row(i));
       const Eigen::Vector3d n = R * n_s;
       ++measurements;
@@ -110,6 +113,7 @@ NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Iso
             const size_t k = at(x, y, z);
             D[k] += static_cast<float>(w * along);
             W[k] += static_cast<float>(w);
+            V2[k] += static_cast<float>(w * w * variance_along_normal);
           }
         }
       }
@@ -119,6 +123,7 @@ NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Iso
   for (size_t k = 0; k < D.size(); ++k) {
     if (W[k] >= min_weight) {
       D[k] /= W[k];
+      V2[k] = static_cast<float>(V2[k] / (static_cast<double>(W[k]) * W[k]));
       ++observed;
     } else {
       W[k] = 0;
@@ -146,8 +151,7 @@ NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Iso
     const Eigen::Vector3d p = p0 + t * (p1 - p0);
     const int id = static_cast<int>(xyz.size() / 3);
     xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
-    const double w = (1 - t) * W[k0] + t * W[k1];
-    vertex_sigma2.push_back(1.0 / w);
+    vertex_sigma2.push_back((1 - t) * V2[k0] + t * V2[k1]);
     edge_vertex.emplace(key, id);
     return id;
   };

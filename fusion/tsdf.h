@@ -43,7 +43,9 @@ struct FuseSummary {
 };
 
 // Fuses `scans` placed by `world_from_scan` into one mesh in the world frame. The result's covariance per
-// vertex is isotropic with σ² = 1 / (fused information), interpolated along the cube edge (what Smooth reads).
+// vertex is isotropic with σ² the variance of the voxels' weighted mean, Σ w_i² σ_i² / (Σ w_i)² with σ_i² a
+// measurement's variance along its normal, interpolated along the cube edge (what Smooth reads). It treats the
+// measurements as independent and ignores that neighbouring vertices share them.
 // Throws Error on mismatched sizes, an empty scan set, or a grid larger than max_voxels.
 NoisyMesh FuseScans(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& world_from_scan,
                     const FuseOptions& options = {}, FuseSummary* summary = nullptr);

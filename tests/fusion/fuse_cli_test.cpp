@@ -54,6 +54,22 @@ TEST(FuseCli, AlignsAndFusesTwoBunnyPiecesFromPerturbedPoses) {
   EXPECT_NE(run.output.find("bun000_piece.ply bun045_piece.ply"), std::string::npos) << run.output;
 }
 
+// --smooth smooths each scan before fusion: the model changes and each scan's smoothing is reported.
+TEST(FuseCli, SmoothChangesTheModel) {
+  const std::string dir = TempDir("smooth");
+  const std::string conf = std::string(RB_SOURCE_DIR) + "/" + kData + "pieces.conf";
+  const std::string common = "fuse " + Pieces() + " --poses " + conf + " --no-align -q --out " + dir;
+  const RunResult plain = RunRangebayes(common + "/plain");
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  const RunResult smoothed = RunRangebayes(common + "/smoothed --smooth");
+  ASSERT_EQ(smoothed.exit_code, 0) << smoothed.output;
+  EXPECT_NE(smoothed.output.find("smoothing:  bun045_piece.ply: "), std::string::npos) << smoothed.output;
+  const Mesh a = ReadMesh(dir + "/plain/fused.ply"), b = ReadMesh(dir + "/smoothed/fused.ply");
+  ASSERT_GT(a.num_faces(), 5000);
+  ASSERT_GT(b.num_faces(), 5000);
+  EXPECT_TRUE(a.V.rows() != b.V.rows() || !a.V.isApprox(b.V));
+}
+
 TEST(FuseCli, PoseFileWithoutTheScanIsAClearError) {
   const std::string dir = TempDir("missing");
   std::ofstream(dir + "/one.conf") << "bmesh bun000_piece.ply 0 0 0 0 0 0 1\n";
