@@ -12,14 +12,13 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// AVX-512 and AVX2 kernels, chosen at run time (the default build targets baseline x86-64). GCC only: its
+// AVX-512 kernels, chosen at run time (the default build targets baseline x86-64). GCC only: its
 // optimize("fp-contract=off") keeps every multiply and add separately rounded as in the portable code, which
 // is what makes both paths give the same bytes (clang would contract them into FMAs).
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define RB_SMOOTHING_AVX512 1
 #include <immintrin.h>
 #define RB_AVX512_KERNEL __attribute__((target("avx512f,avx512vl,avx512dq"), optimize("fp-contract=off")))
-#define RB_AVX2_KERNEL __attribute__((target("avx2"), optimize("fp-contract=off")))
 #else
 #define RB_SMOOTHING_AVX512 0
 #endif
@@ -48,22 +47,14 @@ inline Eigen::Vector3d Position(const double* x, int v) { return Eigen::Vector3d
 SmoothingKernel g_kernel = SmoothingKernel::kAuto;
 
 // The instruction set of the kernels Evaluate runs now.
-enum class Isa { kPortable, kAvx2, kAvx512 };
+enum class Isa { kPortable, kAvx512 };
 
 #if RB_SMOOTHING_AVX512
 Isa ActiveIsa() {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  static const bool avx512 = avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+  static const bool avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
                              __builtin_cpu_supports("avx512dq");
-  switch (g_kernel) {
-    case SmoothingKernel::kPortable:
-      return Isa::kPortable;
-    case SmoothingKernel::kAvx2:
-      return avx2 ? Isa::kAvx2 : Isa::kPortable;
-    case SmoothingKernel::kAuto:
-      break;
-  }
-  return avx512 ? Isa::kAvx512 : avx2 ? Isa::kAvx2 : Isa::kPortable;
+  if (g_kernel == SmoothingKernel::kPortable) return Isa::kPortable;
+  return avx512 ? Isa::kAvx512 : Isa::kPortable;
 }
 
 // The square-root face pass (Evaluate's pass 2) over faces [begin, end), eight faces per step in the lanes of
@@ -281,156 +272,6 @@ RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const dou
   return sum;
 }
 
-// The same three kernels for CPUs with AVX2 but not AVX-512: four faces per step, masks as vectors, blends
-// instead of masked adds, scalar stores instead of scatters. Same operations per lane, same bytes.
-#define RB_AVX2_LANE_MASK(mask32) _mm256_castsi256_pd(_mm256_cvtepi32_epi64(mask32))
-
-RB_AVX2_KERNEL double SqrtFacePassAvx2(const SqrtFacePassInput& in, int begin, int end, double sum) {
-  const __m128i lanes = _mm_setr_epi32(0, 1, 2, 3);
-  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5);
-  const __m256d beta = _mm256_set1_pd(in.beta), global_e2 = _mm256_set1_pd(in.e2);
-  alignas(32) double energy[4], out[3][4];
-  alignas(16) int count_lanes[4];
-  for (int t0 = begin; t0 < end; t0 += 4) {
-    const int n = std::min(4, end - t0);
-    const __m128i valid32 = _mm_cmpgt_epi32(_mm_set1_epi32(n), lanes);
-    const __m256d valid = RB_AVX2_LANE_MASK(valid32);
-    const __m128i t = _mm_add_epi32(_mm_set1_epi32(t0), lanes);
-    const __m128i t3 = _mm_add_epi32(t, _mm_add_epi32(t, t));
-    const __m128i lo = _mm_maskload_epi32(in.offsets + t0, valid32);
-    const __m128i count = _mm_sub_epi32(_mm_maskload_epi32(in.offsets + t0 + 1, valid32), lo);
-    _mm_store_si128(reinterpret_cast<__m128i*>(count_lanes), count);
-    int max_count = 0;
-    for (int l = 0; l < n; ++l) max_count = std::max(max_count, count_lanes[l]);
-    const __m256d ntx = _mm256_mask_i32gather_pd(zero, in.normals, t3, valid, 8);
-    const __m256d nty = _mm256_mask_i32gather_pd(zero, in.normals + 1, t3, valid, 8);
-    const __m256d ntz = _mm256_mask_i32gather_pd(zero, in.normals + 2, t3, valid, 8);
-    const __m256d e2t = in.face_e2 != nullptr ? _mm256_maskload_pd(in.face_e2 + t0, _mm256_castpd_si256(valid)) : zero;
-    __m256d e = zero, gx = zero, gy = zero, gz = zero;
-    for (int k = 0; k < max_count; ++k) {
-      const __m128i m32 = _mm_cmpgt_epi32(count, _mm_set1_epi32(k));
-      const __m256d m = RB_AVX2_LANE_MASK(m32);
-      const __m128i s = _mm_mask_i32gather_epi32(_mm_setzero_si128(), in.neighbours, _mm_add_epi32(lo, _mm_set1_epi32(k)), m32, 4);
-      const __m128i s3 = _mm_add_epi32(s, _mm_add_epi32(s, s));
-      const __m256d dx = _mm256_sub_pd(ntx, _mm256_mask_i32gather_pd(zero, in.normals, s3, m, 8));
-      const __m256d dy = _mm256_sub_pd(nty, _mm256_mask_i32gather_pd(zero, in.normals + 1, s3, m, 8));
-      const __m256d dz = _mm256_sub_pd(ntz, _mm256_mask_i32gather_pd(zero, in.normals + 2, s3, m, 8));
-      const __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
-      __m256d a;
-      if (in.face_e2 != nullptr) {
-        const __m256d e2s = _mm256_mask_i32gather_pd(zero, in.face_e2, s, m, 8);
-        a = _mm256_add_pd(d2, _mm256_mul_pd(half, _mm256_add_pd(e2t, e2s)));
-      } else {
-        a = _mm256_add_pd(d2, global_e2);
-      }
-      const __m256d v = _mm256_sqrt_pd(a);
-      const __m256d w = _mm256_div_pd(one, v);
-      e = _mm256_blendv_pd(e, _mm256_add_pd(e, v), m);
-      gx = _mm256_blendv_pd(gx, _mm256_add_pd(gx, _mm256_mul_pd(w, dx)), m);
-      gy = _mm256_blendv_pd(gy, _mm256_add_pd(gy, _mm256_mul_pd(w, dy)), m);
-      gz = _mm256_blendv_pd(gz, _mm256_add_pd(gz, _mm256_mul_pd(w, dz)), m);
-    }
-    if (in.h != nullptr) {
-      const __m256d inv = _mm256_mul_pd(_mm256_maskload_pd(in.inverse_length + t0, _mm256_castpd_si256(valid)), beta);
-      const __m256d live = _mm256_cmp_pd(inv, zero, _CMP_NEQ_UQ);
-      const __m256d ng = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ntx, gx), _mm256_mul_pd(nty, gy)), _mm256_mul_pd(ntz, gz));
-      _mm256_store_pd(out[0], _mm256_and_pd(live, _mm256_mul_pd(_mm256_sub_pd(gx, _mm256_mul_pd(ntx, ng)), inv)));
-      _mm256_store_pd(out[1], _mm256_and_pd(live, _mm256_mul_pd(_mm256_sub_pd(gy, _mm256_mul_pd(nty, ng)), inv)));
-      _mm256_store_pd(out[2], _mm256_and_pd(live, _mm256_mul_pd(_mm256_sub_pd(gz, _mm256_mul_pd(ntz, ng)), inv)));
-      for (int l = 0; l < n; ++l) {
-        double* h = in.h + 3 * static_cast<size_t>(t0 + l);
-        h[0] = out[0][l];
-        h[1] = out[1][l];
-        h[2] = out[2][l];
-      }
-    }
-    _mm256_store_pd(energy, _mm256_mul_pd(half, e));
-    for (int l = 0; l < n; ++l) sum += energy[l];
-  }
-  return sum;
-}
-
-RB_AVX2_KERNEL void NormalsAvx2(const double* x, const int* faces, const char* active, int begin, int end,
-                                double* normals, double* inverse_length) {
-  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
-  const __m256d infinity = _mm256_set1_pd(std::numeric_limits<double>::infinity());
-  alignas(32) double out[4][4];
-  for (int t0 = begin; t0 < end; t0 += 4) {
-    const int n = std::min(4, end - t0);
-    alignas(16) int on_lanes[4] = {0, 0, 0, 0};
-    for (int l = 0; l < n; ++l) on_lanes[l] = active[t0 + l] ? -1 : 0;
-    const __m128i on32 = _mm_load_si128(reinterpret_cast<const __m128i*>(on_lanes));
-    const __m256d on = RB_AVX2_LANE_MASK(on32);
-    const __m128i t = _mm_add_epi32(_mm_set1_epi32(t0), _mm_setr_epi32(0, 1, 2, 3));
-    const __m128i t3 = _mm_add_epi32(t, _mm_add_epi32(t, t));
-    __m256d px[3], py[3], pz[3];
-    for (int k = 0; k < 3; ++k) {
-      const __m128i v = _mm_mask_i32gather_epi32(_mm_setzero_si128(), faces + k, t3, on32, 4);
-      const __m128i v3 = _mm_add_epi32(v, _mm_add_epi32(v, v));
-      px[k] = _mm256_mask_i32gather_pd(zero, x, v3, on, 8);
-      py[k] = _mm256_mask_i32gather_pd(zero, x + 1, v3, on, 8);
-      pz[k] = _mm256_mask_i32gather_pd(zero, x + 2, v3, on, 8);
-    }
-    const __m256d ax = _mm256_sub_pd(px[1], px[0]), ay = _mm256_sub_pd(py[1], py[0]), az = _mm256_sub_pd(pz[1], pz[0]);
-    const __m256d bx = _mm256_sub_pd(px[2], px[0]), by = _mm256_sub_pd(py[2], py[0]), bz = _mm256_sub_pd(pz[2], pz[0]);
-    const __m256d cx = _mm256_sub_pd(_mm256_mul_pd(ay, bz), _mm256_mul_pd(az, by));
-    const __m256d cy = _mm256_sub_pd(_mm256_mul_pd(az, bx), _mm256_mul_pd(ax, bz));
-    const __m256d cz = _mm256_sub_pd(_mm256_mul_pd(ax, by), _mm256_mul_pd(ay, bx));
-    const __m256d length2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(cx, cx), _mm256_mul_pd(cy, cy)), _mm256_mul_pd(cz, cz));
-    const __m256d length = _mm256_sqrt_pd(length2);
-    const __m256d good = _mm256_and_pd(on, _mm256_and_pd(_mm256_cmp_pd(length, zero, _CMP_GT_OQ),
-                                                         _mm256_cmp_pd(length, infinity, _CMP_LT_OQ)));
-    const __m256d inv = _mm256_and_pd(good, _mm256_div_pd(one, length));
-    _mm256_store_pd(out[0], _mm256_and_pd(good, _mm256_mul_pd(cx, inv)));
-    _mm256_store_pd(out[1], _mm256_and_pd(good, _mm256_mul_pd(cy, inv)));
-    _mm256_store_pd(out[2], _mm256_and_pd(good, _mm256_mul_pd(cz, inv)));
-    _mm256_store_pd(out[3], inv);
-    for (int l = 0; l < n; ++l) {
-      double* normal = normals + 3 * static_cast<size_t>(t0 + l);
-      normal[0] = out[0][l];
-      normal[1] = out[1][l];
-      normal[2] = out[2][l];
-      inverse_length[t0 + l] = out[3][l];
-    }
-  }
-}
-
-RB_AVX2_KERNEL double GatherAvx2(const double* x, const double* z, const double* information, bool isotropic,
-                                 const int* corner_offsets, const int* corners, const int* corner_edges,
-                                 const double* h_t, int begin, int end, double* grad, double sum) {
-  const __m256i xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
-  for (int i = begin; i < end; ++i) {
-    double w[6];
-    if (isotropic) {
-      w[0] = w[3] = w[5] = information[i];
-      w[1] = w[2] = w[4] = 0;
-    } else {
-      for (int k = 0; k < 6; ++k) w[k] = information[6 * static_cast<size_t>(i) + k];
-    }
-    const double rx = x[3 * i] - z[3 * i], ry = x[3 * i + 1] - z[3 * i + 1], rz = x[3 * i + 2] - z[3 * i + 2];
-    const double wx = w[0] * rx + w[1] * ry + w[2] * rz;
-    const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
-    const double wz = w[2] * rx + w[4] * ry + w[5] * rz;
-    if (grad != nullptr) {
-      __m256d s = _mm256_setr_pd(2 * wx, 2 * wy, 2 * wz, 0.0);
-      const int q_end = corner_offsets[i + 1];
-      for (int q = corner_offsets[i]; q < q_end; ++q) {
-        const int t = corners[q] / 3;
-        const int v1 = corner_edges[2 * static_cast<size_t>(q)], v2 = corner_edges[2 * static_cast<size_t>(q) + 1];
-        const __m256d h = _mm256_maskload_pd(h_t + 3 * static_cast<size_t>(t), xyz);
-        const __m256d e = _mm256_sub_pd(_mm256_maskload_pd(x + 3 * static_cast<size_t>(v2), xyz),
-                                        _mm256_maskload_pd(x + 3 * static_cast<size_t>(v1), xyz));
-        const __m256d c = _mm256_sub_pd(_mm256_mul_pd(_mm256_permute4x64_pd(h, 0xC9), _mm256_permute4x64_pd(e, 0xD2)),
-                                        _mm256_mul_pd(_mm256_permute4x64_pd(h, 0xD2), _mm256_permute4x64_pd(e, 0xC9)));
-        s = _mm256_add_pd(s, c);
-      }
-      _mm256_maskstore_pd(grad + 3 * static_cast<size_t>(i), xyz, s);
-    }
-    sum += rx * wx + ry * wy + rz * wz;
-  }
-  return sum;
-}
-#undef RB_AVX2_LANE_MASK
 #else
 Isa ActiveIsa() { return Isa::kPortable; }
 #endif
@@ -443,8 +284,6 @@ const char* SmoothingKernelName() {
   switch (ActiveIsa()) {
     case Isa::kAvx512:
       return "avx512";
-    case Isa::kAvx2:
-      return "avx2";
     case Isa::kPortable:
       break;
   }
@@ -643,11 +482,7 @@ void SmoothingEnergy::ComputeNormals(const double* x) const {
   const Isa isa = ActiveIsa();
   if (isa != Isa::kPortable) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
-      if (isa == Isa::kAvx512) {
-        NormalsAvx512(x, faces_.data(), active_.data(), r.begin(), r.end(), normals_.data(), inverse_length_.data());
-      } else {
-        NormalsAvx2(x, faces_.data(), active_.data(), r.begin(), r.end(), normals_.data(), inverse_length_.data());
-      }
+      NormalsAvx512(x, faces_.data(), active_.data(), r.begin(), r.end(), normals_.data(), inverse_length_.data());
     });
     return;
   }
@@ -781,7 +616,6 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
   const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
   // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
   const bool wide = WideSquareRoot();
-  [[maybe_unused]] const bool avx512 = ActiveIsa() == Isa::kAvx512;
   if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
 #if RB_SMOOTHING_AVX512
   if (wide) {
@@ -799,8 +633,7 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     prior_sum = tbb::parallel_deterministic_reduce(
         tbb::blocked_range<int>(0, nf, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
-          return avx512 ? SqrtFacePassAvx512(input, r.begin(), r.end(), sum)
-                        : SqrtFacePassAvx2(input, r.begin(), r.end(), sum);
+          return SqrtFacePassAvx512(input, r.begin(), r.end(), sum);
         },
         [](double a, double b) { return a + b; });
   } else
@@ -830,11 +663,8 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     const double data_sum = tbb::parallel_deterministic_reduce(
         tbb::blocked_range<int>(0, nv, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
-          return avx512 ? GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(),
-                                       corners_.data(), corner_edges_.data(), contributions, r.begin(), r.end(), grad,
-                                       sum)
-                        : GatherAvx2(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(),
-                                     corners_.data(), corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum);
+          return GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(), corners_.data(),
+                              corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum);
         },
         [](double a, double b) { return a + b; });
     return EnergyParts{data_sum, beta * prior_sum};

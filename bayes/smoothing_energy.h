@@ -29,12 +29,13 @@ struct EnergyParts {
   double total() const { return data + prior; }
 };
 
-// Which kernels SmoothingEnergy::Evaluate runs. kAuto: the widest the CPU has (GCC x86-64 builds: AVX-512,
-// else AVX2, else portable); kPortable: always the portable ones; kAvx2: AVX2 where the CPU has it. All give
-// the same bytes; the switch is for tests and benchmarks and must not be flipped while an evaluation runs.
-enum class SmoothingKernel { kAuto, kPortable, kAvx2 };
+// Which kernels SmoothingEnergy::Evaluate runs. kAuto: AVX-512 where the CPU has it (GCC x86-64 builds), else
+// portable; kPortable: always the portable ones. Both give the same bytes; the switch is for tests and benchmarks
+// and must not be flipped while an evaluation runs. (AVX2 kernels measured within noise of the portable ones and
+// were removed.)
+enum class SmoothingKernel { kAuto, kPortable };
 void SetSmoothingKernel(SmoothingKernel kernel);
-// The kernels Evaluate runs now: "avx512", "avx2" or "portable".
+// The kernels Evaluate runs now: "avx512" or "portable".
 const char* SmoothingKernelName();
 
 class SmoothingEnergy {

@@ -6,7 +6,7 @@
 //       mean angular error (degrees) beside the reference points of docs/journal/benchmarks-sessions-1-4.md.
 //   bench_smooth speed MESH|--synthetic-faces N [--threads N] [--tolerance T] [--noise K]
 //                      [--repeat R] [--gt GT] [--file-covariance]
-//                      [--energy-tolerance E] [--kernel portable|avx2]
+//                      [--energy-tolerance E] [--kernel portable|auto]
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
@@ -121,14 +121,12 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   options.adaptive_epsilon = flags.count("--adaptive-eps") > 0;
   options.multilevel = flags.count("--no-multilevel") == 0;
   if (flags.count("--continuation")) options.epsilon_continuation_stages = std::stoi(flags["--continuation"]);
-  // --kernel portable|avx2: the energy's portable or AVX2 kernels even where the CPU has wider ones (same
+  // --kernel portable|auto: the energy's portable kernels even where the CPU has AVX-512 (same
   // bytes; for A/B timing). Default: the widest the CPU has.
   if (flags.count("--kernel")) {
     const std::string kernel = flags["--kernel"];
-    if (kernel != "portable" && kernel != "avx2" && kernel != "auto") throw std::runtime_error("--kernel: " + kernel);
-    SetSmoothingKernel(kernel == "portable" ? SmoothingKernel::kPortable
-                       : kernel == "avx2"   ? SmoothingKernel::kAvx2
-                                            : SmoothingKernel::kAuto);
+    if (kernel != "portable" && kernel != "auto") throw std::runtime_error("--kernel: " + kernel);
+    SetSmoothingKernel(kernel == "portable" ? SmoothingKernel::kPortable : SmoothingKernel::kAuto);
   }
   return options;
 }
