@@ -445,8 +445,6 @@ void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<i
   for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(first[static_cast<size_t>(smallest[static_cast<size_t>(f)])]++)] = f;
 }
 
-// Coarse-to-fine over `levels` (coarsest solved from its measurements), then the input started from the
-// prolongation of levels[0]'s result.
 Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::time_point deadline,
                   SmoothSummary* summary_out);
 
@@ -459,6 +457,8 @@ Mesh Finish(Mesh result, SmoothSummary summary, Clock::time_point start, double 
   return result;
 }
 
+// Coarse-to-fine over `levels` (coarsest solved from its measurements), then the input started from the
+// prolongation of levels[0]'s result.
 Mesh SmoothCoarseToFine(const NoisyMesh& noisy, const std::vector<GridLevel>& levels, const SmoothOptions& options,
                         Clock::time_point deadline, SmoothSummary* summary_out) {
   const auto start = std::chrono::steady_clock::now();

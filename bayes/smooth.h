@@ -81,7 +81,8 @@ struct SmoothOptions {
   int epsilon_continuation_stages = -1;
   // Seconds for the whole call, continuation stages and coarse levels included (0: no limit). Checked after each
   // iteration; the final solve at the true ε always gets at least one; stages not started when it ran out are
-  // skipped. The result then depends on the machine's speed. [0, 1e6]
+  // skipped (on the adaptive-ε path of generic meshes, each of its solves gets the limit). The result then
+  // depends on the machine's speed. [0, 1e6]
   double time_limit_s = 0;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 

@@ -15,7 +15,7 @@ for s in "${scenes[@]}"; do
   $rb calibrate import-middlebury "$data/$s/calib.txt" --out "$d/rig.yaml" > /dev/null
   t0=$(date +%s.%N); $rb stereo "$data/$s/im0.png" "$data/$s/im1.png" --rig "$d/rig.yaml" --out "$d" --downsample "$ds" -q > "$d/stereo.log"
   t1=$(date +%s.%N); $rb smooth "$d/mesh.ply" "$d/smoothed.ply" -q > "$d/smooth.log"
-  t2=$(date +%s.%N); $rb smooth "$d/mesh.ply" "$d/reference.ply" -q --gap-tolerance 1e-7 > "$d/reference.log"
+  t2=$(date +%s.%N); $rb smooth "$d/mesh.ply" "$d/reference.ply" -q --gap-tolerance 1e-7 --max-iterations 20000 > "$d/reference.log"
   echo "{\"scene\": \"$s\", \"stereo_s\": $(printf %.3f "$(echo "$t1 - $t0" | bc)"), \"smooth_s\": $(printf %.3f "$(echo "$t2 - $t1" | bc)"), \"smooth\": \"$(grep -h '^summary\|^energy\|^distance' "$d/smooth.log" | tr '\n' ' ')\", \"reference\": \"$(grep -h '^summary\|^energy' "$d/reference.log" | tr '\n' ' ')\"}"
   for m in mesh smoothed reference; do $ev eval "$data/$s" "$d/$m.ply"; done
   $ev bilateral "$data/$s" "$d" "$d/bilateral.ply" "$ds"
