@@ -649,10 +649,17 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::t
     stage.progress = nullptr;
     Vertices x;
     double work = 0;
+    // Under a time limit, stage k of S ends by the k/(S+1) mark of the time left: the final solve at the true ε
+    // keeps at least 1/(S+1) of it.
+    const bool limited = deadline != Clock::time_point::max();
+    const Clock::duration left = limited ? deadline - start : Clock::duration::zero();
     for (int s = continuation_stages; s >= 1 && Clock::now() < deadline; --s) {
       stage.sqrt_epsilon_squared = std::min(4.0, options.sqrt_epsilon_squared * std::pow(10.0, s));
+      const int done = continuation_stages - s + 1;
+      const Clock::time_point stage_deadline =
+          limited ? start + left * done / (continuation_stages + 1) : Clock::time_point::max();
       SmoothSummary ss;
-      Mesh r = SmoothWithin(noisy, stage, deadline, &ss);
+      Mesh r = SmoothWithin(noisy, stage, stage_deadline, &ss);
       work += ss.evaluations + ss.coarse_work;
       x = r.V;
       stage.initial_positions = &x;

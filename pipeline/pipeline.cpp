@@ -663,11 +663,19 @@ class Stages {
     if (options.smooth && options.smooth_budget_ms > 0.0 && smooth_tally.smoothed > 0) {
       char line[300];
       std::snprintf(line, sizeof(line),
-                    "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations per result, "
-                    "distance to the optimum %.2g of E on average (estimated)",
+                    "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations of the final "
+                    "solve per result, ",
                     options.smooth_budget_ms, smooth_tally.time_limited, smooth_tally.smoothed,
-                    summary.smooth_iterations_mean, summary.smooth_distance_mean);
-      summary.notices.push_back(line);
+                    summary.smooth_iterations_mean);
+      std::string notice = line;
+      if (std::isfinite(summary.smooth_distance_mean)) {
+        std::snprintf(line, sizeof(line), "distance to the optimum %.2g of E on average (estimated)",
+                      summary.smooth_distance_mean);
+        notice += line;
+      } else {
+        notice += "distance to the optimum unknown (too few iterations to estimate)";
+      }
+      summary.notices.push_back(notice);
     }
     if (ds > 1) {
       summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",

@@ -152,7 +152,8 @@ struct PipelineSummary {
   double frames_per_s = 0.0;         // frames captured and fully processed per wall second
   double latency_mean_ms = 0.0;      // capture-to-sink time per result
   double smooth_iterations_mean = 0.0;  // smoothing iterations per smoothed result
-  double smooth_ms_per_iteration_mean = 0.0;  // measured (setup excluded), mean over the smoothed results
+  double smooth_ms_per_iteration_mean = 0.0;  // smoothing time (setup excluded) per iteration of the final solve
+                                              // (continuation stages included in the time), mean over results
   int smooth_time_limited = 0;       // results the budget stopped
   double smooth_distance_mean = 0.0; // mean estimated distance to the optimum, relative to E (NaN: unknown)
 

@@ -236,6 +236,26 @@ TEST(Smooth, DefaultReachesTheTightMinimumOnARangeGrid) {
   EXPECT_LE(e, e_star * 1.001);
 }
 
+// A time limit far beyond the solve changes nothing (same bytes); one far below it stops the final solve after its
+// first iteration, says so, and still returns a finite mesh.
+TEST(Smooth, TimeLimit) {
+  const NoisyMesh input = testing::RangeGrid(40, 32, 0.03, 0.001, 8);
+  SmoothOptions options;
+  SmoothSummary free_summary, generous_summary, tiny_summary;
+  const Mesh free_result = Smooth(input, options, &free_summary);
+  options.time_limit_s = 1e5;
+  const Mesh generous = Smooth(input, options, &generous_summary);
+  EXPECT_EQ(std::memcmp(free_result.V.data(), generous.V.data(), sizeof(double) * free_result.V.size()), 0);
+  EXPECT_EQ(generous_summary.termination, free_summary.termination);
+  options.time_limit_s = 1e-9;
+  const Mesh tiny = Smooth(input, options, &tiny_summary);
+  EXPECT_EQ(tiny_summary.termination, SmoothTermination::kTimeLimit);
+  EXPECT_EQ(tiny_summary.iterations, 1);
+  EXPECT_TRUE(tiny.V.allFinite());
+  options.time_limit_s = -1;
+  EXPECT_THROW(Smooth(input, options), Error);
+}
+
 // The multilevel path reaches the same minimum as the single-level solve (both tight) on a small range grid.
 TEST(Smooth, MultilevelReachesTheSameMinimum) {
   const NoisyMesh input = testing::RangeGrid(100, 80, 0.02, 0.001, 5);
