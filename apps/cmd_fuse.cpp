@@ -193,7 +193,7 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)");
   sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray (> 0)");
-  sub->add_option("--threads", args->threads, "worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  AddThreadsOption(sub, &args->threads);
   sub->add_option("--view", args->view, "view direction x y z of the pictures (world frame)")->expected(3);
   AddQuietFlag(sub, &args->quiet);
   sub->callback([args] { RunFuse(*args); });

@@ -248,7 +248,7 @@ void AddCommands(CLI::App& app) {
                     "of 16)")
         ->delimiter(',')
         ->check(CLI::Range(1e-9, 2.0 - 1e-9));
-    sub->add_option("--threads", args->threads, "Smoother threads (0: all cores)")->check(CLI::Range(0, 1024));
+    AddThreadsOption(sub, &args->threads);
     AddQuietFlag(sub, &args->quiet);
     sub->callback([args] { RunLearn(*args); });
   }

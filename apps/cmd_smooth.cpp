@@ -222,8 +222,7 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       ->check(CLI::Range(-1, 6));
   sub->add_option("--across-ratio", args->across_ratio,
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
-  sub->add_option("--threads", args->threads, "worker threads, 0 = all cores (the result does not depend on it)")
-      ->check(CLI::Range(0, 1024));
+  AddThreadsOption(sub, &args->threads);
   sub->add_option("--png", args->png, "write a before|after shaded picture (PNG) to this file");
   sub->add_option("--view", args->view, "view direction x y z for --png (model coordinates)")->expected(3);
   sub->add_flag("--ignore-covariance", args->ignore_covariance,

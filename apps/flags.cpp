@@ -18,6 +18,11 @@ void AddToleranceOption(CLI::App* sub, std::string* tolerance) {
       ->check(CLI::IsMember({"fast", "default", "tight"}));
 }
 
+void AddThreadsOption(CLI::App* sub, int* threads) {
+  sub->add_option("--threads", *threads, "Worker threads (0: all cores)")
+      ->check(CLI::Range(0, 1024));
+}
+
 void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px) {
   sub->add_option("--window", *window_px, "Matching window side (px, odd, 1-31; " + default_note + ")")
       ->check(CLI::Range(min_px, 31));

@@ -17,6 +17,9 @@ void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight);
 // --tolerance fast|default|tight: the smoother's stopping preset (ParseSmoothTolerance).
 void AddToleranceOption(CLI::App* sub, std::string* tolerance);
 
+// --threads N: worker threads (0: all cores, [0, 1024]).
+void AddThreadsOption(CLI::App* sub, int* threads);
+
 // --window W: the matching window side (px, odd, 1-31; 0 where allowed: the matcher's default).
 // default_note says what the default is for this subcommand.
 void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px);
