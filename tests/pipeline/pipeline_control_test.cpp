@@ -14,28 +14,15 @@
 #include "core/error.h"
 #include "stereo/synth.h"
 #include "tests/capture/test_util.h"
+#include "tests/pipeline/pipeline_test_util.h"
 
 namespace rangebayes {
 namespace {
 
-std::string MakeRecording(const TempDir& dir, int frames) {
-  SynthOptions o;
-  o.scene = SynthScene::kPlanes;
-  o.frames = frames;
-  o.width = 96;
-  o.height = 72;
-  o.supersample = 1;
-  const std::string folder = dir.path() + "/synth";
-  WriteSyntheticRecording(RenderSynthetic(o), o, folder);
-  return folder;
-}
+using testing::MakeSynthRecording;
 
 PipelineOptions SmallOptions() {
-  PipelineOptions p;
-  p.sgbm.num_disparities = 16;
-  p.spacetime.num_disparities = 16;
-  p.smoothing.tolerance = SmoothTolerance::kFast;
-  p.smoothing.num_threads = 1;
+  PipelineOptions p = testing::SmallPipelineOptions();
   p.decimate = false;
   return p;
 }
@@ -57,7 +44,7 @@ class CollectSink : public PipelineSink {
 
 TEST(PipelineControl, ChangesApplyToLaterFramesAndFullQualityRunsOnce) {
   TempDir dir("control_changes");
-  const Recording rec = OpenRecording(MakeRecording(dir, 6));
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 6));
   PlaybackSource source(rec);
   PipelineControl control;
   PipelineOptions options = SmallOptions();
@@ -94,7 +81,7 @@ TEST(PipelineControl, ChangesApplyToLaterFramesAndFullQualityRunsOnce) {
 
 TEST(PipelineControl, PauseHoldsCaptureUntilResumed) {
   TempDir dir("control_pause");
-  const Recording rec = OpenRecording(MakeRecording(dir, 3));
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
   PlaybackSource source(rec);
   PipelineControl control;
   control.SetPaused(true);  // kept by RunPipeline

@@ -16,32 +16,14 @@
 #include "pipeline/file_sink.h"
 #include "stereo/synth.h"
 #include "tests/capture/test_util.h"
+#include "tests/pipeline/pipeline_test_util.h"
 
 namespace rangebayes {
 namespace {
 namespace fs = std::filesystem;
 
-// A 96×72 synthetic recording of a tilted wall, floor and panel (stereo/synth.h), written once per test.
-std::string MakeSynthRecording(const TempDir& dir, int frames) {
-  SynthOptions o;
-  o.scene = SynthScene::kPlanes;
-  o.frames = frames;
-  o.width = 96;
-  o.height = 72;
-  o.supersample = 1;
-  const std::string folder = dir.path() + "/synth";
-  WriteSyntheticRecording(RenderSynthetic(o), o, folder);
-  return folder;
-}
-
-PipelineOptions SmallOptions() {
-  PipelineOptions p;
-  p.sgbm.num_disparities = 16;
-  p.spacetime.num_disparities = 16;
-  p.smoothing.tolerance = SmoothTolerance::kFast;
-  p.smoothing.num_threads = 1;
-  return p;
-}
+using testing::MakeSynthRecording;
+using testing::SmallPipelineOptions;
 
 class CollectSink : public PipelineSink {
  public:
@@ -83,7 +65,7 @@ TEST(Pipeline, ReplayDeliversEveryFrameThroughAllStages) {
   PlaybackSource source(rec);
   CollectSink sink;
   std::vector<double> progress;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.progress = [&](double f, std::string_view) { progress.push_back(f); };
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
   EXPECT_EQ(s.frames_captured, 3);
@@ -121,7 +103,7 @@ TEST(Pipeline, ReplayIsDeterministic) {
   for (int run = 0; run < 2; ++run) {
     PlaybackSource source(rec);
     CollectSink sink;
-    PipelineOptions options = SmallOptions();
+    PipelineOptions options = SmallPipelineOptions();
     options.decimate = false;
     RunPipeline(source, *rec.rig, options, {&sink});
     ASSERT_EQ(sink.results.size(), 2u);
@@ -140,7 +122,7 @@ TEST(Pipeline, BadFramesAreCountedAndTheRunGoesOn) {
   PlaybackSource source(rec);
   CollectSink sink;
   sink.throw_on_index = 2;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.smooth = false;
   options.decimate = false;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
@@ -161,7 +143,7 @@ TEST(Pipeline, WrongRigIsOneClearError) {
   rig.width = 640;
   rig.height = 480;
   try {
-    RunPipeline(source, rig, SmallOptions(), {});
+    RunPipeline(source, rig, SmallPipelineOptions(), {});
     FAIL() << "a rig of the wrong size must throw";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("the rig is for 640x480 images but frame 0 is 96x72"), std::string::npos)
@@ -174,7 +156,7 @@ TEST(Pipeline, SpaceTimeWindowsCoverTheirFrames) {
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 5));
   PlaybackSource source(rec);
   CollectSink sink;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.matcher = PipelineMatcher::kSpaceTime;
   options.window_frames = 2;
   options.decimate = false;
@@ -207,7 +189,7 @@ TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
     std::atomic<bool>* stop_;
   } stopper(&stop);
   FileSink files(dir.path() + "/out");
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.smooth = false;
   options.decimate = false;
   options.stop = &stop;
@@ -259,7 +241,7 @@ TEST(Pipeline, StereoDownsampleKeepsDepthsInMetres) {
   const Recording rec = OpenRecording(folder);
   PlaybackSource source(rec);
   CollectSink sink;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.stereo_downsample = 2;
   options.sgbm.num_disparities = 64;  // full-resolution pixels: 32 are searched at 96×72
   options.triangulate.downsample = 2;  // every 2nd full-resolution pixel: every pixel of the 96×72 depth
@@ -296,7 +278,7 @@ TEST(Pipeline, SmoothBudgetStopsTheSolve) {
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
   PlaybackSource source(rec);
   CollectSink sink;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.decimate = false;
   options.smooth_budget_ms = 1e-3;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
@@ -322,7 +304,7 @@ TEST(Pipeline, LiveQueuesAccountForEveryFrame) {
   camera_like.speed_factor = 1000.0;             // every 33 µs, far faster than the stages
   PlaybackSource source(rec, camera_like);
   CollectSink sink;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.queue_policy = QueueFullPolicy::kDropOldest;
   options.queue_capacity = 1;
   options.triangulate.downsample = 4;
@@ -340,7 +322,7 @@ TEST(Pipeline, LiveSettingsOnAReplayAsFastAsPossibleDropNothing) {
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 4));
   PlaybackSource source(rec);  // kFastest: not real time
   CollectSink sink;
-  PipelineOptions options = SmallOptions();
+  PipelineOptions options = SmallPipelineOptions();
   options.queue_policy = QueueFullPolicy::kDropOldest;
   options.queue_capacity = 1;
   options.decimate = false;
