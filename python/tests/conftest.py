@@ -30,3 +30,34 @@ def trim_star():
 @pytest.fixture(scope="session")
 def recording_dir():
     return ROOT / "recordings" / "synth_planes_320x240"
+
+
+@pytest.fixture
+def ticks_during():
+    """A function run(call) -> (call's result, ticks): `call` runs while another Python thread appends a
+    timestamp about every millisecond; ticks are those that fell inside the call. With the GIL held for the
+    whole call there would be none."""
+    import threading
+    import time
+
+    def run(call):
+        ticks = []
+        done = threading.Event()
+
+        def ticker():
+            while not done.is_set():
+                ticks.append(time.perf_counter())
+                time.sleep(0.001)
+
+        t = threading.Thread(target=ticker)
+        t.start()
+        try:
+            start = time.perf_counter()
+            result = call()
+            end = time.perf_counter()
+        finally:
+            done.set()
+            t.join()
+        return result, [x for x in ticks if start < x < end]
+
+    return run

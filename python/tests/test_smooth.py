@@ -1,8 +1,6 @@
 """smooth(): the CLI's result byte for byte, keyword validation, errors, progress, the GIL."""
 
 import subprocess
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -93,29 +91,12 @@ def test_progress_callback_and_its_exception(trim_star):
         rb.smooth(m, noise=0.3, tolerance="fast", progress=boom)
 
 
-def test_gil_is_released_during_smooth(trim_star):
+def test_gil_is_released_during_smooth(trim_star, ticks_during):
     m = rb.read_mesh(str(trim_star))
-    ticks = []
-    done = threading.Event()
-
-    def ticker():
-        while not done.is_set():
-            ticks.append(time.perf_counter())
-            time.sleep(0.001)
-
-    t = threading.Thread(target=ticker)
-    t.start()
-    try:
-        start = time.perf_counter()
-        _, summary = rb.smooth(m, noise=0.3, adaptive_epsilon=False, num_threads=1)
-        end = time.perf_counter()
-    finally:
-        done.set()
-        t.join()
-    during = [x for x in ticks if start < x < end]
+    (_, summary), during = ticks_during(lambda: rb.smooth(m, noise=0.3, adaptive_epsilon=False, num_threads=1))
     # With the GIL held the thread could not tick at all during the call.
     assert summary.iterations > 10
-    assert len(during) >= 5, (len(during), end - start)
+    assert len(during) >= 5, len(during)
 
 
 def test_learned_prior_file_and_object(tmp_path, trim_star):

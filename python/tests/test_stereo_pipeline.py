@@ -3,8 +3,6 @@
 import os
 import signal
 import subprocess
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -169,27 +167,12 @@ def test_replay_progress_exception_stops_the_run(recording_dir):
     assert summary.results == 3
 
 
-def test_replay_releases_the_gil(recording_dir):
-    ticks = []
-    done = threading.Event()
-
-    def ticker():
-        while not done.is_set():
-            ticks.append(time.perf_counter())
-            time.sleep(0.001)
-
-    t = threading.Thread(target=ticker)
-    t.start()
-    try:
-        start = time.perf_counter()
-        _, summary = rb.replay(str(recording_dir), playback={"count": 2}, triangulate={"downsample": 2},
-                               smoothing={"tolerance": "fast"})
-        end = time.perf_counter()
-    finally:
-        done.set()
-        t.join()
+def test_replay_releases_the_gil(recording_dir, ticks_during):
+    (_, summary), during = ticks_during(
+        lambda: rb.replay(str(recording_dir), playback={"count": 2}, triangulate={"downsample": 2},
+                          smoothing={"tolerance": "fast"}))
     assert summary.results == 2
-    assert len([x for x in ticks if start < x < end]) >= 5
+    assert len(during) >= 5
 
 
 def test_replay_bad_input_is_a_clear_error(tmp_path, recording_dir):
