@@ -807,9 +807,7 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::t
       result.V(i, 2) = minimum.x[3 * n + 2];
     }
   });
-  summary.time_s = Seconds(start);
-  if (summary_out != nullptr) *summary_out = std::move(summary);
-  return result;
+  return Finish(std::move(result), std::move(summary), start, 0, summary_out);
 }
 
 }  // namespace
