@@ -445,6 +445,135 @@ void SolverOrder(const Mesh& mesh, std::vector<int>* vertex_order, std::vector<i
   for (int f = 0; f < nf; ++f) (*face_order)[static_cast<size_t>(first[static_cast<size_t>(smallest[static_cast<size_t>(f)])]++)] = f;
 }
 
+// One mesh's energy in the solver order (SolverOrder) with the maps back to the caller's order. The energy refers
+// to `ordered` (and to the potential), so a PreparedEnergy is built in place and never moved.
+struct PreparedEnergy {
+  Mesh ordered;
+  std::vector<int> vertex_order;  // solver index → caller's index
+  std::vector<double> face_epsilon_squared;
+  std::unique_ptr<Potential> owned_potential;
+  std::unique_ptr<SmoothingEnergy> energy;
+
+  // #V×3 positions in the caller's order → the solver's state vector, and back.
+  Eigen::VectorXd ToSolver(const Vertices& positions) const {
+    const int nv = static_cast<int>(vertex_order.size());
+    Eigen::VectorXd x(3 * static_cast<Eigen::Index>(nv));
+    for (int n = 0; n < nv; ++n) {
+      for (int k = 0; k < 3; ++k) x[3 * n + k] = positions(vertex_order[static_cast<size_t>(n)], k);
+    }
+    return x;
+  }
+  Vertices ToCaller(const Eigen::VectorXd& x) const {
+    const int nv = static_cast<int>(vertex_order.size());
+    Vertices out(nv, 3);
+    for (int n = 0; n < nv; ++n) {
+      const int i = vertex_order[static_cast<size_t>(n)];
+      for (int k = 0; k < 3; ++k) out(i, k) = x[3 * n + k];
+    }
+    return out;
+  }
+};
+
+// Checks `noisy` (and options that refer to its size), computes W_i = ½ Σ_i⁻¹, reorders and builds the energy;
+// fills summary's potential name, inactive faces and memory. Call inside the solve's task arena.
+std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary* summary) {
+  const Mesh& mesh = noisy.mesh;
+  RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ",
+           noisy.covariance.size(), " covariances for ", mesh.num_vertices(),
+           " vertices (use MakeGenericNoisyMesh for a plain mesh)");
+  auto prepared = std::make_unique<PreparedEnergy>();
+  const Potential* potential = options.potential;
+  if (potential == nullptr) {
+    prepared->owned_potential = MakePotential(options);
+    potential = prepared->owned_potential.get();
+  }
+  summary->potential_name = potential->Name();
+  // Checked here, before the reordering, so that messages name the caller's indices.
+  RB_CHECK(mesh.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.F(f, k);
+      RB_CHECK(v >= 0 && v < mesh.num_vertices(), "smoothing: face ", f, " refers to vertex ", v,
+               ", but the mesh has ", mesh.num_vertices(), " vertices");
+    }
+  }
+  RB_CHECK(options.face_epsilon_squared.empty() ||
+               static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
+           "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
+           mesh.num_faces(), " faces");
+  RB_CHECK(options.initial_positions == nullptr ||
+               (options.initial_positions->rows() == mesh.num_vertices() && options.initial_positions->cols() == 3 &&
+                options.initial_positions->allFinite()),
+           "smooth: initial_positions must be a finite ", mesh.num_vertices(), " x 3 matrix");
+
+  std::vector<Eigen::Matrix3d> information(noisy.covariance.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, information.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const Eigen::Matrix3d& c = noisy.covariance[i];
+      if (c(0, 0) > 0 && std::isfinite(c(0, 0)) && c(0, 0) == c(1, 1) && c(1, 1) == c(2, 2) && c(0, 1) == 0 &&
+          c(1, 0) == 0 && c(0, 2) == 0 && c(2, 0) == 0 && c(1, 2) == 0 && c(2, 1) == 0) {
+        // σ² I (every generic mesh): exactly isotropic, which the energy stores compactly.
+        information[i] = Eigen::Matrix3d::Identity() * (0.5 / c(0, 0));
+        continue;
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
+      const Eigen::Vector3d values = solver.eigenvalues();
+      if (!c.allFinite() || solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) {
+        information[i].setConstant(std::nan(""));
+        continue;
+      }
+      information[i] = solver.eigenvectors() *
+                       (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
+                       solver.eigenvectors().transpose();
+    }
+  });
+  for (size_t i = 0; i < information.size(); ++i) {
+    RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
+             " is not finite and positive definite");
+  }
+  // The solver works on a reordered copy (SolverOrder); results go back to the input's order.
+  std::vector<int> face_order;
+  SolverOrder(mesh, &prepared->vertex_order, &face_order);
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+  Mesh& ordered = prepared->ordered;
+  ordered.V.resize(nv, 3);
+  ordered.F.resize(nf, 3);
+  std::vector<int> new_index(static_cast<size_t>(nv));
+  {
+    std::vector<Eigen::Matrix3d> ordered_information(information.size());
+    tbb::parallel_for(tbb::blocked_range<int>(0, nv, 4096), [&](const tbb::blocked_range<int>& r) {
+      for (int n = r.begin(); n != r.end(); ++n) {
+        const int i = prepared->vertex_order[static_cast<size_t>(n)];
+        ordered.V.row(n) = mesh.V.row(i);
+        new_index[static_cast<size_t>(i)] = n;
+        ordered_information[static_cast<size_t>(n)] = information[static_cast<size_t>(i)];
+      }
+    });
+    information.swap(ordered_information);
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
+      for (int m = r.begin(); m != r.end(); ++m) {
+        const int f = face_order[static_cast<size_t>(m)];
+        for (int k = 0; k < 3; ++k) ordered.F(m, k) = new_index[static_cast<size_t>(mesh.F(f, k))];
+      }
+    });
+  }
+  std::vector<double>& face_epsilon_squared = prepared->face_epsilon_squared;
+  if (!options.face_epsilon_squared.empty()) {
+    face_epsilon_squared.resize(static_cast<size_t>(nf));
+    for (int m = 0; m < nf; ++m) {
+      face_epsilon_squared[static_cast<size_t>(m)] =
+          options.face_epsilon_squared[static_cast<size_t>(face_order[static_cast<size_t>(m)])];
+    }
+  }
+  prepared->energy = std::make_unique<SmoothingEnergy>(ordered, information, options.prior_weight, *potential,
+                                                       face_epsilon_squared.empty() ? nullptr : &face_epsilon_squared);
+  summary->inactive_faces = prepared->energy->num_inactive_faces();
+  summary->memory_bytes += prepared->energy->MemoryBytes() + sizeof(double) * static_cast<size_t>(ordered.V.size()) +
+                           sizeof(int) * (static_cast<size_t>(ordered.F.size()) + static_cast<size_t>(nv)) +
+                           sizeof(double) * face_epsilon_squared.size();
+  return prepared;
+}
+
 Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::time_point deadline,
                   SmoothSummary* summary_out);
 
@@ -672,126 +801,27 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::t
     Mesh result = SmoothWithin(noisy, last, deadline, &summary);
     return Finish(std::move(result), std::move(summary), start, work, summary_out);
   }
-  if (options.multilevel && options.initial_positions == nullptr && noisy.has_covariance() &&
-      noisy.pixel.rows() == noisy.mesh.num_vertices() && noisy.mesh.num_vertices() > 0) {
+  if (options.multilevel && options.initial_positions == nullptr && organized) {
     const std::vector<GridLevel> levels = BuildGridHierarchy(noisy);
     if (!levels.empty()) return SmoothCoarseToFine(noisy, levels, options, deadline, summary_out);
   }
-  const Mesh& mesh = noisy.mesh;
-  RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ", noisy.covariance.size(), " covariances for ",
-           mesh.num_vertices(), " vertices (use MakeGenericNoisyMesh for a plain mesh)");
   SmoothSummary summary;
-  std::unique_ptr<Potential> owned;
-  const Potential* potential = options.potential;
-  if (potential == nullptr) {
-    owned = MakePotential(options);
-    potential = owned.get();
-  }
-  summary.potential_name = potential->Name();
-
   tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
   summary.num_threads = arena.max_concurrency();
-  // Checked here, before the reordering, so that messages name the caller's indices.
-  RB_CHECK(mesh.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const int v = mesh.F(f, k);
-      RB_CHECK(v >= 0 && v < mesh.num_vertices(), "smoothing: face ", f, " refers to vertex ", v,
-               ", but the mesh has ", mesh.num_vertices(), " vertices");
-    }
-  }
-  RB_CHECK(options.face_epsilon_squared.empty() ||
-               static_cast<int>(options.face_epsilon_squared.size()) == mesh.num_faces(),
-           "smooth: ", options.face_epsilon_squared.size(), " per-face epsilon_squared values for ",
-           mesh.num_faces(), " faces");
-  RB_CHECK(options.initial_positions == nullptr ||
-               (options.initial_positions->rows() == mesh.num_vertices() && options.initial_positions->cols() == 3 &&
-                options.initial_positions->allFinite()),
-           "smooth: initial_positions must be a finite ", mesh.num_vertices(), " x 3 matrix");
-
   Mesh result;
   arena.execute([&] {
-    std::vector<Eigen::Matrix3d> information(noisy.covariance.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, information.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i != r.end(); ++i) {
-        const Eigen::Matrix3d& c = noisy.covariance[i];
-        if (c(0, 0) > 0 && std::isfinite(c(0, 0)) && c(0, 0) == c(1, 1) && c(1, 1) == c(2, 2) && c(0, 1) == 0 &&
-            c(1, 0) == 0 && c(0, 2) == 0 && c(2, 0) == 0 && c(1, 2) == 0 && c(2, 1) == 0) {
-          // σ² I (every generic mesh): exactly isotropic, which the energy stores compactly.
-          information[i] = Eigen::Matrix3d::Identity() * (0.5 / c(0, 0));
-          continue;
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
-        const Eigen::Vector3d values = solver.eigenvalues();
-        if (!c.allFinite() || solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) {
-          information[i].setConstant(std::nan(""));
-          continue;
-        }
-        information[i] = solver.eigenvectors() * (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
-                         solver.eigenvectors().transpose();
-      }
-    });
-    for (size_t i = 0; i < information.size(); ++i) {
-      RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
-               " is not finite and positive definite");
-    }
-    // The solver works on a reordered copy (SolverOrder); the result goes back to the input's order.
-    std::vector<int> vertex_order, face_order;
-    SolverOrder(mesh, &vertex_order, &face_order);
-    const int nv = mesh.num_vertices(), nf = mesh.num_faces();
-    Mesh ordered;
-    ordered.V.resize(nv, 3);
-    ordered.F.resize(nf, 3);
-    {
-      std::vector<int> new_index(static_cast<size_t>(nv));
-      std::vector<Eigen::Matrix3d> ordered_information(information.size());
-      tbb::parallel_for(tbb::blocked_range<int>(0, nv, 4096), [&](const tbb::blocked_range<int>& r) {
-        for (int n = r.begin(); n != r.end(); ++n) {
-          const int i = vertex_order[static_cast<size_t>(n)];
-          ordered.V.row(n) = mesh.V.row(i);
-          new_index[static_cast<size_t>(i)] = n;
-          ordered_information[static_cast<size_t>(n)] = information[static_cast<size_t>(i)];
-        }
-      });
-      information.swap(ordered_information);
-      tbb::parallel_for(tbb::blocked_range<int>(0, nf, 4096), [&](const tbb::blocked_range<int>& r) {
-        for (int m = r.begin(); m != r.end(); ++m) {
-          const int f = face_order[static_cast<size_t>(m)];
-          for (int k = 0; k < 3; ++k) ordered.F(m, k) = new_index[static_cast<size_t>(mesh.F(f, k))];
-        }
-      });
-    }
-    std::vector<double> face_epsilon_squared;
-    if (!options.face_epsilon_squared.empty()) {
-      face_epsilon_squared.resize(static_cast<size_t>(nf));
-      for (int m = 0; m < nf; ++m) {
-        face_epsilon_squared[static_cast<size_t>(m)] =
-            options.face_epsilon_squared[static_cast<size_t>(face_order[static_cast<size_t>(m)])];
-      }
-    }
-    std::vector<int>().swap(face_order);
-    const SmoothingEnergy energy(ordered, information, options.prior_weight, *potential,
-                                 face_epsilon_squared.empty() ? nullptr : &face_epsilon_squared);
-    std::vector<Eigen::Matrix3d>().swap(information);
-    summary.inactive_faces = energy.num_inactive_faces();
-    summary.memory_bytes = energy.MemoryBytes() + sizeof(double) * static_cast<size_t>(ordered.V.size()) +
-                           sizeof(int) * (static_cast<size_t>(ordered.F.size()) + vertex_order.size()) +
-                           sizeof(double) * face_epsilon_squared.size();
+    const std::unique_ptr<PreparedEnergy> prepared = Prepare(noisy, options, &summary);
+    const SmoothingEnergy& energy = *prepared->energy;
+    const int nv = energy.num_vertices();
     summary.setup_time_s = Seconds(start);
-    result.F = mesh.F;
+    result.F = noisy.mesh.F;
     if (nv == 0) {
-      result.V = mesh.V;
+      result.V = noisy.mesh.V;
       summary.termination = SmoothTermination::kNothingToDo;
       return;
     }
     Eigen::VectorXd start_x;  // the caller's start in the solver order
-    if (options.initial_positions != nullptr) {
-      start_x.resize(3 * static_cast<Eigen::Index>(nv));
-      const Vertices& initial = *options.initial_positions;
-      for (int n = 0; n < nv; ++n) {
-        for (int k = 0; k < 3; ++k) start_x[3 * n + k] = initial(vertex_order[static_cast<size_t>(n)], k);
-      }
-    }
+    if (options.initial_positions != nullptr) start_x = prepared->ToSolver(*options.initial_positions);
     Problem problem(energy);
     MinimiseResult minimum = Minimise(problem, options, deadline, &summary, start_x.size() > 0 ? &start_x : nullptr);
     summary.evaluations = problem.evaluations;
@@ -799,13 +829,7 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::t
     summary.prior_energy = minimum.parts.prior;
     summary.flipped_faces = energy.CountFoldedFaces(minimum.x);
     summary.input_flipped_faces = energy.CountFoldedFaces(energy.Measurements());
-    result.V.resize(nv, 3);
-    for (int n = 0; n < nv; ++n) {
-      const int i = vertex_order[static_cast<size_t>(n)];
-      result.V(i, 0) = minimum.x[3 * n];
-      result.V(i, 1) = minimum.x[3 * n + 1];
-      result.V(i, 2) = minimum.x[3 * n + 2];
-    }
+    result.V = prepared->ToCaller(minimum.x);
   });
   return Finish(std::move(result), std::move(summary), start, 0, summary_out);
 }
