@@ -298,7 +298,8 @@ class PipelineSummary:
 
 PIPELINE_OPTIONS: dict[str, Any]
 def replay(
-    recording: Union[str, Recording], rig: Optional[StereoRig] = ..., *, progress: Optional[Progress] = ...,
+    recording: Union[str, Recording], rig: Optional[StereoRig] = ..., *, live_path: bool = ...,
+    progress: Optional[Progress] = ...,
     sgbm: dict[str, Any] = ..., spacetime: dict[str, Any] = ..., depth: dict[str, Any] = ...,
     triangulate: dict[str, Any] = ..., smoothing: dict[str, Any] = ...,  # SmoothOptions fields and "prior"
     decimation: dict[str, Any] = ..., playback: dict[str, Any] = ...,

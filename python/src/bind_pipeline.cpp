@@ -195,7 +195,10 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         RB_CHECK(rec.rig.has_value(), rec.folder, ": has no rig.yaml (uncalibrated); give one with rig=");
         RB_CHECK(rec.num_frames() > 0, rec.folder, ": frames.csv lists no frame");
         PipelineOptions options;
-        options.progress = PythonProgress(PopKeyword(kw, "progress"));
+        // live_path=True: the live-path preset first (`replay --live-path`), so that the keywords given win.
+        py::object live_path = PopKeyword(kw, "live_path");
+        if (!live_path.is_none() && FieldFromPython<bool>(live_path, "live_path")) ApplyLivePathPreset(&options);
+        options.progress = PythonProgress(PopKeyword(kw, "progress"), false);
         ApplyNested(kw, "sgbm", SgbmOptionFields(), &options.sgbm);
         ApplyNested(kw, "spacetime", SpaceTimeOptionFields(), &options.spacetime);
         ApplyNested(kw, "depth", DepthOptionFields(), &options.depth);
@@ -216,7 +219,7 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         PlaybackOptions playback;
         ApplyNested(kw, "playback", PlaybackOptionFields(), &playback);
         ApplyKeywords(PipelineOptionFields(), kw, &options, "replay",
-                      "progress, sgbm, spacetime, depth, triangulate, smoothing, decimation, playback");
+                      "live_path, progress, sgbm, spacetime, depth, triangulate, smoothing, decimation, playback");
         options.Check();
         playback.Check();
         const StereoRig r = *rec.rig;
@@ -231,7 +234,10 @@ The defaults are the library's (PipelineOptions{}), which are the CLI's: replay(
 `rangebayes replay REC --out DIR` writes for the same options (python/tests compare the bytes).
 Keywords: rangebayes.PIPELINE_OPTIONS fields (matcher 'sgbm'/'spacetime', window_frames, stereo_downsample,
 smooth, decimate, ...), nested dicts sgbm, spacetime, depth, triangulate, smoothing, decimation, playback
-(first_position, count, repeats), progress (a function (fraction, stage), called with the GIL).
+(first_position, count, repeats), progress (a function (fraction, stage), called with the GIL), live_path
+(True: the live-path preset of `replay --live-path` first, ApplyLivePathPreset: drop-oldest queues of one item,
+stereo every 2nd pixel, triangulation every 4th, fast smoothing within an 80 ms budget, no decimation; the
+other keywords given win over it; frames may then be dropped, counted in summary.dropped).
 smoothing takes the SmoothOptions fields and prior as smooth() does ('sqrt', 'quadratic', 'cauchy', a learned
 prior .yaml path or a LearnedPrior, whose β is used unless prior_weight is given: `replay --prior FILE`).
 CLI flags map as --num-disparities N: sgbm={"num_disparities": N} (or spacetime=...), --block B:

@@ -20,9 +20,11 @@ void BindBayes(py::module_& m);
 void BindStereo(py::module_& m);
 void BindPipeline(py::module_& m);
 
-// A ProgressCallback that calls a Python function (fraction, stage) with the GIL held; None gives an empty
-// callback. Copies of the callback share one reference to the function, so copying it needs no GIL.
-ProgressCallback PythonProgress(py::object function);
+// A ProgressCallback that calls a Python function (fraction, stage) with the GIL held and then lets Python run
+// its signal handlers, so Ctrl-C (KeyboardInterrupt) stops the call. None gives a callback that only does the
+// latter (at most every 50 ms), or, with interruptible = false, an empty one (replay watches for signals on its
+// own thread). Copies of the callback share one reference to the function, so copying it needs no GIL.
+ProgressCallback PythonProgress(py::object function, bool interruptible = true);
 
 // The smoothing prior given from Python as smooth(prior=...) and replay(smoothing={"prior": ...}) take it: 'sqrt',
 // 'quadratic', 'cauchy', a learned-prior .yaml path or a LearnedPrior. A learned prior becomes

@@ -1,7 +1,11 @@
 // The _rangebayes extension: rangebayes from Python (python/rangebayes/__init__.py re-exports it).
 #include <pybind11/pybind11.h>
 
+#include <atomic>
+#include <chrono>
+#include <cstdint>
 #include <exception>
+#include <memory>
 #include <opencv2/core.hpp>
 
 #include "core/error.h"
@@ -9,8 +13,21 @@
 
 namespace rangebayes::python {
 
-ProgressCallback PythonProgress(py::object function) {
-  if (function.is_none()) return {};
+ProgressCallback PythonProgress(py::object function, bool interruptible) {
+  if (function.is_none()) {
+    if (!interruptible) return {};
+    // No Python function: the callback only lets Ctrl-C stop the call. It takes the GIL at most every 50 ms.
+    auto last = std::make_shared<std::atomic<std::int64_t>>(0);
+    return [last](double, std::string_view) {
+      const std::int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::steady_clock::now().time_since_epoch())
+                                   .count();
+      if (now - last->load() < 50) return;
+      last->store(now);
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+    };
+  }
   if (!PyCallable_Check(function.ptr())) throw py::type_error("progress: expected a callable (fraction, stage)");
   std::shared_ptr<py::object> held(new py::object(std::move(function)), [](py::object* f) {
     py::gil_scoped_acquire gil;

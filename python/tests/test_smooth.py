@@ -91,6 +91,47 @@ def test_progress_callback_and_its_exception(trim_star):
         rb.smooth(m, noise=0.3, tolerance="fast", progress=boom)
 
 
+CTRL_C_CHILD = """
+import sys
+import numpy as np
+import rangebayes as rb
+n = 300
+u, v = np.meshgrid(np.arange(n, dtype=np.float64), np.arange(n, dtype=np.float64))
+V = np.stack([u.ravel(), v.ravel(), np.random.default_rng(1).normal(0.0, 0.3, n * n)], axis=1)
+idx = np.arange(n * n, dtype=np.int32).reshape(n, n)
+a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+mesh = rb.Mesh(V, np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)]))
+print("smoothing", flush=True)
+try:
+    # Uninterrupted this runs until its 600 s limit (the gap tolerance is out of reach).
+    rb.smooth(mesh, noise=0.5, tolerance="tight", gap_tolerance=1e-14, max_iterations=10000000,
+              time_limit_s=600, adaptive_epsilon=False)
+except KeyboardInterrupt:
+    sys.exit(3)
+sys.exit(0)
+"""
+
+
+def test_ctrl_c_stops_smooth_without_a_progress_function():
+    # SIGINT (Ctrl-C) to a process inside smooth() with no progress function: KeyboardInterrupt from inside the
+    # call. Before the fix the signal waited for the solve to end (600 s here), so the 120 s guard would fail.
+    import os
+    import signal
+    import sys
+
+    child = subprocess.Popen([sys.executable, "-c", CTRL_C_CHILD], stdout=subprocess.PIPE, text=True,
+                             env=dict(os.environ))
+    try:
+        assert child.stdout.readline().strip() == "smoothing"
+        import time
+        time.sleep(0.5)  # inside the solve
+        child.send_signal(signal.SIGINT)
+        assert child.wait(timeout=120) == 3
+    finally:
+        child.kill()
+        child.wait()
+
+
 def test_gil_is_released_during_smooth(trim_star, ticks_during):
     m = rb.read_mesh(str(trim_star))
     (_, summary), during = ticks_during(lambda: rb.smooth(m, noise=0.3, adaptive_epsilon=False, num_threads=1))

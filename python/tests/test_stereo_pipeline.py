@@ -188,6 +188,19 @@ def test_replay_bad_input_is_a_clear_error(tmp_path, recording_dir):
         rb.replay(str(recording_dir), smoothing={"prior": str(tmp_path / "missing.yaml")})
 
 
+def test_replay_live_path_preset(recording_dir):
+    # replay --live-path: drop-oldest queues, stereo every 2nd pixel, fast smoothing within a budget, no
+    # decimation; a keyword given wins over the preset.
+    results, summary = rb.replay(str(recording_dir), live_path=True, playback={"count": 3})
+    assert results and summary.results == len(results)
+    assert summary.results + summary.dropped + summary.failed == summary.frames_captured
+    assert all(r.stereo_downsample == 2 and r.smoothed is not None and r.decimated is None for r in results)
+    results, _ = rb.replay(str(recording_dir), live_path=True, stereo_downsample=1, playback={"count": 1})
+    assert results and results[0].stereo_downsample == 1
+    with pytest.raises(TypeError):
+        rb.replay(str(recording_dir), live_path="yes please")
+
+
 def test_replay_stops_on_ctrl_c(recording_dir):
     sent = []
 
