@@ -37,6 +37,7 @@ struct SmoothArgs {
   bool adaptive_epsilon = true;
   bool multilevel = SmoothOptions{}.multilevel;
   double gap_tolerance = SmoothOptions{}.gap_tolerance;
+  double time_limit_s = SmoothOptions{}.time_limit_s;
   int max_iterations = SmoothOptions{}.max_iterations;
   int continuation = SmoothOptions{}.epsilon_continuation_stages;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
   double across_ratio = GenericNoiseOptions{}.across_ratio;
@@ -121,6 +122,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.multilevel = args.multilevel;
   options.epsilon_continuation_stages = args.continuation;
   options.gap_tolerance = args.gap_tolerance;
+  options.time_limit_s = args.time_limit_s;
   options.max_iterations = args.max_iterations;
   SmoothSummary summary;
   const Mesh result = Smooth(noisy, options, &summary);
@@ -212,6 +214,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "iteration cap per solve (each continuation stage and grid level has its own), [0, 1e7]; 0: the "
                   "--tolerance preset's (fast 300, default 2000, tight 20000)")
       ->check(CLI::Range(0, 10000000));
+  sub->add_option("--time-limit", args->time_limit_s,
+                  "seconds for the whole solve, continuation stages and grid levels included; the summary's distance "
+                  "says how far from converged it stopped; 0: no limit")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--gap-tolerance", args->gap_tolerance,
                   "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
                   "0: the --tolerance preset's")

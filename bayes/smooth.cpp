@@ -452,6 +452,7 @@ struct PreparedEnergy {
   std::vector<int> vertex_order;  // solver index → caller's index
   std::vector<double> face_epsilon_squared;
   std::unique_ptr<Potential> owned_potential;
+  const Potential* potential = nullptr;  // the energy's own (options.potential or owned_potential)
   std::unique_ptr<SmoothingEnergy> energy;
 
   // #V×3 positions in the caller's order → the solver's state vector, and back.
@@ -487,6 +488,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
     prepared->owned_potential = MakePotential(options);
     potential = prepared->owned_potential.get();
   }
+  prepared->potential = potential;
   summary->potential_name = potential->Name();
   // Checked here, before the reordering, so that messages name the caller's indices.
   RB_CHECK(mesh.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
@@ -584,37 +586,6 @@ Mesh Finish(Mesh result, SmoothSummary summary, Clock::time_point start, double 
   summary.time_s = Seconds(start);
   if (summary_out != nullptr) *summary_out = std::move(summary);
   return result;
-}
-
-// Coarse-to-fine over `levels` (coarsest solved from its measurements), then the input started from the
-// prolongation of levels[0]'s result.
-Mesh SmoothCoarseToFine(const NoisyMesh& noisy, const std::vector<GridLevel>& levels, const SmoothOptions& options,
-                        Clock::time_point deadline, SmoothSummary* summary_out) {
-  const auto start = std::chrono::steady_clock::now();
-  Vertices x;
-  double coarse_work = 0;
-  const double fine_vertices = std::max(1, noisy.mesh.num_vertices());
-  for (int k = static_cast<int>(levels.size()) - 1; k >= 0; --k) {
-    SmoothOptions coarse = options;
-    coarse.multilevel = false;
-    coarse.adaptive_epsilon = false;
-    coarse.progress = nullptr;
-    coarse.face_epsilon_squared.clear();
-    coarse.initial_positions = k + 1 == static_cast<int>(levels.size()) ? nullptr : &x;
-    SmoothSummary s;
-    const Mesh r = SmoothWithin(levels[static_cast<size_t>(k)].mesh, coarse, deadline, &s);
-    coarse_work += s.evaluations * levels[static_cast<size_t>(k)].mesh.mesh.num_vertices() / fine_vertices;
-    const NoisyMesh& finer = k == 0 ? noisy : levels[static_cast<size_t>(k) - 1].mesh;
-    x = ProlongPositions(levels[static_cast<size_t>(k)], finer, r.V);
-  }
-  SmoothOptions fine = options;
-  fine.multilevel = false;
-  fine.adaptive_epsilon = false;
-  fine.initial_positions = &x;
-  SmoothSummary summary;
-  Mesh result = SmoothWithin(noisy, fine, deadline, &summary);
-  summary.levels = static_cast<int>(levels.size()) + 1;
-  return Finish(std::move(result), std::move(summary), start, coarse_work, summary_out);
 }
 
 }  // namespace
@@ -745,6 +716,96 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary*
 
 namespace {
 
+// The solves of one call on one prepared energy (information, order and adjacency built once per level): the
+// `stages` ε-continuation stages at ε² · 10^s, s = stages … 1 (each warm-started from the one before; the built-in
+// square-root prior only), then the solve at the caller's potential. The first solve that starts from the
+// measurements runs coarse-to-fine over the pixel grid when `options.multilevel` applies (organized meshes):
+// each coarse level solved from the prolongation of the coarser one's result (the coarsest from its
+// measurements), then the input. Under a time limit, stage k of S ends by the k/(S+1) mark of the time the setup
+// left, so the final solve keeps at least 1/(S+1) of it; stages not started when it ran out are skipped. The summary is
+// the final solve's, with the earlier solves' work in coarse_work.
+Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool organized, int stages,
+                 Clock::time_point deadline, SmoothSummary* summary_out) {
+  const auto start = Clock::now();
+  SmoothSummary summary;
+  tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
+  summary.num_threads = arena.max_concurrency();
+  Mesh result;
+  double earlier_work = 0;
+  arena.execute([&] {
+    const std::unique_ptr<PreparedEnergy> fine = Prepare(noisy, options, &summary);
+    SmoothingEnergy& energy = *fine->energy;
+    const int nv = energy.num_vertices();
+    summary.setup_time_s = Seconds(start);
+    result.F = noisy.mesh.F;
+    if (nv == 0) {
+      result.V = noisy.mesh.V;
+      summary.termination = SmoothTermination::kNothingToDo;
+      return;
+    }
+    Eigen::VectorXd x;  // the current state in the solver order (empty: the measurements)
+    if (options.initial_positions != nullptr) x = fine->ToSolver(*options.initial_positions);
+    std::vector<GridLevel> levels;
+    if (options.multilevel && options.initial_positions == nullptr && organized) levels = BuildGridHierarchy(noisy);
+    // Under a time limit the stages share what the setup left.
+    const bool limited = deadline != Clock::time_point::max();
+    const Clock::time_point solve_start = Clock::now();
+    const Clock::duration left = limited ? deadline - solve_start : Clock::duration::zero();
+    std::vector<SqrtPotential> stage_potentials;  // outlive their use by the energy
+    stage_potentials.reserve(static_cast<size_t>(stages));
+    for (int s = stages; s >= 0; --s) {
+      const bool last = s == 0;
+      if (!last && Clock::now() >= deadline) continue;
+      SmoothOptions o = options;
+      if (!last) {
+        o.sqrt_epsilon_squared = std::min(4.0, options.sqrt_epsilon_squared * std::pow(10.0, s));
+        o.progress = nullptr;
+        stage_potentials.emplace_back(o.sqrt_epsilon_squared);
+      }
+      energy.SetPotential(last ? *fine->potential : stage_potentials.back());
+      const Clock::time_point until =
+          last || !limited ? deadline : solve_start + left * (stages - s + 1) / (stages + 1);
+      double level_work = 0;
+      if (x.size() == 0 && !levels.empty()) {
+        Vertices coarse_x;
+        for (int k = static_cast<int>(levels.size()) - 1; k >= 0; --k) {
+          SmoothOptions coarse = o;
+          coarse.progress = nullptr;
+          coarse.face_epsilon_squared.clear();
+          coarse.initial_positions = nullptr;
+          SmoothSummary cs;
+          const std::unique_ptr<PreparedEnergy> level = Prepare(levels[static_cast<size_t>(k)].mesh, coarse, &cs);
+          const bool coarsest = k + 1 == static_cast<int>(levels.size());
+          const Eigen::VectorXd level_start = coarsest ? Eigen::VectorXd() : level->ToSolver(coarse_x);
+          Problem problem(*level->energy);
+          const MinimiseResult r = Minimise(problem, coarse, until, &cs, coarsest ? nullptr : &level_start);
+          level_work += problem.evaluations * static_cast<double>(level->energy->num_vertices()) / nv;
+          const NoisyMesh& finer = k == 0 ? noisy : levels[static_cast<size_t>(k) - 1].mesh;
+          coarse_x = ProlongPositions(levels[static_cast<size_t>(k)], finer, level->ToCaller(r.x));
+        }
+        x = fine->ToSolver(coarse_x);
+        if (last) summary.levels = static_cast<int>(levels.size()) + 1;
+      }
+      Problem problem(energy);
+      SmoothSummary stage_summary;
+      MinimiseResult m = Minimise(problem, o, until, last ? &summary : &stage_summary, x.size() > 0 ? &x : nullptr);
+      x = std::move(m.x);
+      if (!last) {
+        earlier_work += problem.evaluations + level_work;
+        continue;
+      }
+      summary.coarse_work = level_work;
+      summary.evaluations = problem.evaluations;
+      summary.data_energy = m.parts.data;
+      summary.prior_energy = m.parts.prior;
+    }
+    summary.flipped_faces = energy.CountFoldedFaces(x);
+    summary.input_flipped_faces = energy.CountFoldedFaces(energy.Measurements());
+    result.V = fine->ToCaller(x);
+  });
+  return Finish(std::move(result), std::move(summary), start, earlier_work, summary_out);
+}
+
 // Smooth() with an absolute deadline shared by all its stages and levels.
 Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::time_point deadline,
                   SmoothSummary* summary_out) {
@@ -771,67 +832,9 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::t
     summary.adaptive = adaptive;
     return Finish(std::move(result), std::move(summary), start, 0, summary_out);
   }
-  if (continuation_stages > 0 && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
-      options.face_epsilon_squared.empty()) {
-    SmoothOptions stage = options;
-    stage.epsilon_continuation_stages = 0;
-    stage.progress = nullptr;
-    Vertices x;
-    double work = 0;
-    // Under a time limit, stage k of S ends by the k/(S+1) mark of the time left: the final solve at the true ε
-    // keeps at least 1/(S+1) of it.
-    const bool limited = deadline != Clock::time_point::max();
-    const Clock::duration left = limited ? deadline - start : Clock::duration::zero();
-    for (int s = continuation_stages; s >= 1 && Clock::now() < deadline; --s) {
-      stage.sqrt_epsilon_squared = std::min(4.0, options.sqrt_epsilon_squared * std::pow(10.0, s));
-      const int done = continuation_stages - s + 1;
-      const Clock::time_point stage_deadline =
-          limited ? start + left * done / (continuation_stages + 1) : Clock::time_point::max();
-      SmoothSummary ss;
-      Mesh r = SmoothWithin(noisy, stage, stage_deadline, &ss);
-      work += ss.evaluations + ss.coarse_work;
-      x = r.V;
-      stage.initial_positions = &x;
-      stage.multilevel = false;
-    }
-    SmoothOptions last = options;
-    last.epsilon_continuation_stages = 0;
-    if (x.rows() > 0) last.initial_positions = &x;
-    SmoothSummary summary;
-    Mesh result = SmoothWithin(noisy, last, deadline, &summary);
-    return Finish(std::move(result), std::move(summary), start, work, summary_out);
-  }
-  if (options.multilevel && options.initial_positions == nullptr && organized) {
-    const std::vector<GridLevel> levels = BuildGridHierarchy(noisy);
-    if (!levels.empty()) return SmoothCoarseToFine(noisy, levels, options, deadline, summary_out);
-  }
-  SmoothSummary summary;
-  tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
-  summary.num_threads = arena.max_concurrency();
-  Mesh result;
-  arena.execute([&] {
-    const std::unique_ptr<PreparedEnergy> prepared = Prepare(noisy, options, &summary);
-    const SmoothingEnergy& energy = *prepared->energy;
-    const int nv = energy.num_vertices();
-    summary.setup_time_s = Seconds(start);
-    result.F = noisy.mesh.F;
-    if (nv == 0) {
-      result.V = noisy.mesh.V;
-      summary.termination = SmoothTermination::kNothingToDo;
-      return;
-    }
-    Eigen::VectorXd start_x;  // the caller's start in the solver order
-    if (options.initial_positions != nullptr) start_x = prepared->ToSolver(*options.initial_positions);
-    Problem problem(energy);
-    MinimiseResult minimum = Minimise(problem, options, deadline, &summary, start_x.size() > 0 ? &start_x : nullptr);
-    summary.evaluations = problem.evaluations;
-    summary.data_energy = minimum.parts.data;
-    summary.prior_energy = minimum.parts.prior;
-    summary.flipped_faces = energy.CountFoldedFaces(minimum.x);
-    summary.input_flipped_faces = energy.CountFoldedFaces(energy.Measurements());
-    result.V = prepared->ToCaller(minimum.x);
-  });
-  return Finish(std::move(result), std::move(summary), start, 0, summary_out);
+  const bool continuation = continuation_stages > 0 && options.prior == PriorKind::kSqrt &&
+                            options.potential == nullptr && options.face_epsilon_squared.empty();
+  return SolveStages(noisy, options, organized, continuation ? continuation_stages : 0, deadline, summary_out);
 }
 
 }  // namespace

@@ -80,8 +80,8 @@ struct SmoothOptions {
   // on real stereo"; on generic CAD meshes continuation lands in worse minima). [−1, 6]
   int epsilon_continuation_stages = -1;
   // Seconds for the whole call, continuation stages and coarse levels included (0: no limit). Checked after each
-  // iteration; stage k of S continuation stages ends by k/(S+1) of the limit, so the final solve at the true ε
-  // keeps at least 1/(S+1) of it, and always gets one iteration; stages not started when it ran out are
+  // iteration; stage k of S continuation stages ends by k/(S+1) of what the setup (done once per call) left, so
+  // the final solve at the true ε keeps at least 1/(S+1) of it, and always gets one iteration; stages not started when it ran out are
   // skipped (on the adaptive-ε path of generic meshes, each of its solves gets the limit). The result then
   // depends on the machine's speed. [0, 1e6]
   double time_limit_s = 0;

@@ -467,6 +467,13 @@ bool SmoothingEnergy::WideSquareRoot() const {
 
 Eigen::VectorXd SmoothingEnergy::Measurements() const { return z_; }
 
+void SmoothingEnergy::SetPotential(const Potential& potential) {
+  RB_CHECK((dynamic_cast<const SqrtPotential*>(&potential) != nullptr) ==
+               (dynamic_cast<const SqrtPotential*>(potential_) != nullptr),
+           "smoothing: cannot switch the potential from ", potential_->Name(), " to ", potential.Name());
+  potential_ = &potential;
+}
+
 size_t SmoothingEnergy::MemoryBytes() const {
   return sizeof(int) * (neighbour_offsets_.size() + neighbours_.size() + corner_offsets_.size() +
                         corners_.size() + corner_edges_.size()) +

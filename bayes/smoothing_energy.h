@@ -54,6 +54,10 @@ class SmoothingEnergy {
   // object (it reuses internal buffers).
   EnergyParts Evaluate(const Eigen::VectorXd& x, Eigen::VectorXd* gradient) const;
 
+  // Replaces the potential (not owned, must outlive this object), as the stages of an ε continuation do on one
+  // energy. It must be a SqrtPotential exactly when the current one is (the kernels depend on it); Error otherwise.
+  void SetPotential(const Potential& potential);
+
   // pᵀ H_data p with H_data = blockdiag(2 W_i): the data term's curvature along p (a cheap first step length).
   double DataCurvature(const Eigen::VectorXd& p) const;
 
