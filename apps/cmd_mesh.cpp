@@ -2,7 +2,6 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -11,119 +10,62 @@
 #include "apps/flags.h"
 #include "apps/progress.h"
 #include "core/error.h"
+#include "core/mesh_info.h"
 #include "core/mesh_io.h"
-#include "core/topology.h"
-#include "core/validate.h"
 
 namespace rangebayes::apps {
 namespace {
-
-const char* FormatName(MeshFormat format) {
-  switch (format) {
-    case MeshFormat::kPly:
-      return "ply";
-    case MeshFormat::kObj:
-      return "obj";
-    case MeshFormat::kOff:
-      return "off";
-  }
-  return "?";
-}
 
 struct InfoArgs {
   std::string mesh_path;
   bool json = false;
 };
 
-struct BoundingBox {
-  Eigen::RowVector3d min = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::RowVector3d max = Eigen::RowVector3d::Constant(-std::numeric_limits<double>::infinity());
-  bool empty() const { return !(min.array() <= max.array()).all(); }
-};
-
-// Over finite vertices only: one NaN must not hide the extent of the rest.
-BoundingBox FiniteBoundingBox(const Vertices& V) {
-  BoundingBox box;
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
-    if (!V.row(i).allFinite()) continue;
-    box.min = box.min.cwiseMin(V.row(i));
-    box.max = box.max.cwiseMax(V.row(i));
-  }
-  return box;
-}
-
 nlohmann::json Vec(const Eigen::RowVector3d& v) { return nlohmann::json::array({v(0), v(1), v(2)}); }
 
 void RunInfo(const InfoArgs& args) {
   MeshReadSummary summary;
   const NoisyMesh noisy = ReadNoisyMesh(args.mesh_path, &summary);
-  const Mesh& mesh = noisy.mesh;
-  const MeshValidation validation = ValidateMesh(mesh);
-  const EdgeTopology topology = ComputeEdgeTopology(mesh);  // the readers reject out-of-range indices
-  const double mean_edge = MeanEdgeLength(mesh, topology);
-  const Components components = ComputeComponents(mesh);
-  const auto loops = ComputeBoundaryLoops(mesh, topology);
-  const BoundingBox box = FiniteBoundingBox(mesh.V);
-
+  const MeshInfo info = DescribeMesh(noisy);
   if (args.json) {
+    const MeshValidation& v = info.validation;
     nlohmann::json out;
     out["file"] = args.mesh_path;
-    out["format"] = FormatName(summary.format);
-    out["vertices"] = mesh.num_vertices();
-    out["faces"] = mesh.num_faces();
-    out["edges"] = topology.edges.rows();
-    out["has_normals"] = mesh.N.rows() > 0;
-    out["has_covariance"] = noisy.has_covariance();
-    out["has_pixels"] = noisy.pixel.rows() > 0;
-    if (box.empty()) {
+    out["format"] = MeshFormatName(summary.format);
+    out["vertices"] = info.vertices;
+    out["faces"] = info.faces;
+    out["edges"] = info.edges;
+    out["has_normals"] = info.has_normals;
+    out["has_covariance"] = info.has_covariance;
+    out["has_pixels"] = info.has_pixels;
+    if (!info.has_bounding_box) {
       out["bounding_box"] = nullptr;
     } else {
-      out["bounding_box"] = {{"min", Vec(box.min)}, {"max", Vec(box.max)}, {"size", Vec(box.max - box.min)}};
+      out["bounding_box"] = {
+          {"min", Vec(info.box_min)}, {"max", Vec(info.box_max)}, {"size", Vec(info.box_max - info.box_min)}};
     }
-    out["mean_edge_length"] = std::isfinite(mean_edge) ? nlohmann::json(mean_edge) : nlohmann::json(nullptr);
-    out["components"] = components.count;
-    out["boundary_loops"] = loops.size();
+    out["mean_edge_length"] =
+        std::isfinite(info.mean_edge_length) ? nlohmann::json(info.mean_edge_length) : nlohmann::json(nullptr);
+    out["components"] = info.components;
+    out["boundary_loops"] = info.boundary_loops;
     out["polygons_triangulated"] = summary.polygons_triangulated;
-    out["validation"] = {{"clean", validation.clean()},
-                         {"out_of_range_indices", validation.out_of_range_indices},
-                         {"degenerate_faces", validation.degenerate_faces},
-                         {"zero_area_faces", validation.zero_area_faces},
-                         {"duplicate_faces", validation.duplicate_faces},
-                         {"non_finite_vertices", validation.non_finite_vertices},
-                         {"unreferenced_vertices", validation.unreferenced_vertices},
-                         {"non_manifold_edges", validation.non_manifold_edges},
-                         {"non_manifold_vertices", validation.non_manifold_vertices},
-                         {"inconsistent_edges", validation.inconsistent_edges},
-                         {"boundary_edges", validation.boundary_edges}};
+    out["validation"] = {{"clean", v.clean()},
+                         {"out_of_range_indices", v.out_of_range_indices},
+                         {"degenerate_faces", v.degenerate_faces},
+                         {"zero_area_faces", v.zero_area_faces},
+                         {"duplicate_faces", v.duplicate_faces},
+                         {"non_finite_vertices", v.non_finite_vertices},
+                         {"unreferenced_vertices", v.unreferenced_vertices},
+                         {"non_manifold_edges", v.non_manifold_edges},
+                         {"non_manifold_vertices", v.non_manifold_vertices},
+                         {"inconsistent_edges", v.inconsistent_edges},
+                         {"boundary_edges", v.boundary_edges}};
     out["notices"] = summary.notices;
     std::printf("%s\n", out.dump(2).c_str());
     return;
   }
-  std::printf("file:             %s (%s)\n", args.mesh_path.c_str(), FormatName(summary.format));
-  std::printf("vertices:         %d\n", mesh.num_vertices());
-  std::printf("faces:            %d\n", mesh.num_faces());
-  std::printf("edges:            %lld (%lld on the boundary)\n", static_cast<long long>(topology.edges.rows()),
-              static_cast<long long>(validation.boundary_edges));
-  std::printf("per-vertex data:  normals %s, covariance %s, pixels %s\n", mesh.N.rows() > 0 ? "yes" : "no",
-              noisy.has_covariance() ? "yes" : "no", noisy.pixel.rows() > 0 ? "yes" : "no");
-  if (box.empty()) {
-    std::printf("bounding box:     none (no finite vertices)\n");
-  } else {
-    std::printf("bounding box:     min (%.6g, %.6g, %.6g) max (%.6g, %.6g, %.6g)\n", box.min(0), box.min(1),
-                box.min(2), box.max(0), box.max(1), box.max(2));
-    const Eigen::RowVector3d size = box.max - box.min;
-    std::printf("                  size (%.6g, %.6g, %.6g)\n", size(0), size(1), size(2));
-  }
-  std::printf("mean edge length: %.6g\n", mean_edge);
-  std::printf("components:       %d\n", components.count);
-  std::printf("boundary loops:   %zu\n", loops.size());
-  const auto findings = DescribeFindings(validation);
-  if (findings.empty()) {
-    std::printf("validation:       clean\n");
-  } else {
-    std::printf("validation:       %zu kinds of defect\n", findings.size());
-    for (const std::string& line : findings) std::printf("  %s\n", line.c_str());
-  }
+  std::printf("file:             %s (%s)\n%s", args.mesh_path.c_str(), MeshFormatName(summary.format),
+              info.BriefReport().c_str());
   for (const std::string& notice : summary.notices) std::printf("note: %s\n", notice.c_str());
 }
 

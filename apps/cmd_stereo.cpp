@@ -1,6 +1,5 @@
 // Subcommands stereo, spacetime, synth and eval-depth: from image pairs and sequences to disparity, depth,
 // σ and meshes, and scoring disparities against ground truth.
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -136,8 +135,7 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
     WritePfm(result.sigma_disparity_px, (out / "sigma_disparity.pfm").string());
     WritePicture(result.sigma_disparity_px, out / "sigma_disparity.png", false);
   }
-  std::printf("disparity: %dx%d, %.1f%% valid, matched in %.0f ms over %d frame(s)\n", result.disparity_px.cols,
-              result.disparity_px.rows, 100.0 * result.valid_fraction, result.match_ms, result.frames_used);
+  std::printf("%s\n", result.BriefReport().c_str());
   if (!rectifier) {
     Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");
     return;
@@ -156,12 +154,9 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
   t.max_jump_sigma = o.max_jump_sigma;
   if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &t);
   TriangulateSummary ts;
-  const auto start = std::chrono::steady_clock::now();
   const NoisyMesh mesh = TriangulateDepth(frame, t, &ts);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   WriteNoisyMesh(mesh, (out / "mesh.ply").string());
-  std::printf("mesh: %d vertices, %d faces, %d edges cut at discontinuities, triangulated in %.1f ms\n", ts.vertices,
-              ts.faces, ts.cut_edges, ms);
+  std::printf("%s\n", ts.BriefReport().c_str());
 }
 
 cv::Mat ReadImageOrThrow(const std::string& path) {

@@ -2,7 +2,9 @@
 
 #include <tbb/parallel_for.h>
 
+#include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cmath>
 #include <vector>
 
@@ -270,7 +272,15 @@ void WriteFaces(const DepthGrid& grid, const std::vector<int>& index, const Bloc
 
 }  // namespace
 
+std::string TriangulateSummary::BriefReport() const {
+  char line[160];
+  std::snprintf(line, sizeof(line), "mesh: %d vertices, %d faces, %d edges cut at discontinuities, triangulated in %.1f ms",
+                vertices, faces, cut_edges, time_ms);
+  return line;
+}
+
 NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& options, TriangulateSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
   options.Check();
   RB_CHECK(!frame.empty() && frame.depth_m.type() == CV_32F, "depth frame ", frame.frame_id, " is empty");
   RB_CHECK(frame.sigma_depth_m.size() == frame.depth_m.size() && frame.sigma_depth_m.type() == CV_32F,
@@ -295,6 +305,7 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
     summary->faces = static_cast<int>(out.mesh.F.rows());
     summary->cut_edges = 0;
     for (int c : blocks.row_cuts) summary->cut_edges += c;
+    summary->time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
   return out;
 }

@@ -5,6 +5,8 @@
 // noise, so this is our own.
 #pragma once
 
+#include <string>
+
 #include "calibration/disparity_noise_model.h"
 #include "core/mesh.h"
 #include "stereo/depth_frame.h"
@@ -29,6 +31,10 @@ struct TriangulateSummary {
   int vertices = 0;
   int faces = 0;
   int cut_edges = 0;   // grid edges between two valid vertices that were cut as discontinuities
+  double time_ms = 0;  // wall time of TriangulateDepth
+
+  // One line for people: "mesh: V vertices, F faces, C edges cut at discontinuities, triangulated in T ms".
+  std::string BriefReport() const;
 };
 
 // One vertex per valid (finite depth) grid pixel, in the rectified left camera frame (metres, x right,

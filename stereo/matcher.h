@@ -17,6 +17,9 @@ struct DisparityResult {
   double match_ms = 0.0;      // wall time of the matching itself
   int frames_used = 0;
   double valid_fraction = 0.0;
+
+  // One line for people: "disparity: WxH, P% valid, matched in T ms over N frame(s)".
+  std::string BriefReport() const;
 };
 
 class StereoMatcher {

@@ -1,0 +1,84 @@
+#include "core/mesh_info.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "core/topology.h"
+
+namespace rangebayes {
+
+MeshInfo DescribeMesh(const NoisyMesh& noisy) {
+  const Mesh& mesh = noisy.mesh;
+  MeshInfo info;
+  info.vertices = mesh.num_vertices();
+  info.faces = mesh.num_faces();
+  info.validation = ValidateMesh(mesh);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  info.edges = static_cast<long long>(topology.edges.rows());
+  info.has_normals = mesh.N.rows() > 0;
+  info.has_covariance = noisy.has_covariance();
+  info.has_pixels = noisy.pixel.rows() > 0;
+  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::RowVector3d hi = -lo;
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
+    if (!mesh.V.row(i).allFinite()) continue;
+    lo = lo.cwiseMin(mesh.V.row(i));
+    hi = hi.cwiseMax(mesh.V.row(i));
+  }
+  info.has_bounding_box = (lo.array() <= hi.array()).all();
+  if (info.has_bounding_box) {
+    info.box_min = lo;
+    info.box_max = hi;
+  }
+  info.mean_edge_length = MeanEdgeLength(mesh, topology);
+  info.components = ComputeComponents(mesh).count;
+  info.boundary_loops = static_cast<int>(ComputeBoundaryLoops(mesh, topology).size());
+  return info;
+}
+
+std::string MeshInfo::BriefReport() const {
+  std::string out;
+  char line[320];
+  auto add = [&](int n) { out.append(line, static_cast<size_t>(std::max(0, std::min<int>(n, sizeof(line) - 1)))); };
+  add(std::snprintf(line, sizeof(line), "vertices:         %d\nfaces:            %d\n", vertices, faces));
+  add(std::snprintf(line, sizeof(line), "edges:            %lld (%lld on the boundary)\n", edges,
+                    static_cast<long long>(validation.boundary_edges)));
+  add(std::snprintf(line, sizeof(line), "per-vertex data:  normals %s, covariance %s, pixels %s\n",
+                    has_normals ? "yes" : "no", has_covariance ? "yes" : "no", has_pixels ? "yes" : "no"));
+  if (!has_bounding_box) {
+    add(std::snprintf(line, sizeof(line), "bounding box:     none (no finite vertices)\n"));
+  } else {
+    const Eigen::RowVector3d size = box_max - box_min;
+    add(std::snprintf(line, sizeof(line),
+                      "bounding box:     min (%.6g, %.6g, %.6g) max (%.6g, %.6g, %.6g)\n"
+                      "                  size (%.6g, %.6g, %.6g)\n",
+                      box_min(0), box_min(1), box_min(2), box_max(0), box_max(1), box_max(2), size(0), size(1),
+                      size(2)));
+  }
+  add(std::snprintf(line, sizeof(line), "mean edge length: %.6g\ncomponents:       %d\nboundary loops:   %d\n",
+                    mean_edge_length, components, boundary_loops));
+  const std::vector<std::string> findings = DescribeFindings(validation);
+  if (findings.empty()) {
+    out += "validation:       clean\n";
+  } else {
+    add(std::snprintf(line, sizeof(line), "validation:       %zu kinds of defect\n", findings.size()));
+    for (const std::string& f : findings) out += "  " + f + "\n";
+  }
+  return out;
+}
+
+const char* MeshFormatName(MeshFormat format) {
+  switch (format) {
+    case MeshFormat::kPly:
+      return "ply";
+    case MeshFormat::kObj:
+      return "obj";
+    case MeshFormat::kOff:
+      return "off";
+  }
+  return "?";
+}
+
+}  // namespace rangebayes
