@@ -493,6 +493,60 @@ struct MatchCounts {
   int valid = 0, left_right = 0, flat = 0, sigma = 0, ambiguous = 0, edge = 0, doubtful = 0;
 };
 
+// What pass 1 makes of pixel x of an output row from its window costs `vol` ([D][W]) and the row's winners in
+// `b`: a disparity with its σ_d (kValid), the coarse disparity alone when a second pass refines it (kCoarse), or
+// the check that rejected it. `noise` is the pixel's image noise σ_n (grey levels).
+enum class PixelOutcome { kValid, kCoarse, kNoMatch, kFlat, kAmbiguous, kLeftRight, kSigma };
+
+PixelOutcome DecidePixel(const SpaceTimeMatcherOptions& options_, const BandBuffers& b, const float* vol, int W, int D,
+                         int dmin, int x, double noise, double window_samples, bool refine, float* disparity_out,
+                         float* sigma_out) {
+  const int di = b.arg_left[x];
+  if (di < 0) return PixelOutcome::kNoMatch;
+  const int d = dmin + di;
+  // The parabola needs both neighbours inside the search range and inside the right image.
+  if (di == 0 || di == D - 1 || x - (d + 1) < 0 || x - (d - 1) >= W) return PixelOutcome::kFlat;
+  const float c0 = vol[static_cast<size_t>(di) * W + x];
+  if (options_.uniqueness_ratio > 0.0) {
+    // The best cost must beat every disparity at least 2 away by the margin, else the match is ambiguous
+    // (repeated texture) and its small σ from the curvature would be a lie.
+    const float limit = c0 * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f;
+    if (b.second[x] < limit) return PixelOutcome::kAmbiguous;
+  }
+  const float cm = vol[static_cast<size_t>(di - 1) * W + x];
+  const float cp = vol[static_cast<size_t>(di + 1) * W + x];
+  const double curvature = static_cast<double>(cm) - 2.0 * c0 + cp;
+  if (!(curvature > 1e-6 * (std::abs(c0) + 1e-3))) return PixelOutcome::kFlat;
+  if (options_.left_right_max_diff_px >= 0.0) {
+    const int xr = x - d;
+    const int dr = b.arg_right[xr] < 0 ? std::numeric_limits<int>::min() / 2 : dmin + b.arg_right[xr];
+    if (std::abs(d - dr) > options_.left_right_max_diff_px) return PixelOutcome::kLeftRight;
+  }
+  const double disparity = d + std::clamp(0.5 * (cm - cp) / curvature, -0.5, 0.5);
+  if (refine) {
+    *disparity_out = static_cast<float>(disparity);  // coarse: refined in the second pass
+    return PixelOutcome::kCoarse;
+  }
+  // Linearising the right image about the minimum gives var(d̂) = 2σ_n²/Σg² with noise σ_n in both images, and
+  // the cost curvature is C″ = 2Σg², so σ_pred² = 4σ_n²/C″ (docs/design.md §2 writes the same relation for a cost
+  // scaled by ½). σ_pred² = 4σ_eff²/C″ + p₂/(1 + p₂)·(d₂ − d)², see SpaceTimeMatcherOptions.
+  double noise2 = noise * noise;
+  if (options_.residual_noise) noise2 = std::max(noise2, c0 / (2.0 * window_samples));
+  double var_pred = 4.0 * noise2 / curvature;
+  if (options_.ambiguity_weight > 0.0 && b.arg_second[x] >= 0) {
+    const double p = std::exp(-(b.second[x] - c0) / (4.0 * noise2));
+    const double dd = b.arg_second[x] - di;
+    var_pred += options_.ambiguity_weight * p / (1.0 + p) * dd * dd;
+  }
+  const double sigma_pred = std::sqrt(var_pred);
+  const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
+                                 options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
+  if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) return PixelOutcome::kSigma;
+  *disparity_out = static_cast<float>(disparity);
+  *sigma_out = static_cast<float>(sigma);
+  return PixelOutcome::kValid;
+}
+
 // Pass 1: per band of rows, the w×w×T window costs of every disparity, winner-take-all with the parabola,
 // the checks, and σ_d from the curvature (with Gauss–Newton steps the coarse disparity only).
 void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, const Sequence& R,
@@ -551,71 +605,32 @@ void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, 
         }
         float* out_d = result.disparity_px.ptr<float>(y);
         float* out_s = result.sigma_disparity_px.ptr<float>(y);
+        const bool refine = options_.subpixel_iterations > 0;
         for (int x = 0; x < W; ++x) {
           out_d[x] = nan;
           out_s[x] = nan;
-          const int di = b.arg_left[x];
-          if (di < 0) continue;
-          const int d = dmin + di;
-          // The parabola needs both neighbours inside the search range and inside the right image.
-          if (di == 0 || di == D - 1 || x - (d + 1) < 0 || x - (d - 1) >= W) {
-            ++band_flat;
-            continue;
-          }
-          const float c0 = vol[static_cast<size_t>(di) * W + x];
-          if (unique_test) {
-            // The best cost must beat every disparity at least 2 away by the margin, else the match is
-            // ambiguous (repeated texture) and its small σ from the curvature would be a lie.
-            const float limit = c0 * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f;
-            if (b.second[x] < limit) {
-              ++band_ambiguous;
-              continue;
-            }
-          }
-          const float cm = vol[static_cast<size_t>(di - 1) * W + x];
-          const float cp = vol[static_cast<size_t>(di + 1) * W + x];
-          const double curvature = static_cast<double>(cm) - 2.0 * c0 + cp;
-          if (!(curvature > 1e-6 * (std::abs(c0) + 1e-3))) {
-            ++band_flat;
-            continue;
-          }
-          if (options_.left_right_max_diff_px >= 0.0) {
-            const int xr = x - d;
-            const int dr = b.arg_right[xr] < 0 ? std::numeric_limits<int>::min() / 2 : dmin + b.arg_right[xr];
-            if (std::abs(d - dr) > options_.left_right_max_diff_px) {
-              ++band_lr;
-              continue;
-            }
-          }
-          const double disparity = d + std::clamp(0.5 * (cm - cp) / curvature, -0.5, 0.5);
-          if (options_.subpixel_iterations > 0) {
-            out_d[x] = static_cast<float>(disparity);  // coarse: refined in the second pass
-            continue;
-          }
-          // Linearising the right image about the minimum gives var(d̂) = 2σ_n²/Σg² with noise σ_n in both
-          // images, and the cost curvature is C″ = 2Σg², so σ_pred² = 4σ_n²/C″ (docs/design.md §2 writes the
-          // same relation for a cost scaled by ½).
           const double noise =
               options_.image_noise_gray * (noise_left.empty() ? 1.0 : noise_left[static_cast<size_t>(y) * W + x]);
-          // σ_pred² = 4σ_eff²/C″ + p₂/(1 + p₂)·(d₂ − d)², see SpaceTimeMatcherOptions.
-          double noise2 = noise * noise;
-          if (options_.residual_noise) noise2 = std::max(noise2, c0 / (2.0 * window_samples));
-          double var_pred = 4.0 * noise2 / curvature;
-          if (options_.ambiguity_weight > 0.0 && b.arg_second[x] >= 0) {
-            const double p = std::exp(-(b.second[x] - c0) / (4.0 * noise2));
-            const double dd = b.arg_second[x] - di;
-            var_pred += options_.ambiguity_weight * p / (1.0 + p) * dd * dd;
+          switch (DecidePixel(options_, b, vol, W, D, dmin, x, noise, window_samples, refine, &out_d[x], &out_s[x])) {
+            case PixelOutcome::kValid:
+              ++band_valid;
+              break;
+            case PixelOutcome::kFlat:
+              ++band_flat;
+              break;
+            case PixelOutcome::kAmbiguous:
+              ++band_ambiguous;
+              break;
+            case PixelOutcome::kLeftRight:
+              ++band_lr;
+              break;
+            case PixelOutcome::kSigma:
+              ++band_sigma;
+              break;
+            case PixelOutcome::kNoMatch:
+            case PixelOutcome::kCoarse:
+              break;
           }
-          const double sigma_pred = std::sqrt(var_pred);
-          const double sigma = std::sqrt(options_.sigma_floor_px * options_.sigma_floor_px +
-                                         options_.sigma_scale * options_.sigma_scale * sigma_pred * sigma_pred);
-          if (options_.max_sigma_disparity_px > 0.0 && sigma > options_.max_sigma_disparity_px) {
-            ++band_sigma;
-            continue;
-          }
-          out_d[x] = static_cast<float>(disparity);
-          out_s[x] = static_cast<float>(sigma);
-          ++band_valid;
         }
       }
       valid += band_valid;
