@@ -131,6 +131,27 @@ TEST(SmoothingEnergy, PartsMatchDefinition) {
   EXPECT_EQ(energy.num_pairs(), 1);
 }
 
+// SetPotential (the ε stages of a continuation on one energy) gives exactly what an energy built with that
+// potential gives; switching between a square root and another kind is refused.
+TEST(SmoothingEnergy, SetPotentialEqualsAFreshEnergy) {
+  const Mesh mesh = testing::NoisyRoof(6, 6, 0.05, 3);
+  const auto information = RandomInformation(mesh.num_vertices(), true, 5);
+  const SqrtPotential tight(1e-4), loose(1e-2);
+  SmoothingEnergy switched(mesh, information, 2.4, tight);
+  switched.SetPotential(loose);
+  const SmoothingEnergy fresh(mesh, information, 2.4, loose);
+  Eigen::VectorXd x = fresh.Measurements();
+  x[4] += 0.03;
+  Eigen::VectorXd g_switched, g_fresh;
+  const EnergyParts a = switched.Evaluate(x, &g_switched);
+  const EnergyParts b = fresh.Evaluate(x, &g_fresh);
+  EXPECT_EQ(a.prior, b.prior);
+  EXPECT_EQ(a.data, b.data);
+  EXPECT_EQ(g_switched, g_fresh);
+  const QuadraticPotential quadratic;
+  EXPECT_THROW(switched.SetPotential(quadratic), Error);
+}
+
 // The face adjacency (built in one search per face, with a fallback for faces with more than three
 // neighbours) has exactly the pairs of ComputeFacePairs, on a manifold grid and with a fin that puts three
 // faces on one edge; the prior then equals the pair sum computed from that list.
