@@ -7,7 +7,7 @@
 //                                                 defaults (every N-th pixel) into OUT (PLY), then scored like eval
 //   bench_stereo_smooth rig SCENE OUT_RIG         the scene's rig (2014: calib.txt; older layouts: the nominal rig
 //                                                 f = 2.7 px per pixel of width, B = 160 mm, doffs 0), written to
-//                                                 OUT_RIG; prints the search range (the scene's, up to a multiple of 16)
+//                                                 OUT_RIG; prints the search range (the scene's, rounded up to 16)
 //   bench_stereo_smooth pair SCENE RIG MESH OUT   real-noise pair (BENCHMARKS.md "Real sensor noise, part 2"): MESH
 //                                                 (from `rangebayes stereo`) restricted to the faces whose three
 //                                                 vertices have a ground-truth disparity at their pixel, written as

@@ -1,12 +1,13 @@
 // EstimateNoiseLevel and NoiseResidualProfile on planes with noise of known amplitude: white noise (the one-ring
 // estimate, unchanged) and spatially correlated noise (the multi-scale correction).
+#include "bayes/noise_model.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 #include <vector>
 
-#include "bayes/noise_model.h"
 #include "core/error.h"
 #include "core/topology.h"
 #include "test_meshes.h"
