@@ -4,6 +4,7 @@
 #pragma once
 
 #include <limits>
+#include <vector>
 
 #include "core/mesh.h"
 
@@ -29,11 +30,20 @@ struct GenericNoiseSummary {
   bool estimated = false;            // k came from EstimateNoiseLevel
 };
 
-// Estimate of k = σ / l_e (l_e of this, noisy, mesh) for Gaussian noise along the normals: per vertex, the
+// Estimate of k = σ / l_e (l_e of this, noisy, mesh), the level smoothing should assume: per vertex, the
 // distance of the vertex from the plane through its one-ring centroid whose normal is the least-squares normal
 // of its two-ring; a robust scale (median absolute value) of those distances, times a constant calibrated on
-// two meshes with known noise (see BENCHMARKS.md). Returns 0 for a mesh without vertices of valence ≥ 3.
+// two meshes with known Gaussian noise (see BENCHMARKS.md). When the same residual at ring size 2 rises by more
+// than white noise gives (spatially correlated noise, as real scanners have), the estimate is raised by a power
+// of that rise (NoiseResidualProfile; rule and constants: BENCHMARKS.md "Real sensor noise, part 2"). In
+// [0, 10]; 0 for a mesh without vertices of valence ≥ 3.
 double EstimateNoiseLevel(const Mesh& mesh);
+
+// The same robust residual scale (÷ l_e, with the same constants) for ring sizes r = 1 … max_ring: the distance
+// of each vertex from the plane through its r-disc's centroid (vertices 1 … r edges away) whose normal is the
+// least-squares normal of its (r+1)-disc. Element r−1 is ring r; element 0 is the one-ring estimate above.
+// White noise gives a flat profile, spatially correlated noise (and curvature) a rising one. max_ring in [1, 16].
+std::vector<double> NoiseResidualProfile(const Mesh& mesh, int max_ring);
 
 // The mesh with the generic covariance per vertex (isolated vertices get the isotropic σ²·I).
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options = {},

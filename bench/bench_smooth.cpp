@@ -10,6 +10,8 @@
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
+//   bench_smooth profile [--rings R] MESH...  one JSON line per mesh: EstimateNoiseLevel and the residual profile
+//                                           (NoiseResidualProfile, rings 1 … R, default 8)
 #include <sys/resource.h>
 
 #include <Eigen/Geometry>
@@ -253,6 +255,19 @@ int Speed(std::map<std::string, std::string>& flags, const std::vector<std::stri
   return 0;
 }
 
+int Profile(std::map<std::string, std::string>& flags, const std::vector<std::string>& meshes) {
+  const int rings = flags.count("--rings") ? std::stoi(flags["--rings"]) : 8;
+  for (const std::string& path : meshes) {
+    const Mesh mesh = ReadMesh(path);
+    std::printf("{\"mesh\": \"%s\", \"estimate\": %.4f, \"profile\": [", path.c_str(), EstimateNoiseLevel(mesh));
+    const std::vector<double> profile = NoiseResidualProfile(mesh, rings);
+    for (size_t r = 0; r < profile.size(); ++r) std::printf("%s%.4f", r ? ", " : "", profile[r]);
+    std::printf("]}\n");
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -267,6 +282,7 @@ int main(int argc, char** argv) {
     if (mode == "quality") return Quality(flags);
     if (mode == "estimate") return Estimate(flags);
     if (mode == "speed") return Speed(flags, positional);
+    if (mode == "profile") return Profile(flags, positional);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_smooth: %s\n", e.what());
     return 1;

@@ -5,6 +5,17 @@
 //   bench_stereo_smooth bilateral SCENE DIR OUT [N] the peer: DIR/disparity.pfm (from `rangebayes stereo`) filtered
 //                                                 by a 9×9 bilateral filter (NaN holes kept), triangulated with the
 //                                                 defaults (every N-th pixel) into OUT (PLY), then scored like eval
+//   bench_stereo_smooth rig SCENE OUT_RIG         the scene's rig (2014: calib.txt; older layouts: the nominal rig
+//                                                 f = 2.7 px per pixel of width, B = 160 mm, doffs 0), written to
+//                                                 OUT_RIG; prints the search range (the scene's, rounded up to 16)
+//   bench_stereo_smooth pair SCENE RIG MESH OUT   real-noise pair (BENCHMARKS.md "Real sensor noise, part 2"): MESH
+//                                                 (from `rangebayes stereo`) restricted to the faces whose three
+//                                                 vertices have a ground-truth disparity at their pixel, written as
+//                                                 OUT/noisy_cov.ply (covariances kept), OUT/noisy.ply (plain) and
+//                                                 OUT/gt.ply (each vertex moved along its pixel ray to the ground-truth
+//                                                 depth); one JSON line with the raw scores
+//   bench_stereo_smooth compare RESULT GT         one JSON line: face-normal error (deg, same connectivity) and depth
+//                                                 MAE (mm, per vertex) of RESULT against GT
 //
 // Scores, per face of the mesh with a ground-truth pixel: the angle between the face normal and the ground-truth
 // normal at the pixel the face centroid projects to (central differences of the ground-truth points; faces
@@ -15,8 +26,12 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
+#include "calibration/middlebury.h"
+#include "calibration/stereo_rig.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
+#include "core/normal_error.h"
+#include "core/topology.h"
 #include "reconstruction/triangulate.h"
 #include "stereo/depth_frame.h"
 #include "stereo/disparity_io.h"
@@ -82,6 +97,103 @@ void Print(const std::string& scene, const std::string& what, const Score& s) {
               scene.c_str(), what.c_str(), s.normal_deg, s.depth_mae_mm, s.faces);
 }
 
+// A rig for every layout: only the 2014 scenes come with a calibration.
+rb::StereoRig SceneRig(const rb::MiddleburyScene& scene) {
+  if (scene.layout == "2014") return rb::StereoRigFromMiddlebury(rb::ReadMiddleburyCalib(scene.folder + "/calib.txt"));
+  rb::MiddleburyCalib calib;
+  calib.width = scene.left.cols;
+  calib.height = scene.left.rows;
+  // The 2005/2006 third-size focal length over its image width (3740 px / 3 over 463 px); no set states doffs.
+  const double f = 2.7 * calib.width;
+  calib.cam0 << f, 0, 0.5 * (calib.width - 1), 0, f, 0.5 * (calib.height - 1), 0, 0, 1;
+  calib.cam1 = calib.cam0;
+  calib.baseline_mm = 160.0;
+  calib.ndisp = scene.num_disparities;
+  return rb::StereoRigFromMiddlebury(calib);
+}
+
+// Depth errors per vertex and the face-normal error of `result` against `gt` (same vertices and faces).
+Score CompareSameConnectivity(const rb::Mesh& result, const rb::Mesh& gt) {
+  Score s;
+  s.normal_deg = rb::MeanAngularErrorDeg(result, gt);
+  double sum = 0;
+  for (int v = 0; v < gt.num_vertices(); ++v) sum += std::abs(result.V(v, 2) - gt.V(v, 2));
+  s.depth_mae_mm = gt.num_vertices() > 0 ? 1000.0 * sum / gt.num_vertices() : 0;
+  s.faces = gt.num_faces();
+  return s;
+}
+
+// The noisy mesh on the faces with ground truth at all three vertices, and its ground-truth twin.
+int WritePair(const rb::MiddleburyScene& scene, const rb::StereoRig& rig, const rb::NoisyMesh& input,
+              const std::string& out) {
+  RB_CHECK(!scene.gt_disparity_px.empty(), scene.folder, ": has no ground-truth disparity");
+  RB_CHECK(input.mesh.num_faces() > 0, scene.folder, ": the stereo mesh has no face");
+  const rb::CameraIntrinsics k = rig.RectifiedLeft();
+  const double fb = k.fx_px * rig.baseline_m();
+  const cv::Mat& d = scene.gt_disparity_px;
+  const int nv = input.mesh.num_vertices();
+  std::vector<double> gt_depth(static_cast<size_t>(nv), std::nan(""));
+  for (int v = 0; v < nv; ++v) {
+    const Eigen::Vector3d p = input.mesh.V.row(v);
+    if (!(p.z() > 0)) continue;
+    // Vertices lie on the rays of pixel centres, so the projection rounds to their own pixel.
+    const int u = static_cast<int>(std::lround(k.fx_px * p.x() / p.z() + k.cx_px));
+    const int r = static_cast<int>(std::lround(k.fy_px * p.y() / p.z() + k.cy_px));
+    if (u < 0 || r < 0 || u >= d.cols || r >= d.rows) continue;
+    const float disparity = d.at<float>(r, u);
+    if (std::isfinite(disparity) && disparity + rig.doffs_px > 0) gt_depth[v] = fb / (disparity + rig.doffs_px);
+  }
+  std::vector<int> index(static_cast<size_t>(nv), -1);
+  std::vector<int> faces;
+  for (int f = 0; f < input.mesh.num_faces(); ++f) {
+    bool valid = true;
+    for (int c = 0; c < 3; ++c) valid = valid && std::isfinite(gt_depth[input.mesh.F(f, c)]);
+    if (valid) faces.push_back(f);
+  }
+  RB_CHECK(!faces.empty(), scene.folder, ": no face of the stereo mesh has ground truth at its three vertices");
+  int count = 0;
+  for (int f : faces) {
+    for (int c = 0; c < 3; ++c) {
+      int& i = index[input.mesh.F(f, c)];
+      if (i < 0) i = count++;
+    }
+  }
+  rb::NoisyMesh noisy;
+  rb::Mesh gt;
+  noisy.mesh.V.resize(count, 3);
+  gt.V.resize(count, 3);
+  noisy.covariance.resize(static_cast<size_t>(count));
+  const bool has_pixel = input.pixel.rows() == nv;
+  if (has_pixel) noisy.pixel.resize(count, 2);
+  for (int v = 0; v < nv; ++v) {
+    const int i = index[v];
+    if (i < 0) continue;
+    noisy.mesh.V.row(i) = input.mesh.V.row(v);
+    gt.V.row(i) = input.mesh.V.row(v) * (gt_depth[v] / input.mesh.V(v, 2));
+    if (input.has_covariance()) noisy.covariance[i] = input.covariance[v];
+    if (has_pixel) noisy.pixel.row(i) = input.pixel.row(v);
+  }
+  if (!input.has_covariance()) noisy.covariance.clear();
+  noisy.mesh.F.resize(static_cast<int>(faces.size()), 3);
+  for (size_t j = 0; j < faces.size(); ++j) {
+    for (int c = 0; c < 3; ++c) noisy.mesh.F(static_cast<int>(j), c) = index[input.mesh.F(faces[j], c)];
+  }
+  gt.F = noisy.mesh.F;
+  rb::WriteNoisyMesh(noisy, out + "/noisy_cov.ply");
+  rb::WriteMesh(noisy.mesh, out + "/noisy.ply");
+  rb::WriteMesh(gt, out + "/gt.ply");
+  const Score s = CompareSameConnectivity(noisy.mesh, gt);
+  double displacement2 = 0;
+  for (int v = 0; v < count; ++v) displacement2 += (noisy.mesh.V.row(v) - gt.V.row(v)).squaredNorm();
+  const double rms_k = std::sqrt(displacement2 / std::max(count, 1)) / rb::MeanEdgeLength(noisy.mesh);
+  std::printf(
+      "{\"scene\": \"%s\", \"vertices\": %d, \"faces\": %d, \"faces_dropped\": %d, \"raw_normal_deg\": %.3f, "
+      "\"raw_depth_mae_mm\": %.3f, \"rms_displacement_edge_multiple\": %.4f}\n",
+      scene.folder.c_str(), count, static_cast<int>(faces.size()),
+      input.mesh.num_faces() - static_cast<int>(faces.size()), s.normal_deg, s.depth_mae_mm, rms_k);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -112,7 +224,25 @@ int main(int argc, char** argv) {
       Print(argv[2], argv[4], Evaluate(scene, mesh.mesh));
       return 0;
     }
-    std::fprintf(stderr, "usage: bench_stereo_smooth eval SCENE MESH | bilateral SCENE STEREO_DIR OUT.ply [DOWNSAMPLE]\n");
+    if (mode == "rig" && argc == 4) {
+      const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
+      rb::WriteStereoRig(SceneRig(scene), argv[3]);
+      std::printf("%d\n", (scene.num_disparities + 15) / 16 * 16);
+      return 0;
+    }
+    if (mode == "pair" && argc == 6) {
+      return WritePair(rb::ReadMiddleburyScene(argv[2]), rb::ReadStereoRig(argv[3]), rb::ReadNoisyMesh(argv[4]),
+                       argv[5]);
+    }
+    if (mode == "compare" && argc == 4) {
+      const Score s = CompareSameConnectivity(rb::ReadMesh(argv[2]), rb::ReadMesh(argv[3]));
+      std::printf("{\"mesh\": \"%s\", \"normal_deg\": %.3f, \"depth_mae_mm\": %.3f, \"faces\": %d}\n", argv[2],
+                  s.normal_deg, s.depth_mae_mm, s.faces);
+      return 0;
+    }
+    std::fprintf(stderr,
+                 "usage: bench_stereo_smooth eval SCENE MESH | bilateral SCENE STEREO_DIR OUT.ply [DOWNSAMPLE] | rig "
+                 "SCENE OUT_RIG | pair SCENE RIG MESH OUT_DIR | compare RESULT GT\n");
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_stereo_smooth: error: %s\n", e.what());

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Real-noise benchmark (issue #16, BENCHMARKS.md "Real sensor noise, part 2"): per Middlebury scene with ground
+# truth, the raw mesh of `rangebayes stereo` (defaults, the scene's search range, every DOWNSAMPLE-th pixel) and
+# the same connectivity with each vertex moved along its pixel ray to the ground-truth depth (faces touching a
+# vertex without ground truth are dropped from both). Writes OUT/<set>/<scene>/{noisy_cov,noisy,gt}.ply and one
+# JSON line per scene; then scores the raw mesh, the default stereo path (`smooth noisy_cov.ply`, covariances
+# kept) and the default generic path (`smooth noisy.ply`, no covariances, no noise level).
+# KS="0.5 1 2": also the generic path at each given k (`smooth noisy.ply --noise k`), for the hindsight curve.
+# PAIRS_ONLY=1: build the pairs only.
+#   bench/real_noise_pairs.sh BUILD_DIR OUT_DIR [DOWNSAMPLE] [SPLIT...]     SPLIT: train validation test (default all)
+set -euo pipefail
+build=$1; out=$2; ds=${3:-4}; shift $(( $# >= 3 ? 3 : 2 ))
+data=${DATA:-../shared/data/stereo}
+rb=${RB:-$build/apps/rangebayes}; ev=${EV:-$build/bench/bench_stereo_smooth}
+# The fixed split, by scene (scenes of one subject stay together: Motorcycle/MotorcycleE, Piano/PianoL, 2014 Teddy
+# with v2 teddy, 2014 ArtL with 2005 Art). Settings are chosen on train and validation only.
+declare -A split
+split[train]="middlebury_2014_trainingQ/Adirondack middlebury_2014_trainingQ/ArtL middlebury_2014_trainingQ/Jadeplant
+  middlebury_2014_trainingQ/Motorcycle middlebury_2014_trainingQ/MotorcycleE
+  middlebury_2005_2006_thirdsize/Aloe middlebury_2005_2006_thirdsize/Art middlebury_2005_2006_thirdsize/Baby1
+  middlebury_2005_2006_thirdsize/Baby2 middlebury_2005_2006_thirdsize/Baby3 middlebury_2005_2006_thirdsize/Books
+  middlebury_2005_2006_thirdsize/Cloth1 middlebury_2005_2006_thirdsize/Cloth2 middlebury_2005_2006_thirdsize/Cloth3
+  middlebury_2005_2006_thirdsize/Cloth4"
+split[validation]="middlebury_2014_trainingQ/Piano middlebury_2014_trainingQ/PianoL middlebury_2014_trainingQ/Pipes
+  middlebury_2005_2006_thirdsize/Bowling1 middlebury_2005_2006_thirdsize/Bowling2 middlebury_2005_2006_thirdsize/Dolls
+  middlebury_2005_2006_thirdsize/Flowerpots middlebury_2005_2006_thirdsize/Lampshade1
+  middlebury_2005_2006_thirdsize/Lampshade2 middlebury_2001_extra/barn1 middlebury_2001_extra/barn2"
+split[test]="middlebury_2014_trainingQ/Playroom middlebury_2014_trainingQ/Shelves middlebury_2014_trainingQ/Teddy
+  middlebury_2014_trainingQ/Vintage middlebury_2005_2006_thirdsize/Laundry middlebury_2005_2006_thirdsize/Midd1
+  middlebury_2005_2006_thirdsize/Midd2 middlebury_2005_2006_thirdsize/Moebius middlebury_2005_2006_thirdsize/Monopoly
+  middlebury_2005_2006_thirdsize/Reindeer middlebury_2005_2006_thirdsize/Rocks1 middlebury_2005_2006_thirdsize/Rocks2
+  middlebury_2005_2006_thirdsize/Wood1 middlebury_2005_2006_thirdsize/Wood2 middlebury_2001_extra/poster
+  middlebury_2001_extra/sawtooth middlebury_v2_2001_2003/cones middlebury_v2_2001_2003/teddy
+  middlebury_v2_2001_2003/tsukuba middlebury_v2_2001_2003/venus"
+splits=("$@"); [ ${#splits[@]} -gt 0 ] || splits=(train validation test)
+for sp in "${splits[@]}"; do
+  for s in ${split[$sp]}; do
+    d=$out/$s; mkdir -p "$d"
+    ndisp=$($ev rig "$data/$s" "$d/rig.yaml")
+    for f in im0.png imL.png view1.png im2.ppm im2.png; do [ -f "$data/$s/$f" ] && left=$data/$s/$f && break; done
+    for f in im1.png imR.png view5.png im6.ppm im6.png; do [ -f "$data/$s/$f" ] && right=$data/$s/$f && break; done
+    $rb stereo "$left" "$right" --rig "$d/rig.yaml" --num-disparities "$ndisp" --out "$d" --downsample "$ds" -q > "$d/stereo.log"
+    echo "{\"split\": \"$sp\", \"pair\": $($ev pair "$data/$s" "$d/rig.yaml" "$d/mesh.ply" "$d")}"
+    [ -n "${PAIRS_ONLY:-}" ] && continue
+    $rb smooth "$d/noisy_cov.ply" "$d/stereo_default.ply" -q > "$d/smooth_cov.log"
+    $rb smooth "$d/noisy.ply" "$d/generic_default.ply" -q > "$d/smooth_generic.log"
+    k=$(sed -n 's/^noise: *k = \([^ ]*\) .*/\1/p' "$d/smooth_generic.log")
+    for m in stereo_default generic_default; do echo "{\"split\": \"$sp\", \"scene\": \"$s\", \"k\": \"$([ $m = generic_default ] && echo "$k")\", \"score\": $($ev compare "$d/$m.ply" "$d/gt.ply")}"; done
+    for k in ${KS:-}; do
+      $rb smooth "$d/noisy.ply" "$d/k$k.ply" --noise "$k" -q > /dev/null
+      echo "{\"split\": \"$sp\", \"scene\": \"$s\", \"k\": \"$k\", \"score\": $($ev compare "$d/k$k.ply" "$d/gt.ply")}"
+      rm -f "$d/k$k.ply"
+    done
+  done
+done
