@@ -136,7 +136,20 @@ class Reducer {
       }
       if (queue.empty()) break;
     }
-    if (options_.target_faces > 0) BudgetedChainPass(options_.target_faces);
+    PatchTriangulation recorded;
+    bool has_recorded = false;
+    if (options_.target_faces > 0) {
+      BudgetedChainPass(options_.target_faces, options_.record_faces, &recorded, &has_recorded);
+    }
+    PatchTriangulation out = Emit();
+    if (has_recorded) out.recorded.push_back(std::move(recorded));
+    return out;
+  }
+
+ private:
+  // The current state as output.
+  PatchTriangulation Emit() {
+    const int nv = static_cast<int>(vf_.size());
     PatchTriangulation out;
     int count = 0;
     for (char a : alive_face_) count += a;
@@ -175,7 +188,6 @@ class Reducer {
     return out;
   }
 
- private:
   static Eigen::Vector3d FaceCross(const Vertices& V, const std::array<int, 3>& t) {
     const Eigen::Vector3d a = V.row(t[0]).transpose(), b = V.row(t[1]).transpose(), c = V.row(t[2]).transpose();
     return (b - a).cross(c - a);
@@ -380,17 +392,32 @@ class Reducer {
 
   // Removes chain vertices, least chain error first, until at most `target` faces are alive. Interior
   // vertices next to a removed one are retried at once (their stars changed; most become removable).
-  void BudgetedChainPass(int target) {
+  void BudgetedChainPass(int target, int record_faces, PatchTriangulation* recorded, bool* has_recorded) {
     chain_tolerance_ = std::numeric_limits<double>::infinity();
+    auto record = [&] {
+      if (record_faces > target && !*has_recorded && alive_count_ <= record_faces) {
+        *recorded = Emit();
+        *has_recorded = true;
+      }
+    };
+    record();
     using Entry = std::tuple<double, int, int>;  // chain error, vertex, version
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
     const int nv = static_cast<int>(vf_.size());
+    queue_seed_.clear();
     for (int v = 0; v < nv; ++v) {
       if (vf_[v].empty() || kept_[v]) continue;
       const double e = ChainError(v);
-      if (std::isfinite(e)) queue.emplace(e, v, version_[v]);
+      if (std::isfinite(e)) queue_seed_.emplace_back(e, v, version_[v]);
     }
-    std::vector<int> targets, around, inner;
+    queue = decltype(queue)(std::greater<Entry>(), queue_seed_);
+    // Chain vertices stay chain vertices and interior ones interior (collapses never cross a patch), so the
+    // class is found once. A collapse changes the chain error of the two chain neighbours only; the other
+    // vertices of the star are revisited only when their collapse was refused before (chain vertices) or
+    // blocked (interior vertices, whose stars changed; most become removable).
+    std::vector<char> chain(nv, 0), refused(nv, 0);
+    for (const auto& [e, v, version] : queue_seed_) chain[v] = 1;
+    std::vector<int> targets, inner;
     while (!queue.empty() && alive_count_ > target) {
       auto [error, v, version] = queue.top();
       queue.pop();
@@ -412,26 +439,38 @@ class Reducer {
           break;
         }
       }
-      if (onto < 0) continue;  // refused; retried when a neighbour's collapse bumps its version
-      max_chain_error_ = std::max(max_chain_error_, error);
-      around.clear();
-      for (int f : vf_[onto]) {
-        for (int x : T_[f]) {
-          if (x != onto && !kept_[x]) around.push_back(x);
-        }
+      if (onto < 0) {
+        refused[v] = 1;  // retried when a collapse next to it changes its star
+        continue;
       }
-      around.push_back(onto);
-      std::sort(around.begin(), around.end());
-      around.erase(std::unique(around.begin(), around.end()), around.end());
-      for (int x : around) {
+      max_chain_error_ = std::max(max_chain_error_, error);
+      record();
+      for (int x : targets) {
         if (vf_[x].empty() || kept_[x]) continue;
         const double e = ChainError(x);
-        if (std::isfinite(e)) {
-          queue.emplace(e, x, version_[x]);
-        } else if (alive_count_ > target) {
-          Targets(x, &inner);
-          for (int u : inner) {
-            if (TryCollapse(x, u)) break;
+        if (std::isfinite(e)) queue.emplace(e, x, version_[x]);
+        refused[x] = 0;
+      }
+      ++current_stamp_;
+      const int seen = current_stamp_;
+      for (size_t i = 0; i < vf_[onto].size(); ++i) {
+        for (int x : T_[vf_[onto][i]]) {
+          if (stamp_[x] == seen || x == onto || kept_[x] || vf_[x].empty()) continue;
+          stamp_[x] = seen;
+          if (chain[x]) {
+            if (refused[x]) {
+              refused[x] = 0;
+              const double e = ChainError(x);
+              if (std::isfinite(e)) queue.emplace(e, x, version_[x]);
+            }
+          } else if (alive_count_ > target) {
+            Targets(x, &inner);
+            for (int u : inner) {
+              if (TryCollapse(x, u)) {
+                record();
+                break;
+              }
+            }
           }
         }
       }
@@ -588,6 +627,7 @@ class Reducer {
   std::vector<std::pair<double, int>> by_length_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
+  std::vector<std::tuple<double, int, int>> queue_seed_;
   std::unordered_map<long long, std::vector<int>> removed_on_edge_;
   double chain_tolerance_ = 0.0;
   double diag_ = 0.0;
