@@ -1,4 +1,5 @@
 #include "bayes/decimation/decimate.h"
+#include "bayes/decimation/decimate_geometry.h"
 
 #include <gtest/gtest.h>
 
@@ -451,6 +452,36 @@ TEST(Decimate, TargetFacesFindsLambda) {
   // The guided steps between full decimations do most of the narrowing, so the full ones need not grow.
   EXPECT_GE(fine.bisection_steps, summary.bisection_steps);
   EXPECT_LT(fine.lambda_fits / fine.lambda_too_many, summary.lambda_fits / summary.lambda_too_many + 1e-12);
+}
+
+// The budgeted chain pass run down to a budget records on its way the triangulation a run with a larger
+// target gives (the λ search takes its output from there instead of a second reduction).
+TEST(DecimateGeometry, RecordedTriangulationEqualsARunWithThatTarget) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.lambda = 0.3;
+  options.refit_vertices = false;
+  const DecimatedMesh patches = Decimate(sphere, options);
+  ASSERT_GT(patches.num_patches, 4);
+  const std::vector<const Vertices*> poses{&sphere.V};
+  PatchTriangulationOptions run;
+  run.chain_tolerance_rel = 1e-7;
+  run.target_faces = 4;  // as far as the chains straighten
+  const int fewest = static_cast<int>(
+      TriangulatePatches(poses, sphere.F, patches.dense_face_patch, patches.num_patches, {}, run).F.rows());
+  run.target_faces = fewest + 60;
+  const PatchTriangulation direct = TriangulatePatches(poses, sphere.F, patches.dense_face_patch,
+                                                       patches.num_patches, {}, run);
+  ASSERT_EQ(direct.F.rows(), fewest + 60);
+  run.target_faces = fewest + 20;
+  run.record_faces = fewest + 60;
+  const PatchTriangulation both = TriangulatePatches(poses, sphere.F, patches.dense_face_patch,
+                                                     patches.num_patches, {}, run);
+  ASSERT_EQ(both.recorded.size(), 1u);
+  EXPECT_EQ(both.F.rows(), fewest + 20);
+  EXPECT_EQ(both.recorded[0].F, direct.F);
+  EXPECT_EQ(both.recorded[0].face_patch, direct.face_patch);
+  EXPECT_EQ(both.recorded[0].representative, direct.representative);
 }
 
 // A budget above the input's face count keeps the dense mesh and stops searching once every face is a patch.
