@@ -1,10 +1,12 @@
 #include "bayes/decimation/decimate.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <string>
@@ -451,6 +453,86 @@ std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<in
   return polygons;
 }
 
+// Refits the per-corner shading normals (one per output vertex and patch) to the dense face normals: each dense
+// face's centroid is placed on the nearest output face of its patch around the output vertices its corners
+// collapsed onto, and the corner normals minimise Σ_f w_f ‖Σ_i b_i n_i − u_f‖² (b the barycentric coordinates
+// there, so a piecewise-linear field over the patch's triangles instead of one linear field per patch) plus
+// a ridge of `ridge` times each normal's own weight towards its value from the patch field; then normalised.
+void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std::vector<int>& dense_patch,
+                        const std::vector<double>& weight, const std::vector<int>& output_of_dense,
+                        const Mesh& coarse, const std::vector<int>& coarse_patch, double ridge,
+                        CornerNormals* corner) {
+  const int nc = static_cast<int>(coarse.F.rows());
+  const int nn = static_cast<int>(corner->normals.rows());
+  std::vector<std::vector<int>> faces_of(coarse.num_vertices());
+  for (int f = 0; f < nc; ++f) {
+    for (int c = 0; c < 3; ++c) faces_of[coarse.F(f, c)].push_back(f);
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nn, 3);
+  std::vector<double> diagonal(nn, 0.0);
+  for (int f = 0; f < dense_F.rows(); ++f) {
+    const double w = weight[f];
+    if (!(w > 0.0)) continue;
+    const Eigen::Vector3d a = dense_V.row(dense_F(f, 0)).transpose(), b = dense_V.row(dense_F(f, 1)).transpose(),
+                          c = dense_V.row(dense_F(f, 2)).transpose();
+    const Eigen::Vector3d u = (b - a).cross(c - a).normalized();
+    const Eigen::Vector3d p = (a + b + c) / 3.0;
+    double best = std::numeric_limits<double>::infinity();
+    int best_face = -1;
+    Eigen::Vector3d best_bary = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      const int o = output_of_dense[dense_F(f, k)];
+      if (o < 0) continue;
+      for (int g : faces_of[o]) {
+        if (coarse_patch[g] != dense_patch[f]) continue;
+        const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose(), x1 = coarse.V.row(coarse.F(g, 1)).transpose(),
+                              x2 = coarse.V.row(coarse.F(g, 2)).transpose();
+        // Barycentric coordinates of p's projection, clamped to the triangle.
+        const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0, d = p - x0;
+        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+        if (!(det > 0.0)) continue;
+        const double l1 = (d22 * e1.dot(d) - d12 * e2.dot(d)) / det, l2 = (d11 * e2.dot(d) - d12 * e1.dot(d)) / det;
+        Eigen::Vector3d bary(1.0 - l1 - l2, l1, l2);
+        bary = bary.cwiseMax(0.0);
+        bary /= bary.sum();
+        const double dist = (bary(0) * x0 + bary(1) * x1 + bary(2) * x2 - p).squaredNorm();
+        if (dist < best) {
+          best = dist;
+          best_face = g;
+          best_bary = bary;
+        }
+      }
+    }
+    if (best_face < 0) continue;
+    for (int i = 0; i < 3; ++i) {
+      const int ni = corner->normal_index(best_face, i);
+      for (int j = 0; j < 3; ++j) {
+        triplets.emplace_back(ni, corner->normal_index(best_face, j), w * best_bary(i) * best_bary(j));
+      }
+      rhs.row(ni) += w * best_bary(i) * u.transpose();
+      diagonal[ni] += w * best_bary(i);
+    }
+  }
+  double mean_diagonal = 0.0;
+  for (double x : diagonal) mean_diagonal += x / std::max(1, nn);
+  for (int i = 0; i < nn; ++i) {
+    const double mu = ridge * diagonal[i] + 1e-6 * mean_diagonal + 1e-300;
+    triplets.emplace_back(i, i, mu);
+    rhs.row(i) += mu * corner->normals.row(i);
+  }
+  Eigen::SparseMatrix<double> A(nn, nn);
+  A.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+  if (solver.info() != Eigen::Success) return;
+  const Eigen::MatrixXd solved = solver.solve(rhs);
+  if (solver.info() != Eigen::Success || !solved.allFinite()) return;
+  for (int i = 0; i < nn; ++i) {
+    const double len = solved.row(i).norm();
+    if (len > 1e-9) corner->normals.row(i) = solved.row(i) / len;
+  }
+}
+
 }  // namespace
 
 void DecimateOptions::Check() const {
@@ -464,6 +546,7 @@ void DecimateOptions::Check() const {
            "decimate: min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(chain_tolerance_rel >= 0.0, "decimate: chain_tolerance_rel must be ≥ 0");
   RB_CHECK(shading_regularisation >= 0.0, "decimate: shading_regularisation must be ≥ 0");
+  RB_CHECK(corner_normal_ridge >= 0.0, "decimate: corner_normal_ridge must be ≥ 0");
   refit.Check();
 }
 
@@ -563,7 +646,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     // Finds a bracket [a, b] (b/a ≤ 1 + resolution, a "too many", b "fits") of `eval` (λ → fits?, log faces)
     // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
     // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
-    // assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little. Then safeguarded interpolation in
+    // assumes faces ∝ 1/λ), by a factor of 1 + 2·resolution to 64, overshooting a little. Then safeguarded interpolation in
     // log λ against log faces (regula falsi); a step that did not halve the bracket is followed by a bisection
     // step; a point within the resolution of an end is moved to just that far, which can close the bracket.
     auto bracket = [&](auto&& eval, double lo0, double hi0, double start, int max_evals, double* a_out,
@@ -776,6 +859,15 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     }
     d.corner_normals.normals.resize(static_cast<Eigen::Index>(normals.size()), 3);
     for (size_t i = 0; i < normals.size(); ++i) d.corner_normals.normals.row(static_cast<Eigen::Index>(i)) = normals[i].transpose();
+    if (options.corner_normal_ridge > 0.0 && !best.fell_back) {
+      std::vector<int> output_of_dense(ns, -1);
+      for (int v = 0; v < ns; ++v) {
+        const int r = tri.representative[v];
+        if (r >= 0) output_of_dense[v] = out_of_input[prep.split_source[r]];
+      }
+      RefitCornerNormals(prep.poses[m], prep.F, best.face_patch, problem.weight, output_of_dense, d.mesh,
+                         tri.face_patch, options.corner_normal_ridge, &d.corner_normals);
+    }
   }
 
   s.num_patches = best.num_patches;
