@@ -678,6 +678,42 @@ TEST(DecimateRefit, BringsAFacetedSphereCloserToItsVolume) {
   }
 }
 
+// The corner-normal refit fits the shading to the dense normals: on a sphere, the interpolated shading normal
+// at points of the coarse triangles is closer to the radial direction there than the patch fields' normals,
+// and every corner normal is a unit vector.
+TEST(DecimateRefit, CornerNormalsFollowTheDenseNormals) {
+  const Mesh sphere = Sphere(4);
+  auto mean_error_deg = [](const DecimatedMesh& d) {
+    double sum = 0.0;
+    int count = 0;
+    for (int f = 0; f < d.mesh.num_faces(); ++f) {
+      for (const Eigen::Vector3d& b : {Eigen::Vector3d(1.0 / 3, 1.0 / 3, 1.0 / 3), Eigen::Vector3d(0.6, 0.2, 0.2),
+                                      Eigen::Vector3d(0.2, 0.6, 0.2), Eigen::Vector3d(0.2, 0.2, 0.6)}) {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
+        for (int c = 0; c < 3; ++c) {
+          p += b(c) * d.mesh.V.row(d.mesh.F(f, c)).transpose();
+          n += b(c) * d.corner_normals.normals.row(d.corner_normals.normal_index(f, c)).transpose();
+        }
+        sum += std::acos(std::clamp(n.normalized().dot(p.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+        ++count;
+      }
+    }
+    return sum / count;
+  };
+  DecimateOptions options;
+  options.target_faces = 100;
+  const DecimatedMesh refitted = Decimate(sphere, options);
+  for (int i = 0; i < refitted.corner_normals.normals.rows(); ++i) {
+    EXPECT_NEAR(refitted.corner_normals.normals.row(i).norm(), 1.0, 1e-9);
+  }
+  options.corner_normal_ridge = 0.0;
+  const DecimatedMesh fields = Decimate(sphere, options);
+  ASSERT_EQ(refitted.mesh.F, fields.mesh.F);
+  EXPECT_LT(mean_error_deg(refitted), 0.8 * mean_error_deg(fields));
+  options.corner_normal_ridge = -1.0;
+  EXPECT_THROW(options.Check(), std::exception);
+}
+
 TEST(DecimateRefit, FlatInputAndFixedVerticesStay) {
   // One dense quad (two faces) that is its own coarse mesh: a plane is its own optimum, a fixed vertex never
   // moves, and a non-positive regularisation is refused.
