@@ -7,7 +7,8 @@
 // --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL;
 // --no-vsa skips VSA only; --no-refit turns the vertex refit off; --both prints ours without the refit
 // ("bayes-sub", vertices a subset of the input's) before ours with it; --refit-reg X sets
-// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds.
+// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds, --corner-ridge X
+// DecimateOptions::corner_normal_ridge (0: the patch fields' normals at the corners).
 //
 // Per method and share it prints: output triangles, symmetric Hausdorff and RMS surface distance (relative to
 // the bounding-box diagonal, from area-uniform samples on both surfaces), the area-weighted angle between each
@@ -359,6 +360,7 @@ int main(int argc, char** argv) {
   bool bayes_only = false, no_vsa = false, refit = true, both = false;
   double refit_reg = VertexRefitOptions{}.regularisation;
   int fit_rounds = VertexRefitOptions{}.fit_rounds;
+  double corner_ridge = DecimateOptions{}.corner_normal_ridge;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--reserve" && i + 1 < argc) {
@@ -369,6 +371,8 @@ int main(int argc, char** argv) {
       fit_rounds = std::atoi(argv[++i]);
     } else if (arg == "--refit-reg" && i + 1 < argc) {
       refit_reg = std::atof(argv[++i]);
+    } else if (arg == "--corner-ridge" && i + 1 < argc) {
+      corner_ridge = std::atof(argv[++i]);
     } else if (arg == "--no-vsa") {
       no_vsa = true;
     } else if (arg == "--no-refit") {
@@ -403,6 +407,7 @@ int main(int argc, char** argv) {
       options.refit_vertices = pass == 1 && refit;
       options.refit.regularisation = refit_reg;
       options.refit.fit_rounds = fit_rounds;
+      options.corner_normal_ridge = corner_ridge;
       DecimateSummary summary;
       ours = Decimate(ref.dense, options, &summary);
       const double t_ours = Now() - t0;

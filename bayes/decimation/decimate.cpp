@@ -1,14 +1,18 @@
 #include "bayes/decimation/decimate.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <string>
 #include <unordered_map>
+
+#include <tbb/parallel_for.h>
 
 #include "bayes/decimation/decimate_geometry.h"
 #include "bayes/decimation/decimate_partition.h"
@@ -342,22 +346,39 @@ struct Attempt {
   double seconds_partition = 0.0, seconds_geometry = 0.0;
 };
 
+// initial: a partition to coarsen (the result at a smaller λ), or null to start from single faces.
 Attempt PartitionOnce(const Problem& problem, double lambda, const DecimateOptions& options,
-                      const ProgressCallback& progress) {
+                      const ProgressCallback& progress, const std::vector<int>* initial = nullptr) {
   Attempt a;
   const auto t0 = Clock::now();
   PartitionOptions popts;
   popts.max_rounds = options.max_rounds;
   popts.progress = progress;
+  popts.initial = initial;
   a.face_patch = HillClimbPartition(problem.problem, lambda, popts, &a.stats);
   a.num_patches = a.stats.num_patches;
   a.seconds_partition = Seconds(t0);
   return a;
 }
 
-// budget_faces > 0: chains are straightened by error down to that many faces (see DecimateOptions).
+// The safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
+void CheckTopology(const Prepared& prep, const std::vector<std::pair<int, int>>& signature, Attempt* a) {
+  a->fell_back = false;
+  const int ns = static_cast<int>(prep.split_source.size());
+  if (TopologySignature(ns, a->triangulation.F) != signature || !IsManifold(a->triangulation.F, ns)) {
+    a->fell_back = true;
+    a->triangulation.F = prep.F;
+    a->triangulation.face_patch = a->face_patch;
+    a->triangulation.representative.resize(ns);
+    std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
+    a->triangulation.recorded.clear();
+  }
+}
+
+// budget_faces > 0: chains are straightened by error down to that many faces (see DecimateOptions);
+// record_faces > budget_faces: the triangulation at that many faces is kept too (PatchTriangulation::recorded).
 void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budget_faces,
-                  const std::vector<std::pair<int, int>>& signature, Attempt* a) {
+                  const std::vector<std::pair<int, int>>& signature, Attempt* a, int record_faces = 0) {
   const auto t1 = Clock::now();
   std::vector<const Vertices*> poses;
   for (const Vertices& V : prep.poses) poses.push_back(&V);
@@ -368,20 +389,25 @@ void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budg
     // Only (numerically) straight chain runs go unconditionally; the budgeted pass decides the rest.
     topts.chain_tolerance_rel = std::min(options.chain_tolerance_rel, 1e-7);
     topts.target_faces = budget_faces;
+    topts.record_faces = record_faces;
   }
-  a->fell_back = false;
   a->triangulation =
       TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.locked, topts, prep.boundary_vertex);
-  const int ns = static_cast<int>(prep.split_source.size());
-  if (TopologySignature(ns, a->triangulation.F) != signature || !IsManifold(a->triangulation.F, ns)) {
-    // Safety net: never hand out a mesh of another topology. The dense faces with their patches are valid.
-    a->fell_back = true;
-    a->triangulation.F = prep.F;
-    a->triangulation.face_patch = a->face_patch;
-    a->triangulation.representative.resize(ns);
-    std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
-  }
+  CheckTopology(prep, signature, a);
   a->seconds_geometry = Seconds(t1);
+}
+
+// The attempt's triangulation at the face count it recorded (GeometryOnce's record_faces), or a new run
+// with that budget when it recorded none.
+void UseRecorded(const Prepared& prep, const DecimateOptions& options, int faces,
+                 const std::vector<std::pair<int, int>>& signature, Attempt* a) {
+  if (a->triangulation.recorded.empty()) {
+    GeometryOnce(prep, options, faces, signature, a);
+    return;
+  }
+  PatchTriangulation recorded = std::move(a->triangulation.recorded.front());
+  a->triangulation = std::move(recorded);
+  CheckTopology(prep, signature, a);
 }
 
 std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<int>& face_patch, int num_patches) {
@@ -427,6 +453,86 @@ std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<in
   return polygons;
 }
 
+// Refits the per-corner shading normals (one per output vertex and patch) to the dense face normals: each dense
+// face's centroid is placed on the nearest output face of its patch around the output vertices its corners
+// collapsed onto, and the corner normals minimise Σ_f w_f ‖Σ_i b_i n_i − u_f‖² (b the barycentric coordinates
+// there, so a piecewise-linear field over the patch's triangles instead of one linear field per patch) plus
+// a ridge of `ridge` times each normal's own weight towards its value from the patch field; then normalised.
+void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std::vector<int>& dense_patch,
+                        const std::vector<double>& weight, const std::vector<int>& output_of_dense,
+                        const Mesh& coarse, const std::vector<int>& coarse_patch, double ridge,
+                        CornerNormals* corner) {
+  const int nc = static_cast<int>(coarse.F.rows());
+  const int nn = static_cast<int>(corner->normals.rows());
+  std::vector<std::vector<int>> faces_of(coarse.num_vertices());
+  for (int f = 0; f < nc; ++f) {
+    for (int c = 0; c < 3; ++c) faces_of[coarse.F(f, c)].push_back(f);
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nn, 3);
+  std::vector<double> diagonal(nn, 0.0);
+  for (int f = 0; f < dense_F.rows(); ++f) {
+    const double w = weight[f];
+    if (!(w > 0.0)) continue;
+    const Eigen::Vector3d a = dense_V.row(dense_F(f, 0)).transpose(), b = dense_V.row(dense_F(f, 1)).transpose(),
+                          c = dense_V.row(dense_F(f, 2)).transpose();
+    const Eigen::Vector3d u = (b - a).cross(c - a).normalized();
+    const Eigen::Vector3d p = (a + b + c) / 3.0;
+    double best = std::numeric_limits<double>::infinity();
+    int best_face = -1;
+    Eigen::Vector3d best_bary = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      const int o = output_of_dense[dense_F(f, k)];
+      if (o < 0) continue;
+      for (int g : faces_of[o]) {
+        if (coarse_patch[g] != dense_patch[f]) continue;
+        const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose(), x1 = coarse.V.row(coarse.F(g, 1)).transpose(),
+                              x2 = coarse.V.row(coarse.F(g, 2)).transpose();
+        // Barycentric coordinates of p's projection, clamped to the triangle.
+        const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0, d = p - x0;
+        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+        if (!(det > 0.0)) continue;
+        const double l1 = (d22 * e1.dot(d) - d12 * e2.dot(d)) / det, l2 = (d11 * e2.dot(d) - d12 * e1.dot(d)) / det;
+        Eigen::Vector3d bary(1.0 - l1 - l2, l1, l2);
+        bary = bary.cwiseMax(0.0);
+        bary /= bary.sum();
+        const double dist = (bary(0) * x0 + bary(1) * x1 + bary(2) * x2 - p).squaredNorm();
+        if (dist < best) {
+          best = dist;
+          best_face = g;
+          best_bary = bary;
+        }
+      }
+    }
+    if (best_face < 0) continue;
+    for (int i = 0; i < 3; ++i) {
+      const int ni = corner->normal_index(best_face, i);
+      for (int j = 0; j < 3; ++j) {
+        triplets.emplace_back(ni, corner->normal_index(best_face, j), w * best_bary(i) * best_bary(j));
+      }
+      rhs.row(ni) += w * best_bary(i) * u.transpose();
+      diagonal[ni] += w * best_bary(i);
+    }
+  }
+  double mean_diagonal = 0.0;
+  for (double x : diagonal) mean_diagonal += x / std::max(1, nn);
+  for (int i = 0; i < nn; ++i) {
+    const double mu = ridge * diagonal[i] + 1e-6 * mean_diagonal + 1e-300;
+    triplets.emplace_back(i, i, mu);
+    rhs.row(i) += mu * corner->normals.row(i);
+  }
+  Eigen::SparseMatrix<double> A(nn, nn);
+  A.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+  if (solver.info() != Eigen::Success) return;
+  const Eigen::MatrixXd solved = solver.solve(rhs);
+  if (solver.info() != Eigen::Success || !solved.allFinite()) return;
+  for (int i = 0; i < nn; ++i) {
+    const double len = solved.row(i).norm();
+    if (len > 1e-9) corner->normals.row(i) = solved.row(i) / len;
+  }
+}
+
 }  // namespace
 
 void DecimateOptions::Check() const {
@@ -440,6 +546,7 @@ void DecimateOptions::Check() const {
            "decimate: min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(chain_tolerance_rel >= 0.0, "decimate: chain_tolerance_rel must be ≥ 0");
   RB_CHECK(shading_regularisation >= 0.0, "decimate: shading_regularisation must be ≥ 0");
+  RB_CHECK(corner_normal_ridge >= 0.0, "decimate: corner_normal_ridge must be ≥ 0");
   refit.Check();
 }
 
@@ -486,23 +593,51 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     Attempt too_many, fits;  // the attempts at the bracket ends
     double lo = 0.0, hi = 0.0;
     auto faces_of = [](const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); };
-    auto run = [&](double l) {
-      ++steps;
-      if (options.progress) {
-        options.progress(std::min(0.99, static_cast<double>(steps) / options.max_bisection_steps),
-                         "searching lambda");
+    // Hill climbings by λ, each a function of λ alone: the first climb (at the smallest λ climbed from single
+    // faces) is the base, and every larger λ starts from the base's partition (a warm start: coarsening a finer
+    // partition costs a fraction of a climb from single faces). A λ climbed before is reused.
+    std::map<double, Attempt> climbs;
+    double base_lambda = 0.0;
+    auto climb = [&](double l) -> const Attempt& {
+      auto it = climbs.find(l);
+      if (it == climbs.end()) {
+        const bool warm = base_lambda > 0.0 && l > base_lambda;
+        Attempt a = PartitionOnce(problem, l, options, nullptr, warm ? &climbs.at(base_lambda).face_patch : nullptr);
+        if (!warm) {
+          // A new, smaller base: the climbs from the old one are dropped, so that every cached climb above
+          // the base starts from it.
+          climbs.clear();
+          base_lambda = l;
+        }
+        s.seconds_search_partition += a.seconds_partition;
+        it = climbs.emplace(l, std::move(a)).first;
       }
-      Attempt a = PartitionOnce(problem, l, options, nullptr);
-      GeometryOnce(prep, options, budget, signature, &a);
-      s.seconds_search_partition += a.seconds_partition;
-      s.seconds_search_geometry += a.seconds_geometry;
-      const bool ok = faces_of(a) <= budget;
-      if (ok) {
-        hi = l;
-        fits = std::move(a);
-      } else {
-        lo = l;
-        too_many = std::move(a);
+      return it->second;
+    };
+    // A full evaluation: hill climbing and triangulation with the budget, the triangulation at the target
+    // recorded on the way. Several run in parallel; their outcomes are applied in order.
+    auto evaluate = [&](const std::vector<double>& ls) {
+      std::vector<Attempt> attempts;
+      for (double l : ls) attempts.push_back(climb(l));
+      tbb::parallel_for(size_t{0}, attempts.size(),
+                        [&](size_t i) { GeometryOnce(prep, options, budget, signature, &attempts[i], target); });
+      std::vector<char> ok(ls.size());
+      for (size_t i = 0; i < ls.size(); ++i) {
+        ++steps;
+        s.seconds_search_geometry += attempts[i].seconds_geometry;
+        ok[i] = faces_of(attempts[i]) <= budget ? 1 : 0;
+        if (ok[i]) {
+          if (hi <= 0.0 || ls[i] < hi) {
+            hi = ls[i];
+            fits = std::move(attempts[i]);
+          }
+        } else if (ls[i] > lo) {
+          lo = ls[i];
+          too_many = std::move(attempts[i]);
+        }
+      }
+      if (options.progress) {
+        options.progress(std::min(0.99, static_cast<double>(steps) / options.max_bisection_steps), "searching lambda");
       }
       return ok;
     };
@@ -511,7 +646,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     // Finds a bracket [a, b] (b/a ≤ 1 + resolution, a "too many", b "fits") of `eval` (λ → fits?, log faces)
     // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
     // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
-    // assumes faces ∝ 1/λ), by a factor of 2 to 64, overshooting a little. Then safeguarded interpolation in
+    // assumes faces ∝ 1/λ), by a factor of 1 + 2·resolution to 64, overshooting a little. Then safeguarded interpolation in
     // log λ against log faces (regula falsi); a step that did not halve the bracket is followed by a bisection
     // step; a point within the resolution of an end is moved to just that far, which can close the bracket.
     auto bracket = [&](auto&& eval, double lo0, double hi0, double start, int max_evals, double* a_out,
@@ -536,7 +671,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
         if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
           slope = std::min(-0.2, (lf - prev_lf) / std::log(l / prev_l));
         }
-        return std::clamp(std::exp(1.3 * std::abs((log_budget - lf) / slope)), 2.0, 64.0);
+        return std::clamp(std::exp(1.3 * std::abs((log_budget - lf) / slope)), 1.0 + 2.0 * options.lambda_resolution, 64.0);
       };
       if (lo <= 0.0 || hi <= 0.0) {
         auto [ok, lf] = go(l);
@@ -567,10 +702,10 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       *a_out = lo;
       *b_out = hi;
     };
-    // The full evaluation (hill climbing and triangulation) decides; a cheap one guides it: the hill climbing
-    // alone, with the triangle count predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces
-    // to such vertices measured on the last full run that overflowed (there the chains were straightened as
-    // far as they go, so its count is the one "fits" compares).
+    // The full evaluations decide; a cheap one guides them: the hill climbing alone, with the triangle count
+    // predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces to such vertices measured on the
+    // last full evaluations (before any: 2, a closed mesh of triangulated patches with V corners has about 2V
+    // triangles).
     auto corners_of = [&](const std::vector<int>& g) {
       const DecimationProblem& pr = problem.problem;
       std::vector<unsigned char> features(ns, 0);
@@ -585,44 +720,49 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
       for (int v = 0; v < ns; ++v) count += (features[v] >= 3 || prep.locked[v]) ? 1 : 0;
       return std::max(1, count);
     };
-    double ratio = 0.0;
-    auto full = [&](double l) {
-      const bool ok = run(l);
-      const Attempt& a = ok ? fits : too_many;
-      if (!ok || ratio <= 0.0) ratio = static_cast<double>(faces_of(a)) / corners_of(a.face_patch);
-      return ok;
-    };
-
+    double ratio = 2.0;
     auto cheap = [&](double l) {
-
-      Attempt a = PartitionOnce(problem, l, options, nullptr);
-      s.seconds_search_partition += a.seconds_partition;
-      const double predicted = ratio * corners_of(a.face_patch);
+      const double predicted = ratio * corners_of(climb(l).face_patch);
       return std::make_pair(predicted <= budget, std::log(std::max(1.0, predicted)));
     };
-    full(lambda);
-    for (int outer = 0; outer < 8 && steps < options.max_bisection_steps; ++outer) {
-      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
+    auto closed = [&] { return lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution); };
+    auto inside = [&](double l) { return l > 0.0 && l > lo && (hi <= 0.0 || l < hi); };
+    // Each round evaluates in parallel the guide's smallest fitting λ b and the step below it, b / (1 +
+    // resolution), so a guide that is right closes the bracket in one round; the ratio is then recalibrated
+    // on the results.
+    while (!closed() && steps < options.max_bisection_steps) {
       if (hi > 0.0 && fits.num_patches >= prep.F.rows()) break;  // every face its own patch fits
       double a = 0.0, b = 0.0;
-      bracket(cheap, lo, hi, hi > 0.0 ? hi : lo, 40, &a, &b);
-      bool progressed = false;
-      if (b > 0.0 && b != hi && b != lo) {
-        full(b);
-        progressed = true;
+      bracket(cheap, lo, hi, hi > 0.0 ? hi : (lo > 0.0 ? lo : lambda), 40, &a, &b);
+      std::vector<double> ls;
+      if (inside(b)) ls.push_back(b);
+      const double below = b / (1.0 + options.lambda_resolution);
+      if (inside(below) && steps + static_cast<int>(ls.size()) < options.max_bisection_steps) ls.push_back(below);
+      if (ls.empty()) break;
+      evaluate(ls);
+      double sum = 0.0;
+      int count = 0;
+      for (double l : ls) {
+        const Attempt& at = l == hi ? fits : too_many;
+        if (l == hi || l == lo) {
+          sum += static_cast<double>(faces_of(at)) / corners_of(at.face_patch);
+          ++count;
+        }
       }
-      if (lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution)) break;
-      if (a > 0.0 && a != lo && a != hi && (hi <= 0.0 || a < hi) && steps < options.max_bisection_steps) {
-        full(a);
-        progressed = true;
-      }
-      if (!progressed) break;
+      if (count > 0) ratio = sum / count;
     }
-    // Whatever the guide left open is closed by full evaluations alone.
-    if (lo <= 0.0 || hi <= 0.0 || hi > lo * (1.0 + options.lambda_resolution)) {
-      double a = 0.0, b = 0.0;
-      bracket([&](double l) { return std::make_pair(full(l), std::log(std::max(1.0, static_cast<double>(faces_of(hi == l ? fits : too_many))))); },
-              lo, hi, hi > 0.0 ? hi : lo, std::max(0, options.max_bisection_steps - steps), &a, &b);
+    // Whatever the guide left open is closed by full evaluations alone (bisection in log λ).
+    while (!closed() && steps < options.max_bisection_steps && !(hi > 0.0 && fits.num_patches >= prep.F.rows())) {
+      double l;
+      if (lo <= 0.0) {
+        l = hi / 4.0;
+      } else if (hi <= 0.0) {
+        l = lo * 4.0;
+      } else {
+        l = std::sqrt(lo * hi);
+      }
+      if (l < 1e-12 || l > 1e12) break;
+      evaluate({l});
     }
     s.bisection_steps = steps;
     s.lambda_too_many = lo;
@@ -632,16 +772,12 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     if (hi > 0.0) {
       lambda = hi;
       best = std::move(fits);
-      if (budget < target) {
-        GeometryOnce(prep, options, target, signature, &best);
-        s.seconds_search_geometry += best.seconds_geometry;
-      }
+      if (budget < target) UseRecorded(prep, options, target, signature, &best);
     } else {
       // Even one patch per component needs more triangles than the budget: the fewest found.
       lambda = lo;
       best = std::move(too_many);
-      GeometryOnce(prep, options, target, signature, &best);
-      s.seconds_search_geometry += best.seconds_geometry;
+      UseRecorded(prep, options, target, signature, &best);
       s.notices.push_back(StrCat("target ", target, " faces not reachable: ", faces_of(best),
                                  " faces at lambda ", lo, " (the patches' corners and guarded vertices)"));
     }
@@ -723,6 +859,15 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     }
     d.corner_normals.normals.resize(static_cast<Eigen::Index>(normals.size()), 3);
     for (size_t i = 0; i < normals.size(); ++i) d.corner_normals.normals.row(static_cast<Eigen::Index>(i)) = normals[i].transpose();
+    if (options.corner_normal_ridge > 0.0 && !best.fell_back) {
+      std::vector<int> output_of_dense(ns, -1);
+      for (int v = 0; v < ns; ++v) {
+        const int r = tri.representative[v];
+        if (r >= 0) output_of_dense[v] = out_of_input[prep.split_source[r]];
+      }
+      RefitCornerNormals(prep.poses[m], prep.F, best.face_patch, problem.weight, output_of_dense, d.mesh,
+                         tri.face_patch, options.corner_normal_ridge, &d.corner_normals);
+    }
   }
 
   s.num_patches = best.num_patches;

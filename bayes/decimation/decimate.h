@@ -24,9 +24,13 @@
 // (1 − chain_reserve_share) of the budget (fewer patches fit at larger λ, so "fits" is monotone up to the
 // hill climbing's local optima); at that λ the chains are then straightened only down to the full budget,
 // least chain error first, so the kept chain vertices are those where the boundaries curve most. Full
-// decimations (hill climbing + triangulation) decide the bracket; between them the search is guided by the
-// hill climbing alone, predicting the count from the vertices where ≥ 3 patch sides meet (the ratio measured
-// on the last full run that overflowed), with power-law extrapolation and safeguarded interpolation.
+// decimations (hill climbing + triangulation) decide the bracket; the search is guided by the hill climbing
+// alone, predicting the count from the vertices where ≥ 3 patch sides meet (times the faces per such vertex
+// measured on the last full runs, 2 before any), with power-law extrapolation and safeguarded interpolation.
+// Each round runs two full decimations in parallel (TBB): at the guide's smallest fitting λ and one resolution
+// step below it. The hill climbings of the search start from the partition at the smallest λ climbed (warm
+// starts: coarsening it costs a fraction of a climb from single faces, and each λ's result depends on λ
+// alone), and the output at the full budget is recorded on the way of the fitting run's chain pass.
 #pragma once
 
 #include <string>
@@ -63,6 +67,10 @@ struct DecimateOptions {
   // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;
   double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
+  // > 0: the corner normals are then refitted to the dense face normals as a piecewise-linear field over each
+  // patch's triangles, with this ridge (share of each normal's data weight) towards the patch field; 0 keeps
+  // the patch fields' values. ≥ 0.
+  double corner_normal_ridge = 0.01;
   // After the patch structure and triangulation are fixed, move the kept vertices to their regularised
   // quadric-optimal positions under the flip guard (bayes/decimation/decimate_refit.h); false keeps the
   // output's vertices a subset of the input's.

@@ -23,6 +23,88 @@ struct Neighbour {
   bool feature() const { return faces == 1 || patches_differ; }
 };
 
+// The chain vertices removed on each straightened chain edge, by edge key: open addressing with linear
+// probing (a std::unordered_map's node per edge was a tenth of a stereo mesh's reduction), lists pooled.
+class EdgeLists {
+ public:
+  const std::vector<int>* Find(long long key) const {
+    const long long slot = Slot(key);
+    return slot >= 0 && keys_[static_cast<size_t>(slot)] == key ? &pool_[values_[static_cast<size_t>(slot)]] : nullptr;
+  }
+  void Erase(long long key) {
+    const long long slot = Slot(key);
+    if (slot < 0 || keys_[static_cast<size_t>(slot)] != key) return;
+    keys_[static_cast<size_t>(slot)] = kTombstone;
+    free_.push_back(values_[static_cast<size_t>(slot)]);
+    --used_;
+    ++tombstones_;
+  }
+  void Set(long long key, const std::vector<int>& list) {
+    if (2 * (used_ + tombstones_ + 1) > keys_.size()) Rehash(std::max<size_t>(64, 4 * (used_ + 1)));
+    const size_t mask = keys_.size() - 1;
+    size_t i = Hash(key) & mask;
+    long long first_free = -1;
+    for (;; i = (i + 1) & mask) {
+      if (keys_[i] == key) {
+        pool_[values_[i]] = list;
+        return;
+      }
+      if (keys_[i] == kTombstone && first_free < 0) first_free = static_cast<long long>(i);
+      if (keys_[i] == kEmpty) break;
+    }
+    if (first_free >= 0) {
+      i = static_cast<size_t>(first_free);
+      --tombstones_;
+    }
+    int value;
+    if (!free_.empty()) {
+      value = free_.back();
+      free_.pop_back();
+    } else {
+      value = static_cast<int>(pool_.size());
+      pool_.emplace_back();
+    }
+    keys_[i] = key;
+    values_[i] = value;
+    pool_[value] = list;
+    ++used_;
+  }
+
+ private:
+  static constexpr long long kEmpty = -1, kTombstone = -2;
+  static size_t Hash(long long key) { return static_cast<size_t>((static_cast<unsigned long long>(key) * 0x9E3779B97F4A7C15ull) >> 20); }
+  // The slot holding key, else the empty slot that ends its probe; −1 when the table is empty.
+  long long Slot(long long key) const {
+    if (keys_.empty()) return -1;
+    const size_t mask = keys_.size() - 1;
+    for (size_t i = Hash(key) & mask;; i = (i + 1) & mask) {
+      if (keys_[i] == key || keys_[i] == kEmpty) return static_cast<long long>(i);
+    }
+  }
+  void Rehash(size_t min_size) {
+    size_t size = 64;
+    while (size < min_size) size *= 2;
+    std::vector<long long> keys(size, kEmpty);
+    std::vector<int> values(size, 0);
+    for (size_t j = 0; j < keys_.size(); ++j) {
+      if (keys_[j] < 0) continue;
+      size_t i = Hash(keys_[j]) & (size - 1);
+      while (keys[i] != kEmpty) i = (i + 1) & (size - 1);
+      keys[i] = keys_[j];
+      values[i] = values_[j];
+    }
+    keys_ = std::move(keys);
+    values_ = std::move(values);
+    tombstones_ = 0;
+  }
+
+  std::vector<long long> keys_;
+  std::vector<int> values_;
+  std::vector<std::vector<int>> pool_;
+  std::vector<int> free_;
+  size_t used_ = 0, tombstones_ = 0;
+};
+
 class Reducer {
  public:
   Reducer(const std::vector<const Vertices*>& poses, const Faces& F, const std::vector<int>& face_patch,
@@ -136,7 +218,20 @@ class Reducer {
       }
       if (queue.empty()) break;
     }
-    if (options_.target_faces > 0) BudgetedChainPass(options_.target_faces);
+    PatchTriangulation recorded;
+    bool has_recorded = false;
+    if (options_.target_faces > 0) {
+      BudgetedChainPass(options_.target_faces, options_.record_faces, &recorded, &has_recorded);
+    }
+    PatchTriangulation out = Emit();
+    if (has_recorded) out.recorded.push_back(std::move(recorded));
+    return out;
+  }
+
+ private:
+  // The current state as output.
+  PatchTriangulation Emit() {
+    const int nv = static_cast<int>(vf_.size());
     PatchTriangulation out;
     int count = 0;
     for (char a : alive_face_) count += a;
@@ -175,7 +270,6 @@ class Reducer {
     return out;
   }
 
- private:
   static Eigen::Vector3d FaceCross(const Vertices& V, const std::array<int, 3>& t) {
     const Eigen::Vector3d a = V.row(t[0]).transpose(), b = V.row(t[1]).transpose(), c = V.row(t[2]).transpose();
     return (b - a).cross(c - a);
@@ -340,8 +434,9 @@ class Reducer {
     chain_points_.clear();
     chain_points_.push_back(v);
     for (long long key : {EdgeKey(u, v), EdgeKey(v, w)}) {
-      auto it = removed_on_edge_.find(key);
-      if (it != removed_on_edge_.end()) chain_points_.insert(chain_points_.end(), it->second.begin(), it->second.end());
+      if (const std::vector<int>* list = removed_on_edge_.Find(key)) {
+        chain_points_.insert(chain_points_.end(), list->begin(), list->end());
+      }
     }
     for (const Vertices* V : poses_) {
       const Eigen::Vector3d a = V->row(u).transpose(), b = V->row(w).transpose();
@@ -370,9 +465,9 @@ class Reducer {
       const Eigen::Vector3d a = V->row(u).transpose(), b = V->row(w).transpose();
       error = std::max(error, SegmentDistance(V->row(v).transpose(), a, b));
       for (long long key : {EdgeKey(u, v), EdgeKey(v, w)}) {
-        auto it = removed_on_edge_.find(key);
-        if (it == removed_on_edge_.end()) continue;
-        for (int x : it->second) error = std::max(error, SegmentDistance(V->row(x).transpose(), a, b));
+        const std::vector<int>* list = removed_on_edge_.Find(key);
+        if (list == nullptr) continue;
+        for (int x : *list) error = std::max(error, SegmentDistance(V->row(x).transpose(), a, b));
       }
     }
     return error;
@@ -380,24 +475,45 @@ class Reducer {
 
   // Removes chain vertices, least chain error first, until at most `target` faces are alive. Interior
   // vertices next to a removed one are retried at once (their stars changed; most become removable).
-  void BudgetedChainPass(int target) {
+  void BudgetedChainPass(int target, int record_faces, PatchTriangulation* recorded, bool* has_recorded) {
     chain_tolerance_ = std::numeric_limits<double>::infinity();
+    auto record = [&] {
+      if (record_faces > target && !*has_recorded && alive_count_ <= record_faces) {
+        *recorded = Emit();
+        *has_recorded = true;
+      }
+    };
+    record();
     using Entry = std::tuple<double, int, int>;  // chain error, vertex, version
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> queue;
     const int nv = static_cast<int>(vf_.size());
+    queue_seed_.clear();
     for (int v = 0; v < nv; ++v) {
       if (vf_[v].empty() || kept_[v]) continue;
       const double e = ChainError(v);
-      if (std::isfinite(e)) queue.emplace(e, v, version_[v]);
+      if (std::isfinite(e)) queue_seed_.emplace_back(e, v, version_[v]);
     }
-    std::vector<int> targets, around, inner;
+    queue = decltype(queue)(std::greater<Entry>(), queue_seed_);
+    // Chain vertices stay chain vertices and interior ones interior (collapses never cross a patch), so the
+    // class is found once. A collapse changes the chain error of the two chain neighbours only; the other
+    // vertices of the star are revisited only when their collapse was refused before (chain vertices) or
+    // blocked (interior vertices, whose stars changed; most become removable).
+    // A chain error depends only on the chain's vertices (interior collapses never change a chain), so it is
+    // cached and recomputed only for the chain neighbours of a chain collapse.
+    std::vector<char> chain(nv, 0), refused(nv, 0);
+    std::vector<double> error_of(nv, std::numeric_limits<double>::infinity());
+    for (const auto& [e, v, version] : queue_seed_) {
+      chain[v] = 1;
+      error_of[v] = e;
+    }
+    std::vector<int> targets, inner;
     while (!queue.empty() && alive_count_ > target) {
       auto [error, v, version] = queue.top();
       queue.pop();
       ++pops_;
       if (vf_[v].empty() || kept_[v]) continue;
       if (version != version_[v]) {
-        error = ChainError(v);
+        error = error_of[v];
         if (!std::isfinite(error)) continue;
         if (!queue.empty() && error > std::get<0>(queue.top())) {
           queue.emplace(error, v, version_[v]);
@@ -412,26 +528,37 @@ class Reducer {
           break;
         }
       }
-      if (onto < 0) continue;  // refused; retried when a neighbour's collapse bumps its version
-      max_chain_error_ = std::max(max_chain_error_, error);
-      around.clear();
-      for (int f : vf_[onto]) {
-        for (int x : T_[f]) {
-          if (x != onto && !kept_[x]) around.push_back(x);
-        }
+      if (onto < 0) {
+        refused[v] = 1;  // retried when a collapse next to it changes its star
+        continue;
       }
-      around.push_back(onto);
-      std::sort(around.begin(), around.end());
-      around.erase(std::unique(around.begin(), around.end()), around.end());
-      for (int x : around) {
+      max_chain_error_ = std::max(max_chain_error_, error);
+      record();
+      for (int x : targets) {
         if (vf_[x].empty() || kept_[x]) continue;
-        const double e = ChainError(x);
-        if (std::isfinite(e)) {
-          queue.emplace(e, x, version_[x]);
-        } else if (alive_count_ > target) {
-          Targets(x, &inner);
-          for (int u : inner) {
-            if (TryCollapse(x, u)) break;
+        error_of[x] = ChainError(x);
+        if (std::isfinite(error_of[x])) queue.emplace(error_of[x], x, version_[x]);
+        refused[x] = 0;
+      }
+      ++current_stamp_;
+      const int seen = current_stamp_;
+      for (size_t i = 0; i < vf_[onto].size(); ++i) {
+        for (int x : T_[vf_[onto][i]]) {
+          if (stamp_[x] == seen || x == onto || kept_[x] || vf_[x].empty()) continue;
+          stamp_[x] = seen;
+          if (chain[x]) {
+            if (refused[x]) {
+              refused[x] = 0;
+              if (std::isfinite(error_of[x])) queue.emplace(error_of[x], x, version_[x]);
+            }
+          } else if (alive_count_ > target) {
+            Targets(x, &inner);
+            for (int u : inner) {
+              if (TryCollapse(x, u)) {
+                record();
+                break;
+              }
+            }
           }
         }
       }
@@ -533,9 +660,9 @@ class Reducer {
     }
     // Apply.
     if (w >= 0) {
-      removed_on_edge_.erase(EdgeKey(u, v));
-      removed_on_edge_.erase(EdgeKey(v, w));
-      removed_on_edge_[EdgeKey(u, w)] = chain_points_;
+      removed_on_edge_.Erase(EdgeKey(u, v));
+      removed_on_edge_.Erase(EdgeKey(v, w));
+      removed_on_edge_.Set(EdgeKey(u, w), chain_points_);
     }
     alive_count_ -= static_cast<int>(deleted_.size());
     for (int f : deleted_) {
@@ -588,7 +715,8 @@ class Reducer {
   std::vector<std::pair<double, int>> by_length_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
-  std::unordered_map<long long, std::vector<int>> removed_on_edge_;
+  std::vector<std::tuple<double, int, int>> queue_seed_;
+  EdgeLists removed_on_edge_;
   double chain_tolerance_ = 0.0;
   double diag_ = 0.0;
   double max_chain_error_ = 0.0;

@@ -40,6 +40,9 @@ struct PatchTriangulationOptions {
   // faces remain or no chain vertex can go. The budget goes where the boundaries are straightest, and the
   // kept chain vertices are those where the boundaries curve most. 0: no budgeted pass.
   int target_faces = 0;
+  // > target_faces (with target_faces > 0): PatchTriangulation::recorded also holds the triangulation as it
+  // was when the budgeted pass first had at most this many faces, the result of a run with this target.
+  int record_faces = 0;
 };
 
 struct PatchTriangulation {
@@ -54,6 +57,9 @@ struct PatchTriangulation {
   double max_chain_error_rel = 0.0;
   // Per dense vertex, the kept vertex its star collapsed onto (itself when kept), −1 for one no face used.
   std::vector<int> representative;
+  // With PatchTriangulationOptions::record_faces: the triangulation at that face count (one entry; empty when
+  // the pass never had that few faces).
+  std::vector<PatchTriangulation> recorded;
 };
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite

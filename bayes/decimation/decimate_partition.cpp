@@ -36,13 +36,30 @@ struct FaceEntry {
 
 class Climber {
  public:
-  Climber(const DecimationProblem& problem, double lambda)
+  Climber(const DecimationProblem& problem, double lambda, const std::vector<int>* initial)
       : p_(problem), lambda_(lambda), d_(problem.dim), eps_(1e-9 * lambda) {
     const int nf = p_.num_faces();
     g_.resize(nf);
     next_.assign(nf, -1);
     prev_.assign(nf, -1);
     mark_.assign(nf, 0);
+    if (initial != nullptr && !initial->empty()) {
+      int num = 0;
+      for (int k : *initial) num = std::max(num, k + 1);
+      W_.reserve(static_cast<size_t>(num));
+      for (int k = 0; k < num; ++k) NewPatch();
+      for (int f = nf - 1; f >= 0; --f) {
+        const int k = (*initial)[static_cast<size_t>(f)];
+        g_[f] = k;
+        next_[f] = head_[k];
+        if (head_[k] >= 0) prev_[head_[k]] = f;
+        head_[k] = f;
+        ++size_[k];
+        AddFaceSums(k, f, +1.0);
+      }
+      for (int k = 0; k < num; ++k) alive_[k] = size_[k] > 0 ? 1 : 0;
+      return;
+    }
     for (int f = 0; f < nf; ++f) {
       const int k = NewPatch();
       g_[f] = k;
@@ -480,7 +497,14 @@ std::vector<int> HillClimbPartition(const DecimationProblem& problem, double lam
   RB_CHECK(problem.dim > 0 && problem.normals.size() == static_cast<size_t>(nf) * problem.dim &&
                problem.neighbours.size() == static_cast<size_t>(nf) && problem.corners.size() == static_cast<size_t>(nf),
            "decimation: inconsistent problem sizes");
-  Climber climber(problem, lambda);
+  if (options.initial != nullptr && !options.initial->empty()) {
+    RB_CHECK(options.initial->size() == static_cast<size_t>(nf), "decimation: initial partition has ",
+             options.initial->size(), " entries for ", nf, " faces");
+    for (int k : *options.initial) {
+      RB_CHECK(k >= 0 && k < nf, "decimation: initial partition id ", k, " out of [0, ", nf, ")");
+    }
+  }
+  Climber climber(problem, lambda, options.initial);
   return climber.Run(options, stats);
 }
 

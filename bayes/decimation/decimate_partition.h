@@ -45,6 +45,9 @@ struct PartitionStats {
 
 struct PartitionOptions {
   int max_rounds = 200;  // rounds of (fuse phase, split/swap phase); ≥ 1
+  // Optional start (warm start): a contiguous map face → patch id (ids in [0, F), need not be dense), for
+  // example the result at a smaller λ, which the climb then coarsens. Null or empty: every face its own patch.
+  const std::vector<int>* initial = nullptr;
   ProgressCallback progress;
 };
 

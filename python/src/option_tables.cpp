@@ -49,6 +49,7 @@ const FieldTable<DecimateOptions>& DecimateOptionFields() {
       RB_PY_FIELD(DecimateOptions, min_cos_to_patch_normal),
       RB_PY_FIELD(DecimateOptions, chain_tolerance_rel),
       RB_PY_FIELD(DecimateOptions, shading_regularisation),
+      RB_PY_FIELD(DecimateOptions, corner_normal_ridge),
   };
   return table;
 }

@@ -106,6 +106,18 @@ TEST(DecimatePartition, RandomGridsStayContiguousAndEnergyIsConsistent) {
     EXPECT_LT(stats.energy, lambda * p.num_faces());
     EXPECT_TRUE(stats.converged);
     EXPECT_GT(stats.fuses, 0);
+    // A warm start at a larger λ from this partition (as the λ search does) only coarsens it: contiguous,
+    // consistent, and never above the start's energy at the larger λ.
+    const double coarser = 2.0 * lambda;
+    PartitionOptions warm;
+    warm.initial = &g;
+    PartitionStats warm_stats;
+    const std::vector<int> h = HillClimbPartition(p, coarser, warm, &warm_stats);
+    EXPECT_TRUE(PartitionIsContiguous(p, h)) << "trial " << trial;
+    EXPECT_NEAR(PartitionEnergy(p, h, coarser), warm_stats.energy, 1e-9 * warm_stats.energy);
+    EXPECT_LE(warm_stats.energy, PartitionEnergy(p, g, coarser) + 1e-12);
+    EXPECT_LE(CountPatches(h), CountPatches(g));
+    EXPECT_TRUE(warm_stats.converged);
   }
 }
 
@@ -113,6 +125,10 @@ TEST(DecimatePartition, RejectsBadLambda) {
   const DecimationProblem p = PathProblem({{0, 0, 1}, {0, 0, 1}}, false);
   EXPECT_THROW(HillClimbPartition(p, 0.0), std::exception);
   EXPECT_THROW(HillClimbPartition(p, -1.0), std::exception);
+  const std::vector<int> short_start = {0};
+  PartitionOptions options;
+  options.initial = &short_start;
+  EXPECT_THROW(HillClimbPartition(p, 1.0, options), std::exception);
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 #include "bayes/decimation/decimate.h"
+#include "bayes/decimation/decimate_geometry.h"
 
 #include <gtest/gtest.h>
 
@@ -453,6 +454,36 @@ TEST(Decimate, TargetFacesFindsLambda) {
   EXPECT_LT(fine.lambda_fits / fine.lambda_too_many, summary.lambda_fits / summary.lambda_too_many + 1e-12);
 }
 
+// The budgeted chain pass run down to a budget records on its way the triangulation a run with a larger
+// target gives (the λ search takes its output from there instead of a second reduction).
+TEST(DecimateGeometry, RecordedTriangulationEqualsARunWithThatTarget) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.lambda = 0.3;
+  options.refit_vertices = false;
+  const DecimatedMesh patches = Decimate(sphere, options);
+  ASSERT_GT(patches.num_patches, 4);
+  const std::vector<const Vertices*> poses{&sphere.V};
+  PatchTriangulationOptions run;
+  run.chain_tolerance_rel = 1e-7;
+  run.target_faces = 4;  // as far as the chains straighten
+  const int fewest = static_cast<int>(
+      TriangulatePatches(poses, sphere.F, patches.dense_face_patch, patches.num_patches, {}, run).F.rows());
+  run.target_faces = fewest + 60;
+  const PatchTriangulation direct = TriangulatePatches(poses, sphere.F, patches.dense_face_patch,
+                                                       patches.num_patches, {}, run);
+  ASSERT_EQ(direct.F.rows(), fewest + 60);
+  run.target_faces = fewest + 20;
+  run.record_faces = fewest + 60;
+  const PatchTriangulation both = TriangulatePatches(poses, sphere.F, patches.dense_face_patch,
+                                                     patches.num_patches, {}, run);
+  ASSERT_EQ(both.recorded.size(), 1u);
+  EXPECT_EQ(both.F.rows(), fewest + 20);
+  EXPECT_EQ(both.recorded[0].F, direct.F);
+  EXPECT_EQ(both.recorded[0].face_patch, direct.face_patch);
+  EXPECT_EQ(both.recorded[0].representative, direct.representative);
+}
+
 // A budget above the input's face count keeps the dense mesh and stops searching once every face is a patch.
 TEST(Decimate, TargetAboveInputKeepsDenseMesh) {
   const Mesh sphere = Sphere(2);
@@ -645,6 +676,42 @@ TEST(DecimateRefit, BringsAFacetedSphereCloserToItsVolume) {
   for (int v = 0; v < subset.mesh.num_vertices(); ++v) {
     EXPECT_EQ(subset.mesh.V.row(v), sphere.V.row(subset.vertex_source[v]));
   }
+}
+
+// The corner-normal refit fits the shading to the dense normals: on a sphere, the interpolated shading normal
+// at points of the coarse triangles is closer to the radial direction there than the patch fields' normals,
+// and every corner normal is a unit vector.
+TEST(DecimateRefit, CornerNormalsFollowTheDenseNormals) {
+  const Mesh sphere = Sphere(4);
+  auto mean_error_deg = [](const DecimatedMesh& d) {
+    double sum = 0.0;
+    int count = 0;
+    for (int f = 0; f < d.mesh.num_faces(); ++f) {
+      for (const Eigen::Vector3d& b : {Eigen::Vector3d(1.0 / 3, 1.0 / 3, 1.0 / 3), Eigen::Vector3d(0.6, 0.2, 0.2),
+                                      Eigen::Vector3d(0.2, 0.6, 0.2), Eigen::Vector3d(0.2, 0.2, 0.6)}) {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
+        for (int c = 0; c < 3; ++c) {
+          p += b(c) * d.mesh.V.row(d.mesh.F(f, c)).transpose();
+          n += b(c) * d.corner_normals.normals.row(d.corner_normals.normal_index(f, c)).transpose();
+        }
+        sum += std::acos(std::clamp(n.normalized().dot(p.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+        ++count;
+      }
+    }
+    return sum / count;
+  };
+  DecimateOptions options;
+  options.target_faces = 100;
+  const DecimatedMesh refitted = Decimate(sphere, options);
+  for (int i = 0; i < refitted.corner_normals.normals.rows(); ++i) {
+    EXPECT_NEAR(refitted.corner_normals.normals.row(i).norm(), 1.0, 1e-9);
+  }
+  options.corner_normal_ridge = 0.0;
+  const DecimatedMesh fields = Decimate(sphere, options);
+  ASSERT_EQ(refitted.mesh.F, fields.mesh.F);
+  EXPECT_LT(mean_error_deg(refitted), 0.8 * mean_error_deg(fields));
+  options.corner_normal_ridge = -1.0;
+  EXPECT_THROW(options.Check(), std::exception);
 }
 
 TEST(DecimateRefit, FlatInputAndFixedVerticesStay) {
