@@ -555,9 +555,20 @@ class Stages {
       smoothing.adaptive_epsilon = false;
       // The budget is a deadline for the whole solve (stages and levels included): it buys the most converged
       // result it can, and the summary says how far from converged it stopped.
-      if (item.settings.smooth_budget_ms > 0.0) smoothing.time_limit_s = 1e-3 * item.settings.smooth_budget_ms;
+      // What the solve spends beyond its limit (setup, the iteration running at the deadline) is learned from
+      // the frames before (a running mean) and taken off the next limit, so the stage keeps to the budget; the
+      // limit never drops below a quarter of the budget.
+      const double budget_ms = item.settings.smooth_budget_ms;
+      double limit_ms = 0;
+      if (budget_ms > 0.0) {
+        limit_ms = std::max(0.25 * budget_ms, budget_ms - smooth_overrun_ms);
+        smoothing.time_limit_s = 1e-3 * limit_ms;
+      }
       SmoothSummary ss;
       item.result.smoothed = Smooth(item.result.raw_mesh, smoothing, &ss);
+      if (budget_ms > 0.0) {
+        smooth_overrun_ms = 0.7 * smooth_overrun_ms + 0.3 * std::max(0.0, 1000.0 * ss.time_s - limit_ms);
+      }
       item.result.smooth_iterations = ss.iterations;
       item.result.smooth_time_limited = ss.termination == SmoothTermination::kTimeLimit;
       item.result.smooth_distance =
@@ -712,6 +723,7 @@ class Stages {
   std::optional<FrameResult> first;
   std::vector<std::unique_ptr<ItemQueue>> queues;
   SmoothTally smooth_tally;  // written by the smooth stage only, read after the join
+  double smooth_overrun_ms = 0.0;  // smooth stage only: mean time a budgeted solve ran past its limit
   double latency_sum_ms = 0.0;   // sink stage only
   std::int64_t frames_done = 0;  // sink stage only
 };
