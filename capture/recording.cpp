@@ -383,7 +383,8 @@ Recording OpenRecording(const std::string& folder, RecordingReadSummary* summary
   for (size_t i = 0; i < rec.frames.size(); ++i) {
     const RecordingEntry& e = rec.frames[i];
     for (const std::string* name : {&e.left, &e.right}) {
-      if (!fs::is_regular_file(root / *name)) {
+      std::error_code ec;  // a name the file system refuses (too long, through a file) is missing, not fatal
+      if (!fs::is_regular_file(root / *name, ec)) {
         rec.files_present[i] = false;
         s.notices.push_back(StrCat(folder, ": frame ", e.index, ": ", *name, " is missing"));
       }
@@ -405,7 +406,8 @@ StereoFrame LoadRecordingFrame(const Recording& recording, int i) {
   for (int side = 0; side < 2; ++side) {
     const std::string& name = side == 0 ? e.left : e.right;
     const std::string path = (fs::path(recording.folder) / name).string();
-    RB_CHECK(fs::is_regular_file(path), recording.folder, ": frame ", e.index, ": ", name, " is missing");
+    std::error_code ec;
+    RB_CHECK(fs::is_regular_file(path, ec), recording.folder, ": frame ", e.index, ": ", name, " is missing");
     std::vector<uchar> bytes;
     {
       std::ifstream in(path, std::ios::binary);

@@ -190,6 +190,22 @@ TEST(Recording, ImagesWhoseHeaderDeclaresMoreThanTheFileHoldsAreRefused) {
   EXPECT_NE(message(1).find("frame 1: left/000001.png is corrupt (not a PNG image)"), std::string::npos) << message(1);
 }
 
+// Found by fuzz_recording: an index naming a file the file system refuses to look up (a name longer than
+// NAME_MAX) threw std::filesystem_error out of OpenRecording; it is a missing file like any other.
+TEST(Recording, UnlookupableFileNamesAreMissingFiles) {
+  const TempDir dir("longname");
+  const std::string folder = dir.path() + "/rec";
+  { RecordingWriter writer(folder, std::nullopt, {}); }
+  {
+    std::ofstream index(folder + "/frames.csv", std::ios::app);
+    index << "0,0,0,left/" << std::string(300, 'x') << ".png,right/000000.png,0\n";
+  }
+  RecordingReadSummary s;
+  const Recording rec = OpenRecording(folder, &s);
+  EXPECT_EQ(s.missing_files, 1);
+  EXPECT_THROW(LoadRecordingFrame(rec, 0), Error);
+}
+
 TEST(Recording, WrongRigFileIsOneClearError) {
   const TempDir dir("rig");
   const std::string folder = dir.path() + "/rec";
