@@ -72,7 +72,8 @@ std::vector<ManifestTask> ParseManifest(const std::string& text, const std::stri
       RB_FAIL(source, ":", line_number, ": ", e.what());
     }
     if (words.empty()) continue;
-    RB_CHECK(words[0].empty() || words[0][0] != '-', source, ":", line_number,
+    RB_CHECK(!words[0].empty(), source, ":", line_number, ": a task starts with a subcommand, not an empty word");
+    RB_CHECK(words[0][0] != '-', source, ":", line_number,
              ": a task starts with a subcommand (smooth, replay, decimate, ...), not the option '", words[0], "'");
     RB_CHECK(words[0] != "rangebayes", source, ":", line_number,
              ": leave out the binary's name; a task line starts with the subcommand");

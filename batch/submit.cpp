@@ -190,8 +190,15 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
     for (size_t i = 0; i < report.states.size(); ++i) {
       if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
     }
-    std::sort(indices.begin(), indices.end());
+  } else {
+    // A local batch: a task marked running whose run-task process on this host is gone was killed.
+    for (size_t i = 0; i < report.states.size(); ++i) {
+      if (report.states[i] == "running" && report.statuses[i] && RunTaskIsGone(*report.statuses[i])) {
+        indices.push_back(static_cast<int>(i));
+      }
+    }
   }
+  std::sort(indices.begin(), indices.end());
   RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
            report.running, " running)");
   if (!options.binary.empty()) record.binary = options.binary;

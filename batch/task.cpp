@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -202,6 +203,7 @@ std::string BatchTaskStatusJson(const BatchTaskStatus& s) {
   j["run"] = s.run;
   j["job_id"] = s.job_id;
   j["host"] = s.host;
+  j["pid"] = s.pid;
   j["node"] = s.node;
   j["start_utc"] = s.start_utc;
   j["end_utc"] = s.end_utc;
@@ -222,6 +224,7 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
     s.run = j.value("run", 1);
     s.job_id = j.value("job_id", "");
     s.host = j.value("host", "");
+    s.pid = j.value("pid", 0);
     s.node = j.value("node", "");
     s.start_utc = j.value("start_utc", "");
     s.end_utc = j.value("end_utc", "");
@@ -251,6 +254,20 @@ void RunTaskOptions::Check() const {
   RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "RunTaskOptions::binary must be absolute: ", binary);
 }
 
+namespace {
+
+// The temporary folders of earlier runs of task `index` that never finished (their run-task was killed with
+// SIGKILL or lost its node): a published result supersedes them.
+void RemoveAbandonedWork(const BatchLayout& layout, int index) {
+  const std::string prefix = ".tmp-" + std::to_string(index) + "-";
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(layout.tasks_dir(), ec)) {
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
+  }
+}
+
+}  // namespace
+
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options) {
   options.Check();
   const BatchLayout layout(dir);
@@ -268,6 +285,7 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   if (const auto previous = ReadBatchTaskStatus(layout, index)) status.run = previous->run + 1;
   status.job_id = Env("SLURM_ARRAY_JOB_ID");
   status.host = HostName();
+  status.pid = static_cast<int>(getpid());
   status.node = Env("SLURMD_NODENAME");
   status.start_utc = NowUtc();
   const std::vector<std::string> arguments = ResolveTaskArguments(task.arguments, record.manifest_dir);
@@ -339,6 +357,7 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
     try {
       Publish(work, layout.task_dir(index));
       status.state = "succeeded";
+      RemoveAbandonedWork(layout, index);
     } catch (const Error& e) {
       status.state = "failed";
       status.exit_code = 1;
@@ -358,6 +377,11 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   }
   WriteBatchTaskStatus(layout, status);
   return status;
+}
+
+bool RunTaskIsGone(const BatchTaskStatus& status) {
+  if (status.state != "running" || status.pid <= 0 || status.host != HostName()) return false;
+  return kill(static_cast<pid_t>(status.pid), 0) != 0 && errno == ESRCH;
 }
 
 BatchReport CollectBatchReport(const std::string& dir) {

@@ -63,6 +63,7 @@ struct BatchTaskStatus {
   int run = 1;            // how many times run-task started this index in this folder, this run included
   std::string job_id;     // SLURM_ARRAY_JOB_ID, empty outside Slurm
   std::string host;       // gethostname()
+  int pid = 0;            // run-task's process id on `host` (0: not recorded)
   std::string node;       // SLURMD_NODENAME, empty outside Slurm
   std::string start_utc, end_utc;  // ISO 8601 with milliseconds; end empty while running
   double duration_s = 0;           // wall time of the command
@@ -91,9 +92,14 @@ struct RunTaskOptions {
 // Runs task `index` of the batch in DIR: resolves the line's paths (ResolveTaskArguments), runs it in
 // DIR/tasks/.tmp-<index>-<attempt>-<pid>/ with its output appended to DIR/logs/<index>.log, and renames the
 // folder to DIR/tasks/<index>/ (replacing an older result) only when the command exited 0; otherwise removes
-// it. Writes the status file at the start (running) and the end. Returns the final status; throws only when
-// DIR is not a batch or `index` is out of range.
+// it. Writes the status file at the start (running) and the end. On success it also removes the temporary
+// folders that earlier runs of the same task left when they were killed (SIGKILL, a lost node). Returns the
+// final status; throws only when DIR is not a batch or `index` is out of range.
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options = {});
+
+// True when `status` says running but its run-task process is gone: it ran on this host and no process
+// `status.pid` exists any more (killed with SIGKILL, or the machine restarted).
+bool RunTaskIsGone(const BatchTaskStatus& status);
 
 // The state of every task of a batch, from its status files and task folders (no Slurm accounting).
 struct BatchReport {

@@ -17,6 +17,15 @@ void ReadMatrix(const cv::FileStorage& fs, const std::string& path, const char* 
     RB_CHECK(!required, path, ": field '", name, "' is missing");
     return;
   }
+  // Checked before OpenCV reads the matrix, which allocates rows·cols first: a rig's matrices are small.
+  RB_CHECK(node.isMap() && node["rows"].isInt() && node["cols"].isInt(), path, ": field '", name,
+           "' is not an OpenCV matrix (rows, cols, dt, data)");
+  const int rows = static_cast<int>(node["rows"]), cols = static_cast<int>(node["cols"]);
+  const size_t values = node["data"].isSeq() ? node["data"].size() : 0;
+  RB_CHECK(rows >= 0 && cols >= 0 && rows <= 16 && cols <= 16 &&
+               values == static_cast<size_t>(rows) * static_cast<size_t>(cols),
+           path, ": field '", name, "' is ", rows, "x", cols, " with ", values,
+           " values (a rig matrix has at most 16x16, one value per entry)");
   cv::Mat m;
   node >> m;
   if constexpr (EigenType::RowsAtCompileTime != Eigen::Dynamic && EigenType::ColsAtCompileTime != Eigen::Dynamic) {

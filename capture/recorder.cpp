@@ -20,6 +20,8 @@ const char* ToString(RecorderStop stop) {
     case RecorderStop::kMaxDuration: return "time limit reached";
     case RecorderStop::kStalled: return "source stalled";
     case RecorderStop::kSourceError: return "source error";
+    case RecorderStop::kWriteFailed:
+      return "write failed";
   }
   return "unknown";
 }
@@ -77,7 +79,7 @@ RecorderSummary Record(FrameSource& source, RecordingWriter& writer, const Recor
     try {
       writer.Write(r.frame);
     } catch (const std::exception& e) {
-      summary.stop = RecorderStop::kSourceError;
+      summary.stop = RecorderStop::kWriteFailed;
       summary.error = e.what();
       break;
     }

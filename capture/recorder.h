@@ -20,7 +20,16 @@ struct RecorderOptions {
   void Check() const;
 };
 
-enum class RecorderStop { kEndOfStream, kStopRequested, kMaxFrames, kMaxDuration, kStalled, kSourceError };
+// kWriteFailed: the writer failed (a full disk): the frame in flight is lost, the frames before it are kept.
+enum class RecorderStop {
+  kEndOfStream,
+  kStopRequested,
+  kMaxFrames,
+  kMaxDuration,
+  kStalled,
+  kSourceError,
+  kWriteFailed
+};
 
 struct RecorderSummary {
   std::int64_t frames_written = 0;

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
@@ -22,35 +23,43 @@ namespace {
 std::string ErrnoText() { return std::strerror(errno); }
 
 // Writes all of `data` to `path` via a temporary file and a rename, so a reader never sees half a file.
-void WriteFileAtomically(const std::string& path, const void* data, size_t size) {
+void WriteFileAtomically(FileSysCalls& files, const std::string& path, const void* data, size_t size) {
   const std::string tmp = path + ".partial";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const int fd = files.Open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   RB_CHECK(fd >= 0, tmp, ": cannot create (", ErrnoText(), ")");
   const char* p = static_cast<const char*>(data);
   size_t left = size;
   while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
+    const ssize_t n = files.Write(fd, p, left);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      const std::string why = ErrnoText();
-      ::close(fd);
+      const std::string why = n == 0 ? "no progress" : ErrnoText();
+      files.Close(fd);
       ::unlink(tmp.c_str());
       RB_FAIL(path, ": write failed (", why, ")");
     }
     p += n;
     left -= static_cast<size_t>(n);
   }
-  RB_CHECK(::close(fd) == 0, path, ": close failed (", ErrnoText(), ")");
-  RB_CHECK(std::rename(tmp.c_str(), path.c_str()) == 0, path, ": rename failed (", ErrnoText(), ")");
+  if (files.Close(fd) != 0) {
+    const std::string why = ErrnoText();
+    ::unlink(tmp.c_str());
+    RB_FAIL(path, ": close failed (", why, ")");
+  }
+  if (files.Rename(tmp, path) != 0) {
+    const std::string why = ErrnoText();
+    ::unlink(tmp.c_str());
+    RB_FAIL(path, ": rename failed (", why, ")");
+  }
 }
 
-void WriteAll(int fd, const std::string& text, const std::string& what) {
+void WriteAll(FileSysCalls& files, int fd, const std::string& text, const std::string& what) {
   const char* p = text.data();
   size_t left = text.size();
   while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
+    const ssize_t n = files.Write(fd, p, left);
     if (n < 0 && errno == EINTR) continue;
-    RB_CHECK(n > 0, what, ": write failed (", ErrnoText(), ")");
+    RB_CHECK(n > 0, what, ": write failed (", n == 0 ? "no progress" : ErrnoText(), ")");
     p += n;
     left -= static_cast<size_t>(n);
   }
@@ -123,6 +132,37 @@ bool IsSafeRelativePath(const std::string& name) {
   return true;
 }
 
+// Why `bytes` cannot be a recording's image, or empty when they can: a PNG whose declared size its zlib
+// stream can hold. Deflate expands at most 1032:1, so a header that declares more raw bytes than that is
+// refused before anything is allocated for it.
+std::string PngProblem(const std::vector<uchar>& bytes) {
+  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (bytes.size() < 33 || std::memcmp(bytes.data(), kSignature, 8) != 0 || std::memcmp(&bytes[12], "IHDR", 4) != 0) {
+    return "not a PNG image";
+  }
+  auto u32 = [&](size_t at) {
+    return (std::uint64_t{bytes[at]} << 24) | (std::uint64_t{bytes[at + 1]} << 16) |
+           (std::uint64_t{bytes[at + 2]} << 8) | std::uint64_t{bytes[at + 3]};
+  };
+  const std::uint64_t width = u32(16), height = u32(20);
+  const int bit_depth = bytes[24], color_type = bytes[25];
+  const int channels = color_type == 0   ? 1
+                       : color_type == 2 ? 3
+                       : color_type == 3 ? 1
+                       : color_type == 4 ? 2
+                       : color_type == 6 ? 4
+                                         : 0;
+  if (channels == 0 || width == 0 || height == 0 || width > (1u << 20) || height > (1u << 20) ||
+      (bit_depth != 1 && bit_depth != 2 && bit_depth != 4 && bit_depth != 8 && bit_depth != 16)) {
+    return "PNG header is invalid";
+  }
+  const std::uint64_t raw = height * (1 + (width * channels * bit_depth + 7) / 8);
+  if (raw > 1032 * static_cast<std::uint64_t>(bytes.size()) + 1024) {
+    return StrCat("PNG declares ", width, "x", height, " pixels, more than its ", bytes.size(), " bytes can hold");
+  }
+  return {};
+}
+
 void FrameName(std::int64_t index, char* buffer, size_t size) {
   std::snprintf(buffer, size, "%06lld.png", static_cast<long long>(index));
 }
@@ -136,7 +176,7 @@ void RecordingWriterOptions::Check() const {
 
 RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<StereoRig>& rig,
                                  const RecordingMeta& meta, const RecordingWriterOptions& options)
-    : folder_(folder), meta_(meta), options_(options) {
+    : folder_(folder), meta_(meta), options_(options), files_(options.files ? options.files : RealFileSysCalls()) {
   options_.Check();
   RB_CHECK(!folder.empty(), "recording folder name is empty");
   const fs::path root(folder);
@@ -157,9 +197,9 @@ RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<
   meta_["complete"] = "false";
   WriteMeta(meta_);
   const std::string index_path = (root / "frames.csv").string();
-  index_fd_ = ::open(index_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+  index_fd_ = files_->Open(index_path, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index_path, ": cannot create (", ErrnoText(), ")");
-  WriteAll(index_fd_, std::string(kRecordingIndexHeader) + "\n", index_path);
+  WriteAll(*files_, index_fd_, std::string(kRecordingIndexHeader) + "\n", index_path);
 }
 
 RecordingWriter::~RecordingWriter() {
@@ -168,7 +208,7 @@ RecordingWriter::~RecordingWriter() {
   } catch (...) {
     // A destructor must not throw; the recording stays readable up to its last complete frame.
   }
-  if (index_fd_ >= 0) ::close(index_fd_);
+  if (index_fd_ >= 0) files_->Close(index_fd_);
 }
 
 void RecordingWriter::WriteMeta(const RecordingMeta& meta) const {
@@ -176,11 +216,13 @@ void RecordingWriter::WriteMeta(const RecordingMeta& meta) const {
   out << "# rangebayes recording: description of the source (see recordings/README.md)\n";
   for (const auto& [key, value] : meta) out << key << ": " << Quote(value) << "\n";
   const std::string text = out.str();
-  WriteFileAtomically((fs::path(folder_) / "meta.yaml").string(), text.data(), text.size());
+  WriteFileAtomically(*files_, (fs::path(folder_) / "meta.yaml").string(), text.data(), text.size());
 }
 
 void RecordingWriter::Write(const StereoFrame& frame) {
   RB_CHECK(!summary_.finished, folder_, ": Write after Finish");
+  RB_CHECK(!index_cut_, folder_, ": frame ", frame.index,
+           " not recorded: frames.csv was cut by an earlier write failure");
   RB_CHECK(!frame.empty(), folder_, ": frame ", frame.index, " has an empty image");
   RB_CHECK(frame.left.size() == frame.right.size() && frame.left.type() == frame.right.type(), folder_,
            ": frame ", frame.index, ": left and right images differ in size or type");
@@ -205,7 +247,11 @@ void RecordingWriter::Write(const StereoFrame& frame) {
       RB_FAIL(folder_, ": frame ", frame.index, ": cannot encode ", rel, " (", e.err, ")");
     }
     RB_CHECK(ok, folder_, ": frame ", frame.index, ": cannot encode ", rel);
-    WriteFileAtomically((fs::path(folder_) / rel).string(), buffer.data(), buffer.size());
+    try {
+      WriteFileAtomically(*files_, (fs::path(folder_) / rel).string(), buffer.data(), buffer.size());
+    } catch (const Error& e) {
+      RB_FAIL(folder_, ": frame ", frame.index, " not recorded: ", e.what());
+    }
     summary_.bytes_written += static_cast<std::int64_t>(buffer.size());
   }
   std::ostringstream line;
@@ -213,11 +259,16 @@ void RecordingWriter::Write(const StereoFrame& frame) {
        << right_rel << ',' << frame.pattern_id << '\n';
   // One write() of the whole line on an O_APPEND descriptor: a crash leaves either the line or nothing
   // (a full disk can leave part of it, which the reader drops).
-  WriteAll(index_fd_, line.str(), folder_ + "/frames.csv");
+  try {
+    WriteAll(*files_, index_fd_, line.str(), folder_ + "/frames.csv");
+  } catch (const Error& e) {
+    index_cut_ = true;
+    RB_FAIL(folder_, ": frame ", frame.index, " not recorded: ", e.what());
+  }
   last_index_ = frame.index;
   ++summary_.frames_written;
   if (options_.fsync_every_frames > 0 && summary_.frames_written % options_.fsync_every_frames == 0) {
-    ::fsync(index_fd_);
+    files_->Fsync(index_fd_);
   }
 }
 
@@ -225,8 +276,8 @@ void RecordingWriter::Finish(const RecordingMeta& extra) {
   if (summary_.finished) return;
   summary_.finished = true;
   if (index_fd_ >= 0) {
-    ::fsync(index_fd_);
-    ::close(index_fd_);
+    files_->Fsync(index_fd_);
+    files_->Close(index_fd_);
     index_fd_ = -1;
   }
   for (const auto& [key, value] : extra) meta_[key] = value;
@@ -332,7 +383,8 @@ Recording OpenRecording(const std::string& folder, RecordingReadSummary* summary
   for (size_t i = 0; i < rec.frames.size(); ++i) {
     const RecordingEntry& e = rec.frames[i];
     for (const std::string* name : {&e.left, &e.right}) {
-      if (!fs::is_regular_file(root / *name)) {
+      std::error_code ec;  // a name the file system refuses (too long, through a file) is missing, not fatal
+      if (!fs::is_regular_file(root / *name, ec)) {
         rec.files_present[i] = false;
         s.notices.push_back(StrCat(folder, ": frame ", e.index, ": ", *name, " is missing"));
       }
@@ -354,10 +406,19 @@ StereoFrame LoadRecordingFrame(const Recording& recording, int i) {
   for (int side = 0; side < 2; ++side) {
     const std::string& name = side == 0 ? e.left : e.right;
     const std::string path = (fs::path(recording.folder) / name).string();
-    RB_CHECK(fs::is_regular_file(path), recording.folder, ": frame ", e.index, ": ", name, " is missing");
+    std::error_code ec;
+    RB_CHECK(fs::is_regular_file(path, ec), recording.folder, ": frame ", e.index, ": ", name, " is missing");
+    std::vector<uchar> bytes;
+    {
+      std::ifstream in(path, std::ios::binary);
+      RB_CHECK(in.good(), recording.folder, ": frame ", e.index, ": ", name, " cannot be read");
+      bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    const std::string problem = PngProblem(bytes);
+    RB_CHECK(problem.empty(), recording.folder, ": frame ", e.index, ": ", name, " is corrupt (", problem, ")");
     cv::Mat image;
     try {
-      image = cv::imread(path, cv::IMREAD_UNCHANGED);
+      image = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
     } catch (const cv::Exception& ex) {
       RB_FAIL(recording.folder, ": frame ", e.index, ": ", name, " is corrupt (", ex.err, ")");
     }

@@ -14,11 +14,13 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "calibration/stereo_rig.h"
+#include "capture/file_syscalls.h"
 #include "capture/stereo_frame.h"
 
 namespace rangebayes {
@@ -43,6 +45,7 @@ struct RecordingWriterOptions {
   int fsync_every_frames = 0;       // 0: never fsync (a process crash keeps everything flushed; power loss
                                     // may not); n > 0: fsync frames.csv every n frames
   bool overwrite = false;           // allow a folder that already holds a frames.csv (it is replaced)
+  std::shared_ptr<FileSysCalls> files;  // the file system calls; null: the system's (tests inject faults)
   void Check() const;
 };
 
@@ -53,7 +56,9 @@ struct RecordingWriterSummary {
 };
 
 // Writes a recording frame by frame. Not thread-safe: one writer thread. Throws Error naming the folder or
-// the frame on any write failure (disk full, permissions); frames already written stay readable.
+// the frame on any write failure (disk full, permissions); frames already written stay readable, and the
+// frame whose write failed is not in the index (at most a cut last line, which the reader drops). A failed
+// image write leaves no partial file.
 class RecordingWriter {
  public:
   // Creates FOLDER (and left/, right/), writes rig.yaml (when `rig` is given), meta.yaml (with
@@ -83,8 +88,10 @@ class RecordingWriter {
   RecordingMeta meta_;
   RecordingWriterOptions options_;
   RecordingWriterSummary summary_;
+  std::shared_ptr<FileSysCalls> files_;
   int index_fd_ = -1;
   std::int64_t last_index_ = -1;
+  bool index_cut_ = false;  // a write of frames.csv failed part-way: no line may follow
 };
 
 // What a reader found that is not fatal. Each notice is one line a user can read.
@@ -119,7 +126,8 @@ RecordingMeta ReadRecordingMeta(const std::string& path);
 Recording OpenRecording(const std::string& folder, RecordingReadSummary* summary = nullptr);
 
 // Loads entry i (0 ≤ i < num_frames) into a StereoFrame (images unchanged: IMREAD_UNCHANGED). Throws Error
-// naming the frame index and file when an image is missing, unreadable or corrupt, or when the left and
+// naming the frame index and file when an image is missing, unreadable or corrupt (not a PNG, or a PNG whose
+// header declares more pixels than its file can hold: nothing is allocated for those), or when the left and
 // right sizes or types differ.
 StereoFrame LoadRecordingFrame(const Recording& recording, int i);
 

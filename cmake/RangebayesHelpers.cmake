@@ -27,11 +27,20 @@ function(rb_add_test module)
   target_link_libraries(test_${module} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gmock GTest::gtest_main)
   target_compile_definitions(test_${module} PRIVATE RB_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   rb_set_warnings(test_${module})
+  rb_test_timeout(discovery_timeout 60)
+  rb_test_timeout(test_timeout 600)
   gtest_discover_tests(test_${module}
     TEST_PREFIX "${module}/"
     WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
-    DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT 600)
+    DISCOVERY_TIMEOUT ${discovery_timeout}
+    PROPERTIES TIMEOUT ${test_timeout})
+endfunction()
+
+# rb_test_timeout(VAR SECONDS): SECONDS times RANGEBAYES_TEST_TIMEOUT_FACTOR (the sanitizer presets raise it:
+# their builds run the same tests several times slower), for every test's TIMEOUT.
+function(rb_test_timeout var seconds)
+  math(EXPR scaled "${seconds} * ${RANGEBAYES_TEST_TIMEOUT_FACTOR}")
+  set(${var} ${scaled} PARENT_SCOPE)
 endfunction()
 
 function(rb_set_warnings target)

@@ -96,6 +96,7 @@ Mesh DecodeMeshPayload(std::string_view payload) {
       float v = 0;
       std::memcpy(&v, p, 4);
       p += 4;
+      RB_CHECK(std::isfinite(v), "mesh payload: vertex ", i, " has a coordinate that is not finite");
       m.V(static_cast<Eigen::Index>(i), c) = v;
     }
   }

@@ -31,7 +31,8 @@ struct ConsoleMessage {
 };
 ConsoleMessage DecodeConsoleMessage(std::string_view message);
 
-// The mesh payload (counts, float32 positions, uint32 faces) and its inverse (throws Error on a bad payload).
+// The mesh payload (counts, float32 positions, uint32 faces) and its inverse (throws Error on a bad payload:
+// wrong length, a face naming a missing vertex, a position that is not finite).
 std::string EncodeMeshPayload(const Mesh& mesh);
 Mesh DecodeMeshPayload(std::string_view payload);
 

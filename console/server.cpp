@@ -120,14 +120,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   }
 
   bool ApplyClientMessage(const std::string& text) {
-    const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-    if (j.is_discarded() || !j.is_object() || j.size() != 1 || !j.contains("subscribe")) return false;
-    const nlohmann::json& s = j["subscribe"];
-    if (!s.is_object() || s.size() > 8) return false;
-    for (const auto& [group, value] : s.items()) {
-      if (!value.is_string() || group.size() > 32 || value.get<std::string>().size() > 32) return false;
-    }
-    for (const auto& [group, value] : s.items()) subscriptions_[group] = value.get<std::string>();
+    const auto subscriptions = ParseClientMessage(text);
+    if (!subscriptions) return false;
+    for (const auto& [group, value] : *subscriptions) subscriptions_[group] = value;
     return true;
   }
 
@@ -168,6 +163,44 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   bool open_ = false;
 };
 
+// The status a parser error is answered with; 0 for the errors that only end the connection.
+int RefusalStatus(beast::error_code ec, std::string* reason) {
+  if (ec == http::error::body_limit) {
+    *reason = "request body too large";
+    return 413;
+  }
+  if (ec == http::error::header_limit) {
+    *reason = "request header too large";
+    return 431;
+  }
+  *reason = "malformed request";
+  return 400;
+}
+
+// A complete request checked against the limits and converted for the handler (or marked as an upgrade).
+HttpParseResult CheckRequest(const http::request<http::string_body>& req, const ConsoleServerOptions& options) {
+  HttpParseResult r;
+  r.complete = true;
+  if (req.target().size() > static_cast<size_t>(options.max_target_chars)) {
+    r.refuse_status = 414;
+    r.refuse_reason = "request target too long";
+    return r;
+  }
+  r.request.target = std::string(req.target());
+  r.request.method = std::string(req.method_string());
+  if (websocket::is_upgrade(req)) {
+    r.websocket_upgrade = true;
+    return r;
+  }
+  r.request.body = req.body();
+  for (const auto& field : req) {
+    std::string name(field.name_string());
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    r.request.headers[name] = std::string(field.value());
+  }
+  return r;
+}
+
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
   HttpSession(tcp::socket socket, State* state) : stream_(std::move(socket)), state_(state) {}
@@ -190,30 +223,22 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
       return;
     }
-    if (ec == http::error::body_limit) return Refuse(413, "request body too large");
-    if (ec == http::error::header_limit) return Refuse(431, "request header too large");
-    if (ec) return Refuse(400, "malformed request");
-    http::request<http::string_body>& req = parser_->get();
-    if (req.target().size() > static_cast<size_t>(state_->options.max_target_chars)) {
-      return Refuse(414, "request target too long");
+    if (ec) {
+      std::string reason;
+      const int status = RefusalStatus(ec, &reason);
+      return Refuse(status, reason);
     }
-    const std::string target(req.target());
-    const std::string path = target.substr(0, target.find('?'));
-    if (websocket::is_upgrade(req)) {
+    http::request<http::string_body>& req = parser_->get();
+    HttpParseResult parsed = CheckRequest(req, state_->options);
+    if (parsed.refuse_status != 0) return Refuse(parsed.refuse_status, parsed.refuse_reason);
+    if (parsed.websocket_upgrade) {
+      const std::string path = parsed.request.target.substr(0, parsed.request.target.find('?'));
       if (path != "/ws" || req.method() != http::verb::get) return Refuse(404, "no WebSocket here");
       if (state_->clients.load() >= state_->options.max_clients) return Refuse(503, "too many clients");
       std::make_shared<WsSession>(stream_.release_socket(), state_)->Run(parser_->release());
       return;
     }
-    HttpRequest request;
-    request.method = std::string(req.method_string());
-    request.target = target;
-    request.body = req.body();
-    for (const auto& field : req) {
-      std::string name(field.name_string());
-      for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      request.headers[name] = std::string(field.value());
-    }
+    const HttpRequest& request = parsed.request;
     HttpReply reply;
     try {
       reply = state_->handler(request);
@@ -292,6 +317,52 @@ void DoAccept(State* state) {
 }
 
 }  // namespace
+
+HttpParseResult ParseHttpRequest(std::string_view bytes, const ConsoleServerOptions& options) {
+  http::request_parser<http::string_body> parser;
+  parser.header_limit(static_cast<std::uint32_t>(options.max_header_bytes));
+  parser.body_limit(static_cast<std::uint64_t>(options.max_body_bytes));
+  parser.eager(true);
+  size_t used = 0;
+  while (!parser.is_done() && used < bytes.size()) {
+    beast::error_code ec;
+    const size_t n = parser.put(net::buffer(bytes.data() + used, bytes.size() - used), ec);
+    used += n;
+    if (ec == http::error::need_more) {
+      if (n == 0) break;
+      continue;
+    }
+    if (ec) {
+      HttpParseResult r;
+      r.complete = true;
+      r.refuse_status = RefusalStatus(ec, &r.refuse_reason);
+      r.consumed = used;
+      return r;
+    }
+    if (n == 0) break;
+  }
+  if (!parser.is_done()) {
+    HttpParseResult r;
+    r.consumed = used;
+    return r;
+  }
+  HttpParseResult r = CheckRequest(parser.get(), options);
+  r.consumed = used;
+  return r;
+}
+
+std::optional<std::map<std::string, std::string>> ParseClientMessage(std::string_view text) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object() || j.size() != 1 || !j.contains("subscribe")) return std::nullopt;
+  const nlohmann::json& s = j["subscribe"];
+  if (!s.is_object() || s.size() > 8) return std::nullopt;
+  std::map<std::string, std::string> out;
+  for (const auto& [group, value] : s.items()) {
+    if (!value.is_string() || group.size() > 32 || value.get<std::string>().size() > 32) return std::nullopt;
+    out[group] = value.get<std::string>();
+  }
+  return out;
+}
 
 void ConsoleServerOptions::Check() const {
   RB_CHECK(port >= 0 && port <= 65535, "console port must be in 0..65535, got ", port);

@@ -11,7 +11,9 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -50,6 +52,24 @@ struct HttpReply {
   std::string body;
   std::vector<std::pair<std::string, std::string>> headers;  // extra headers (Content-Disposition, ...)
 };
+
+// What the server makes of the bytes of one request before its handler sees them (the server's own parser
+// and limits, without a socket; for tests and fuzzing).
+struct HttpParseResult {
+  bool complete = false;           // a whole request (header and body) was read; false: more bytes needed
+  int refuse_status = 0;           // 0: accepted; else the answer before closing: 400 malformed, 413 body,
+                                   // 414 target, 431 header too large
+  std::string refuse_reason;       // one line, for the answer's body
+  bool websocket_upgrade = false;  // an upgrade request (the server's WebSocket path)
+  HttpRequest request;             // when complete and accepted
+  size_t consumed = 0;             // bytes of the input the request used
+};
+HttpParseResult ParseHttpRequest(std::string_view bytes, const ConsoleServerOptions& options);
+
+// The subscriptions of a client's WebSocket message {"subscribe": {"group": "value", ...}} (at most 8
+// groups, names and values of at most 32 bytes); nullopt for any other message (the server then closes the
+// connection with a policy error).
+std::optional<std::map<std::string, std::string>> ParseClientMessage(std::string_view text);
 
 struct ConsoleServerStats {
   int clients = 0;

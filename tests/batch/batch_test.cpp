@@ -2,6 +2,8 @@
 // runner, and the sbatch command line (with stand-in sbatch/squeue scripts; the real cluster is tested by
 // slurm_cluster_test.sh).
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -107,6 +109,9 @@ TEST(Manifest, BadLinesNameFileAndLine) {
   EXPECT_NE(message("--noise 3\n").find("m.txt:1: a task starts with a subcommand"), std::string::npos);
   EXPECT_NE(message("rangebayes smooth a b\n").find("leave out the binary's name"), std::string::npos);
   EXPECT_NE(message("batch status d\n").find("cannot be a batch command"), std::string::npos);
+  // Found by fuzz_manifest: an empty first word was taken for a subcommand.
+  EXPECT_EQ(message("smooth a b\n'' x.ply\n"), "m.txt:2: a task starts with a subcommand, not an empty word");
+  EXPECT_EQ(message("\"\" x.ply\n"), "m.txt:1: a task starts with a subcommand, not an empty word");
   EXPECT_NE(message("# nothing\n\n").find("m.txt: the manifest has no tasks"), std::string::npos);
 }
 
@@ -209,6 +214,100 @@ TEST(RunTask, PublishesOnlyOnSuccessAndReplacesAnOlderResult) {
   EXPECT_THROW(RunBatchTask(out, 2, run), Error);
   // The log keeps every run.
   EXPECT_NE(ReadText(out + "/logs/1.log").find("run 2"), std::string::npos);
+}
+
+// A node dies mid-task: run-task and its command are killed with SIGKILL together (one process group) while
+// the command is writing its outputs. No result is published, the status still says running, and once the
+// job has left the queue a resubmit takes the task again and its run completes (removing the dead run's
+// temporary folder).
+TEST(RunTask, KilledMidTaskLeavesNoResultAndAResubmitCompletes) {
+  const TempDir dir("sigkill");
+  // A live-path replay at a twentieth of the recorded speed: seconds, writing one frame's outputs after another.
+  const std::string recording = std::string(RB_SOURCE_DIR) + "/recordings/synth_planes_320x240";
+  const std::string manifest = MakeManifest(
+      dir.path(), "replay " + recording + " --out frames --live-path --speed recorded --speed-factor 0.05\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo '41;c'");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 41");
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    setpgid(0, 0);
+    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  setpgid(child, child);
+  // Wait until the command has written some of its outputs in its temporary folder.
+  bool writing = false;
+  for (int i = 0; i < 1200 && !writing; ++i) {
+    usleep(50 * 1000);
+    if (!fs::is_directory(out + "/tasks")) continue;
+    for (const std::string& tmp : Entries(out + "/tasks", ".tmp-0-")) {
+      const fs::path frames = fs::path(out) / "tasks" / tmp / "frames";
+      std::error_code ec;
+      writing = writing || (fs::is_directory(frames, ec) && !fs::is_empty(frames, ec));
+    }
+  }
+  kill(-child, SIGKILL);
+  int wait_status = 0;
+  waitpid(child, &wait_status, 0);
+  ASSERT_TRUE(writing) << "the task never started writing; log:\n" << ReadText(out + "/logs/0.log");
+  ASSERT_TRUE(WIFSIGNALED(wait_status));
+
+  EXPECT_FALSE(fs::exists(out + "/tasks/0"));  // nothing half-done is published
+  EXPECT_EQ(Entries(out + "/tasks", ".tmp-0-").size(), 1u);
+  const BatchReport killed = CollectBatchReport(out);
+  EXPECT_EQ(killed.states.at(0), "running");
+  EXPECT_EQ(killed.succeeded, 0);
+
+  EXPECT_THROW(ResubmitBatch(out, options), Error);  // the job is still listed by squeue
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{0});
+  // What the resubmitted array task runs.
+  RunTaskOptions run;
+  run.binary = RB_BINARY;
+  run.forward_signals = false;
+  const BatchTaskStatus done = RunBatchTask(out, 0, run);
+  EXPECT_EQ(done.state, "succeeded") << done.error_line;
+  EXPECT_EQ(done.run, 2);
+  EXPECT_TRUE(fs::is_directory(out + "/tasks/0/frames"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 1);
+}
+
+// A local batch whose run-task was killed (SIGKILL: its status still says running, with the pid of a
+// process that is gone): resubmit takes the task again and completes it.
+TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
+  const TempDir dir("local_killed");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  fs::remove_all(out + "/tasks/1");
+  BatchTaskStatus killed = *ReadBatchTaskStatus(BatchLayout(out), 1);
+  killed.state = "running";
+  const pid_t gone = fork();
+  if (gone == 0) _exit(0);
+  waitpid(gone, nullptr, 0);
+  killed.pid = static_cast<int>(gone);
+  WriteBatchTaskStatus(BatchLayout(out), killed);
+  EXPECT_TRUE(RunTaskIsGone(killed));
+  BatchTaskStatus alive = killed;
+  alive.pid = static_cast<int>(getpid());
+  EXPECT_FALSE(RunTaskIsGone(alive));
+  alive.host = "another-host";
+  alive.pid = static_cast<int>(gone);
+  EXPECT_FALSE(RunTaskIsGone(alive));  // another machine's process cannot be checked from here
+
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
+  EXPECT_TRUE(fs::exists(out + "/tasks/1/b.ply"));
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
 }
 
 TEST(LocalRunner, RunsEveryTaskOnWorkersAndReportsEach) {

@@ -1,13 +1,18 @@
 // PlaybackSource (speeds, random access, skipping bad frames) and Recorder (limits, stop, device loss,
-// SIGINT and SIGKILL of a recording process).
+// SIGINT and SIGKILL of a recording process, a full disk through the file system-call seam).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <memory>
 
+#include "capture/file_syscalls.h"
 #include "capture/playback_source.h"
 #include "capture/recorder.h"
 #include "capture/stop_signal.h"
@@ -256,6 +261,95 @@ TEST(Recorder, SigkillLeavesReadableRecording) {
   EXPECT_EQ(rec.meta.at("complete"), "false");
   EXPECT_EQ(rs.missing_files, 0);
   ExpectRecordingHoldsTestFrames(rec, 64, 48, CV_8UC1);
+}
+
+}  // namespace
+}  // namespace rangebayes
+
+namespace rangebayes {
+namespace {
+
+// The file system calls with a disk that fills up: from the `fail_at`-th write to a file whose name contains
+// `pattern` (counting from 1), that write stores half of its bytes and every later write to any file of the
+// recording fails with ENOSPC, as on a full disk.
+class FullDisk final : public FileSysCalls {
+ public:
+  FullDisk(std::string pattern, int fail_at) : pattern_(std::move(pattern)), fail_at_(fail_at) {}
+  int Open(const std::string& path, int flags, mode_t mode) override {
+    const int fd = real_->Open(path, flags, mode);
+    if (fd >= 0) paths_[fd] = path;
+    return fd;
+  }
+  ssize_t Write(int fd, const void* data, size_t size) override {
+    if (full_) {
+      errno = ENOSPC;
+      return -1;
+    }
+    if (paths_[fd].find(pattern_) != std::string::npos && ++writes_ == fail_at_) {
+      full_ = true;
+      return real_->Write(fd, data, size / 2);
+    }
+    return real_->Write(fd, data, size);
+  }
+  int Fsync(int fd) override { return real_->Fsync(fd); }
+  int Close(int fd) override { return real_->Close(fd); }
+  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
+
+ private:
+  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
+  std::map<int, std::string> paths_;
+  std::string pattern_;
+  int fail_at_;
+  int writes_ = 0;
+  bool full_ = false;
+};
+
+std::vector<std::string> PartialFiles(const std::string& folder) {
+  std::vector<std::string> found;
+  for (const auto& e : fs::recursive_directory_iterator(folder)) {
+    if (e.path().extension() == ".partial") found.push_back(e.path().string());
+  }
+  return found;
+}
+
+TEST(Recorder, DiskFullDuringAnImageLosesOnlyThatFrameAndSaysSo) {
+  const TempDir dir("full_image");
+  FakeFrameSource source(32, 16, 8);
+  RecordingWriterOptions options;
+  options.files = std::make_shared<FullDisk>(".png", 7);  // the left image of frame 3
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {}, options);
+  const RecorderSummary s = Record(source, writer);
+  EXPECT_EQ(s.stop, RecorderStop::kWriteFailed);
+  EXPECT_EQ(s.frames_written, 3);
+  EXPECT_NE(s.error.find("frame 3 not recorded"), std::string::npos) << s.error;
+  EXPECT_NE(s.error.find(std::strerror(ENOSPC)), std::string::npos) << s.error;
+  EXPECT_EQ(PartialFiles(dir.path() + "/rec"), std::vector<std::string>{});
+  RecordingReadSummary read;
+  const Recording rec = OpenRecording(dir.path() + "/rec", &read);
+  EXPECT_EQ(rec.num_frames(), 3);
+  EXPECT_EQ(read.missing_files, 0);
+  ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
+}
+
+TEST(Recorder, DiskFullInTheIndexLeavesACutLineTheReaderDrops) {
+  const TempDir dir("full_index");
+  FakeFrameSource source(32, 16, 8);
+  RecordingWriterOptions options;
+  options.files = std::make_shared<FullDisk>("frames.csv", 4);  // the header, frames 0 and 1, then frame 2's line
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {}, options);
+  const RecorderSummary s = Record(source, writer);
+  EXPECT_EQ(s.stop, RecorderStop::kWriteFailed);
+  EXPECT_EQ(s.frames_written, 2);
+  EXPECT_NE(s.error.find("frame 2 not recorded"), std::string::npos) << s.error;
+  EXPECT_NE(s.error.find(std::strerror(ENOSPC)), std::string::npos) << s.error;
+  EXPECT_THROW(writer.Write(TestFrame(9, 32, 16, CV_8UC1)), Error);  // nothing may follow a cut line
+  RecordingReadSummary read;
+  const Recording rec = OpenRecording(dir.path() + "/rec", &read);
+  EXPECT_TRUE(read.truncated_last_line);
+  ASSERT_EQ(read.notices.size(), 1u);
+  EXPECT_NE(read.notices[0].find("truncated"), std::string::npos) << read.notices[0];
+  EXPECT_EQ(rec.num_frames(), 2);
+  ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
 }
 
 }  // namespace

@@ -161,6 +161,51 @@ TEST(Recording, MissingCorruptAndMismatchedImagesNameTheFrame) {
   EXPECT_NE(message(3).find("frame 3: left is 32x16 but right is 10x10"), std::string::npos) << message(3);
 }
 
+// A PNG of a few bytes whose header declares 65535×65535 16-bit RGBA pixels (32 GiB) is refused before
+// anything is allocated for it; so is a file that is no PNG at all (fuzz_recording's inputs).
+TEST(Recording, ImagesWhoseHeaderDeclaresMoreThanTheFileHoldsAreRefused) {
+  const TempDir dir("bomb");
+  const std::string folder = dir.path() + "/rec";
+  {
+    RecordingWriter writer(folder, std::nullopt, {});
+    for (int i = 0; i < 2; ++i) writer.Write(TestFrame(i, 32, 16, CV_8UC1));
+  }
+  std::string bomb("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR\0\0\xff\xff\0\0\xff\xff\x10\x06\0\0\0", 29);
+  bomb += std::string(40, '\0');
+  { std::ofstream(folder + "/right/000000.png", std::ios::binary) << bomb; }
+  { std::ofstream(folder + "/left/000001.png", std::ios::binary) << "GIF89a"; }
+  const Recording rec = OpenRecording(folder);
+  auto message = [&](int i) {
+    try {
+      LoadRecordingFrame(rec, i);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message(0).find("frame 0: right/000000.png is corrupt (PNG declares 65535x65535 pixels, more than its 69 "
+                            "bytes can hold)"),
+            std::string::npos)
+      << message(0);
+  EXPECT_NE(message(1).find("frame 1: left/000001.png is corrupt (not a PNG image)"), std::string::npos) << message(1);
+}
+
+// Found by fuzz_recording: an index naming a file the file system refuses to look up (a name longer than
+// NAME_MAX) threw std::filesystem_error out of OpenRecording; it is a missing file like any other.
+TEST(Recording, UnlookupableFileNamesAreMissingFiles) {
+  const TempDir dir("longname");
+  const std::string folder = dir.path() + "/rec";
+  { RecordingWriter writer(folder, std::nullopt, {}); }
+  {
+    std::ofstream index(folder + "/frames.csv", std::ios::app);
+    index << "0,0,0,left/" << std::string(300, 'x') << ".png,right/000000.png,0\n";
+  }
+  RecordingReadSummary s;
+  const Recording rec = OpenRecording(folder, &s);
+  EXPECT_EQ(s.missing_files, 1);
+  EXPECT_THROW(LoadRecordingFrame(rec, 0), Error);
+}
+
 TEST(Recording, WrongRigFileIsOneClearError) {
   const TempDir dir("rig");
   const std::string folder = dir.path() + "/rec";

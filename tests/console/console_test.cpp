@@ -18,6 +18,7 @@
 #include "console/server.h"
 #include "pipeline/pipeline_control.h"
 #include "tests/capture/test_util.h"
+#include "tests/console/soak_clients.h"
 
 namespace rangebayes {
 namespace {
@@ -298,6 +299,33 @@ TEST_F(ConsoleTest, AStalledClientDoesNotHoldThePipeline) {
   // buffers and its queue of 2 per topic hold, so its drops are counted.
   ASSERT_TRUE(WaitFor([&] { return console_->Status()["console"]["results_published"].get<int>() >= 1; }));
   EXPECT_GT(console_->Status()["console"]["messages_dropped"].get<int>(), 0);
+}
+
+// Soak: 20 loopback clients (reading, reading slowly, never reading, disconnecting mid-message and coming
+// back) while a replay runs through the console: every frame goes through, the server keeps answering, and
+// every connection is let go. The frame rate and memory under the same load are measured by
+// bench/bench_console_soak (BENCHMARKS.md), not asserted here.
+TEST_F(ConsoleTest, SoakTwentyMisbehavingClientsWhileReplayRuns) {
+  ConsoleOptions o = TestOptions(dir_);
+  o.server.max_clients = 32;
+  console_.reset();
+  console_ = std::make_unique<Console>(o, &control_, recording_.rig, RecordingMeta{});
+  soak::SoakClients clients(console_->port(), 20);
+  ASSERT_TRUE(WaitFor([&] { return console_->server_stats().clients >= 15; }));
+  PlaybackOptions playback;
+  playback.repeats = 3;
+  PlaybackSource source(recording_, playback);
+  PipelineOptions options = FastOptions();
+  options.control = &control_;
+  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  EXPECT_EQ(s.results, 24);
+  EXPECT_EQ(s.failed, 0);
+  EXPECT_EQ(StatusOf(Get(console_->port(), "/api/status")), 200);
+  clients.Stop();
+  EXPECT_GT(clients.messages_read(), 0);
+  EXPECT_GT(clients.disconnects(), 0);
+  EXPECT_TRUE(WaitFor([&] { return console_->server_stats().clients == 0; }))
+      << console_->server_stats().clients << " clients still connected";
 }
 
 }  // namespace

@@ -4,8 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <limits>
 #include <vector>
 
+#include "console/server.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -66,6 +69,10 @@ TEST(ConsoleProtocol, MeshPayloadRoundTripAndRefusals) {
   std::string bad_index = p;
   bad_index[p.size() - 4] = 99;  // last face names vertex 99 of 16
   EXPECT_THROW(DecodeMeshPayload(bad_index), Error);
+  std::string nan_position = p;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&nan_position[8 + 4], &nan, 4);            // vertex 0, y
+  EXPECT_THROW(DecodeMeshPayload(nan_position), Error);  // fuzz_ws_message: no NaN in what is accepted
 }
 
 TEST(ConsoleProtocol, WireMeshKeepsSmallMeshesAndReducesLargeOnes) {
@@ -117,6 +124,42 @@ TEST(ConsoleProtocol, TokensAndNames) {
   for (const std::string& bad : std::vector<std::string>{"", "..", "../x", ".hidden", "a/b", "a\\b", "x y", std::string(65, 'a')}) {
     EXPECT_FALSE(IsValidRecordingName(bad)) << bad;
   }
+}
+
+// The server's request parser and limits without a socket (what fuzz_http_request drives).
+TEST(ConsoleRequestParser, AcceptsRefusesOrWaitsForMore) {
+  const ConsoleServerOptions o;
+  const HttpParseResult get = ParseHttpRequest("GET /api/status?x=1 HTTP/1.1\r\nHost: a\r\nX-Thing: V\r\n\r\n", o);
+  EXPECT_TRUE(get.complete);
+  EXPECT_EQ(get.refuse_status, 0);
+  EXPECT_EQ(get.request.method, "GET");
+  EXPECT_EQ(get.request.target, "/api/status?x=1");
+  EXPECT_EQ(get.request.headers.at("x-thing"), "V");
+  EXPECT_FALSE(get.websocket_upgrade);
+  const HttpParseResult post = ParseHttpRequest("POST /api/control HTTP/1.1\r\nContent-Length: 4\r\n\r\nbody", o);
+  EXPECT_EQ(post.request.body, "body");
+  EXPECT_FALSE(ParseHttpRequest("GET / HTTP/1.1\r\nHost: a\r\n", o).complete);  // header not finished
+  EXPECT_EQ(ParseHttpRequest("GARBAGE\r\n\r\n", o).refuse_status, 400);
+  EXPECT_EQ(ParseHttpRequest("GET /" + std::string(600, 'a') + " HTTP/1.1\r\n\r\n", o).refuse_status, 414);
+  EXPECT_EQ(ParseHttpRequest("GET / HTTP/1.1\r\nX: " + std::string(9000, 'a') + "\r\n\r\n", o).refuse_status, 431);
+  EXPECT_EQ(ParseHttpRequest("POST / HTTP/1.1\r\nContent-Length: 99999\r\n\r\n", o).refuse_status, 413);
+  const HttpParseResult upgrade = ParseHttpRequest(
+      "GET /ws HTTP/1.1\r\nHost: a\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n",
+      o);
+  EXPECT_TRUE(upgrade.websocket_upgrade);
+}
+
+TEST(ConsoleRequestParser, ClientMessagesAreSubscriptionsOrNothing) {
+  const auto s = ParseClientMessage(R"({"subscribe": {"image": "left", "mesh": "smoothed"}})");
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->at("image"), "left");
+  EXPECT_FALSE(ParseClientMessage("not json").has_value());
+  EXPECT_FALSE(ParseClientMessage(R"({"subscribe": {"image": 3}})").has_value());
+  EXPECT_FALSE(ParseClientMessage(R"({"subscribe": {}, "x": 1})").has_value());
+  EXPECT_FALSE(ParseClientMessage(R"({"subscribe": {"a": "1", "b": "1", "c": "1", "d": "1", "e": "1", "f": "1", )"
+                                  R"("g": "1", "h": "1", "i": "1"}})")
+                   .has_value());
 }
 
 }  // namespace
