@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -496,7 +497,7 @@ struct MatchCounts {
 // What pass 1 makes of pixel x of an output row from its window costs `vol` ([D][W]) and the row's winners in
 // `b`: a disparity with its σ_d (kValid), the coarse disparity alone when a second pass refines it (kCoarse), or
 // the check that rejected it. `noise` is the pixel's image noise σ_n (grey levels).
-enum class PixelOutcome { kValid, kCoarse, kNoMatch, kFlat, kAmbiguous, kLeftRight, kSigma };
+enum class PixelOutcome { kValid, kCoarse, kNoMatch, kFlat, kAmbiguous, kLeftRight, kSigma, kCount };
 
 PixelOutcome DecidePixel(const SpaceTimeMatcherOptions& options_, const BandBuffers& b, const float* vol, int W, int D,
                          int dmin, int x, double noise, double window_samples, bool refine, float* disparity_out,
@@ -561,7 +562,8 @@ void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, 
   const int num_bands = (H + band - 1) / band;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const double window_samples = static_cast<double>(w) * w * T;
-  std::atomic<int> valid{0}, rej_lr{0}, rej_flat{0}, rej_sigma{0}, rej_ambiguous{0};
+  constexpr size_t kOutcomes = static_cast<size_t>(PixelOutcome::kCount);
+  std::array<std::atomic<int>, kOutcomes> totals{};  // pixels per outcome, over all bands
   tbb::enumerable_thread_specific<BandBuffers> buffers;
   tbb::parallel_for(tbb::blocked_range<int>(0, num_bands, 1), [&](const tbb::blocked_range<int>& range) {
     BandBuffers& b = buffers.local();
@@ -583,7 +585,7 @@ void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, 
       // row: winner-take-all, runner-up and the right view's winners come from it; no band volume is kept.
       b.ring.assign(static_cast<size_t>(w) * D * W, 0.0f);
       b.volume.assign(static_cast<size_t>(D) * W, 0.0f);
-      int band_valid = 0, band_lr = 0, band_flat = 0, band_sigma = 0, band_ambiguous = 0;
+      std::array<int, kOutcomes> band_counts{};
       for (int k = 0; k < rows + 2 * r; ++k) {
         const int yc = std::clamp(y0 - r + k, 0, H - 1);
         const float* lrow = L.row(yc);
@@ -611,40 +613,20 @@ void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, 
           out_s[x] = nan;
           const double noise =
               options_.image_noise_gray * (noise_left.empty() ? 1.0 : noise_left[static_cast<size_t>(y) * W + x]);
-          switch (DecidePixel(options_, b, vol, W, D, dmin, x, noise, window_samples, refine, &out_d[x], &out_s[x])) {
-            case PixelOutcome::kValid:
-              ++band_valid;
-              break;
-            case PixelOutcome::kFlat:
-              ++band_flat;
-              break;
-            case PixelOutcome::kAmbiguous:
-              ++band_ambiguous;
-              break;
-            case PixelOutcome::kLeftRight:
-              ++band_lr;
-              break;
-            case PixelOutcome::kSigma:
-              ++band_sigma;
-              break;
-            case PixelOutcome::kNoMatch:
-            case PixelOutcome::kCoarse:
-              break;
-          }
+          const PixelOutcome outcome =
+              DecidePixel(options_, b, vol, W, D, dmin, x, noise, window_samples, refine, &out_d[x], &out_s[x]);
+          ++band_counts[static_cast<size_t>(outcome)];
         }
       }
-      valid += band_valid;
-      rej_lr += band_lr;
-      rej_flat += band_flat;
-      rej_sigma += band_sigma;
-      rej_ambiguous += band_ambiguous;
+      for (size_t k = 0; k < kOutcomes; ++k) totals[k] += band_counts[k];
     }
   });
-  counts->valid = valid;
-  counts->left_right = rej_lr;
-  counts->flat = rej_flat;
-  counts->sigma = rej_sigma;
-  counts->ambiguous = rej_ambiguous;
+  auto total = [&](PixelOutcome o) { return totals[static_cast<size_t>(o)].load(); };
+  counts->valid = total(PixelOutcome::kValid);
+  counts->left_right = total(PixelOutcome::kLeftRight);
+  counts->flat = total(PixelOutcome::kFlat);
+  counts->sigma = total(PixelOutcome::kSigma);
+  counts->ambiguous = total(PixelOutcome::kAmbiguous);
 }
 
 // Pass 2 (subpixel_iterations > 0): Gauss–Newton steps from the coarse disparity, with their σ_d.
