@@ -1,6 +1,5 @@
 #include "core/mesh_info.h"
 
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -41,29 +40,33 @@ MeshInfo DescribeMesh(const NoisyMesh& noisy) {
 std::string MeshInfo::BriefReport() const {
   std::string out;
   char line[320];
-  auto add = [&](int n) { out.append(line, static_cast<size_t>(std::max(0, std::min<int>(n, sizeof(line) - 1)))); };
-  add(std::snprintf(line, sizeof(line), "vertices:         %d\nfaces:            %d\n", vertices, faces));
-  add(std::snprintf(line, sizeof(line), "edges:            %lld (%lld on the boundary)\n", edges,
-                    static_cast<long long>(validation.boundary_edges)));
-  add(std::snprintf(line, sizeof(line), "per-vertex data:  normals %s, covariance %s, pixels %s\n",
-                    has_normals ? "yes" : "no", has_covariance ? "yes" : "no", has_pixels ? "yes" : "no"));
+  std::snprintf(line, sizeof(line), "vertices:         %d\nfaces:            %d\n", vertices, faces);
+  out += line;
+  std::snprintf(line, sizeof(line), "edges:            %lld (%lld on the boundary)\n", edges,
+                static_cast<long long>(validation.boundary_edges));
+  out += line;
+  std::snprintf(line, sizeof(line), "per-vertex data:  normals %s, covariance %s, pixels %s\n",
+                has_normals ? "yes" : "no", has_covariance ? "yes" : "no", has_pixels ? "yes" : "no");
+  out += line;
   if (!has_bounding_box) {
-    add(std::snprintf(line, sizeof(line), "bounding box:     none (no finite vertices)\n"));
+    out += "bounding box:     none (no finite vertices)\n";
   } else {
     const Eigen::RowVector3d size = box_max - box_min;
-    add(std::snprintf(line, sizeof(line),
-                      "bounding box:     min (%.6g, %.6g, %.6g) max (%.6g, %.6g, %.6g)\n"
-                      "                  size (%.6g, %.6g, %.6g)\n",
-                      box_min(0), box_min(1), box_min(2), box_max(0), box_max(1), box_max(2), size(0), size(1),
-                      size(2)));
+    std::snprintf(line, sizeof(line),
+                  "bounding box:     min (%.6g, %.6g, %.6g) max (%.6g, %.6g, %.6g)\n"
+                  "                  size (%.6g, %.6g, %.6g)\n",
+                  box_min(0), box_min(1), box_min(2), box_max(0), box_max(1), box_max(2), size(0), size(1), size(2));
+    out += line;
   }
-  add(std::snprintf(line, sizeof(line), "mean edge length: %.6g\ncomponents:       %d\nboundary loops:   %d\n",
-                    mean_edge_length, components, boundary_loops));
+  std::snprintf(line, sizeof(line), "mean edge length: %.6g\ncomponents:       %d\nboundary loops:   %d\n",
+                mean_edge_length, components, boundary_loops);
+  out += line;
   const std::vector<std::string> findings = DescribeFindings(validation);
   if (findings.empty()) {
     out += "validation:       clean\n";
   } else {
-    add(std::snprintf(line, sizeof(line), "validation:       %zu kinds of defect\n", findings.size()));
+    std::snprintf(line, sizeof(line), "validation:       %zu kinds of defect\n", findings.size());
+    out += line;
     for (const std::string& f : findings) out += "  " + f + "\n";
   }
   return out;
