@@ -17,6 +17,16 @@ namespace rangebayes {
 namespace {
 namespace fs = std::filesystem;
 
+// The error LoadRecordingFrame gives for frame i, or "no error".
+std::string LoadError(const Recording& rec, int i) {
+  try {
+    LoadRecordingFrame(rec, i);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 TEST(Recording, RoundTripKeepsImagesTimestampsAndRig) {
   const TempDir dir("roundtrip");
   const std::string folder = dir.path() + "/rec";
@@ -148,17 +158,10 @@ TEST(Recording, MissingCorruptAndMismatchedImagesNameTheFrame) {
   EXPECT_EQ(s.missing_files, 1);
   EXPECT_FALSE(rec.files_present[1]);
   EXPECT_NO_THROW(LoadRecordingFrame(rec, 0));
-  auto message = [&](int i) {
-    try {
-      LoadRecordingFrame(rec, i);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  EXPECT_NE(message(1).find("frame 1: left/000001.png is missing"), std::string::npos) << message(1);
-  EXPECT_NE(message(2).find("frame 2: right/000002.png is corrupt"), std::string::npos) << message(2);
-  EXPECT_NE(message(3).find("frame 3: left is 32x16 but right is 10x10"), std::string::npos) << message(3);
+  const std::string missing = LoadError(rec, 1), corrupt = LoadError(rec, 2), sizes = LoadError(rec, 3);
+  EXPECT_NE(missing.find("frame 1: left/000001.png is missing"), std::string::npos) << missing;
+  EXPECT_NE(corrupt.find("frame 2: right/000002.png is corrupt"), std::string::npos) << corrupt;
+  EXPECT_NE(sizes.find("frame 3: left is 32x16 but right is 10x10"), std::string::npos) << sizes;
 }
 
 // A PNG of a few bytes whose header declares 65535×65535 16-bit RGBA pixels (32 GiB) is refused before
@@ -175,19 +178,12 @@ TEST(Recording, ImagesWhoseHeaderDeclaresMoreThanTheFileHoldsAreRefused) {
   { std::ofstream(folder + "/right/000000.png", std::ios::binary) << bomb; }
   { std::ofstream(folder + "/left/000001.png", std::ios::binary) << "GIF89a"; }
   const Recording rec = OpenRecording(folder);
-  auto message = [&](int i) {
-    try {
-      LoadRecordingFrame(rec, i);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  EXPECT_NE(message(0).find("frame 0: right/000000.png is corrupt (PNG declares 65535x65535 pixels, more than its 69 "
+  const std::string bomb_error = LoadError(rec, 0), gif_error = LoadError(rec, 1);
+  EXPECT_NE(bomb_error.find("frame 0: right/000000.png is corrupt (PNG declares 65535x65535 pixels, more than its 69 "
                             "bytes can hold)"),
             std::string::npos)
-      << message(0);
-  EXPECT_NE(message(1).find("frame 1: left/000001.png is corrupt (not a PNG image)"), std::string::npos) << message(1);
+      << bomb_error;
+  EXPECT_NE(gif_error.find("frame 1: left/000001.png is corrupt (not a PNG image)"), std::string::npos) << gif_error;
 }
 
 // Found by fuzz_recording: an index naming a file the file system refuses to look up (a name longer than

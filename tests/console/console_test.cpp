@@ -104,6 +104,15 @@ class ConsoleTest : public ::testing::Test {
   ConsoleTest() : dir_("console"), recording_(OpenRecording(kRecording)) {
     console_ = std::make_unique<Console>(TestOptions(dir_), &control_, recording_.rig, RecordingMeta{});
   }
+  // The recording replayed `repeats` times through the pipeline with the console as its sink.
+  PipelineSummary ReplayThroughConsole(int repeats) {
+    PlaybackOptions playback;
+    playback.repeats = repeats;
+    PlaybackSource source(recording_, playback);
+    PipelineOptions options = FastOptions();
+    options.control = &control_;
+    return RunPipeline(source, *recording_.rig, options, {console_.get()});
+  }
   TempDir dir_;
   Recording recording_;
   PipelineControl control_;
@@ -287,12 +296,7 @@ TEST_F(ConsoleTest, AStalledClientDoesNotHoldThePipeline) {
   console_ = std::make_unique<Console>(o, &control_, recording_.rig, RecordingMeta{});
   StalledClient stalled(console_->port());
   ASSERT_TRUE(WaitFor([&] { return console_->server_stats().clients == 1; }));
-  PlaybackOptions playback;
-  playback.repeats = 3;
-  PlaybackSource source(recording_, playback);
-  PipelineOptions options = FastOptions();
-  options.control = &control_;
-  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  const PipelineSummary s = ReplayThroughConsole(3);
   EXPECT_EQ(s.results, 24);  // every frame went through
   EXPECT_EQ(s.failed, 0);
   // Each published result sends four images and meshes of tens of KB: far more than a stalled reader's
@@ -312,12 +316,7 @@ TEST_F(ConsoleTest, SoakTwentyMisbehavingClientsWhileReplayRuns) {
   console_ = std::make_unique<Console>(o, &control_, recording_.rig, RecordingMeta{});
   soak::SoakClients clients(console_->port(), 20);
   ASSERT_TRUE(WaitFor([&] { return console_->server_stats().clients >= 15; }));
-  PlaybackOptions playback;
-  playback.repeats = 3;
-  PlaybackSource source(recording_, playback);
-  PipelineOptions options = FastOptions();
-  options.control = &control_;
-  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  const PipelineSummary s = ReplayThroughConsole(3);
   EXPECT_EQ(s.results, 24);
   EXPECT_EQ(s.failed, 0);
   EXPECT_EQ(StatusOf(Get(console_->port(), "/api/status")), 200);
