@@ -66,6 +66,14 @@ std::string MakeManifest(const std::string& root, const std::string& lines) {
 }
 
 // An executable shell script standing in for sbatch or squeue.
+// run-task as the tests call it in-process: this build's binary, signals left alone.
+RunTaskOptions TestRunOptions() {
+  RunTaskOptions run;
+  run.binary = RB_BINARY;
+  run.forward_signals = false;
+  return run;
+}
+
 std::string FakeProgram(const std::string& path, const std::string& body) {
   WriteText(path, "#!/bin/sh\n" + body + "\n");
   fs::permissions(path, fs::perms::owner_all);
@@ -196,9 +204,7 @@ TEST(RunTask, PublishesOnlyOnSuccessAndReplacesAnOlderResult) {
 
   // The fix: the input appears beside the manifest; the path rule finds it on the next run.
   fs::copy_file(dir.path() + "/in/tet.obj", dir.path() + "/in/missing.obj");
-  RunTaskOptions run;
-  run.binary = RB_BINARY;
-  run.forward_signals = false;
+  const RunTaskOptions run = TestRunOptions();
   const BatchTaskStatus fixed = RunBatchTask(out, 1, run);
   EXPECT_EQ(fixed.state, "succeeded") << fixed.error_line;
   EXPECT_EQ(fixed.run, 2);
@@ -268,9 +274,7 @@ TEST(RunTask, KilledMidTaskLeavesNoResultAndAResubmitCompletes) {
   options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
   EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{0});
   // What the resubmitted array task runs.
-  RunTaskOptions run;
-  run.binary = RB_BINARY;
-  run.forward_signals = false;
+  const RunTaskOptions run = TestRunOptions();
   const BatchTaskStatus done = RunBatchTask(out, 0, run);
   EXPECT_EQ(done.state, "succeeded") << done.error_line;
   EXPECT_EQ(done.run, 2);
@@ -404,9 +408,7 @@ TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
   EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).job_id, "41");
 
   // Task 1 ran and succeeded; 0 failed; 2 was killed while running (its status says running); 3 never started.
-  RunTaskOptions run;
-  run.binary = RB_BINARY;
-  run.forward_signals = false;
+  const RunTaskOptions run = TestRunOptions();
   ASSERT_EQ(RunBatchTask(out, 1, run).state, "succeeded");
   BatchTaskStatus failed;
   failed.index = 0;
