@@ -36,6 +36,7 @@ struct SmoothArgs {
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
   bool adaptive_epsilon = true;
   bool multilevel = SmoothOptions{}.multilevel;
+  bool precondition_rays = SmoothOptions{}.precondition_rays;
   double gap_tolerance = SmoothOptions{}.gap_tolerance;
   double time_limit_s = SmoothOptions{}.time_limit_s;
   int max_iterations = SmoothOptions{}.max_iterations;
@@ -120,6 +121,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.progress = progress.callback();
   options.adaptive_epsilon = args.adaptive_epsilon;
   options.multilevel = args.multilevel;
+  options.precondition_rays = args.precondition_rays;
   options.epsilon_continuation_stages = args.continuation;
   options.gap_tolerance = args.gap_tolerance;
   options.time_limit_s = args.time_limit_s;
@@ -210,6 +212,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_flag("--multilevel,!--no-multilevel", args->multilevel,
                 "on by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
                 "over the pixel grid. --no-multilevel: one level");
+  sub->add_flag("--precondition-rays,!--no-precondition-rays", args->precondition_rays,
+                "on by default; meshes with anisotropic covariances (stereo, range scans): CG preconditioned by the "
+                "Gauss-Newton matrix of the depths along the rays (multigrid on the pixel grid above 40,000 "
+                "vertices). --no-precondition-rays: by the data term alone");
   sub->add_option("--max-iterations", args->max_iterations,
                   "iteration cap per solve (each continuation stage and grid level has its own), [0, 1e7]; 0: the "
                   "--tolerance preset's (fast 300, default 2000, tight 20000)")

@@ -270,4 +270,31 @@ Vertices ProlongPositions(const GridLevel& level, const NoisyMesh& finer, const 
   return out;
 }
 
+std::vector<Eigen::SparseMatrix<double>> ProlongationMatrices(const std::vector<GridLevel>& levels, size_t first,
+                                                             const std::vector<int>& vertex_order) {
+  std::vector<Eigen::SparseMatrix<double>> chain;
+  for (size_t k = first; k < levels.size(); ++k) {
+    const GridLevel& level = levels[k];
+    const int rows = static_cast<int>(level.offsets.size()) - 1, cols = level.mesh.mesh.num_vertices();
+    std::vector<int> row_of(static_cast<size_t>(rows));
+    for (int f = 0; f < rows; ++f) row_of[static_cast<size_t>(f)] = f;
+    if (k == first && !vertex_order.empty()) {
+      RB_CHECK(static_cast<int>(vertex_order.size()) == rows, "grid hierarchy: ", vertex_order.size(),
+               " vertices in the order for a level of ", rows);
+      for (int n = 0; n < rows; ++n) row_of[static_cast<size_t>(vertex_order[static_cast<size_t>(n)])] = n;
+    }
+    std::vector<Eigen::Triplet<double>> triplets;
+    for (int f = 0; f < rows; ++f) {
+      for (int q = level.offsets[static_cast<size_t>(f)]; q < level.offsets[static_cast<size_t>(f) + 1]; ++q) {
+        triplets.emplace_back(row_of[static_cast<size_t>(f)], level.coarse[static_cast<size_t>(q)],
+                              level.weight[static_cast<size_t>(q)]);
+      }
+    }
+    Eigen::SparseMatrix<double> p(rows, cols);
+    p.setFromTriplets(triplets.begin(), triplets.end());
+    chain.push_back(std::move(p));
+  }
+  return chain;
+}
+
 }  // namespace rangebayes

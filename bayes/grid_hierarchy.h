@@ -17,6 +17,7 @@
 //     vertices of its cell that pass the same distance test (none: no displacement).
 #pragma once
 
+#include <Eigen/SparseCore>
 #include <vector>
 
 #include "core/mesh.h"
@@ -46,5 +47,12 @@ std::vector<GridLevel> BuildGridHierarchy(const NoisyMesh& fine, const GridHiera
 // Positions on the finer level: its measurements plus the prolongated coarse displacement (coarse_positions −
 // coarse measurements). `finer` is the level `level` was built from (the input for levels[0]).
 Vertices ProlongPositions(const GridLevel& level, const NoisyMesh& finer, const Vertices& coarse_positions);
+
+// The prolongations of levels[first], levels[first+1], … as sparse matrices: P_k (#V_k × #V_(k+1)) maps
+// values on level k+1 to level k with the weights of GridLevel (level first−1 being the mesh that levels[first]
+// was built from, the input for first = 0). vertex_order (size #V of that mesh; empty: identity) renumbers the
+// first matrix's rows: row n is that mesh's vertex vertex_order[n] (a solver's order).
+std::vector<Eigen::SparseMatrix<double>> ProlongationMatrices(const std::vector<GridLevel>& levels, size_t first,
+                                                             const std::vector<int>& vertex_order);
 
 }  // namespace rangebayes

@@ -19,6 +19,7 @@
 
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/grid_hierarchy.h"
+#include "bayes/ray_preconditioner.h"
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
 
@@ -38,6 +39,8 @@ constexpr int kWindow = 5;
 // closest to the reference energy for +24% time over 1e-4. On these non-convex energies the rate-based estimate
 // reads low: the true distance was up to 0.2% of E at an estimate of 1e-5.
 constexpr double kOrganizedGapTolerance = 1e-5;
+// Iterations between rebuilds of the ray preconditioner's matrix (SmoothOptions::precondition_rays).
+constexpr int kRayRefreshIterations = 20;
 
 Preset PresetFor(SmoothTolerance tolerance) {
   switch (tolerance) {
@@ -247,7 +250,8 @@ struct MinimiseResult {
 };
 
 MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::time_point deadline,
-                        SmoothSummary* summary, const Eigen::VectorXd* start = nullptr) {
+                        SmoothSummary* summary, const Eigen::VectorXd* start = nullptr,
+                        RayPreconditioner* ray = nullptr) {
   Preset preset = PresetFor(options.tolerance);
   if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
   if (options.gap_tolerance > 0) preset.gap = options.gap_tolerance;
@@ -273,7 +277,16 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
   const bool precondition = !energy.uniform_isotropic();
   const double scale = precondition ? 0.0 : energy.UniformDataInverseScale();
   Eigen::VectorXd z;
-  if (precondition) energy.ApplyDataInverse(g, &z);
+  if (!precondition || !options.precondition_rays) ray = nullptr;
+  if (ray != nullptr && !ray->Update(x)) ray = nullptr;
+  auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
+    if (ray) {
+      ray->Apply(v, out);
+    } else {
+      energy.ApplyDataInverse(v, out);
+    }
+  };
+  if (precondition) apply(g, &z);
   const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
   double zg_old = precondition ? Dot(z, g) : scale * gg;
   if (!(summary->initial_gradient_norm > 0)) {
@@ -301,6 +314,8 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     double alpha_init;
     if (alpha_prev > 0 && slope_prev < 0) {
       alpha_init = alpha_prev * std::min(slope_prev / slope, 10.0);
+    } else if (ray != nullptr) {
+      alpha_init = 1;  // p = −M⁻¹g with M ≈ the Hessian: a Gauss–Newton step
     } else {
       const double curvature = energy.DataCurvature(p);
       alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
@@ -324,8 +339,14 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     x.swap(x_new);
     // PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner).
     double beta_pr, zg_new;
+    // A new M (the Gauss–Newton matrix at the current state) every kRayRefreshIterations: CG restarts on it.
+    const bool refreshed = ray != nullptr && iteration % kRayRefreshIterations == 0;
+    if (refreshed) {
+      if (!ray->Update(x)) ray = nullptr;
+      since_restart = restart_every;
+    }
     if (precondition) {
-      energy.ApplyDataInverse(g_new, &z);
+      apply(g_new, &z);
       const auto [zg_next, zg_cross] = DotPair(z, g_new, g);
       beta_pr = (zg_next - zg_cross) / zg_old;
       zg_new = zg_next;
@@ -338,7 +359,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     }
     zg_old = zg_new;
     g.swap(g_new);
-    alpha_prev = step.alpha;
+    alpha_prev = refreshed ? 0 : step.alpha;
     slope_prev = slope;
     e = e_new;
     parts = step.parts;
@@ -745,8 +766,13 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
     }
     Eigen::VectorXd x;  // the current state in the solver order (empty: the measurements)
     if (options.initial_positions != nullptr) x = fine->ToSolver(*options.initial_positions);
+    // The pixel-grid hierarchy serves the coarse-to-fine start and the ray preconditioner's multigrid.
+    const bool want_coarse_to_fine = options.multilevel && options.initial_positions == nullptr;
+    const bool want_multigrid = options.precondition_rays && nv > kRayDirectVertices;
     std::vector<GridLevel> levels;
-    if (options.multilevel && options.initial_positions == nullptr && organized) levels = BuildGridHierarchy(noisy);
+    if (organized && (want_coarse_to_fine || want_multigrid)) levels = BuildGridHierarchy(noisy);
+    const bool coarse_to_fine = want_coarse_to_fine && !levels.empty();
+    RayPreconditioner fine_ray(energy, ProlongationMatrices(levels, 0, fine->vertex_order));
     // Under a time limit the stages share what the setup left.
     const bool limited = deadline != Clock::time_point::max();
     const Clock::time_point solve_start = Clock::now();
@@ -766,7 +792,7 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
       const Clock::time_point until =
           last || !limited ? deadline : solve_start + left * (stages - s + 1) / (stages + 1);
       double level_work = 0;
-      if (x.size() == 0 && !levels.empty()) {
+      if (x.size() == 0 && coarse_to_fine) {
         Vertices coarse_x;
         for (int k = static_cast<int>(levels.size()) - 1; k >= 0; --k) {
           SmoothOptions coarse = o;
@@ -778,7 +804,8 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
           const bool coarsest = k + 1 == static_cast<int>(levels.size());
           const Eigen::VectorXd level_start = coarsest ? Eigen::VectorXd() : level->ToSolver(coarse_x);
           Problem problem(*level->energy);
-          const MinimiseResult r = Minimise(problem, coarse, until, &cs, coarsest ? nullptr : &level_start);
+          RayPreconditioner level_ray(*level->energy, ProlongationMatrices(levels, k + 1, level->vertex_order));
+          const MinimiseResult r = Minimise(problem, coarse, until, &cs, coarsest ? nullptr : &level_start, &level_ray);
           level_work += problem.evaluations * static_cast<double>(level->energy->num_vertices()) / nv;
           const NoisyMesh& finer = k == 0 ? noisy : levels[static_cast<size_t>(k) - 1].mesh;
           coarse_x = ProlongPositions(levels[static_cast<size_t>(k)], finer, level->ToCaller(r.x));
@@ -788,7 +815,8 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
       }
       Problem problem(energy);
       SmoothSummary stage_summary;
-      MinimiseResult m = Minimise(problem, o, until, last ? &summary : &stage_summary, x.size() > 0 ? &x : nullptr);
+      MinimiseResult m =
+          Minimise(problem, o, until, last ? &summary : &stage_summary, x.size() > 0 ? &x : nullptr, &fine_ray);
       x = std::move(m.x);
       if (!last) {
         earlier_work += problem.evaluations + level_work;

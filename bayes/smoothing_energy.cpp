@@ -729,6 +729,85 @@ void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd
   });
 }
 
+void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std::vector<double>& rays,
+                                     std::vector<Eigen::Triplet<double>>* triplets) const {
+  const int nf = num_faces(), nv = num_vertices_;
+  const double* x = x_vector.data();
+  ComputeNormals(x);
+  // Per face and corner k: ∂n_t/∂t_v = P_t (e_k × r_v) / |c_t|, e_k = x_(k−1) − x_(k+1).
+  std::vector<double> a(9 * static_cast<size_t>(nf), 0.0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int f = r.begin(); f != r.end(); ++f) {
+      const double inv = inverse_length_[static_cast<size_t>(f)];
+      if (inv == 0) continue;
+      const Eigen::Vector3d n(&normals_[3 * static_cast<size_t>(f)]);
+      for (int k = 0; k < 3; ++k) {
+        const int v = faces_(f, k);
+        const Eigen::Vector3d e = Position(x, faces_(f, (k + 2) % 3)) - Position(x, faces_(f, (k + 1) % 3));
+        const Eigen::Vector3d ray(&rays[3 * static_cast<size_t>(v)]);
+        const Eigen::Vector3d dc = e.cross(ray);
+        const Eigen::Vector3d dn = (dc - n * n.dot(dc)) * inv;
+        for (int j = 0; j < 3; ++j) a[9 * static_cast<size_t>(f) + 3 * k + j] = dn[j];
+      }
+    }
+  });
+  triplets->clear();
+  triplets->reserve(static_cast<size_t>(nv) + 10 * neighbours_.size());
+  for (int i = 0; i < nv; ++i) {
+    const Eigen::Vector3d ray(&rays[3 * static_cast<size_t>(i)]);
+    triplets->emplace_back(i, i, 2 * ray.dot(InformationMatrix(i) * ray));
+  }
+  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+  const double beta = prior_weight_;
+  for (int t = 0; t < nf; ++t) {
+    for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
+      const int s = neighbours_[static_cast<size_t>(q)];
+      if (s < t) continue;
+      const Eigen::Vector3d u = Eigen::Vector3d(&normals_[3 * static_cast<size_t>(t)]) -
+                                Eigen::Vector3d(&normals_[3 * static_cast<size_t>(s)]);
+      Eigen::Matrix3d hu;
+      if (sqrt_potential != nullptr) {
+        const double e2 = face_epsilon_squared_.empty()
+                              ? sqrt_potential->epsilon_squared()
+                              : 0.5 * (face_epsilon_squared_[static_cast<size_t>(t)] + face_epsilon_squared_[static_cast<size_t>(s)]);
+        const double phi2 = u.squaredNorm() + e2, phi = std::sqrt(phi2);
+        hu = (Eigen::Matrix3d::Identity() - u * u.transpose() / phi2) / phi;
+      } else {
+        double value, weight;
+        potential_->EvaluateWeight(u.norm(), &value, &weight);
+        hu = std::max(weight, 0.0) * Eigen::Matrix3d::Identity();
+      }
+      // Columns of J_u over the (up to 4) vertices of the pair.
+      int verts[6];
+      Eigen::Vector3d cols[6];
+      int m = 0;
+      auto add = [&](int f, double sign) {
+        for (int k = 0; k < 3; ++k) {
+          const int v = faces_(f, k);
+          const Eigen::Vector3d c = sign * Eigen::Vector3d(&a[9 * static_cast<size_t>(f) + 3 * k]);
+          int j = 0;
+          while (j < m && verts[j] != v) ++j;
+          if (j == m) {
+            verts[m] = v;
+            cols[m++] = c;
+          } else {
+            cols[j] += c;
+          }
+        }
+      };
+      add(t, 1.0);
+      add(s, -1.0);
+      for (int i = 0; i < m; ++i) {
+        const Eigen::Vector3d hc = hu * cols[i];
+        for (int j = 0; j < m; ++j) {
+          if (verts[i] > verts[j]) continue;
+          triplets->emplace_back(verts[i], verts[j], beta * hc.dot(cols[j]));
+        }
+      }
+    }
+  }
+}
+
 double SmoothingEnergy::UniformDataInverseScale() const {
   if (!uniform_isotropic_ || information_.empty() || !(information_[0] > 0)) return 0.0;
   return 0.5 / information_[0];

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <vector>
 
 #include "bayes/potential.h"
@@ -67,6 +68,22 @@ class SmoothingEnergy {
   bool uniform_isotropic() const { return uniform_isotropic_; }
   // 1 / (2 w) for uniform_isotropic() W = w I (the scalar ApplyDataInverse then applies); 0 otherwise.
   double UniformDataInverseScale() const;
+
+  // The Gauss–Newton matrix of E in one direction per vertex (x_i + t_i r_i, r_i unit, 3 per vertex in `rays`),
+  // as the upper triangle (row ≤ column) of an #V×#V symmetric matrix in triplets: the data term's 2 r_iᵀ W_i r_i
+  // plus β Σ_pairs J_uᵀ H_u J_u, J_u the Jacobian of u = n_t − n_s in t and H_u the potential's curvature in u
+  // (for the square root (I − uuᵀ/φ²)/φ, positive definite; for other potentials the weight w = φ'/d times I).
+  // The normals' second derivatives are left out, so it is positive semi-definite.
+  void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays,
+                      std::vector<Eigen::Triplet<double>>* triplets) const;
+  // W_i of vertex i (symmetric).
+  Eigen::Matrix3d InformationMatrix(int i) const {
+    double w[6];
+    Information(i, w);
+    Eigen::Matrix3d m;
+    m << w[0], w[1], w[2], w[1], w[3], w[4], w[2], w[4], w[5];
+    return m;
+  }
 
   // The measurements as the starting state.
   Eigen::VectorXd Measurements() const;

@@ -122,6 +122,7 @@ SmoothOptions OptionsFromFlags(std::map<std::string, std::string>& flags) {
   // The solver alone (the speed targets are stated for it); --adaptive-eps: what `rangebayes smooth` runs.
   options.adaptive_epsilon = flags.count("--adaptive-eps") > 0;
   options.multilevel = flags.count("--no-multilevel") == 0;
+  options.precondition_rays = flags.count("--no-precondition-rays") == 0;
   if (flags.count("--continuation")) options.epsilon_continuation_stages = std::stoi(flags["--continuation"]);
   // --kernel portable|auto: the energy's portable kernels even where the CPU has AVX-512 (same
   // bytes; for A/B timing). Default: the widest the CPU has.

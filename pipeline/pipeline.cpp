@@ -553,6 +553,9 @@ class Stages {
       SmoothOptions smoothing = options.smoothing;
       // Per frame the pipeline runs the plain solve: the adaptive-ε pre-pass is not part of a frame's budget.
       smoothing.adaptive_epsilon = false;
+      // Under a budget, the ray preconditioner's matrix per stage costs more than it saves (a 640x480 live replay:
+      // 3.6 results/s with it, 7.1 without, same load; BENCHMARKS.md "Smoothing on real stereo").
+      if (options.smooth_budget_ms > 0) smoothing.precondition_rays = false;
       // The budget is a deadline for the whole solve (stages and levels included): it buys the most converged
       // result it can, and the summary says how far from converged it stopped.
       // What the solve spends beyond its limit (setup, the iteration running at the deadline) is learned from

@@ -22,6 +22,7 @@ const FieldTable<SmoothOptions>& SmoothOptionFields() {
       RB_PY_FIELD(SmoothOptions, num_threads),
       RB_PY_FIELD(SmoothOptions, adaptive_epsilon),
       RB_PY_FIELD(SmoothOptions, multilevel),
+      RB_PY_FIELD(SmoothOptions, precondition_rays),
       RB_PY_FIELD(SmoothOptions, epsilon_continuation_stages),
       RB_PY_FIELD(SmoothOptions, time_limit_s),
   };

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/SparseCore>
+
 #include <cstring>
 #include <memory>
 #include <string>
@@ -109,6 +111,61 @@ TEST(SmoothingEnergy, PerFaceEpsilonGradientMatchesCentralDifferences) {
   bad[0] = 0;
   EXPECT_THROW(SmoothingEnergy(measured, RandomInformation(measured.num_vertices(), true, 3), 1.3, potential, &bad),
                Error);
+}
+
+// On a flat surface every normal difference is zero, so the omitted term of the Gauss–Newton matrix (the potential's
+// slope times the normals' second derivatives) vanishes: RayGaussNewton is then the exact Hessian of E in the depths
+// along the rays, which second differences of E check.
+TEST(SmoothingEnergy, RayGaussNewtonIsTheHessianOnAFlatSurface) {
+  const int width = 7, height = 6;
+  const double f = 20;
+  Mesh mesh;
+  mesh.V.resize(width * height, 3);
+  std::vector<double> rays;
+  std::vector<Eigen::Matrix3d> information;
+  const Eigen::Vector3d plane_normal = Eigen::Vector3d(0.2, -0.1, 1.0).normalized();
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const Eigen::Vector3d ray = Eigen::Vector3d((u - 3) / f, (v - 2.5) / f, 1.0).normalized();
+      const double depth = 2.0 / plane_normal.dot(ray);
+      mesh.V.row(v * width + u) = (depth * ray).transpose();
+      for (int k = 0; k < 3; ++k) rays.push_back(ray[k]);
+      information.push_back(0.5 * (ray * ray.transpose() / 1e-4 +
+                                   (Eigen::Matrix3d::Identity() - ray * ray.transpose()) / 1e-6));
+    }
+  }
+  mesh.F.resize(2 * (width - 1) * (height - 1), 3);
+  int t = 0;
+  for (int v = 0; v + 1 < height; ++v) {
+    for (int u = 0; u + 1 < width; ++u) {
+      const int a = v * width + u, b = a + 1, c = a + width, d = c + 1;
+      mesh.F.row(t++) << a, c, b;
+      mesh.F.row(t++) << b, c, d;
+    }
+  }
+  const SqrtPotential potential(0.04);
+  const SmoothingEnergy energy(mesh, information, 2.4, potential);
+  const Eigen::VectorXd x = energy.Measurements();
+  std::vector<Eigen::Triplet<double>> triplets;
+  energy.RayGaussNewton(x, rays, &triplets);
+  const int nv = mesh.num_vertices();
+  Eigen::SparseMatrix<double> upper(nv, nv);
+  upper.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::SparseMatrix<double> a = upper.selfadjointView<Eigen::Upper>();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  for (int trial = 0; trial < 3; ++trial) {
+    Eigen::VectorXd depths(nv), direction(3 * nv);
+    for (int i = 0; i < nv; ++i) {
+      depths[i] = uniform(rng);
+      for (int k = 0; k < 3; ++k) direction[3 * i + k] = depths[i] * rays[3 * static_cast<size_t>(i) + k];
+    }
+    const double h = 1e-4;
+    const double second = (energy.Evaluate(x + h * direction, nullptr).total() - 2 * energy.Evaluate(x, nullptr).total() +
+                           energy.Evaluate(x - h * direction, nullptr).total()) / (h * h);
+    const double model = depths.dot(a * depths);
+    EXPECT_NEAR(model, second, 1e-4 * second) << "trial " << trial;
+  }
 }
 
 TEST(SmoothingEnergy, PartsMatchDefinition) {
