@@ -187,6 +187,7 @@ def stop_process(proc, sig=signal.SIGINT, timeout=20):
 CANVAS_NON_BLANK = """(() => {
   const c = window.rbConsole.canvas;
   if (!c) return -1;
+  window.rbConsole.drawNow();
   const t = document.createElement('canvas');
   t.width = c.width; t.height = c.height;
   const g = t.getContext('2d');
@@ -365,9 +366,19 @@ def cpu_snapshot(replay_pid, chromium_pid):
                 chrome += (int(fields[13]) + int(fields[14])) / os.sysconf("SC_CLK_TCK")
             except (OSError, IndexError, ValueError):
                 pass
+    by_type = {}
+    for p in descendants(chromium_pid):
+        try:
+            with open(f"/proc/{p}/cmdline", "rb") as f:
+                m = re.search(rb"--type=([a-z-]+)", f.read())
+            kind = m.group(1).decode() if m else "browser"
+        except OSError:
+            continue
+        by_type[kind] = by_type.get(kind, 0.0) + proc_cpu_s(p)
     threads = thread_cpu_s(replay_pid)
     console = sum(v for k, v in threads.items() if k.startswith("rb-console"))
-    return {"t": time.time(), "rangebayes": proc_cpu_s(replay_pid), "console_threads": console, "chromium": chrome}
+    return {"t": time.time(), "rangebayes": proc_cpu_s(replay_pid), "console_threads": console, "chromium": chrome,
+            "chromium_by_type": by_type}
 
 
 def http_status(url):
@@ -398,7 +409,8 @@ def bench(cdp, replay, url, token, seconds, repeats):
             cdp.call("Page.navigate", {"url": "about:blank"})
         time.sleep(settle_s)
         if with_page:
-            cdp.evaluate("rbConsole.latencies.length = 0; rbConsole.meshesAtStart = rbConsole.meshes; true")
+            cdp.evaluate("rbConsole.latencies.length = 0; rbConsole.toPage.length = 0; "
+                         "rbConsole.meshesAtStart = rbConsole.meshes; true")
         s0, c0 = http_status(url), cpu_snapshot(replay.pid, cdp.proc.pid)
         time.sleep(seconds)
         s1, c1 = http_status(url), cpu_snapshot(replay.pid, cdp.proc.pid)
@@ -408,27 +420,32 @@ def bench(cdp, replay, url, token, seconds, repeats):
                  "cpu_rangebayes": (c1["rangebayes"] - c0["rangebayes"]) / wall,
                  "cpu_console_threads": (c1["console_threads"] - c0["console_threads"]) / wall,
                  "cpu_chromium": (c1["chromium"] - c0["chromium"]) / wall,
+                 "cpu_chromium_by_process": {k: round((v - c0["chromium_by_type"].get(k, 0.0)) / wall, 3)
+                                             for k, v in c1["chromium_by_type"].items()},
                  "load1": os.getloadavg()[0]}
         if with_page:
-            page = cdp.evaluate("({l: rbConsole.latencies.slice(), m: rbConsole.meshes - rbConsole.meshesAtStart, "
-                                "i: rbConsole.images.depth})")
+            page = cdp.evaluate("({l: rbConsole.latencies.slice(), t: rbConsole.toPage.slice(), "
+                                "m: rbConsole.meshes - rbConsole.meshesAtStart})")
             lat = page["l"]
             phase.update({"meshes_per_s_on_page": page["m"] / wall, "latency_samples": len(lat),
                           "latency_ms_median": percentile(lat, 0.5), "latency_ms_p95": percentile(lat, 0.95),
-                          "latencies": lat})
+                          "sent_to_drawn_ms_median": percentile(page["t"], 0.5), "latencies": lat,
+                          "to_page": page["t"]})
             phase["console"] = s1["console"]
         phases.append(phase)
         print("bench: " + json.dumps({k: (round(v, 3) if isinstance(v, float) else v)
-                                      for k, v in phase.items() if k != "latencies"}), flush=True)
+                                      for k, v in phase.items() if k not in ("latencies", "to_page")}), flush=True)
     a = [p["results_per_s"] for p in phases if p["phase"] == "no page"]
     b = [p["results_per_s"] for p in phases if p["phase"] == "page"]
     lat = [x for p in phases if p["phase"] == "page" for x in p["latencies"]]
+    to_page = [x for p in phases if p["phase"] == "page" for x in p["to_page"]]
     mean = lambda v: sum(v) / len(v)
     summary = {"seconds_per_phase": seconds, "repeats": repeats,
                "results_per_s_no_page": round(mean(a), 2), "results_per_s_page": round(mean(b), 2),
                "ratio": round(mean(b) / mean(a), 3),
                "latency_ms_median": round(percentile(lat, 0.5), 1), "latency_ms_p95": round(percentile(lat, 0.95), 1),
-               "latency_samples": len(lat),
+               "latency_samples": len(lat), "sent_to_drawn_ms_median": round(percentile(to_page, 0.5), 1),
+               "sent_to_drawn_ms_p95": round(percentile(to_page, 0.95), 1),
                "cpu_chromium_page": round(mean([p["cpu_chromium"] for p in phases if p["phase"] == "page"]), 3),
                "cpu_console_threads_page": round(mean([p["cpu_console_threads"] for p in phases
                                                       if p["phase"] == "page"]), 3),
