@@ -212,6 +212,8 @@ def main():
                          "mesh latency)")
     ap.add_argument("--repeats", type=int, default=3,
                     help="benchmark mode: pairs of phases without and with the page (A B A B ...)")
+    ap.add_argument("--page-args", default="",
+                    help="benchmark mode: more of the page's hash parameters, e.g. images=30&meshes=30")
     ap.add_argument("replay_args", nargs="*", help="extra replay arguments (after --)")
     a = ap.parse_args()
     if not os.path.exists(a.chromium):
@@ -239,7 +241,7 @@ def main():
         cdp.wait_for("typeof window.rbConsole === 'object' && window.rbConsole.statusMessages > 0", 30,
                      "the page and its first status message")
         if a.bench > 0:
-            return bench(cdp, replay, url, token, a.bench, a.repeats)
+            return bench(cdp, replay, url, token, a.bench, a.repeats, a.page_args)
         cdp.wait_for("rbConsole.images.depth >= 2 && rbConsole.images.left >= 2 && rbConsole.meshes >= 1", 90,
                      "depth frames and a mesh")
         assert cdp.evaluate("rbConsole.webgl") is True, "the page found no WebGL"
@@ -389,12 +391,12 @@ def http_status(url):
 
 def percentile(values, q):
     if not values:
-        return float("nan")
+        return None
     v = sorted(values)
     return v[min(len(v) - 1, int(round(q * (len(v) - 1))))]
 
 
-def bench(cdp, replay, url, token, seconds, repeats):
+def bench(cdp, replay, url, token, seconds, repeats, page_args):
     """Interleaved phases in one replay process at the same load: A without the page (the tab on about:blank,
     no WebSocket client), B with the page open; A B A B ... Prints one JSON line per phase and a summary."""
     settle_s = 3.0
@@ -403,13 +405,13 @@ def bench(cdp, replay, url, token, seconds, repeats):
     for i in range(2 * repeats):
         with_page = i % 2 == 1
         if with_page:
-            cdp.call("Page.navigate", {"url": f"{url}#token={token}"})
+            cdp.call("Page.navigate", {"url": f"{url}#token={token}" + (f"&{page_args}" if page_args else "")})
             cdp.wait_for("typeof window.rbConsole === 'object' && rbConsole.meshes >= 1", 60, "a first mesh")
         else:
             cdp.call("Page.navigate", {"url": "about:blank"})
         time.sleep(settle_s)
         if with_page:
-            cdp.evaluate("rbConsole.latencies.length = 0; rbConsole.toPage.length = 0; "
+            cdp.evaluate("rbConsole.latencies.length = 0; (rbConsole.toPage || []).length = 0; "
                          "rbConsole.meshesAtStart = rbConsole.meshes; true")
         s0, c0 = http_status(url), cpu_snapshot(replay.pid, cdp.proc.pid)
         time.sleep(seconds)
@@ -424,7 +426,7 @@ def bench(cdp, replay, url, token, seconds, repeats):
                                              for k, v in c1["chromium_by_type"].items()},
                  "load1": os.getloadavg()[0]}
         if with_page:
-            page = cdp.evaluate("({l: rbConsole.latencies.slice(), t: rbConsole.toPage.slice(), "
+            page = cdp.evaluate("({l: rbConsole.latencies.slice(), t: (rbConsole.toPage || []).slice(), "
                                 "m: rbConsole.meshes - rbConsole.meshesAtStart})")
             lat = page["l"]
             phase.update({"meshes_per_s_on_page": page["m"] / wall, "latency_samples": len(lat),
@@ -440,12 +442,12 @@ def bench(cdp, replay, url, token, seconds, repeats):
     lat = [x for p in phases if p["phase"] == "page" for x in p["latencies"]]
     to_page = [x for p in phases if p["phase"] == "page" for x in p["to_page"]]
     mean = lambda v: sum(v) / len(v)
-    summary = {"seconds_per_phase": seconds, "repeats": repeats,
+    summary = {"seconds_per_phase": seconds, "repeats": repeats, "page_args": page_args,
                "results_per_s_no_page": round(mean(a), 2), "results_per_s_page": round(mean(b), 2),
                "ratio": round(mean(b) / mean(a), 3),
-               "latency_ms_median": round(percentile(lat, 0.5), 1), "latency_ms_p95": round(percentile(lat, 0.95), 1),
-               "latency_samples": len(lat), "sent_to_drawn_ms_median": round(percentile(to_page, 0.5), 1),
-               "sent_to_drawn_ms_p95": round(percentile(to_page, 0.95), 1),
+               "latency_ms_median": percentile(lat, 0.5), "latency_ms_p95": percentile(lat, 0.95),
+               "latency_samples": len(lat), "sent_to_drawn_ms_median": percentile(to_page, 0.5),
+               "sent_to_drawn_ms_p95": percentile(to_page, 0.95),
                "cpu_chromium_page": round(mean([p["cpu_chromium"] for p in phases if p["phase"] == "page"]), 3),
                "cpu_console_threads_page": round(mean([p["cpu_console_threads"] for p in phases
                                                       if p["phase"] == "page"]), 3),
