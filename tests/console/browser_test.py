@@ -396,6 +396,10 @@ def percentile(values, q):
     return v[min(len(v) - 1, int(round(q * (len(v) - 1))))]
 
 
+def rounded(x):
+    return None if x is None else round(x, 1)
+
+
 def bench(cdp, replay, url, token, seconds, repeats, page_args):
     """Interleaved phases in one replay process at the same load: A without the page (the tab on about:blank,
     no WebSocket client), B with the page open; A B A B ... Prints one JSON line per phase and a summary."""
@@ -430,7 +434,7 @@ def bench(cdp, replay, url, token, seconds, repeats, page_args):
                                 "m: rbConsole.meshes - rbConsole.meshesAtStart})")
             lat = page["l"]
             phase.update({"meshes_per_s_on_page": page["m"] / wall, "latency_samples": len(lat),
-                          "latency_ms_median": percentile(lat, 0.5), "latency_ms_p95": percentile(lat, 0.95),
+                          "latency_ms_median": rounded(percentile(lat, 0.5)), "latency_ms_p95": rounded(percentile(lat, 0.95)),
                           "sent_to_drawn_ms_median": percentile(page["t"], 0.5), "latencies": lat,
                           "to_page": page["t"]})
             phase["console"] = s1["console"]
@@ -445,7 +449,7 @@ def bench(cdp, replay, url, token, seconds, repeats, page_args):
     summary = {"seconds_per_phase": seconds, "repeats": repeats, "page_args": page_args,
                "results_per_s_no_page": round(mean(a), 2), "results_per_s_page": round(mean(b), 2),
                "ratio": round(mean(b) / mean(a), 3),
-               "latency_ms_median": percentile(lat, 0.5), "latency_ms_p95": percentile(lat, 0.95),
+               "latency_ms_median": rounded(percentile(lat, 0.5)), "latency_ms_p95": rounded(percentile(lat, 0.95)),
                "latency_samples": len(lat), "sent_to_drawn_ms_median": percentile(to_page, 0.5),
                "sent_to_drawn_ms_p95": percentile(to_page, 0.95),
                "cpu_chromium_page": round(mean([p["cpu_chromium"] for p in phases if p["phase"] == "page"]), 3),
