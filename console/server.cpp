@@ -155,7 +155,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ReturnCredit(topic);
     const auto held = held_.find(topic);
     if (held == held_.end() || Unacked(topic) >= state_->options.flow_credits) return;
-    const Outgoing next = std::move(held->second);
+    Outgoing next = std::move(held->second);
     held_.erase(held);
     Enqueue(next);
   }

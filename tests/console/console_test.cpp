@@ -331,6 +331,12 @@ TEST(ConsoleServer, ACreditFlowClientGetsOneMessageThenTheNewestAfterItsAck) {
   EXPECT_EQ(ReadNumber(client), n + 4);
   EXPECT_FALSE(server.Wants("image/left"));
   EXPECT_EQ(server.stats().messages_dropped, 0);
+  // A client without credit flow takes every message, whatever the paced one holds.
+  websocket::stream<tcp::socket> plain(ioc);
+  plain.next_layer().connect(Local(server.port()));
+  plain.handshake("127.0.0.1", "/ws");
+  ASSERT_TRUE(WaitFor([&] { return server.stats().clients == 2; }));
+  EXPECT_TRUE(WaitFor([&] { return server.Wants("image/left"); }));
 }
 
 TEST_F(ConsoleTest, AStalledClientDoesNotHoldThePipeline) {
