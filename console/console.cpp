@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <pthread.h>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -120,7 +121,10 @@ Console::Console(const ConsoleOptions& options, PipelineControl* control, std::o
   }
   if (options_.server.default_subscriptions.empty()) options_.server.default_subscriptions = {{"mesh", "smoothed"}};
   server_ = std::make_unique<ConsoleServer>(options_.server, [this](const HttpRequest& r) { return Handle(r); });
-  worker_ = std::thread([this] { Work(); });
+  worker_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "rb-console");  // so that a profile tells the console's CPU apart
+    Work();
+  });
 }
 
 Console::~Console() {
@@ -202,11 +206,13 @@ void Console::Publish(const PipelineResult& r) {
     server_->Broadcast(std::make_shared<const std::string>(EncodeConsoleMessage(type, header, payload)),
                        /*binary=*/true, topic);
   };
-  if (!r.left_rectified.empty()) {
+  // Only what some client takes now is encoded (server.h: Wants).
+  if (!r.left_rectified.empty() && server_->Wants("image/left")) {
     send(ConsoleMessageType::kImage, {{"kind", "left"}, {"frame", r.index}, {"format", "jpeg"}},
          Jpeg(r.left_rectified, options_.jpeg_quality), "image/left");
   }
   const auto map = [&](const char* kind, const cv::Mat& values, bool reverse) {
+    if (values.empty() || !server_->Wants(StrCat("image/", kind))) return;
     const auto range = Range(values);
     if (!range) return;
     ColorMapOptions c;
@@ -227,6 +233,7 @@ void Console::Publish(const PipelineResult& r) {
   const auto mesh = [&](const char* kind, const Mesh& m) {
     if (m.num_faces() == 0) return;
     kinds.push_back(kind);
+    if (!server_->Wants(StrCat("mesh/", kind))) return;
     const Mesh wire = WireMesh(m, options_.wire_mesh);
     send(ConsoleMessageType::kMesh,
          {{"kind", kind},
@@ -363,6 +370,7 @@ nlohmann::json Console::Status() const {
                     {"results_skipped", results_skipped_},
                     {"messages_sent", server.messages_sent},
                     {"messages_dropped", server.messages_dropped},
+                    {"messages_coalesced", server.messages_coalesced},
                     {"refused", server.refused}};
   }
   return j;

@@ -4,7 +4,8 @@
 //
 // Nothing here slows the pipeline: Consume only hands the result to the console's own thread, which encodes
 // the newest one (older ones it had no time for are skipped and counted) and queues it for each client
-// (server.h: slow clients lose their oldest messages). Recording writes frames in a thread of its own,
+// (server.h: slow clients lose their oldest messages; credit-flow clients such as the page get the newest
+// when they acknowledge the last). Only images and meshes that some client takes at once are encoded. Recording writes frames in a thread of its own,
 // dropping the oldest waiting frame (counted) when the disk cannot keep up.
 //
 // Viewing (the page, status, the WebSocket stream, captured meshes) needs no token; POST /api/control needs

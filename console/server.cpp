@@ -9,7 +9,9 @@
 #include <chrono>
 #include <deque>
 #include <nlohmann/json.hpp>
+#include <mutex>
 #include <optional>
+#include <pthread.h>
 
 #include "core/error.h"
 
@@ -25,9 +27,13 @@ namespace {
 class WsSession;
 }  // namespace
 
-// Everything the server thread owns. The io_context is declared first so that it is destroyed last: its
-// destruction destroys the pending handlers and with them the sessions, which never touch State then.
+// Everything the server thread owns. The io_context is destroyed before the members declared above it: its
+// destruction destroys the pending handlers and with them the sessions, which then touch only those (a
+// session's destructor takes itself off open_sessions).
 struct ConsoleServer::State {
+  // Guards open_sessions and what Wants() reads of each (written on the server thread only).
+  mutable std::mutex demand_mutex;
+  std::vector<const WsSession*> open_sessions;
   net::io_context ioc{1};
   ConsoleServerOptions options;
   Handler handler;
@@ -35,7 +41,7 @@ struct ConsoleServer::State {
   std::vector<std::weak_ptr<WsSession>> sessions;  // server thread only
   std::atomic<bool> stopped{false};
   std::atomic<int> clients{0};
-  std::atomic<std::int64_t> queued{0}, sent{0}, dropped{0}, requests{0}, refused{0};
+  std::atomic<std::int64_t> queued{0}, sent{0}, dropped{0}, coalesced{0}, requests{0}, refused{0};
 };
 
 namespace {
@@ -59,6 +65,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
   WsSession(tcp::socket socket, State* state)
       : ws_(std::move(socket)), state_(state), subscriptions_(state->options.default_subscriptions) {}
+  ~WsSession() { Unregister(); }
 
   void Run(http::request<http::string_body> request) {
     request_ = std::move(request);
@@ -76,16 +83,39 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   // Each topic has its own bound, so that a flood of one kind (images) never starves another (status).
   void Enqueue(const Outgoing& message) {
     if (!open_ || !TopicWanted(subscriptions_, message.topic)) return;
+    const bool paced = credit_flow_ && message.binary;
+    if (paced) {
+      if (Unacked(message.topic) >= state_->options.flow_credits) {
+        const auto [held, inserted] = held_.try_emplace(message.topic, message);
+        if (!inserted) {
+          held->second = message;
+          ++state_->coalesced;
+        }
+        return;
+      }
+      std::lock_guard<std::mutex> lock(state_->demand_mutex);
+      ++unacked_[message.topic];
+    }
     int same = 0;
     for (const Outgoing& m : queue_) same += m.topic == message.topic ? 1 : 0;
     if (same >= state_->options.client_queue_messages) {
-      queue_.erase(std::find_if(queue_.begin(), queue_.end(),
-                                [&](const Outgoing& m) { return m.topic == message.topic; }));
+      const auto oldest = std::find_if(queue_.begin(), queue_.end(),
+                                       [&](const Outgoing& m) { return m.topic == message.topic; });
+      if (paced && oldest->binary) ReturnCredit(message.topic);  // never sent, so never acknowledged
+      queue_.erase(oldest);
       ++state_->dropped;
     }
     queue_.push_back(message);
     ++state_->queued;
     if (!writing_) DoWrite();
+  }
+
+  // Whether a binary message of `topic` would go out at once (State::demand_mutex held).
+  bool WantsLocked(const std::string& topic) const {
+    if (!TopicWanted(subscriptions_, topic)) return false;
+    if (!credit_flow_) return true;
+    const auto it = unacked_.find(topic);
+    return it == unacked_.end() || it->second < state_->options.flow_credits;
   }
 
  private:
@@ -94,7 +124,40 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     open_ = true;
     ++state_->clients;
     state_->sessions.push_back(weak_from_this());
+    {
+      std::lock_guard<std::mutex> lock(state_->demand_mutex);
+      state_->open_sessions.push_back(this);
+    }
     DoRead();
+  }
+
+  void Unregister() {
+    std::lock_guard<std::mutex> lock(state_->demand_mutex);
+    auto& open = state_->open_sessions;
+    open.erase(std::remove(open.begin(), open.end(), this), open.end());
+  }
+
+  int Unacked(const std::string& topic) const {
+    const auto it = unacked_.find(topic);
+    return it == unacked_.end() ? 0 : it->second;
+  }
+
+  void ReturnCredit(const std::string& topic) {
+    const auto it = unacked_.find(topic);
+    if (it == unacked_.end() || it->second == 0) return;  // an acknowledgement of nothing on its way
+    {
+      std::lock_guard<std::mutex> lock(state_->demand_mutex);
+      --it->second;
+    }
+  }
+
+  void Ack(const std::string& topic) {
+    ReturnCredit(topic);
+    const auto held = held_.find(topic);
+    if (held == held_.end() || Unacked(topic) >= state_->options.flow_credits) return;
+    Outgoing next = std::move(held->second);
+    held_.erase(held);
+    Enqueue(next);
   }
 
   void DoRead() {
@@ -120,9 +183,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   }
 
   bool ApplyClientMessage(const std::string& text) {
-    const auto subscriptions = ParseClientMessage(text);
-    if (!subscriptions) return false;
-    for (const auto& [group, value] : *subscriptions) subscriptions_[group] = value;
+    const auto message = ParseClientMessage(text);
+    if (!message) return false;
+    {
+      std::lock_guard<std::mutex> lock(state_->demand_mutex);
+      for (const auto& [group, value] : message->subscribe) subscriptions_[group] = value;
+      if (message->credit_flow) credit_flow_ = true;
+    }
+    // A message held back for a topic the client no longer wants would only be stale when it comes back.
+    std::erase_if(held_, [&](const auto& held) { return !TopicWanted(subscriptions_, held.first); });
+    for (const std::string& topic : message->acks) Ack(topic);
     return true;
   }
 
@@ -150,13 +220,19 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     if (open_) --state_->clients;
     open_ = false;
     queue_.clear();
+    held_.clear();
+    Unregister();
   }
 
   websocket::stream<beast::tcp_stream> ws_;
   State* state_;
   http::request<http::string_body> request_;
   beast::flat_buffer buffer_;
+  // Written on the server thread under State::demand_mutex (Wants() reads them from other threads).
   std::map<std::string, std::string> subscriptions_;
+  bool credit_flow_ = false;
+  std::map<std::string, int> unacked_;  // credit flow: binary messages per topic sent or queued, not acknowledged
+  std::map<std::string, Outgoing> held_;  // credit flow: the newest message per topic waiting for a credit
   std::deque<Outgoing> queue_;
   Outgoing current_;
   bool writing_ = false;
@@ -351,15 +427,30 @@ HttpParseResult ParseHttpRequest(std::string_view bytes, const ConsoleServerOpti
   return r;
 }
 
-std::optional<std::map<std::string, std::string>> ParseClientMessage(std::string_view text) {
+std::optional<ClientMessage> ParseClientMessage(std::string_view text) {
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded() || !j.is_object() || j.size() != 1 || !j.contains("subscribe")) return std::nullopt;
-  const nlohmann::json& s = j["subscribe"];
-  if (!s.is_object() || s.size() > 8) return std::nullopt;
-  std::map<std::string, std::string> out;
-  for (const auto& [group, value] : s.items()) {
-    if (!value.is_string() || group.size() > 32 || value.get<std::string>().size() > 32) return std::nullopt;
-    out[group] = value.get<std::string>();
+  if (j.is_discarded() || !j.is_object() || j.empty()) return std::nullopt;
+  ClientMessage out;
+  for (const auto& [key, value] : j.items()) {
+    if (key == "subscribe") {
+      if (!value.is_object() || value.size() > 8) return std::nullopt;
+      for (const auto& [group, v] : value.items()) {
+        if (!v.is_string() || group.size() > 32 || v.get<std::string>().size() > 32) return std::nullopt;
+        out.subscribe[group] = v.get<std::string>();
+      }
+    } else if (key == "flow") {
+      if (value != "credit") return std::nullopt;
+      out.credit_flow = true;
+    } else if (key == "ack") {
+      const nlohmann::json topics = value.is_array() ? value : nlohmann::json::array({value});
+      if (topics.size() > 8) return std::nullopt;
+      for (const nlohmann::json& t : topics) {
+        if (!t.is_string() || t.get<std::string>().size() > 32) return std::nullopt;
+        out.acks.push_back(t.get<std::string>());
+      }
+    } else {
+      return std::nullopt;
+    }
   }
   return out;
 }
@@ -372,6 +463,7 @@ void ConsoleServerOptions::Check() const {
   RB_CHECK(max_client_message_bytes >= 64, "console: max_client_message_bytes must be >= 64");
   RB_CHECK(client_queue_messages >= 1, "console: client_queue_messages must be >= 1");
   RB_CHECK(max_clients >= 1, "console: max_clients must be >= 1");
+  RB_CHECK(flow_credits >= 1, "console: flow_credits must be >= 1");
   RB_CHECK(send_buffer_bytes >= 0, "console: send_buffer_bytes must be >= 0");
 }
 
@@ -395,6 +487,7 @@ ConsoleServer::ConsoleServer(const ConsoleServerOptions& options, Handler handle
   port_ = state_->acceptor->local_endpoint().port();
   DoAccept(state_.get());
   thread_ = std::thread([state = state_.get()] {
+    pthread_setname_np(pthread_self(), "rb-console-net");
     for (;;) {
       try {
         state->ioc.run();
@@ -434,12 +527,21 @@ void ConsoleServer::Broadcast(std::shared_ptr<const std::string> message, bool b
   });
 }
 
+bool ConsoleServer::Wants(const std::string& topic) const {
+  std::lock_guard<std::mutex> lock(state_->demand_mutex);
+  for (const WsSession* s : state_->open_sessions) {
+    if (s->WantsLocked(topic)) return true;
+  }
+  return false;
+}
+
 ConsoleServerStats ConsoleServer::stats() const {
   ConsoleServerStats s;
   s.clients = state_->clients.load();
   s.messages_queued = state_->queued.load();
   s.messages_sent = state_->sent.load();
   s.messages_dropped = state_->dropped.load();
+  s.messages_coalesced = state_->coalesced.load();
   s.requests = state_->requests.load();
   s.refused = state_->refused.load();
   return s;

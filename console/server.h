@@ -2,6 +2,9 @@
 // HTTP requests go to one handler (the console decides what a path means); "GET /ws" with an upgrade becomes
 // a WebSocket client. Messages for clients are queued per client and written asynchronously: a client that
 // reads slowly or not at all only loses its own oldest queued messages (counted), it never blocks Broadcast.
+// A client may instead ask for credit flow (the page does): then at most `flow_credits` binary messages of a
+// topic are on their way to it until it acknowledges one it has shown, and a newer message of that topic
+// replaces the one held back for it (counted as coalesced), so what it gets next is always the newest.
 // Limits: request header and body sizes, target length, WebSocket message size from a client, number of
 // clients; a request over a limit is answered 413 (431 for headers) and the connection closed.
 #pragma once
@@ -30,6 +33,8 @@ struct ConsoleServerOptions {
   int client_queue_messages = 2;       // ≥ 1: messages of one topic waiting per client; beyond it the oldest
                                        // of that topic is dropped (a live view wants the newest, not a backlog)
   int max_clients = 16;                // ≥ 1: WebSocket clients at once (more: 503)
+  int flow_credits = 1;                // ≥ 1: unacknowledged binary messages of one topic on their way to a
+                                       // client that asked for credit flow
   // ≥ 0: SO_SNDBUF of WebSocket sockets (0: the system's, which grows to megabytes: a backlog of stale
   // frames in the kernel, seconds of latency on a slow client). Tests shrink it further.
   int send_buffer_bytes = 256 * 1024;
@@ -66,16 +71,24 @@ struct HttpParseResult {
 };
 HttpParseResult ParseHttpRequest(std::string_view bytes, const ConsoleServerOptions& options);
 
-// The subscriptions of a client's WebSocket message {"subscribe": {"group": "value", ...}} (at most 8
-// groups, names and values of at most 32 bytes); nullopt for any other message (the server then closes the
-// connection with a policy error).
-std::optional<std::map<std::string, std::string>> ParseClientMessage(std::string_view text);
+// What a client's WebSocket message asks for. The message is a JSON object with one or more of
+//   "subscribe": {"group": "value", ...}  at most 8 groups, names and values of at most 32 bytes;
+//   "flow": "credit"                      binary messages from now on paced by acknowledgements;
+//   "ack": "topic" or ["topic", ...]      at most 8 topics of at most 32 bytes: one message of each was shown.
+struct ClientMessage {
+  std::map<std::string, std::string> subscribe;
+  bool credit_flow = false;
+  std::vector<std::string> acks;
+};
+// nullopt for any other message (the server then closes the connection with a policy error).
+std::optional<ClientMessage> ParseClientMessage(std::string_view text);
 
 struct ConsoleServerStats {
   int clients = 0;
   std::int64_t messages_queued = 0;   // messages handed to clients' queues
   std::int64_t messages_sent = 0;     // completely written to a client
   std::int64_t messages_dropped = 0;  // oldest messages dropped from full client queues
+  std::int64_t messages_coalesced = 0;  // held back for a credit-flow client and replaced by a newer one
   std::int64_t requests = 0;          // HTTP requests answered
   std::int64_t refused = 0;           // requests and client messages refused (limits, malformed)
 };
@@ -98,6 +111,10 @@ class ConsoleServer {
 
   // Queues `message` (binary or text) for every client subscribed to `topic`. Never blocks; thread-safe.
   void Broadcast(std::shared_ptr<const std::string> message, bool binary, const std::string& topic);
+  // Whether a binary message of `topic` broadcast now would be sent to some client at once: one that is
+  // subscribed and either takes every message or holds a credit. Lets the caller skip encoding what nobody
+  // would see (a credit-flow client that acknowledges later gets the next message). Thread-safe.
+  bool Wants(const std::string& topic) const;
 
   ConsoleServerStats stats() const;
   void Stop();

@@ -1,5 +1,6 @@
-// libFuzzer entry for the console's WebSocket messages: what a client may send (ParseClientMessage, the
-// subscription object) and the binary wire format the server sends (DecodeConsoleMessage, DecodeMeshPayload).
+// libFuzzer entry for the console's WebSocket messages: what a client may send (ParseClientMessage:
+// subscriptions, credit flow, acknowledgements) and the binary wire format the server sends
+// (DecodeConsoleMessage, DecodeMeshPayload).
 // Any input is accepted or rejected (nullopt, or rangebayes::Error for the binary decoders); what is
 // accepted is within the limits, and a decoded mesh has finite positions and faces inside its vertices.
 #include <cstddef>
@@ -14,11 +15,12 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace rangebayes;
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
-  if (const auto subscriptions = ParseClientMessage(bytes)) {
-    fuzz::Require(subscriptions->size() <= 8, "at most 8 groups");
-    for (const auto& [group, value] : *subscriptions) {
+  if (const auto message = ParseClientMessage(bytes)) {
+    fuzz::Require(message->subscribe.size() <= 8 && message->acks.size() <= 8, "at most 8 groups and acks");
+    for (const auto& [group, value] : message->subscribe) {
       fuzz::Require(group.size() <= 32 && value.size() <= 32, "short names");
     }
+    for (const std::string& topic : message->acks) fuzz::Require(topic.size() <= 32, "short topics");
   }
   try {
     const ConsoleMessage message = DecodeConsoleMessage(bytes);

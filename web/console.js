@@ -1,5 +1,10 @@
 // The rangebayes operator's console: reads the WebSocket stream of the process that serves this page
 // (console/protocol.h describes the binary messages) and sends commands to POST /api/control.
+//
+// Flow control (console/server.h): the page asks for credit flow and acknowledges each image once it is
+// decoded and each mesh once it is drawn, so the server sends a topic's next message only then, always the
+// newest one. A slow browser sees fewer frames, never older ones; a hidden tab acknowledges nothing and so
+// receives no images or meshes until it is shown again.
 import * as THREE from '/three/build/three.module.js';
 import { OrbitControls } from '/three/examples/jsm/controls/OrbitControls.js';
 
@@ -11,6 +16,7 @@ const state = {
   statusMessages: 0,
   lastStatus: null,
   latencies: [],
+  toPage: [],
   captures: [],
   webgl: false,
 };
@@ -18,12 +24,18 @@ window.rbConsole = state;  // for tests and the benchmark
 
 const hash = new URLSearchParams(location.hash.slice(1));
 if (hash.get('token')) $('token').value = hash.get('token');
+// Most updates per second the page asks for, per image and for the mesh (#images=N&meshes=N): an operator
+// needs no more to follow the run, and a browser on the rig itself then leaves the cores to the pipeline.
+const maxRate = { image: Number(hash.get('images')) || 10, mesh: Number(hash.get('meshes')) || 5 };
 
 // --- 3D view -------------------------------------------------------------------------------------
 const view = $('view3d');
 let renderer = null, scene, camera, controls, meshObject = null, framed = false, renderPending = false;
+let pendingMesh = null;  // the newest mesh received and not drawn yet
 try {
-  renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  // No multisampling and per-vertex (Lambert) lighting: where WebGL runs in software (a headless browser on
+  // the rig itself) the draw shares the pipeline's cores, and these cut its cost most (docs/journal/console.md).
+  renderer = new THREE.WebGLRenderer({ antialias: false });
   state.webgl = true;
 } catch (e) {
   view.textContent = 'no WebGL in this browser: the 3D view is off';
@@ -33,6 +45,8 @@ if (renderer) {
   renderer.setClearColor(0x14171b);
   view.appendChild(renderer.domElement);
   state.canvas = renderer.domElement;
+  // Draws now, so that the canvas holds the picture until this task ends (for reading its pixels).
+  state.drawNow = () => renderer.render(scene, camera);
   scene = new THREE.Scene();
   camera = new THREE.PerspectiveCamera(50, 1, 0.01, 1000);
   scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 0.55));
@@ -54,12 +68,17 @@ if (renderer) {
   window.addEventListener('resize', resize);
   resize();
 }
+// One draw per animation frame at most; a mesh that came since the last one is built into the scene first.
 function requestRender() {
   if (!renderer || renderPending) return;
   renderPending = true;
   requestAnimationFrame(() => {
     renderPending = false;
+    const m = pendingMesh;
+    pendingMesh = null;
+    if (m) buildMesh(m);
     renderer.render(scene, camera);
+    if (m) meshDrawn(m.header);
   });
 }
 
@@ -77,8 +96,14 @@ function frameView(geometry) {
 }
 $('reset-view').onclick = () => { if (meshObject) frameView(meshObject.geometry); };
 
-function showMesh(header, nv, nf, positions, faces) {
-  if (!renderer) return;
+function showMesh(header, positions, faces) {
+  if (!renderer) { ack('mesh/' + header.kind); return; }
+  if (pendingMesh) ack('mesh/' + pendingMesh.header.kind);  // replaced before it was drawn
+  pendingMesh = { header, positions, faces };
+  requestRender();
+}
+
+function buildMesh({ header, positions, faces }) {
   const p = new Float32Array(positions.length);
   // Camera frame (x right, y down, z forward) to three.js (y up, looking along -z).
   for (let i = 0; i < positions.length; i += 3) {
@@ -89,7 +114,7 @@ function showMesh(header, nv, nf, positions, faces) {
   g.setIndex(new THREE.BufferAttribute(faces, 1));
   g.computeVertexNormals();
   if (!meshObject) {
-    const material = new THREE.MeshPhongMaterial({ color: 0xb9c7d6, specular: 0x222222, shininess: 20, side: THREE.DoubleSide });
+    const material = new THREE.MeshLambertMaterial({ color: 0xb9c7d6, side: THREE.DoubleSide });
     meshObject = new THREE.Mesh(g, material);
     scene.add(meshObject);
   } else {
@@ -97,15 +122,21 @@ function showMesh(header, nv, nf, positions, faces) {
     meshObject.geometry = g;
   }
   if (!framed) { frameView(g); framed = true; }
-  requestRender();
   $('mesh-info').textContent = `${header.kind}, frame ${header.frame}: ${header.faces} faces on the wire (${header.source_faces} in the pipeline)`;
-  requestAnimationFrame(() => {
-    const latency = header.age_ms + (Date.now() - header.sent_unix_ms);
-    state.latencies.push(latency);
-    if (state.latencies.length > 200) state.latencies.shift();
-    const recent = state.latencies.slice(-20);
-    $('latency').textContent = (recent.reduce((a, b) => a + b, 0) / recent.length).toFixed(0);
-  });
+}
+
+// Capture to drawn: the frame's age when the server sent it plus the time since (one clock on loopback;
+// a browser on another machine adds the offset between the two clocks).
+function meshDrawn(header) {
+  ack('mesh/' + header.kind);
+  state.meshes++;
+  const toPage = Date.now() - header.sent_unix_ms;
+  const latency = header.age_ms + toPage;
+  state.latencies.push(latency);
+  state.toPage.push(toPage);  // the part after the server sent it
+  if (state.latencies.length > 1000) { state.latencies.shift(); state.toPage.shift(); }
+  const recent = state.latencies.slice(-20);
+  $('latency').textContent = (recent.reduce((a, b) => a + b, 0) / recent.length).toFixed(0);
 }
 
 for (const b of document.querySelectorAll('#mesh-kinds button')) {
@@ -118,14 +149,34 @@ function selectKind(kind) {
 }
 
 // --- stream --------------------------------------------------------------------------------------
+// Acknowledgements wait while the tab is hidden (the server then sends nothing heavy to it) and keep to
+// maxRate: a topic's next message is asked for no sooner than 1/maxRate s after the last one was.
+const heldAcks = new Set();
+const lastAckMs = {};
+function ack(topic) {
+  if (document.hidden) { heldAcks.add(topic); return; }
+  const wait = lastAckMs[topic] + 1000 / maxRate[topic.split('/')[0]] - performance.now();
+  if (wait > 0) { setTimeout(() => ack(topic), wait); return; }
+  lastAckMs[topic] = performance.now();
+  if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ ack: topic }));
+}
+document.addEventListener('visibilitychange', () => {
+  if (document.hidden) return;
+  const topics = [...heldAcks];
+  heldAcks.clear();
+  if (topics.length && ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({ ack: topics }));
+  if (state.lastStatus) onStatus(state.lastStatus);
+});
+
 const imageUrls = {};
 function showImage(header, payload) {
   const el = $('img-' + header.kind);
-  if (!el) return;
+  if (!el) { ack('image/' + header.kind); return; }
   const url = URL.createObjectURL(new Blob([payload], { type: header.format === 'png' ? 'image/png' : 'image/jpeg' }));
   if (imageUrls[header.kind]) URL.revokeObjectURL(imageUrls[header.kind]);
   imageUrls[header.kind] = url;
   el.src = url;
+  el.decode().catch(() => {}).then(() => ack('image/' + header.kind));
   state.images[header.kind] = (state.images[header.kind] || 0) + 1;
   if (header.kind === 'depth') { $('depth-near').textContent = header.min.toFixed(2) + ' m'; $('depth-far').textContent = header.max.toFixed(2) + ' m'; }
   if (header.kind === 'sigma') { $('sigma-lo').textContent = (header.min * 1000).toFixed(1) + ' mm'; $('sigma-hi').textContent = (header.max * 1000).toFixed(1) + ' mm'; }
@@ -146,8 +197,7 @@ function onBinary(buf) {
     const nv = dv.getUint32(start, true), nf = dv.getUint32(start + 4, true);
     const positions = new Float32Array(buf, start + 8, nv * 3);
     const faces = new Uint32Array(buf, start + 8 + 12 * nv, nf * 3);
-    state.meshes++;
-    showMesh(header, nv, nf, positions, faces);
+    showMesh(header, positions, faces);
   }
 }
 
@@ -155,6 +205,7 @@ const fmtBytes = (b) => b < 0 ? '?' : b > 1e9 ? (b / 1e9).toFixed(1) + ' GB' : (
 function onStatus(s) {
   state.statusMessages++;
   state.lastStatus = s;
+  if (document.hidden) return;  // drawn when the tab is shown again
   $('fps').textContent = s.fps.toFixed(1);
   const run = $('run');
   run.textContent = s.settings.paused ? 'paused' : s.running ? 'running' : s.finished ? 'finished' : 'waiting';
@@ -162,7 +213,8 @@ function onStatus(s) {
   const c = s.console;
   $('counters').innerHTML = [
     ['frames in', s.frames_in], ['results', s.results], ['dropped', s.dropped], ['failed', s.failed],
-    ['skipped', s.skipped], ['to this page: dropped', c.messages_dropped], ['console skipped', c.results_skipped],
+    ['skipped', s.skipped], ['to pages: dropped', c.messages_dropped], ['to pages: replaced by newer', c.messages_coalesced],
+    ['console skipped', c.results_skipped],
   ].map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
   $('stages').querySelector('tbody').innerHTML = s.stages.map((t) =>
     `<tr><td>${t.name}</td><td>${t.mean_ms.toFixed(1)}</td><td>${t.items}</td><td>${t.errors}</td></tr>`).join('');
@@ -196,7 +248,7 @@ function connect() {
   ws.binaryType = 'arraybuffer';
   ws.onopen = () => {
     $('conn').textContent = 'connected'; $('conn').className = 'pill ok';
-    ws.send(JSON.stringify({ subscribe: { mesh: state.meshKind } }));
+    ws.send(JSON.stringify({ subscribe: { mesh: state.meshKind }, flow: 'credit' }));
   };
   ws.onmessage = (ev) => {
     if (typeof ev.data === 'string') {
@@ -208,6 +260,8 @@ function connect() {
     }
   };
   ws.onclose = () => {
+    heldAcks.clear();
+    pendingMesh = null;
     $('conn').textContent = 'disconnected'; $('conn').className = 'pill bad';
     setTimeout(connect, 1000);
   };

@@ -10,7 +10,7 @@ Chromium is driven through the DevTools protocol over --remote-debugging-pipe (f
 by NUL), so the driver needs only the Python standard library. Every process is started here and stopped in
 the finally block (and on SIGTERM).
 
-usage: browser_test.py RANGEBAYES_BINARY OUT_DIR [--chromium /usr/bin/chromium] [--bench SECONDS]
+usage: browser_test.py RANGEBAYES_BINARY OUT_DIR [--chromium /usr/bin/chromium] [--bench SECONDS [--repeats N]]
 """
 import argparse
 import json
@@ -187,6 +187,7 @@ def stop_process(proc, sig=signal.SIGINT, timeout=20):
 CANVAS_NON_BLANK = """(() => {
   const c = window.rbConsole.canvas;
   if (!c) return -1;
+  window.rbConsole.drawNow();
   const t = document.createElement('canvas');
   t.width = c.width; t.height = c.height;
   const g = t.getContext('2d');
@@ -206,7 +207,13 @@ def main():
     ap.add_argument("out")
     ap.add_argument("--chromium", default="/usr/bin/chromium")
     ap.add_argument("--bench", type=float, default=0.0,
-                    help="benchmark mode: keep the page open this many seconds and print the latency")
+                    help="benchmark mode: seconds per phase; phases without and with the page alternate "
+                         "(results/s, CPU of the pipeline, the console's threads and Chromium, capture-to-page "
+                         "mesh latency)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="benchmark mode: pairs of phases without and with the page (A B A B ...)")
+    ap.add_argument("--page-args", default="",
+                    help="benchmark mode: more of the page's hash parameters, e.g. images=30&meshes=30")
     ap.add_argument("replay_args", nargs="*", help="extra replay arguments (after --)")
     a = ap.parse_args()
     if not os.path.exists(a.chromium):
@@ -234,7 +241,7 @@ def main():
         cdp.wait_for("typeof window.rbConsole === 'object' && window.rbConsole.statusMessages > 0", 30,
                      "the page and its first status message")
         if a.bench > 0:
-            return bench(cdp, a.bench)
+            return bench(cdp, replay, url, token, a.bench, a.repeats, a.page_args)
         cdp.wait_for("rbConsole.images.depth >= 2 && rbConsole.images.left >= 2 && rbConsole.meshes >= 1", 90,
                      "depth frames and a mesh")
         assert cdp.evaluate("rbConsole.webgl") is True, "the page found no WebGL"
@@ -301,22 +308,157 @@ def main():
                 print(f"browser_test: cleanup: {e}", file=sys.stderr)
 
 
-def bench(cdp, seconds):
-    cdp.wait_for("rbConsole.meshes >= 1", 60, "a first mesh")
-    start = cdp.evaluate("({m: rbConsole.meshes, r: rbConsole.lastStatus.results})")
-    n0 = cdp.evaluate("rbConsole.latencies.length")
-    time.sleep(seconds)
-    end = cdp.evaluate("({m: rbConsole.meshes, r: rbConsole.lastStatus.results, "
-                       "l: rbConsole.latencies.slice(), s: rbConsole.lastStatus})")
-    lat = end["l"][-min(len(end["l"]), max(1, len(end["l"]) - 0)):]
-    lat_sorted = sorted(lat)
-    print(json.dumps({"meshes_on_page": end["m"] - start["m"], "results": end["r"] - start["r"],
-                      "seconds": seconds,
-                      "latency_ms_mean": sum(lat) / len(lat),
-                      "latency_ms_median": lat_sorted[len(lat) // 2],
-                      "latency_samples": len(lat), "status": end["s"]["console"],
-                      "fps_status": end["s"]["fps"]}))
-    del n0
+def proc_cpu_s(pid):
+    """User + system CPU seconds of one process (all its threads), 0 when it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+def thread_cpu_s(pid):
+    """CPU seconds of each thread of `pid`, summed by thread name (the console names its two threads)."""
+    out = {}
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/{pid}/task/{tid}/comm") as f:
+                name = f.read().strip()
+            with open(f"/proc/{pid}/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, IndexError, ValueError):
+            pass
+    return out
+
+
+def descendants(pid):
+    """`pid` and every process below it."""
+    children = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+                children.setdefault(ppid, []).append(int(d))
+            except (OSError, IndexError, ValueError):
+                pass
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        todo.extend(children.get(p, []))
+    return out
+
+
+def cpu_snapshot(replay_pid, chromium_pid):
+    # Chromium's processes come and go with navigation: sum the living ones and the ones reaped (cutime).
+    chrome = 0.0
+    for p in descendants(chromium_pid):
+        chrome += proc_cpu_s(p)
+        if p == chromium_pid:
+            try:
+                with open(f"/proc/{p}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+                chrome += (int(fields[13]) + int(fields[14])) / os.sysconf("SC_CLK_TCK")
+            except (OSError, IndexError, ValueError):
+                pass
+    by_type = {}
+    for p in descendants(chromium_pid):
+        try:
+            with open(f"/proc/{p}/cmdline", "rb") as f:
+                m = re.search(rb"--type=([a-z-]+)", f.read())
+            kind = m.group(1).decode() if m else "browser"
+        except OSError:
+            continue
+        by_type[kind] = by_type.get(kind, 0.0) + proc_cpu_s(p)
+    threads = thread_cpu_s(replay_pid)
+    console = sum(v for k, v in threads.items() if k.startswith("rb-console"))
+    return {"t": time.time(), "rangebayes": proc_cpu_s(replay_pid), "console_threads": console, "chromium": chrome,
+            "chromium_by_type": by_type}
+
+
+def http_status(url):
+    import urllib.request
+    with urllib.request.urlopen(url + "api/status", timeout=10) as r:
+        return json.loads(r.read())
+
+
+def percentile(values, q):
+    if not values:
+        return None
+    v = sorted(values)
+    return v[min(len(v) - 1, int(round(q * (len(v) - 1))))]
+
+
+def rounded(x):
+    return None if x is None else round(x, 1)
+
+
+def bench(cdp, replay, url, token, seconds, repeats, page_args):
+    """Interleaved phases in one replay process at the same load: A without the page (the tab on about:blank,
+    no WebSocket client), B with the page open; A B A B ... Prints one JSON line per phase and a summary."""
+    settle_s = 3.0
+    phases = []
+    load_start = os.getloadavg()
+    for i in range(2 * repeats):
+        with_page = i % 2 == 1
+        if with_page:
+            cdp.call("Page.navigate", {"url": f"{url}#token={token}" + (f"&{page_args}" if page_args else "")})
+            cdp.wait_for("typeof window.rbConsole === 'object' && rbConsole.meshes >= 1", 60, "a first mesh")
+        else:
+            cdp.call("Page.navigate", {"url": "about:blank"})
+        time.sleep(settle_s)
+        if with_page:
+            cdp.evaluate("rbConsole.latencies.length = 0; (rbConsole.toPage || []).length = 0; "
+                         "rbConsole.meshesAtStart = rbConsole.meshes; true")
+        s0, c0 = http_status(url), cpu_snapshot(replay.pid, cdp.proc.pid)
+        time.sleep(seconds)
+        s1, c1 = http_status(url), cpu_snapshot(replay.pid, cdp.proc.pid)
+        wall = c1["t"] - c0["t"]
+        phase = {"phase": "page" if with_page else "no page", "results_per_s": (s1["results"] - s0["results"]) / wall,
+                 "dropped_per_s": (s1["dropped"] - s0["dropped"]) / wall,
+                 "cpu_rangebayes": (c1["rangebayes"] - c0["rangebayes"]) / wall,
+                 "cpu_console_threads": (c1["console_threads"] - c0["console_threads"]) / wall,
+                 "cpu_chromium": (c1["chromium"] - c0["chromium"]) / wall,
+                 "cpu_chromium_by_process": {k: round((v - c0["chromium_by_type"].get(k, 0.0)) / wall, 3)
+                                             for k, v in c1["chromium_by_type"].items()},
+                 "load1": os.getloadavg()[0]}
+        if with_page:
+            page = cdp.evaluate("({l: rbConsole.latencies.slice(), t: (rbConsole.toPage || []).slice(), "
+                                "m: rbConsole.meshes - rbConsole.meshesAtStart})")
+            lat = page["l"]
+            phase.update({"meshes_per_s_on_page": page["m"] / wall, "latency_samples": len(lat),
+                          "latency_ms_median": rounded(percentile(lat, 0.5)), "latency_ms_p95": rounded(percentile(lat, 0.95)),
+                          "sent_to_drawn_ms_median": percentile(page["t"], 0.5), "latencies": lat,
+                          "to_page": page["t"]})
+            phase["console"] = s1["console"]
+        phases.append(phase)
+        print("bench: " + json.dumps({k: (round(v, 3) if isinstance(v, float) else v)
+                                      for k, v in phase.items() if k not in ("latencies", "to_page")}), flush=True)
+    a = [p["results_per_s"] for p in phases if p["phase"] == "no page"]
+    b = [p["results_per_s"] for p in phases if p["phase"] == "page"]
+    lat = [x for p in phases if p["phase"] == "page" for x in p["latencies"]]
+    to_page = [x for p in phases if p["phase"] == "page" for x in p["to_page"]]
+    mean = lambda v: sum(v) / len(v)
+    summary = {"seconds_per_phase": seconds, "repeats": repeats, "page_args": page_args,
+               "results_per_s_no_page": round(mean(a), 2), "results_per_s_page": round(mean(b), 2),
+               "ratio": round(mean(b) / mean(a), 3),
+               "latency_ms_median": rounded(percentile(lat, 0.5)), "latency_ms_p95": rounded(percentile(lat, 0.95)),
+               "latency_samples": len(lat), "sent_to_drawn_ms_median": percentile(to_page, 0.5),
+               "sent_to_drawn_ms_p95": percentile(to_page, 0.95),
+               "cpu_chromium_page": round(mean([p["cpu_chromium"] for p in phases if p["phase"] == "page"]), 3),
+               "cpu_console_threads_page": round(mean([p["cpu_console_threads"] for p in phases
+                                                      if p["phase"] == "page"]), 3),
+               "cpu_console_threads_no_page": round(mean([p["cpu_console_threads"] for p in phases
+                                                         if p["phase"] == "no page"]), 3),
+               "load_start": [round(x, 2) for x in load_start], "load_end": [round(x, 2) for x in os.getloadavg()]}
+    print("bench summary: " + json.dumps(summary), flush=True)
     return 0
 
 

@@ -288,6 +288,57 @@ TEST(ConsoleServer, AClientThatNeverReadsLosesItsOldestMessagesOnly) {
   EXPECT_EQ(s.clients, 2);
 }
 
+// A message "<n>:" padded to a few KB, and the n of one read back.
+std::shared_ptr<const std::string> Numbered(int n) {
+  std::string m(4096, 'm');
+  const std::string seq = std::to_string(n) + ":";
+  m.replace(0, seq.size(), seq);
+  return std::make_shared<const std::string>(std::move(m));
+}
+int ReadNumber(websocket::stream<tcp::socket>& ws) {
+  beast::flat_buffer buffer;
+  ws.read(buffer);
+  const std::string m = beast::buffers_to_string(buffer.data());
+  return std::stoi(m.substr(0, m.find(':')));
+}
+
+TEST(ConsoleServer, ACreditFlowClientGetsOneMessageThenTheNewestAfterItsAck) {
+  ConsoleServer server({}, [](const HttpRequest&) { return HttpReply{404, "text/plain", "", {}}; });
+  net::io_context ioc;
+  websocket::stream<tcp::socket> client(ioc);
+  client.next_layer().connect(Local(server.port()));
+  client.handshake("127.0.0.1", "/ws");
+  client.text(true);
+  client.write(net::buffer(std::string(R"({"flow": "credit"})")));
+  ASSERT_TRUE(WaitFor([&] { return server.stats().clients == 1; }));
+  // Until the server has read the flow message, every message goes out; then the first one takes the credit.
+  int n = 0;
+  for (; n < 100; ++n) {
+    server.Broadcast(Numbered(n), true, "image/left");
+    ASSERT_EQ(ReadNumber(client), n);
+    if (!server.Wants("image/left")) break;
+  }
+  ASSERT_LT(n, 100) << "the server never paced the client";
+  EXPECT_TRUE(server.Wants("image/depth"));  // credits are per topic
+  for (int k = 1; k <= 3; ++k) server.Broadcast(Numbered(n + k), true, "image/left");
+  ASSERT_TRUE(WaitFor([&] { return server.stats().messages_coalesced == 2; }));
+  client.write(net::buffer(std::string(R"({"ack": "image/left"})")));
+  EXPECT_EQ(ReadNumber(client), n + 3);  // the newest, the two before it replaced while held
+  EXPECT_FALSE(server.Wants("image/left"));
+  client.write(net::buffer(std::string(R"({"ack": ["image/left", "image/left"]})")));  // one extra: ignored
+  EXPECT_TRUE(WaitFor([&] { return server.Wants("image/left"); }));
+  server.Broadcast(Numbered(n + 4), true, "image/left");
+  EXPECT_EQ(ReadNumber(client), n + 4);
+  EXPECT_FALSE(server.Wants("image/left"));
+  EXPECT_EQ(server.stats().messages_dropped, 0);
+  // A client without credit flow takes every message, whatever the paced one holds.
+  websocket::stream<tcp::socket> plain(ioc);
+  plain.next_layer().connect(Local(server.port()));
+  plain.handshake("127.0.0.1", "/ws");
+  ASSERT_TRUE(WaitFor([&] { return server.stats().clients == 2; }));
+  EXPECT_TRUE(WaitFor([&] { return server.Wants("image/left"); }));
+}
+
 TEST_F(ConsoleTest, AStalledClientDoesNotHoldThePipeline) {
   // Shrunk server socket buffers so that the stalled client fills up within a few frames.
   ConsoleOptions o = TestOptions(dir_);

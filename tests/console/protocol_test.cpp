@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "console/server.h"
@@ -150,10 +151,22 @@ TEST(ConsoleRequestParser, AcceptsRefusesOrWaitsForMore) {
   EXPECT_TRUE(upgrade.websocket_upgrade);
 }
 
-TEST(ConsoleRequestParser, ClientMessagesAreSubscriptionsOrNothing) {
+TEST(ConsoleRequestParser, ClientMessagesAreSubscriptionsFlowAndAcksOrNothing) {
   const auto s = ParseClientMessage(R"({"subscribe": {"image": "left", "mesh": "smoothed"}})");
   ASSERT_TRUE(s.has_value());
-  EXPECT_EQ(s->at("image"), "left");
+  EXPECT_EQ(s->subscribe.at("image"), "left");
+  EXPECT_FALSE(s->credit_flow);
+  const auto f = ParseClientMessage(R"({"subscribe": {"mesh": "raw"}, "flow": "credit", "ack": "image/left"})");
+  ASSERT_TRUE(f.has_value());
+  EXPECT_TRUE(f->credit_flow);
+  EXPECT_EQ(f->acks, std::vector<std::string>{"image/left"});
+  const auto a = ParseClientMessage(R"({"ack": ["image/left", "mesh/raw"]})");
+  ASSERT_TRUE(a.has_value());
+  EXPECT_EQ(a->acks.size(), 2u);
+  EXPECT_FALSE(ParseClientMessage(R"({"flow": "window"})").has_value());
+  EXPECT_FALSE(ParseClientMessage(R"({"ack": 3})").has_value());
+  EXPECT_FALSE(ParseClientMessage(R"({"ack": ["1", "2", "3", "4", "5", "6", "7", "8", "9"]})").has_value());
+  EXPECT_FALSE(ParseClientMessage("{}").has_value());
   EXPECT_FALSE(ParseClientMessage("not json").has_value());
   EXPECT_FALSE(ParseClientMessage(R"({"subscribe": {"image": 3}})").has_value());
   EXPECT_FALSE(ParseClientMessage(R"({"subscribe": {}, "x": 1})").has_value());
