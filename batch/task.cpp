@@ -8,6 +8,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -134,16 +135,24 @@ void WriteFileAtomically(const std::string& path, const std::string& text) {
   const fs::path target(path);
   const fs::path temporary =
       target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(getpid()));
+  std::error_code ec;
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    RB_CHECK(out.good(), temporary.string(), ": cannot write");
+    RB_CHECK(out.good(), path, ": cannot write (", std::strerror(errno), ")");
     out << text;
     out.close();
-    RB_CHECK(out.good(), temporary.string(), ": write failed");
+    if (!out.good()) {
+      const int error = errno;
+      fs::remove(temporary, ec);  // a full disk leaves no half-written temporary behind
+      RB_FAIL(path, ": write failed (", std::strerror(error), ")");
+    }
   }
-  std::error_code ec;
   fs::rename(temporary, target, ec);
-  RB_CHECK(!ec, path, ": cannot replace (", ec.message(), ")");
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    RB_FAIL(path, ": cannot replace (", ec.message(), ")");
+  }
 }
 
 void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
@@ -296,10 +305,11 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   const fs::path work = fs::path(layout.tasks_dir()) / (".tmp-" + std::to_string(index) + "-" +
                                                         std::to_string(status.attempt) + "-" +
                                                         std::to_string(getpid()));
+  // The running status first: when it cannot be written (a full disk), no temporary folder is left either.
+  WriteBatchTaskStatus(layout, status);
   std::error_code ec;
   fs::remove_all(work, ec);
   fs::create_directories(work);
-  WriteBatchTaskStatus(layout, status);
 
   const std::string log = layout.log_file(index);
   {
@@ -351,6 +361,9 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
       status.error_line = "ended by signal " + std::to_string(exit.signal) +
                           (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
                           (status.error_line.empty() ? "" : "; last line: " + status.error_line);
+    } else if (exit.exit_code != 0 && status.error_line.empty()) {
+      // A command whose error line could not reach the log (a full disk) still fails with a line saying so.
+      status.error_line = "exit " + std::to_string(exit.exit_code) + " with no output in " + log;
     }
   }
   if (status.exit_code == 0 && stop_signal == 0) {

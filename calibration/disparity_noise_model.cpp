@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <limits>
 #include <numeric>
 #include <opencv2/core.hpp>
 
+#include "calibration/opencv_yaml.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -181,11 +183,15 @@ void NoiseFitOptions::Check() const {
 
 DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
   RB_CHECK(std::filesystem::is_regular_file(path), path, ": noise model file not found");
+  CheckOpenCvYamlSubset(path, "noise model");
   cv::FileStorage fs;
   try {
     fs.open(path, cv::FileStorage::READ);
   } catch (const cv::Exception& e) {
     RB_FAIL(path, ": not a readable OpenCV YAML noise model (", e.err, ")");
+  } catch (const std::exception& e) {
+    // OpenCV's YAML parser lets std::length_error out on some malformed files (fuzz_rig_yaml).
+    RB_FAIL(path, ": not a readable OpenCV YAML noise model (", e.what(), ")");
   }
   RB_CHECK(fs.isOpened(), path, ": not a readable OpenCV YAML noise model");
   DisparityNoiseModel m;
@@ -212,6 +218,10 @@ DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
     if (!fs["samples"].empty()) m.samples = static_cast<int>(fs["samples"]);
   } catch (const cv::Exception& e) {
     RB_FAIL(path, ": malformed noise model (", e.err, ")");
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    RB_FAIL(path, ": malformed noise model (", e.what(), ")");
   }
   try {
     m.Check();

@@ -1,9 +1,11 @@
 #include "calibration/stereo_rig.h"
 
+#include <exception>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "calibration/opencv_yaml.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -75,11 +77,15 @@ double StereoRig::baseline_m() const { return t_right_from_left_m.norm(); }
 
 StereoRig ReadStereoRig(const std::string& path) {
   RB_CHECK(std::filesystem::is_regular_file(path), path, ": rig file not found");
+  CheckOpenCvYamlSubset(path, "rig file");
   cv::FileStorage fs;
   try {
     fs.open(path, cv::FileStorage::READ);
   } catch (const cv::Exception& e) {
     RB_FAIL(path, ": not a readable OpenCV YAML rig file (", e.err, ")");
+  } catch (const std::exception& e) {
+    // OpenCV's YAML parser lets std::length_error out on some malformed files (fuzz_rig_yaml).
+    RB_FAIL(path, ": not a readable OpenCV YAML rig file (", e.what(), ")");
   }
   RB_CHECK(fs.isOpened(), path, ": not a readable OpenCV YAML rig file");
   StereoRig rig;
@@ -110,6 +116,10 @@ StereoRig ReadStereoRig(const std::string& path) {
     if (!fs["view_rms_stereo_px"].empty()) fs["view_rms_stereo_px"] >> rig.view_rms_stereo_px;
   } catch (const cv::Exception& e) {
     RB_FAIL(path, ": malformed rig file (", e.err, ")");
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    RB_FAIL(path, ": malformed rig file (", e.what(), ")");
   }
   RB_CHECK(rig.K_left(0, 0) > 0 && rig.K_left(1, 1) > 0, path, ": K_left has a non-positive focal length");
   RB_CHECK(rig.K_right(0, 0) > 0 && rig.K_right(1, 1) > 0, path, ": K_right has a non-positive focal length");

@@ -3,9 +3,12 @@
 // slurm_cluster_test.sh).
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/mount.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -312,6 +315,142 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
   EXPECT_TRUE(fs::exists(out + "/tasks/1/b.ply"));
   EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
+// A flat grid of n×n vertices as OBJ text: an input whose converted output is large (about 1.7 MB as OBJ for
+// n = 150).
+std::string GridObj(int n) {
+  std::ostringstream s;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) s << "v " << x * 0.001 << ' ' << y * 0.001 << " 0.125\n";
+  }
+  for (int y = 0; y + 1 < n; ++y) {
+    for (int x = 0; x + 1 < n; ++x) {
+      const int v = y * n + x + 1;
+      s << "f " << v << ' ' << v + 1 << ' ' << v + n << "\nf " << v + 1 << ' ' << v + n + 1 << ' ' << v + n << "\n";
+    }
+  }
+  return s.str();
+}
+
+// The lines of a batch report that name a failed task.
+int FailedLines(const std::string& report) {
+  int lines = 0;
+  std::istringstream in(report);
+  for (std::string line; std::getline(in, line);) lines += line.rfind("failed: task ", 0) == 0 ? 1 : 0;
+  return lines;
+}
+
+// The disk fills up while a task writes its output: the batch folder lies on a 4 MiB tmpfs that a filler file
+// has filled but for about half a MiB, and the middle task's output (1.7 MB) does not fit. That task fails
+// with the command's own error line (ENOSPC), nothing of it is published or left behind, and the tasks before
+// and after it succeed; once the filler is removed, a resubmit runs exactly that task and it completes.
+// Needs mount(2) (root in a container that allows it); skips otherwise.
+TEST(RunTask, FullDiskDuringOutputLosesOnlyTheTaskInFlightAndSaysSo) {
+  if (geteuid() != 0) GTEST_SKIP() << "mounting a small tmpfs needs root";
+  const TempDir dir("full_disk");
+  const std::string disk = dir.path() + "/disk";
+  fs::create_directories(disk);
+  if (mount("tmpfs", disk.c_str(), "tmpfs", MS_NOSUID | MS_NODEV, "size=4m,mode=0700") != 0) {
+    GTEST_SKIP() << "mount -t tmpfs is not permitted here (" << std::strerror(errno) << ")";
+  }
+  struct Unmount {
+    std::string path;
+    ~Unmount() { umount2(path.c_str(), MNT_DETACH); }
+  } unmount{disk};
+
+  const std::string manifest = MakeManifest(
+      dir.path(), "convert in/tet.obj a.ply\nconvert in/grid.obj grid.obj\nconvert in/tet.obj c.ply\n");
+  WriteText(dir.path() + "/in/grid.obj", GridObj(150));
+  const std::string filler = disk + "/filler";
+  {
+    std::ofstream out(filler, std::ios::binary);
+    const std::string chunk(64 * 1024, 'x');
+    for (int i = 0; i < 56; ++i) out << chunk;  // 3.5 MiB of the 4
+    ASSERT_TRUE(out.good());
+  }
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;  // one task in flight at a time
+  const std::string out = disk + "/out";
+  std::vector<BatchTaskStatus> ended;
+  options.on_task_end = [&](const BatchTaskStatus& s) { ended.push_back(s); };
+  SubmitBatch(manifest, out, options);
+
+  ASSERT_EQ(ended.size(), 3u);
+  EXPECT_EQ(ended[0].state, "succeeded") << ended[0].error_line;
+  EXPECT_EQ(ended[2].state, "succeeded") << ended[2].error_line;
+  const BatchTaskStatus& full = ended[1];
+  EXPECT_EQ(full.state, "failed");
+  EXPECT_EQ(full.exit_code, 1);
+  EXPECT_NE(full.error_line.find("rangebayes convert: error:"), std::string::npos) << full.error_line;
+  EXPECT_NE(full.error_line.find(std::strerror(ENOSPC)), std::string::npos) << full.error_line;
+  EXPECT_FALSE(fs::exists(out + "/tasks/1"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});  // no half output left on the disk
+  EXPECT_EQ(ReadText(out + "/tasks/0/a.ply"), ReadText(out + "/tasks/2/c.ply"));
+  EXPECT_GT(fs::file_size(out + "/tasks/0/a.ply"), 0u);
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.succeeded, 2);
+  EXPECT_EQ(report.failed, 1);
+  EXPECT_EQ(FailedLines(report.BriefReport()), 1) << report.BriefReport();
+  const auto recorded = ReadBatchTaskStatus(BatchLayout(out), 1);
+  ASSERT_TRUE(recorded.has_value());
+  EXPECT_EQ(recorded->error_line, full.error_line);
+
+  // No room left at all: run-task cannot even record that the task runs. It says so, and leaves no temporary
+  // status file or task folder behind; the task's last status stays as it was.
+  {
+    std::ofstream rest(disk + "/rest", std::ios::binary);
+    const std::string chunk(64 * 1024, 'x');
+    for (int i = 0; i < 64 && rest.good(); ++i) rest << chunk << std::flush;
+    EXPECT_FALSE(rest.good());  // the disk is full
+  }
+  try {
+    RunBatchTask(out, 1, TestRunOptions());
+    ADD_FAILURE() << "no error on a full disk";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("status/1.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(std::strerror(ENOSPC)), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(Entries(out + "/status", "."), std::vector<std::string>{});
+  EXPECT_EQ(ReadBatchTaskStatus(BatchLayout(out), 1)->error_line, full.error_line);
+
+  fs::remove(disk + "/rest");
+  fs::remove(filler);
+  ended.clear();
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
+  ASSERT_EQ(ended.size(), 1u);
+  EXPECT_EQ(ended[0].state, "succeeded") << ended[0].error_line;
+  // The premise: the output is larger than the half MiB the filler had left.
+  EXPECT_GT(fs::file_size(out + "/tasks/1/grid.obj"), 1024u * 1024u);
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 3);
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+}
+
+// The same without mounting anything: the task's output is a path beside the manifest that links to
+// /dev/full, where every write fails with ENOSPC. The task fails with that error line and nothing is
+// published; the other task succeeds.
+TEST(RunTask, OutputOnAFullDeviceFailsOnlyThatTaskAndSaysSo) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this machine";
+  const TempDir dir("dev_full");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj full.ply\nconvert in/tet.obj b.ply\n");
+  fs::create_symlink("/dev/full", dir.path() + "/full.ply");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.states, (std::vector<std::string>{"failed", "succeeded"}));
+  const auto failed = ReadBatchTaskStatus(BatchLayout(out), 0);
+  ASSERT_TRUE(failed.has_value());
+  EXPECT_EQ(failed->exit_code, 1);
+  EXPECT_NE(failed->error_line.find("rangebayes convert: error:"), std::string::npos) << failed->error_line;
+  EXPECT_NE(failed->error_line.find(std::strerror(ENOSPC)), std::string::npos) << failed->error_line;
+  EXPECT_FALSE(fs::exists(out + "/tasks/0"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(FailedLines(report.BriefReport()), 1) << report.BriefReport();
 }
 
 TEST(LocalRunner, RunsEveryTaskOnWorkersAndReportsEach) {

@@ -70,6 +70,23 @@ TEST(DisparityNoiseModel, YamlRoundTripAndErrors) {
     EXPECT_NE(std::string(e.what()).find("sigma_px"), std::string::npos) << e.what();
   }
   EXPECT_THROW(ReadDisparityNoiseModel((dir / "missing.yaml").string()), Error);
+  // OpenCV's YAML parser throws std::length_error on these bytes (found by fuzz_rig_yaml; seed
+  // fuzz/corpus/noise_yaml/regress_length_error): an Error naming the file.
+  const std::string broken = (dir / "length_error.yaml").string();
+  std::ofstream(broken, std::ios::binary) << "%YAML:1.0 \n   s:t: d\n   : 3]\n";
+  try {
+    ReadDisparityNoiseModel(broken);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(broken), std::string::npos) << e.what();
+  }
+  // On these OpenCV's YAML parser never returns (found by fuzz_noise_yaml; seed regress_parser_hang): refused
+  // before it parses them, like anything outside the YAML that OpenCV writes.
+  for (const char* text : {"%YAML:1.\n---f:c\ns0\n-", "%YAML:1.0\n---\n - b\ns0\n- 1\n{",
+                           "%YAML:1.0\n---\n   \n...\n- 1\n{\n"}) {
+    std::ofstream(broken, std::ios::binary | std::ios::trunc) << text;
+    EXPECT_THROW(ReadDisparityNoiseModel(broken), Error) << text;
+  }
   fs::remove_all(dir);
 }
 

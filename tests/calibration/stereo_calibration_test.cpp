@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -218,6 +219,23 @@ TEST(StereoRigYaml, RoundTripWithoutDistortion) {
   EXPECT_TRUE(back.is_rectified);
   EXPECT_DOUBLE_EQ(back.K_left(0, 0), 400.0);
   EXPECT_DOUBLE_EQ(back.baseline_m(), 0.1);
+  std::filesystem::remove(path);
+}
+
+// A malformed file on which OpenCV's YAML parser throws std::length_error (found by fuzz_rig_yaml; the same
+// bytes are the seed fuzz/corpus/rig_yaml/regress_length_error): an Error naming the file.
+TEST(StereoRigYaml, FilesThatBreakOpenCvsParserAreErrors) {
+  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_length_error.yaml").string();
+  std::ofstream(path, std::ios::binary) << "%YAML:1.0 \n   s:t: d\n   : 3]\n";
+  try {
+    ReadStereoRig(path);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  // A file on which OpenCV's YAML parser never returns (found by fuzz_noise_yaml): refused before it parses.
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << "%YAML:1.0\n---f: c\nab\n-";
+  EXPECT_THROW(ReadStereoRig(path), Error);
   std::filesystem::remove(path);
 }
 
