@@ -138,7 +138,7 @@ void AddRig(CLI::App* calibrate) {
 }
 
 struct NoiseArgs {
-  std::string recording;
+  std::vector<std::string> inputs;
   std::string rig;
   std::string target = "plane";
   std::string out;
@@ -156,8 +156,24 @@ struct NoiseArgs {
   bool quiet = false;
 };
 
+void RunNoiseFromGroundTruth(const NoiseArgs& a) {
+  if (a.matcher != "sgbm" && a.matcher != "block") UsageError("--target ground-truth: --matcher must be sgbm or block");
+  if (a.form != "auto" && a.form != "learned") UsageError("--target ground-truth fits the learned form only");
+  GroundTruthNoiseOptions options;
+  options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
+  options.window_px = a.window_px;
+  options.image_noise_gray = a.image_noise_gray;
+  options.stride_px = a.stride_px;
+  GroundTruthNoiseSummary summary;
+  const DisparityNoiseModel model = CalibrateDisparityNoiseFromGroundTruth(a.inputs, options, &summary);
+  WriteDisparityNoiseModel(model, a.out);
+  std::fputs(summary.BriefReport(model).c_str(), stdout);
+  std::printf("wrote %s (%s, %d samples)\n", a.out.c_str(), NoiseFormName(model.form), model.samples);
+}
+
 void RunNoise(const NoiseArgs& a) {
-  if (a.target != "plane") UsageError("--target: only 'plane' is supported");
+  if (a.target == "ground-truth") return RunNoiseFromGroundTruth(a);
+  if (a.inputs.size() != 1) UsageError("--target plane takes one recording");
   NoiseCalibrationOptions options;
   options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
   if (a.form != "auto") options.form = ParseNoiseForm(a.form);
@@ -177,16 +193,17 @@ void RunNoise(const NoiseArgs& a) {
   options.stride_px = a.stride_px;
 
   RecordingReadSummary read_summary;
-  const Recording rec = OpenRecording(a.recording, &read_summary);
+  const std::string& recording = a.inputs[0];
+  const Recording rec = OpenRecording(recording, &read_summary);
   for (const std::string& n : read_summary.notices) Notice(a.quiet, n);
   StereoRig rig;
   if (!a.rig.empty()) {
     rig = ReadStereoRig(a.rig);
   } else {
-    RB_CHECK(rec.rig.has_value(), a.recording, ": recording has no rig.yaml; give --rig");
+    RB_CHECK(rec.rig.has_value(), recording, ": recording has no rig.yaml; give --rig");
     rig = *rec.rig;
   }
-  RB_CHECK(a.frame >= 0 && a.frame < rec.num_frames(), a.recording, ": frame ", a.frame, " not in [0, ",
+  RB_CHECK(a.frame >= 0 && a.frame < rec.num_frames(), recording, ": frame ", a.frame, " not in [0, ",
            rec.num_frames(), ")");
   NoiseCalibrationSummary summary;
   const DisparityNoiseModel model = CalibrateDisparityNoise(rec, rig, options, &summary);
@@ -202,18 +219,26 @@ void RunNoise(const NoiseArgs& a) {
 void AddNoise(CLI::App* calibrate) {
   auto a = std::make_shared<NoiseArgs>();
   CLI::App* sub = calibrate->add_subcommand(
-      "noise", "Fit the disparity noise model (noise.yaml) from a recording of a known target (one plane)");
-  sub->add_option("RECORDING", a->recording, "recording folder (frames.csv, rig.yaml)")->required();
+      "noise",
+      "Fit the disparity noise model (noise.yaml) from a recording of a known target (one plane) or from scenes "
+      "with ground-truth disparity (learned form)");
+  sub->add_option("INPUT", a->inputs,
+                  "plane: the recording folder (frames.csv, rig.yaml); ground-truth: Middlebury scene folders")
+      ->required();
   sub->add_option("--rig", a->rig, "rig file; default: the recording's rig.yaml");
-  sub->add_option("--target", a->target, "known target geometry")->check(CLI::IsMember({"plane"}));
+  sub->add_option("--target", a->target,
+                  "plane (a recording of one plane) or ground-truth (scenes with ground-truth disparity: fits "
+                  "sigma_d from cost curvature and neighbour jump, plus the outlier share, for sgbm or block)")
+      ->check(CLI::IsMember({"plane", "ground-truth"}));
   sub->add_option("--out", a->out, "output noise model (OpenCV FileStorage YAML)")->required();
   sub->add_option("--matcher", a->matcher,
                   "block (single frame, predicts sigma_d), spacetime (all frames from --frame, predicts sigma_d) or "
                   "sgbm (single frame, no prediction)")
       ->check(CLI::IsMember({"block", "spacetime", "sgbm"}));
   sub->add_option("--form", a->form,
-                  "model form: auto (floor-plus-scale when the matcher predicts sigma_d), constant, floor-plus-scale")
-      ->check(CLI::IsMember({"auto", "constant", "floor-plus-scale"}));
+                  "model form: auto (plane: floor-plus-scale when the matcher predicts sigma_d; ground-truth: learned), "
+                  "constant, floor-plus-scale, learned")
+      ->check(CLI::IsMember({"auto", "constant", "floor-plus-scale", "learned"}));
   sub->add_option("--frame", a->frame, "first frame used (index into frames.csv)")->check(CLI::NonNegativeNumber);
   sub->add_option("--frames", a->frames, "spacetime: frames used from --frame (0: all)")->check(CLI::NonNegativeNumber);
   sub->add_option("--min-disparity", a->min_disparity_px, "smallest disparity searched (px)");
@@ -227,6 +252,28 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("--png", a->png, "report picture: residual histogram against the model, sigma_d against depth");
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { RunNoise(*a); });
+}
+
+void AddCheckNoise(CLI::App* calibrate) {
+  struct Args {
+    std::vector<std::string> scenes;
+    std::string model;
+    int stride_px = 2;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* sub = calibrate->add_subcommand(
+      "check-noise",
+      "Test a learned noise.yaml on scenes with ground truth: do the normalised residuals (d - d_gt) / sigma_d follow "
+      "the model? Exit 0 either way; the last line says whether it passed");
+  sub->add_option("SCENE", a->scenes, "Middlebury scene folders (held out from the fit)")->required();
+  sub->add_option("--noise-model", a->model, "noise.yaml of form learned (rangebayes calibrate noise --target "
+                  "ground-truth)")->required();
+  sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
+  sub->callback([a] {
+    const DisparityNoiseModel model = ReadDisparityNoiseModel(a->model);
+    const NoiseModelCheck check = CheckDisparityNoiseOnGroundTruth(model, a->scenes, a->stride_px);
+    std::fputs(check.BriefReport().c_str(), stdout);
+  });
 }
 
 void AddImportMiddlebury(CLI::App* calibrate) {
@@ -255,6 +302,7 @@ RB_REGISTER_COMMANDS(60, [](CLI::App& app) {
   calibrate->require_subcommand(1);
   AddRig(calibrate);
   AddNoise(calibrate);
+  AddCheckNoise(calibrate);
   AddImportMiddlebury(calibrate);
 });
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "calibration/disparity_noise_model.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/learn_prior_io.h"
@@ -55,6 +56,7 @@ struct PipelineCli {
   double lambda = DecimateOptions{}.lambda;
   int queue_capacity = 4;
   bool live_path = false;
+  std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
   int preview_width_px = 0;
   bool no_previews = false;
   bool quiet = false;
@@ -63,6 +65,9 @@ struct PipelineCli {
 };
 
 void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
+  sub->add_option("--noise-model", o->noise_model,
+                  "noise.yaml from 'rangebayes calibrate noise' (a learned model gives every pixel its sigma_d); a "
+                  "model of another matcher or (learned) resolution fails every frame with an error");
   sub->add_option("--matcher", o->matcher, "Stereo matcher: sgbm (OpenCV semi-global) or spacetime (ours, with sigma)")
       ->check(CLI::IsMember({"sgbm", "spacetime"}));
   sub->add_option("--window-frames", o->window_frames,
@@ -143,6 +148,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;
   p.decimation.lambda = o.lambda;
+  if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), o.noise_model, &p);
   if (o.live_path) {
     ApplyLivePathPreset(&p);
     // The flags the preset documents as winning over it.

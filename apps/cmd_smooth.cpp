@@ -38,6 +38,7 @@ struct SmoothArgs {
   bool multilevel = SmoothOptions{}.multilevel;
   bool precondition_rays = SmoothOptions{}.precondition_rays;
   double gap_tolerance = SmoothOptions{}.gap_tolerance;
+  double robust_data_nu = SmoothOptions{}.robust_data_nu;
   double time_limit_s = SmoothOptions{}.time_limit_s;
   int max_iterations = SmoothOptions{}.max_iterations;
   int continuation = SmoothOptions{}.epsilon_continuation_stages;  // per-face ε² by AdaptiveEpsilonAuto (sqrt prior); --no-adaptive-eps: off
@@ -124,6 +125,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.precondition_rays = args.precondition_rays;
   options.epsilon_continuation_stages = args.continuation;
   options.gap_tolerance = args.gap_tolerance;
+  options.robust_data_nu = args.robust_data_nu;
   options.time_limit_s = args.time_limit_s;
   options.max_iterations = args.max_iterations;
   SmoothSummary summary;
@@ -228,6 +230,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
                   "0: the --tolerance preset's")
       ->check(CLI::Range(0.0, 0.999999));
+  sub->add_option("--robust-data", args->robust_data_nu,
+                  "heavy-tailed data term: Student-t with this many degrees of freedom nu on the Mahalanobis distance "
+                  "(gross mismatches stop pulling), (0, 1e6]; 0: Gaussian (the default)")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--continuation", args->continuation,
                   "sqrt prior: epsilon continuation stages before the final solve (eps2 x 10^s, s = N..1), [-1, 6]; "
                   "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")

@@ -23,6 +23,7 @@
 #include "reconstruction/triangulate.h"
 #include "stereo/colormap.h"
 #include "stereo/depth_frame.h"
+#include "stereo/disparity_features.h"
 #include "stereo/disparity_io.h"
 #include "stereo/evaluate.h"
 #include "stereo/pfm.h"
@@ -87,7 +88,8 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   sub->add_flag("--no-mesh", o->no_mesh, "Do not write mesh.ply");
   sub->add_option("--noise-model", o->noise_model,
                   "noise.yaml from 'rangebayes calibrate noise': replaces --sigma-floor/--sigma-scale (and the sigma_d "
-                  "of matchers without one)");
+                  "of matchers without one); a learned model (--target ground-truth) gives every pixel its sigma_d; "
+                  "a model of another matcher or (learned) resolution is an error");
   AddQuietFlag(sub, &o->quiet);
 }
 
@@ -115,6 +117,17 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
   if (std::isfinite(o.doubtful_jump_px)) m.doubtful_jump_px = o.doubtful_jump_px;
   if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &m);
   return m;
+}
+
+// --noise-model: refuses a model of another matcher or (learned form) resolution; a learned model replaces the
+// disparity's σ_d by its own, from the frames and the disparity.
+void ApplyNoiseModelAfterMatch(const MatchCliOptions& o, const std::string& matcher, const std::vector<cv::Mat>& left,
+                               const std::vector<cv::Mat>& right, DisparityResult* result) {
+  if (o.noise_model.empty()) return;
+  const DisparityNoiseModel model = ReadDisparityNoiseModel(o.noise_model);
+  model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
+  if (model.form != NoiseForm::kLearned) return;
+  result->sigma_disparity_px = LearnedDisparitySigma(model, matcher, left, right, result->disparity_px, o.noise_model);
 }
 
 void WritePicture(const cv::Mat& image, const fs::path& path, bool reverse) {
@@ -211,7 +224,8 @@ void AddStereo(CLI::App& app) {
     } else {
       matcher = std::make_unique<SpaceTimeMatcher>(BlockOptions(o->m, SpaceTimeMatcherOptions{}));
     }
-    const DisparityResult result = matcher->Match({left}, {right});
+    DisparityResult result = matcher->Match({left}, {right});
+    ApplyNoiseModelAfterMatch(o->m, o->matcher, {left}, {right}, &result);
     WriteOutputs(result, rectifier, 0, 0, o->out, o->m);
   });
 }
@@ -256,7 +270,8 @@ void AddSpaceTime(CLI::App& app) {
       id = f.index;
     }
     SpaceTimeMatcher matcher(BlockOptions(o->m, SpaceTimeStaticSceneOptions(T)));
-    const DisparityResult result = matcher.Match(left, right);
+    DisparityResult result = matcher.Match(left, right);
+    ApplyNoiseModelAfterMatch(o->m, "spacetime", left, right, &result);
     WriteOutputs(result, rectifier, id, timestamp, o->out, o->m);
   });
 }

@@ -590,6 +590,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   }
   prepared->energy = std::make_unique<SmoothingEnergy>(ordered, information, options.prior_weight, *potential,
                                                        face_epsilon_squared.empty() ? nullptr : &face_epsilon_squared);
+  if (options.robust_data_nu > 0) prepared->energy->SetRobustData(options.robust_data_nu);
   summary->inactive_faces = prepared->energy->num_inactive_faces();
   summary->memory_bytes += prepared->energy->MemoryBytes() + sizeof(double) * static_cast<size_t>(ordered.V.size()) +
                            sizeof(int) * (static_cast<size_t>(ordered.F.size()) + static_cast<size_t>(nv)) +
@@ -663,6 +664,8 @@ void SmoothOptions::Check() const {
   RB_CHECK(epsilon_continuation_stages >= -1 && epsilon_continuation_stages <= 6,
            "smooth: epsilon_continuation_stages ", epsilon_continuation_stages, " is outside [-1, 6]");
   RB_CHECK(gap_tolerance >= 0 && gap_tolerance < 1, "smooth: gap_tolerance ", gap_tolerance, " is outside [0, 1)");
+  RB_CHECK(robust_data_nu >= 0 && robust_data_nu <= 1e6, "smooth: robust_data_nu ", robust_data_nu,
+           " is outside {0} ∪ (0, 1e6]");
   RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
            "smooth: face_epsilon_squared needs the built-in square-root prior");
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");

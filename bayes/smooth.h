@@ -94,6 +94,9 @@ struct SmoothOptions {
   // skipped (on the adaptive-ε path of generic meshes, each of its solves gets the limit). The result then
   // depends on the machine's speed. [0, 1e6]
   double time_limit_s = 0;
+  // ν of the heavy-tailed data term (SmoothingEnergy::SetRobustData): 0 = the Gaussian of the paper (the default,
+  // BENCHMARKS.md "Learned disparity-noise model"); else (0, 1e6].
+  double robust_data_nu = 0;
   ProgressCallback progress;  // fraction is an estimate (from the energy decrease toward the tolerance)
 
   void Check() const;

@@ -236,7 +236,7 @@ RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const cha
 // plus the vertices' data terms added one after another.
 RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const double* information, bool isotropic,
                                      const int* corner_offsets, const int* corners, const int* corner_edges,
-                                     const double* h_t, int begin, int end, double* grad, double sum) {
+                                     const double* h_t, int begin, int end, double* grad, double sum, double nu) {
   const __mmask8 xyz = 0x7;
   for (int i = begin; i < end; ++i) {
     double w[6];
@@ -250,8 +250,12 @@ RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const dou
     const double wx = w[0] * rx + w[1] * ry + w[2] * rz;
     const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
     const double wz = w[2] * rx + w[4] * ry + w[5] * rz;
+    const double q = rx * wx + ry * wy + rz * wz;
+    // Robust data term (SetRobustData): the Gaussian's gradient scaled by dρ/dq = ν / (ν + 2q).
+    const double f = nu > 0 ? nu / (nu + 2 * q) : 1.0;
     if (grad != nullptr) {
-      __m256d s = _mm256_setr_pd(2 * wx, 2 * wy, 2 * wz, 0.0);
+      __m256d s = nu > 0 ? _mm256_setr_pd(2 * wx * f, 2 * wy * f, 2 * wz * f, 0.0)
+                         : _mm256_setr_pd(2 * wx, 2 * wy, 2 * wz, 0.0);
       const int q_end = corner_offsets[i + 1];
       for (int q = corner_offsets[i]; q < q_end; ++q) {
         // Corner k of face t: h_t × (p_(k+2) − p_(k+1)), the portable face pass's operations, in ymm lanes
@@ -267,7 +271,7 @@ RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const dou
       }
       _mm256_mask_storeu_pd(grad + 3 * static_cast<size_t>(i), xyz, s);
     }
-    sum += rx * wx + ry * wy + rz * wz;
+    sum += nu > 0 ? 0.5 * nu * std::log1p(2 * q / nu) : q;
   }
   return sum;
 }
@@ -671,12 +675,13 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
         tbb::blocked_range<int>(0, nv, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
           return GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(), corners_.data(),
-                              corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum);
+                              corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum, data_nu_);
         },
         [](double a, double b) { return a + b; });
     return EnergyParts{data_sum, beta * prior_sum};
   }
 #endif
+  const double nu = data_nu_;
   const double data_sum = DeterministicSum(nv, [&](int i) {
     double w[6];
     Information(i, w);
@@ -684,8 +689,10 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     const double wx = w[0] * rx + w[1] * ry + w[2] * rz;
     const double wy = w[1] * rx + w[3] * ry + w[4] * rz;
     const double wz = w[2] * rx + w[4] * ry + w[5] * rz;
+    const double q = rx * wx + ry * wy + rz * wz;
+    const double f = nu > 0 ? nu / (nu + 2 * q) : 1.0;
     if (grad != nullptr) {
-      double sx = 2 * wx, sy = 2 * wy, sz = 2 * wz;
+      double sx = nu > 0 ? 2 * wx * f : 2 * wx, sy = nu > 0 ? 2 * wy * f : 2 * wy, sz = nu > 0 ? 2 * wz * f : 2 * wz;
       const int end = corner_offsets_[i + 1];
       for (int q = corner_offsets_[i]; q < end; ++q) {
         const double* c = contributions + 3 * static_cast<size_t>(corners_[static_cast<size_t>(q)]);
@@ -697,9 +704,14 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
       grad[3 * i + 1] = sy;
       grad[3 * i + 2] = sz;
     }
-    return rx * wx + ry * wy + rz * wz;
+    return nu > 0 ? 0.5 * nu * std::log1p(2 * q / nu) : q;
   });
   return EnergyParts{data_sum, beta * prior_sum};
+}
+
+void SmoothingEnergy::SetRobustData(double nu) {
+  RB_CHECK(nu >= 0 && nu <= 1e6 && std::isfinite(nu), "smoothing: robust data nu ", nu, " is outside {0} ∪ (0, 1e6]");
+  data_nu_ = nu;
 }
 
 void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd* out) const {

@@ -59,6 +59,14 @@ class SmoothingEnergy {
   // energy. It must be a SqrtPotential exactly when the current one is (the kernels depend on it); Error otherwise.
   void SetPotential(const Potential& potential);
 
+  // Heavy-tailed data term: each vertex then costs (ν/2)·log(1 + 2q_i/ν), q_i = (z_i − x_i)ᵀ W_i (z_i − x_i), instead
+  // of q_i — a Student-t on the Mahalanobis distance, scaled to equal q_i for small residuals, so a gross mismatch
+  // pulls with a force that falls off as 1/|r|. Its curvature never exceeds the Gaussian's, so DataCurvature and
+  // ApplyDataInverse (the Gaussian's) stay an upper bound and a valid preconditioner. nu = 0: the Gaussian (the
+  // default); else (0, 1e6]. Throws Error outside.
+  void SetRobustData(double nu);
+  double robust_data_nu() const { return data_nu_; }
+
   // pᵀ H_data p with H_data = blockdiag(2 W_i): the data term's curvature along p (a cheap first step length).
   double DataCurvature(const Eigen::VectorXd& p) const;
 
@@ -126,6 +134,7 @@ class SmoothingEnergy {
     }
   }
   double prior_weight_ = 0;
+  double data_nu_ = 0;  // SetRobustData; 0: Gaussian
   const Potential* potential_ = nullptr;
   // Per-face ε² of the square-root potential (empty: the potential's own, global ε²).
   std::vector<double> face_epsilon_squared_;

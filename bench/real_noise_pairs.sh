@@ -6,7 +6,8 @@
 # JSON line per scene; then scores the raw mesh, the default stereo path (`smooth noisy_cov.ply`, covariances
 # kept) and the default generic path (`smooth noisy.ply`, no covariances, no noise level).
 # KS="0.5 1 2": also the generic path at each given k (`smooth noisy.ply --noise k`), for the hindsight curve.
-# PAIRS_ONLY=1: build the pairs only.
+# PAIRS_ONLY=1: build the pairs only. STEREO_ARGS="--noise-model noise.yaml": extra flags of `rangebayes stereo`
+# (e.g. the learned disparity-noise model). STEREO_ONLY=1: score the raw mesh and the stereo default path only.
 #   bench/real_noise_pairs.sh BUILD_DIR OUT_DIR [DOWNSAMPLE] [SPLIT...]     SPLIT: train validation test (default all)
 set -euo pipefail
 build=$1; out=$2; ds=${3:-4}; shift $(( $# >= 3 ? 3 : 2 ))
@@ -39,10 +40,14 @@ for sp in "${splits[@]}"; do
     ndisp=$($ev rig "$data/$s" "$d/rig.yaml")
     for f in im0.png imL.png view1.png im2.ppm im2.png; do [ -f "$data/$s/$f" ] && left=$data/$s/$f && break; done
     for f in im1.png imR.png view5.png im6.ppm im6.png; do [ -f "$data/$s/$f" ] && right=$data/$s/$f && break; done
-    $rb stereo "$left" "$right" --rig "$d/rig.yaml" --num-disparities "$ndisp" --out "$d" --downsample "$ds" -q > "$d/stereo.log"
+    $rb stereo "$left" "$right" --rig "$d/rig.yaml" --num-disparities "$ndisp" --out "$d" --downsample "$ds" ${STEREO_ARGS:-} -q > "$d/stereo.log"
     echo "{\"split\": \"$sp\", \"pair\": $($ev pair "$data/$s" "$d/rig.yaml" "$d/mesh.ply" "$d")}"
     [ -n "${PAIRS_ONLY:-}" ] && continue
     $rb smooth "$d/noisy_cov.ply" "$d/stereo_default.ply" -q > "$d/smooth_cov.log"
+    if [ -n "${STEREO_ONLY:-}" ]; then
+      echo "{\"split\": \"$sp\", \"scene\": \"$s\", \"k\": \"\", \"score\": $($ev compare "$d/stereo_default.ply" "$d/gt.ply")}"
+      continue
+    fi
     $rb smooth "$d/noisy.ply" "$d/generic_default.ply" -q > "$d/smooth_generic.log"
     k=$(sed -n 's/^noise: *k = \([^ ]*\) .*/\1/p' "$d/smooth_generic.log")
     for m in stereo_default generic_default; do echo "{\"split\": \"$sp\", \"scene\": \"$s\", \"k\": \"$([ $m = generic_default ] && echo "$k")\", \"score\": $($ev compare "$d/$m.ply" "$d/gt.ply")}"; done

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <functional>
@@ -145,11 +146,23 @@ ConstantFit FitConstant(const std::vector<double>& r, double range) {
 
 }  // namespace
 
-double DisparityNoiseModel::Apply(double sigma_pred_px) const {
+double DisparityNoiseModel::Apply(double sigma_pred_px, double jump_px) const {
   if (form == NoiseForm::kConstant) return sigma_px;
   if (!std::isfinite(sigma_pred_px)) return std::numeric_limits<double>::quiet_NaN();
   const double k = scale * sigma_pred_px;
-  return std::sqrt(floor_px * floor_px + k * k);
+  if (form == NoiseForm::kFloorPlusScale) return std::sqrt(floor_px * floor_px + k * k);
+  const double j = jump_scale * (std::isfinite(jump_px) ? jump_px : 0.0);
+  return std::sqrt(floor_px * floor_px + k * k + j * j);
+}
+
+void DisparityNoiseModel::CheckApplicable(const std::string& matcher_name, int width_px,
+                                          const std::string& what) const {
+  RB_CHECK(matcher.empty() || matcher == matcher_name, what, ": the noise model was fitted for matcher '", matcher,
+           "', not '", matcher_name, "'");
+  if (form != NoiseForm::kLearned) return;
+  RB_CHECK(width_px >= 0.75 * width_min_px && width_px <= 1.25 * width_max_px, what,
+           ": the noise model was fitted on images ", width_min_px, "-", width_max_px, " px wide, not ", width_px,
+           " px (disparity noise is in pixels of that resolution: fit one for this resolution)");
 }
 
 void DisparityNoiseModel::Check() const {
@@ -160,16 +173,30 @@ void DisparityNoiseModel::Check() const {
     RB_CHECK(scale >= 0 && std::isfinite(scale), "noise model: scale ", scale, " must be ≥ 0");
     RB_CHECK(floor_px > 0 || scale > 0, "noise model: floor_px and scale are both 0");
   }
+  if (form == NoiseForm::kLearned) {
+    RB_CHECK(jump_scale >= 0 && std::isfinite(jump_scale), "noise model: jump_scale ", jump_scale, " must be ≥ 0");
+    RB_CHECK(!matcher.empty(), "noise model: the learned form needs the matcher it was fitted for");
+    RB_CHECK(width_min_px > 0 && width_max_px >= width_min_px, "noise model: the learned form needs the widths it "
+             "was fitted on (width_min_px ", width_min_px, ", width_max_px ", width_max_px, ")");
+    RB_CHECK(window_px >= 1 && window_px % 2 == 1, "noise model: the learned form needs an odd window_px, not ",
+             window_px);
+  }
 }
 
 const char* NoiseFormName(NoiseForm form) {
-  return form == NoiseForm::kConstant ? "constant" : "floor-plus-scale";
+  switch (form) {
+    case NoiseForm::kConstant: return "constant";
+    case NoiseForm::kFloorPlusScale: return "floor-plus-scale";
+    case NoiseForm::kLearned: return "learned";
+  }
+  return "?";
 }
 
 NoiseForm ParseNoiseForm(const std::string& name) {
   if (name == "constant") return NoiseForm::kConstant;
   if (name == "floor-plus-scale") return NoiseForm::kFloorPlusScale;
-  RB_FAIL("noise model form '", name, "' is not 'constant' or 'floor-plus-scale'");
+  if (name == "learned") return NoiseForm::kLearned;
+  RB_FAIL("noise model form '", name, "' is not 'constant', 'floor-plus-scale' or 'learned'");
 }
 
 void NoiseFitOptions::Check() const {
@@ -214,6 +241,16 @@ DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
     read("outlier_fraction", &m.outlier_fraction, false);
     read("depth_slope_px_per_m", &m.depth_slope_px_per_m, false);
     read("image_noise_gray", &m.image_noise_gray, false);
+    const bool learned = m.form == NoiseForm::kLearned;
+    read("jump_scale", &m.jump_scale, learned);
+    double w0 = 0, w1 = 0, win = 0;
+    read("width_min_px", &w0, learned);
+    read("width_max_px", &w1, learned);
+    read("window_px", &win, learned);
+    m.width_min_px = static_cast<int>(w0);
+    m.width_max_px = static_cast<int>(w1);
+    m.window_px = static_cast<int>(win);
+    RB_CHECK(!learned || !fs["matcher"].empty(), path, ": field 'matcher' is missing");
     if (!fs["matcher"].empty()) m.matcher = static_cast<std::string>(fs["matcher"]);
     if (!fs["samples"].empty()) m.samples = static_cast<int>(fs["samples"]);
   } catch (const cv::Exception& e) {
@@ -240,6 +277,9 @@ void WriteDisparityNoiseModel(const DisparityNoiseModel& model, const std::strin
   fs << "matcher" << model.matcher << "samples" << model.samples;
   fs << "outlier_fraction" << model.outlier_fraction << "depth_slope_px_per_m" << model.depth_slope_px_per_m;
   fs << "image_noise_gray" << model.image_noise_gray;
+  if (model.form == NoiseForm::kLearned || model.jump_scale > 0) fs << "jump_scale" << model.jump_scale;
+  if (model.width_max_px > 0) fs << "width_min_px" << model.width_min_px << "width_max_px" << model.width_max_px;
+  if (model.window_px > 0) fs << "window_px" << model.window_px;
 }
 
 DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options,
@@ -251,12 +291,12 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
   std::vector<NoiseSample> valid;
   for (const NoiseSample& s : samples) {
     if (!std::isfinite(s.residual_px)) continue;
-    if (options.form == NoiseForm::kFloorPlusScale && !(std::isfinite(s.sigma_pred_px) && s.sigma_pred_px >= 0))
+    if (options.form != NoiseForm::kConstant && !(std::isfinite(s.sigma_pred_px) && s.sigma_pred_px >= 0))
       continue;
     valid.push_back(s);
   }
   RB_CHECK(static_cast<int>(valid.size()) >= options.min_samples, "noise fit: only ", valid.size(),
-           " usable residual samples", options.form == NoiseForm::kFloorPlusScale ? " with a predicted sigma" : "",
+           " usable residual samples", options.form != NoiseForm::kConstant ? " with a predicted sigma" : "",
            " (at least ", options.min_samples, " needed)");
   if (static_cast<int>(valid.size()) > options.max_samples) {
     std::vector<NoiseSample> thinned;
@@ -264,10 +304,11 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     for (int i = 0; i < options.max_samples; ++i) thinned.push_back(valid[static_cast<size_t>(i * step)]);
     valid.swap(thinned);
   }
-  std::vector<double> r, pred, absr;
+  std::vector<double> r, pred, absr, jump;
   for (const NoiseSample& s : valid) {
     r.push_back(s.residual_px);
     pred.push_back(s.sigma_pred_px);
+    jump.push_back(std::isfinite(s.jump_px) ? s.jump_px : 0.0);
     absr.push_back(std::abs(s.residual_px));
   }
   double range = options.outlier_range_px;
@@ -286,6 +327,42 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     model.outlier_fraction = constant.eps;
     sum.log_likelihood = -constant.nll;
     sum.iterations = constant.iterations;
+  } else if (options.form == NoiseForm::kLearned) {
+    const double med_pred = std::max(Median(pred), 1e-6);
+    double mean_jump = 0;
+    for (double j : jump) mean_jump += j / static_cast<double>(jump.size());
+    mean_jump = std::max(mean_jump, 1e-3);
+    const auto f = [&](const Vec<4>& p) {
+      const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1])), c = std::exp(Clamp(p[2]));
+      return MixtureNll(
+          r,
+          [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
+          Logistic(p[3]), range);
+    };
+    const double s0 = constant.sigma;
+    const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
+    const std::array<Vec<4>, 3> starts = {
+        Vec<4>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), std::log(0.1 * s0 / mean_jump), e0},
+        Vec<4>{std::log(0.5 * s0), std::log(0.7 * s0 / med_pred), std::log(0.5 * s0 / mean_jump), e0},
+        Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
+    double best_nll = std::numeric_limits<double>::infinity();
+    Vec<4> best{};
+    for (const Vec<4>& start : starts) {
+      int it = 0;
+      double nll = 0;
+      const Vec<4> p = NelderMead<4>(f, start, 0.4, 2500, &it, &nll);
+      sum.iterations += it;
+      if (nll < best_nll) {
+        best_nll = nll;
+        best = p;
+      }
+    }
+    model.floor_px = std::exp(Clamp(best[0]));
+    model.scale = std::exp(Clamp(best[1]));
+    model.jump_scale = std::exp(Clamp(best[2]));
+    model.outlier_fraction = Logistic(best[3]);
+    model.sigma_px = constant.sigma;
+    sum.log_likelihood = -best_nll;
   } else {
     const double med_pred = std::max(Median(pred), 1e-6);
     const auto f = [&](const Vec<3>& p) {
@@ -361,6 +438,74 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
   }
   model.depth_slope_px_per_m = sum.depth_slope_px_per_m;
   return model;
+}
+
+bool NoiseModelCheck::Passes(double max_share_error, double max_rms_error) const {
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(observed_within[k] - predicted_within[k]) > max_share_error) return false;
+  return std::abs(rms_within3 - predicted_rms_within3) <= max_rms_error;
+}
+
+std::string NoiseModelCheck::BriefReport() const {
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "calibration check on %d residuals, z = (d - d_gt) / sigma_d:\n"
+                "share |z| <= 1, 2, 3: observed %.3f %.3f %.3f, model %.3f %.3f %.3f\n"
+                "RMS of z over |z| <= 3: observed %.3f, model %.3f; share |z| > 3: %.3f\n"
+                "%s\n",
+                samples, observed_within[0], observed_within[1], observed_within[2], predicted_within[0],
+                predicted_within[1], predicted_within[2], rms_within3, predicted_rms_within3, outlier_share,
+                Passes() ? "calibrated (shares within 0.03, RMS within 0.1)" : "NOT calibrated (shares within 0.03, RMS "
+                                                                             "within 0.1 required)");
+  return line;
+}
+
+NoiseModelCheck CheckNoiseModel(const std::vector<NoiseSample>& samples, const DisparityNoiseModel& model,
+                                double outlier_range_px) {
+  model.Check();
+  std::vector<double> r, s;
+  for (const NoiseSample& x : samples) {
+    const double sigma = model.Apply(x.sigma_pred_px, x.jump_px);
+    if (!std::isfinite(x.residual_px) || !std::isfinite(sigma) || sigma <= 0) continue;
+    r.push_back(x.residual_px);
+    s.push_back(sigma);
+  }
+  RB_CHECK(r.size() >= 10, "noise check: only ", r.size(), " residuals with a finite sigma_d (at least 10 needed)");
+  double range = outlier_range_px;
+  if (range <= 0)
+    for (double v : r) range = std::max(range, std::abs(v));
+  range = std::max(range, 1e-6);
+  const double eps = model.outlier_fraction;
+  // Unit normal: P(|z| ≤ t) and E[z²; |z| ≤ 3].
+  const double normal_within[3] = {std::erf(1 / std::sqrt(2.0)), std::erf(2 / std::sqrt(2.0)),
+                                   std::erf(3 / std::sqrt(2.0))};
+  const double normal_second3 = normal_within[2] - 6.0 * std::exp(-4.5) / std::sqrt(2 * M_PI);
+  NoiseModelCheck c;
+  c.samples = static_cast<int>(r.size());
+  double second = 0, count3 = 0, pred_second = 0;
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double z = std::abs(r[i] / s[i]);
+    for (int k = 0; k < 3; ++k) {
+      if (z <= k + 1) c.observed_within[k] += 1;
+      c.predicted_within[k] += (1 - eps) * normal_within[k] + eps * std::min(1.0, (k + 1) * s[i] / range);
+    }
+    if (z <= 3) {
+      second += z * z;
+      count3 += 1;
+    }
+    // Uniform r on [−R, R]: E[z²; |r| ≤ 3σ] = 9σ/R, or R²/(3σ²) when 3σ ≥ R.
+    pred_second += (1 - eps) * normal_second3 +
+                   eps * (3 * s[i] < range ? 9.0 * s[i] / range : range * range / (3.0 * s[i] * s[i]));
+  }
+  const double n = static_cast<double>(r.size());
+  for (int k = 0; k < 3; ++k) {
+    c.observed_within[k] /= n;
+    c.predicted_within[k] /= n;
+  }
+  c.rms_within3 = count3 > 0 ? std::sqrt(second / count3) : 0.0;
+  c.predicted_rms_within3 = std::sqrt(pred_second / (c.predicted_within[2] * n));
+  c.outlier_share = 1.0 - c.observed_within[2];
+  return c;
 }
 
 }  // namespace rangebayes

@@ -14,6 +14,7 @@
 
 #include "core/error.h"
 #include "pipeline/pipeline_control.h"
+#include "stereo/disparity_features.h"
 
 namespace rangebayes {
 namespace {
@@ -233,6 +234,14 @@ void PipelineOptions::Check() const {
   triangulate.Check();
   if (smooth) smoothing.Check();
   if (decimate) decimation.Check();
+}
+
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, const std::string& name, PipelineOptions* options) {
+  model.Check();
+  options->noise_model = model;
+  options->noise_model_name = name;
+  ApplyDisparityNoiseModel(model, &options->triangulate);
+  ApplyDisparityNoiseModel(model, &options->spacetime);
 }
 
 void ApplyLivePathPreset(PipelineOptions* options) {
@@ -469,7 +478,15 @@ class Stages {
     auto match = [&](Item& item) {
       const int f = item.settings.ds;
       const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
-      const DisparityResult d = matcher_for(item.settings).Match(item.left_rect, item.right_rect);
+      DisparityResult d = matcher_for(item.settings).Match(item.left_rect, item.right_rect);
+      if (options.noise_model) {
+        const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
+        options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
+        if (options.noise_model->form == NoiseForm::kLearned) {
+          d.sigma_disparity_px = LearnedDisparitySigma(*options.noise_model, name, item.left_rect, item.right_rect,
+                                                       d.disparity_px, options.noise_model_name);
+        }
+      }
       item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, setup.intrinsics,
                                              rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
       item.result.depth.frame_id = item.result.index;

@@ -89,6 +89,10 @@ struct PipelineOptions {
   SgbmMatcherOptions sgbm;
   SpaceTimeMatcherOptions spacetime;
   DepthFromDisparityOptions depth;
+  // Optional calibrated disparity noise (ApplyDisparityNoiseModel below): every frame checks that it applies to
+  // its matcher and matched width (an error counted against the frame otherwise); a learned model gives σ_d.
+  std::optional<DisparityNoiseModel> noise_model;
+  std::string noise_model_name = "noise model";  // names the model (its file) in errors
   TriangulateOptions triangulate;
   bool smooth = true;                // run Bayesian smoothing (bayes/smooth.h)
   SmoothOptions smoothing;
@@ -122,6 +126,11 @@ inline constexpr int kLiveStereoDownsample = 2;
 inline constexpr int kLiveTriangulateDownsample = 4;
 inline constexpr double kLiveSmoothBudgetMs = 80.0;
 void ApplyLivePathPreset(PipelineOptions* options);
+
+// Uses a calibrated noise model (`rangebayes calibrate noise`) in the stereo stage: sets noise_model and, for the
+// constant and floor-plus-scale forms, the triangulation's default σ_d and the space-time matcher's σ_d model
+// (ApplyDisparityNoiseModel of reconstruction/ and stereo/). `name` names the model in errors.
+void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, const std::string& name, PipelineOptions* options);
 
 struct StageTiming {
   std::string name;

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "core/error.h"
+#include "stereo/disparity_features.h"
 #include "stereo/matcher.h"
 #include "stereo/rectify.h"
 #include "stereo/sgbm_matcher.h"
@@ -36,6 +37,8 @@ void NoiseCalibrationOptions::Check() const {
   RB_CHECK(window_px >= 1 && window_px <= 31, "noise calibration: window_px must be in [1, 31]");
   RB_CHECK(image_noise_gray > 0, "noise calibration: image_noise_gray must be > 0");
   RB_CHECK(stride_px >= 1 && stride_px <= 64, "noise calibration: stride_px must be in [1, 64]");
+  RB_CHECK(form != NoiseForm::kLearned,
+           "noise calibration: the learned form is fitted from scenes with ground-truth disparity, not a plane");
   if (form == NoiseForm::kFloorPlusScale) {
     RB_CHECK(matcher != NoiseCalibrationMatcher::kSgbm,
              "noise calibration: the floor-plus-scale form needs a matcher that predicts sigma_d (block or "
@@ -149,6 +152,134 @@ std::string NoiseCalibrationSummary::BriefReport(const DisparityNoiseModel& mode
     out += line;
   }
   std::snprintf(line, sizeof(line), " slope %.4f px/m\n", fit.depth_slope_px_per_m);
+  out += line;
+  return out;
+}
+
+void GroundTruthNoiseOptions::Check() const {
+  RB_CHECK(matcher == NoiseCalibrationMatcher::kSgbm || matcher == NoiseCalibrationMatcher::kBlock,
+           "noise calibration from ground truth: matcher must be sgbm or block (one frame per scene)");
+  RB_CHECK(window_px >= 1 && window_px <= 31 && window_px % 2 == 1, "noise calibration: window_px must be odd, 1-31");
+  RB_CHECK(image_noise_gray > 0, "noise calibration: image_noise_gray must be > 0");
+  RB_CHECK(stride_px >= 1 && stride_px <= 64, "noise calibration: stride_px must be in [1, 64]");
+  RB_CHECK(max_samples >= 1000, "noise calibration: max_samples must be at least 1000");
+}
+
+std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, const GroundTruthNoiseOptions& options) {
+  options.Check();
+  RB_CHECK(!scene.gt_disparity_px.empty(), scene.folder, ": scene has no ground-truth disparity");
+  const int ndisp = std::max(16, (scene.num_disparities + 15) / 16 * 16);
+  std::unique_ptr<StereoMatcher> matcher;
+  if (options.matcher == NoiseCalibrationMatcher::kSgbm) {
+    SgbmMatcherOptions s;
+    s.num_disparities = ndisp;
+    matcher = std::make_unique<SgbmMatcher>(s);
+  } else {
+    SpaceTimeMatcherOptions m;
+    m.num_disparities = ndisp;
+    m.window_px = options.window_px;
+    m.image_noise_gray = options.image_noise_gray;
+    matcher = std::make_unique<SpaceTimeMatcher>(m);
+  }
+  const DisparityResult match = matcher->Match({scene.left}, {scene.right});
+  DisparityFeatureOptions fo;
+  fo.window_px = options.window_px;
+  fo.image_noise_gray = options.image_noise_gray;
+  const DisparityFeatures f = ComputeDisparityFeatures({scene.left}, {scene.right}, match.disparity_px, fo);
+  std::vector<NoiseSample> samples;
+  int gt_valid = 0;
+  for (int y = 0; y < match.disparity_px.rows; y += options.stride_px) {
+    for (int x = 0; x < match.disparity_px.cols; x += options.stride_px) {
+      const float gt = scene.gt_disparity_px.at<float>(y, x);
+      if (!std::isfinite(gt) || gt <= 0) continue;
+      if (!scene.mask_nonocc.empty() && scene.mask_nonocc.at<unsigned char>(y, x) != 255) continue;
+      ++gt_valid;
+      const float d = match.disparity_px.at<float>(y, x);
+      if (!std::isfinite(d)) continue;
+      NoiseSample s;
+      s.residual_px = d - gt;
+      s.sigma_pred_px = f.sigma_pred_px.at<float>(y, x);
+      s.jump_px = f.jump_px.at<float>(y, x);
+      s.depth_m = std::numeric_limits<double>::quiet_NaN();
+      samples.push_back(s);
+    }
+  }
+  RB_CHECK(gt_valid > 0, scene.folder, ": no pixel with a finite, positive ground-truth disparity",
+           scene.mask_nonocc.empty() ? "" : " in the non-occluded mask");
+  RB_CHECK(!samples.empty(), scene.folder, ": the matcher gives no disparity where the ground truth has one");
+  return samples;
+}
+
+DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std::string>& scene_folders,
+                                                           const GroundTruthNoiseOptions& options,
+                                                           GroundTruthNoiseSummary* summary) {
+  options.Check();
+  RB_CHECK(!scene_folders.empty(), "noise calibration: no scene with ground truth given");
+  GroundTruthNoiseSummary local;
+  GroundTruthNoiseSummary& s = summary != nullptr ? *summary : local;
+  s = GroundTruthNoiseSummary{};
+  std::vector<NoiseSample> all;
+  for (const std::string& folder : scene_folders) {
+    const MiddleburyScene scene = ReadMiddleburyScene(folder);
+    const std::vector<NoiseSample> samples = GroundTruthNoiseSamples(scene, options);
+    all.insert(all.end(), samples.begin(), samples.end());
+    const int w = scene.left.cols;
+    s.width_min_px = s.scenes == 0 ? w : std::min(s.width_min_px, w);
+    s.width_max_px = std::max(s.width_max_px, w);
+    ++s.scenes;
+  }
+  s.samples = static_cast<int>(all.size());
+  NoiseFitOptions fit;
+  fit.form = NoiseForm::kLearned;
+  fit.max_samples = options.max_samples;
+  fit.depth_bins = 1;
+  if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
+  DisparityNoiseModel model = FitDisparityNoiseModel(all, fit, &s.fit);
+  model.matcher = NoiseCalibrationMatcherName(options.matcher);
+  model.image_noise_gray = options.image_noise_gray;
+  model.window_px = options.window_px;
+  model.width_min_px = s.width_min_px;
+  model.width_max_px = s.width_max_px;
+  model.depth_slope_px_per_m = std::numeric_limits<double>::quiet_NaN();
+  return model;
+}
+
+NoiseModelCheck CheckDisparityNoiseOnGroundTruth(const DisparityNoiseModel& model,
+                                                 const std::vector<std::string>& scene_folders, int stride_px) {
+  RB_CHECK(model.form == NoiseForm::kLearned, "noise check: the model's form is '", NoiseFormName(model.form),
+           "'; only a learned model can be checked on ground truth");
+  RB_CHECK(!scene_folders.empty(), "noise check: no scene with ground truth given");
+  GroundTruthNoiseOptions options;
+  options.matcher = ParseNoiseCalibrationMatcher(model.matcher);
+  options.window_px = model.window_px;
+  if (model.image_noise_gray > 0) options.image_noise_gray = model.image_noise_gray;
+  options.stride_px = stride_px;
+  std::vector<NoiseSample> all;
+  for (const std::string& folder : scene_folders) {
+    const MiddleburyScene scene = ReadMiddleburyScene(folder);
+    model.CheckApplicable(model.matcher, scene.left.cols, folder);
+    const std::vector<NoiseSample> samples = GroundTruthNoiseSamples(scene, options);
+    all.insert(all.end(), samples.begin(), samples.end());
+  }
+  double range = 0;
+  for (const NoiseSample& x : all) range = std::max(range, std::abs(x.residual_px));
+  return CheckNoiseModel(all, model, range);
+}
+
+std::string GroundTruthNoiseSummary::BriefReport(const DisparityNoiseModel& model) const {
+  char line[512];
+  std::string out;
+  std::snprintf(line, sizeof(line), "ground truth: %d scene(s), %d px wide (min) to %d px (max), %d residuals\n",
+                scenes, width_min_px, width_max_px, samples);
+  out += line;
+  std::snprintf(line, sizeof(line), "constant sigma_d %.4f px (robust 1.4826*MAD %.4f px)\n", fit.constant_sigma_px,
+                fit.robust_sigma_px);
+  out += line;
+  std::snprintf(line, sizeof(line),
+                "learned (%s): sigma_d = sqrt(%.4f^2 + (%.3f * sigma_pred)^2 + (%.3f * jump)^2), outlier share "
+                "%.4f, log-likelihood %.1f\n",
+                model.matcher.c_str(), model.floor_px, model.scale, model.jump_scale, model.outlier_fraction,
+                fit.log_likelihood);
   out += line;
   return out;
 }

@@ -12,6 +12,7 @@
 #include "calibration/plane_target.h"
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
+#include "stereo/disparity_io.h"
 
 namespace rangebayes {
 
@@ -55,5 +56,40 @@ struct NoiseCalibrationSummary {
 DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const StereoRig& rig,
                                             const NoiseCalibrationOptions& options,
                                             NoiseCalibrationSummary* summary = nullptr);
+
+// Calibration from scenes with ground-truth disparity (Middlebury layouts, stereo/disparity_io.h): the matcher runs
+// as `rangebayes stereo` runs it (its defaults, the scene's search range rounded up to 16), and the learned form
+// (σ_d from the cost curvature and the neighbour jump, plus the outlier share) is fitted to d − d_gt on the
+// non-occluded pixels with finite ground truth (all finite ones where the scene has no mask).
+struct GroundTruthNoiseOptions {
+  NoiseCalibrationMatcher matcher = NoiseCalibrationMatcher::kSgbm;  // sgbm or block (one frame per scene)
+  int window_px = 5;              // odd, 1–31: the features' SSD window (and the block matcher's window)
+  double image_noise_gray = 2.0;  // > 0: σ_n of the features
+  int stride_px = 2;              // 1–64: every n-th pixel in x and y
+  int max_samples = 200000;       // ≥ 1000: the fit thins larger sets by a regular stride
+  void Check() const;
+};
+
+// The residual samples of one scene (residual, σ_pred, jump; depth NaN). Throws Error naming the folder when the
+// scene has no ground truth or no pixel where both the ground truth and the matcher give a disparity.
+std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, const GroundTruthNoiseOptions& options);
+
+struct GroundTruthNoiseSummary {
+  int scenes = 0;
+  int samples = 0;
+  int width_min_px = 0, width_max_px = 0;
+  NoiseFitSummary fit;
+  std::string BriefReport(const DisparityNoiseModel& model) const;  // scenes, samples, the model, one per line
+};
+
+// Throws Error on an empty list or any bad scene (GroundTruthNoiseSamples).
+DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std::string>& scene_folders,
+                                                           const GroundTruthNoiseOptions& options,
+                                                           GroundTruthNoiseSummary* summary = nullptr);
+
+// The calibration test of a model on scenes with ground truth (CheckNoiseModel on their samples); the model must
+// apply to each scene's matcher and width (DisparityNoiseModel::CheckApplicable).
+NoiseModelCheck CheckDisparityNoiseOnGroundTruth(const DisparityNoiseModel& model,
+                                                 const std::vector<std::string>& scene_folders, int stride_px = 2);
 
 }  // namespace rangebayes

@@ -58,6 +58,7 @@ void SetSubpixelIterations(int iterations, SpaceTimeMatcherOptions* options) {
 }
 
 void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, SpaceTimeMatcherOptions* options) {
+  if (model.form == NoiseForm::kLearned) return;  // σ_d comes after matching (stereo/disparity_features.h)
   const bool constant = model.form == NoiseForm::kConstant;
   options->sigma_floor_px = constant ? model.sigma_px : model.floor_px;
   options->sigma_scale =

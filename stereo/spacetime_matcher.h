@@ -97,7 +97,8 @@ void SetSubpixelIterations(int iterations, SpaceTimeMatcherOptions* options);
 
 // Replaces the matcher's σ_d model by a calibrated one (`rangebayes calibrate noise`): floor-plus-scale gives
 // floor and scale (the scale rescaled from the model's image noise to options->image_noise_gray, when the
-// model records one); a constant model gives floor σ and a negligible scale (the matcher needs one > 0).
+// model records one); a constant model gives floor σ and a negligible scale (the matcher needs one > 0); a learned
+// model leaves the options as they are (LearnedDisparitySigma replaces σ_d after matching).
 void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, SpaceTimeMatcherOptions* options);
 
 struct SpaceTimeMatchSummary {

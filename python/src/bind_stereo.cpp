@@ -106,7 +106,7 @@ arrays (copies on read; assign a whole array to change one). Translations in met
       .def_property(
           "form", [](const DisparityNoiseModel& d) { return std::string(NoiseFormName(d.form)); },
           [](DisparityNoiseModel& d, const std::string& s) { d.form = ParseNoiseForm(s); },
-          "'constant' or 'floor-plus-scale'")
+          "'constant', 'floor-plus-scale' or 'learned'")
       .def_readwrite("sigma_px", &DisparityNoiseModel::sigma_px)
       .def_readwrite("floor_px", &DisparityNoiseModel::floor_px)
       .def_readwrite("scale", &DisparityNoiseModel::scale)
@@ -114,7 +114,12 @@ arrays (copies on read; assign a whole array to change one). Translations in met
       .def_readwrite("samples", &DisparityNoiseModel::samples)
       .def_readwrite("outlier_fraction", &DisparityNoiseModel::outlier_fraction)
       .def_readwrite("image_noise_gray", &DisparityNoiseModel::image_noise_gray)
-      .def("apply", &DisparityNoiseModel::Apply, py::arg("sigma_pred_px"), "σ_d (px) for a predicted σ (px)");
+      .def_readwrite("jump_scale", &DisparityNoiseModel::jump_scale)
+      .def_readwrite("width_min_px", &DisparityNoiseModel::width_min_px)
+      .def_readwrite("width_max_px", &DisparityNoiseModel::width_max_px)
+      .def_readwrite("window_px", &DisparityNoiseModel::window_px)
+      .def("apply", &DisparityNoiseModel::Apply, py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
+           "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px)");
   m.def("read_noise_model", &ReadDisparityNoiseModel, py::arg("path"));
   m.def("write_noise_model",
         [](const std::string& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path); },

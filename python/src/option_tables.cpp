@@ -25,6 +25,7 @@ const FieldTable<SmoothOptions>& SmoothOptionFields() {
       RB_PY_FIELD(SmoothOptions, precondition_rays),
       RB_PY_FIELD(SmoothOptions, epsilon_continuation_stages),
       RB_PY_FIELD(SmoothOptions, time_limit_s),
+      RB_PY_FIELD(SmoothOptions, robust_data_nu),
   };
   return table;
 }

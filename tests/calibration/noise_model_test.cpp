@@ -132,6 +132,91 @@ TEST(FitDisparityNoiseModel, DetectsDepthDependence) {
   EXPECT_NEAR(summary.depth_slope_px_per_m, 0.1, 0.015);
 }
 
+// Learned form: σ_d from σ_pred and the neighbour jump; the fit recovers the three weights and the outlier share,
+// and the calibration check passes on held-out samples of the same model and fails when σ_d is off by 2×.
+std::vector<NoiseSample> SimulateLearned(int n, unsigned seed, double sigma_factor) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<NoiseSample> out;
+  for (int i = 0; i < n; ++i) {
+    NoiseSample s;
+    s.sigma_pred_px = 0.02 * std::pow(15.0, unit(rng));
+    s.jump_px = unit(rng) < 0.7 ? 0.0 : 3.0 * unit(rng);
+    s.depth_m = std::nan("");
+    const double sigma = std::sqrt(0.1 * 0.1 + 1.5 * 1.5 * s.sigma_pred_px * s.sigma_pred_px +
+                                   0.4 * 0.4 * s.jump_px * s.jump_px);
+    s.residual_px = unit(rng) < 0.04 ? 20.0 * (unit(rng) - 0.5) : sigma_factor * sigma * normal(rng);
+    out.push_back(s);
+  }
+  return out;
+}
+
+TEST(FitDisparityNoiseModel, LearnedFormRecoversWeightsAndPassesItsCheck) {
+  NoiseFitOptions options;
+  options.form = NoiseForm::kLearned;
+  options.outlier_range_px = 10.0;
+  const DisparityNoiseModel fit = FitDisparityNoiseModel(SimulateLearned(30000, 5, 1.0), options);
+  EXPECT_NEAR(fit.floor_px, 0.1, 0.015);
+  EXPECT_NEAR(fit.scale, 1.5, 0.15);
+  EXPECT_NEAR(fit.jump_scale, 0.4, 0.04);
+  EXPECT_NEAR(fit.outlier_fraction, 0.04, 0.01);
+  DisparityNoiseModel m = fit;
+  m.matcher = "sgbm";
+  m.width_min_px = m.width_max_px = 640;
+  m.window_px = 5;
+  const NoiseModelCheck held_out = CheckNoiseModel(SimulateLearned(20000, 6, 1.0), m, 10.0);
+  EXPECT_TRUE(held_out.Passes()) << held_out.BriefReport();
+  EXPECT_NEAR(held_out.rms_within3, held_out.predicted_rms_within3, 0.03) << held_out.BriefReport();
+  const NoiseModelCheck off = CheckNoiseModel(SimulateLearned(20000, 6, 2.0), m, 10.0);
+  EXPECT_FALSE(off.Passes()) << off.BriefReport();
+}
+
+TEST(DisparityNoiseModel, LearnedYamlRoundTripAndRequiredFields) {
+  const fs::path dir = fs::temp_directory_path() / "rb_noise_learned_yaml_test";
+  fs::create_directories(dir);
+  DisparityNoiseModel m;
+  m.form = NoiseForm::kLearned;
+  m.floor_px = 0.2;
+  m.scale = 0.5;
+  m.jump_scale = 1.0;
+  m.matcher = "sgbm";
+  m.width_min_px = 400;
+  m.width_max_px = 700;
+  m.window_px = 5;
+  m.outlier_fraction = 0.05;
+  EXPECT_DOUBLE_EQ(m.Apply(0.0, 0.0), 0.2);
+  EXPECT_NEAR(m.Apply(0.0, 0.3), std::sqrt(0.04 + 0.09), 1e-12);
+  const std::string path = (dir / "noise.yaml").string();
+  WriteDisparityNoiseModel(m, path);
+  const DisparityNoiseModel back = ReadDisparityNoiseModel(path);
+  EXPECT_EQ(back.form, NoiseForm::kLearned);
+  EXPECT_DOUBLE_EQ(back.jump_scale, 1.0);
+  EXPECT_EQ(back.width_min_px, 400);
+  EXPECT_EQ(back.width_max_px, 700);
+  EXPECT_EQ(back.window_px, 5);
+  EXPECT_EQ(back.matcher, "sgbm");
+  // A learned file without the widths it was fitted on is refused, naming the field.
+  const std::string bad = (dir / "bad.yaml").string();
+  std::ofstream(bad) << "%YAML:1.0\n---\nform: learned\nfloor_px: 0.2\nscale: 0.5\njump_scale: 1.0\nmatcher: sgbm\n"
+                        "window_px: 5\n";
+  try {
+    ReadDisparityNoiseModel(bad);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("width_min_px"), std::string::npos) << e.what();
+  }
+  // Other matcher, other resolution: errors; the old forms only check the matcher.
+  EXPECT_THROW(back.CheckApplicable("spacetime", 500, path), Error);
+  EXPECT_THROW(back.CheckApplicable("sgbm", 1400, path), Error);
+  EXPECT_NO_THROW(back.CheckApplicable("sgbm", 741, path));
+  DisparityNoiseModel old;
+  old.matcher = "block";
+  EXPECT_THROW(old.CheckApplicable("sgbm", 640, path), Error);
+  EXPECT_NO_THROW(old.CheckApplicable("block", 64, path));
+  fs::remove_all(dir);
+}
+
 TEST(FitDisparityNoiseModel, TooFewSamplesIsAnError) {
   EXPECT_THROW(FitDisparityNoiseModel(Simulate(20, 0.0, 1, [](double) { return 0.2; }), {}), Error);
 }
