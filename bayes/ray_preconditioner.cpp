@@ -110,7 +110,8 @@ void RayPreconditioner::Apply(const Eigen::VectorXd& g, Eigen::VectorXd* z) cons
 }
 
 size_t RayPreconditioner::MemoryBytes() const {
-  size_t bytes = rays_.size() * sizeof(double);
+  size_t bytes = rays_.size() * sizeof(double) + triplets_.capacity() * sizeof(Eigen::Triplet<double>);
+  if (valid_) bytes += static_cast<size_t>(coarsest_.matrixL().nestedExpression().nonZeros()) * 12;
   for (const Level& level : levels_) {
     bytes += static_cast<size_t>(level.a.nonZeros() + level.p.nonZeros() + level.pt.nonZeros()) * 12;
   }

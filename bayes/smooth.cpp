@@ -407,6 +407,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
       slope_known = true;
     }
   }
+  if (ray != nullptr) summary->memory_bytes += ray->MemoryBytes();
   summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * 5 + sizeof(double) * static_cast<size_t>(z.size());
   return {x, parts};
 }

@@ -81,7 +81,8 @@ class SmoothingEnergy {
   // as the upper triangle (row ≤ column) of an #V×#V symmetric matrix in triplets: the data term's 2 r_iᵀ W_i r_i
   // plus β Σ_pairs J_uᵀ H_u J_u, J_u the Jacobian of u = n_t − n_s in t and H_u the potential's curvature in u
   // (for the square root (I − uuᵀ/φ²)/φ, positive definite; for other potentials the weight w = φ'/d times I).
-  // The normals' second derivatives are left out, so it is positive semi-definite.
+  // The normals' second derivatives are left out, so it is positive semi-definite. With a robust data term
+  // (SetRobustData) the data part is still the Gaussian's, an upper bound of its curvature.
   void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays,
                       std::vector<Eigen::Triplet<double>>* triplets) const;
   // W_i of vertex i (symmetric).
