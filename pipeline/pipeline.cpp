@@ -700,7 +700,7 @@ class Stages {
                     summary.smooth_iterations_mean);
       std::string notice = line;
       if (std::isfinite(summary.smooth_distance_mean)) {
-        std::snprintf(line, sizeof(line), "distance to the optimum %.2g of E on average (estimated)",
+        std::snprintf(line, sizeof(line), "distance to the optimum %.2g × E on average (estimated)",
                       summary.smooth_distance_mean);
         notice += line;
       } else {
