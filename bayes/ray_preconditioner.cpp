@@ -8,7 +8,9 @@ namespace rangebayes {
 RayPreconditioner::RayPreconditioner(const SmoothingEnergy& energy,
                                      std::vector<Eigen::SparseMatrix<double>> prolongations, int direct_vertices)
     : energy_(energy), direct_vertices_(direct_vertices) {
-  if (energy.num_vertices() > direct_vertices) prolongations_ = std::move(prolongations);
+  if (energy.num_vertices() <= direct_vertices) return;
+  prolongations_ = std::move(prolongations);
+  for (const Eigen::SparseMatrix<double>& p : prolongations_) restrictions_.push_back(p.transpose());
 }
 
 bool RayPreconditioner::Update(const Eigen::VectorXd& x) {
@@ -33,9 +35,7 @@ bool RayPreconditioner::Update(const Eigen::VectorXd& x) {
     level.a.makeCompressed();
     level.inverse_diagonal = a.diagonal().cwiseInverse();
     if (k + 1 == levels_.size()) break;
-    level.p = prolongations_[k];
-    level.pt = level.p.transpose();
-    a = (level.pt * a * level.p).pruned();
+    a = (restrictions_[k] * a * prolongations_[k]).pruned();
   }
   if (!analysed_) {
     coarsest_.analyzePattern(a);
@@ -67,24 +67,24 @@ void RayPreconditioner::Cycle(int k, const Eigen::VectorXd& b, Eigen::VectorXd* 
     for (int q = outer[i]; q < outer[i + 1]; ++q) sum -= value[q] * xv[inner[q]];
     xv[i] += sum * inverse_diagonal[i];
   };
-  // kSweeps symmetric Gauss–Seidel sweeps before the coarse correction and their mirror image after it (so the
-  // cycle is a symmetric operator). One sweep each was too weak a smoother on this operator (BENCHMARKS.md).
-  for (int s = 0; s < kSweeps; ++s) {
-    for (int i = 0; i < n; ++i) relax(i);
-    if (s + 1 < kSweeps) {
-      for (int i = n - 1; i >= 0; --i) relax(i);
+  // kSweeps symmetric Gauss–Seidel sweeps (2·kSweeps − 1 alternating passes) before the coarse correction,
+  // forward first, and their mirror image after it, backward first, so the cycle is a symmetric operator. One
+  // sweep each was too weak a smoother on this operator (docs/journal/smoothing-real-stereo.md, round 4).
+  auto smooth = [&](bool forward) {
+    for (int pass = 0; pass < 2 * kSweeps - 1; ++pass, forward = !forward) {
+      if (forward) {
+        for (int i = 0; i < n; ++i) relax(i);
+      } else {
+        for (int i = n - 1; i >= 0; --i) relax(i);
+      }
     }
-  }
+  };
+  smooth(true);
   const Eigen::VectorXd residual = b - a * (*x);
   Eigen::VectorXd coarse;
-  Cycle(k + 1, level.pt * residual, &coarse);
-  *x += level.p * coarse;
-  for (int s = 0; s < kSweeps; ++s) {
-    for (int i = n - 1; i >= 0; --i) relax(i);
-    if (s + 1 < kSweeps) {
-      for (int i = 0; i < n; ++i) relax(i);
-    }
-  }
+  Cycle(k + 1, restrictions_[static_cast<size_t>(k)] * residual, &coarse);
+  *x += prolongations_[static_cast<size_t>(k)] * coarse;
+  smooth(false);
 }
 
 void RayPreconditioner::Apply(const Eigen::VectorXd& g, Eigen::VectorXd* z) const {
@@ -112,8 +112,9 @@ void RayPreconditioner::Apply(const Eigen::VectorXd& g, Eigen::VectorXd* z) cons
 size_t RayPreconditioner::MemoryBytes() const {
   size_t bytes = rays_.size() * sizeof(double) + triplets_.capacity() * sizeof(Eigen::Triplet<double>);
   if (valid_) bytes += static_cast<size_t>(coarsest_.matrixL().nestedExpression().nonZeros()) * 12;
-  for (const Level& level : levels_) {
-    bytes += static_cast<size_t>(level.a.nonZeros() + level.p.nonZeros() + level.pt.nonZeros()) * 12;
+  for (const Level& level : levels_) bytes += static_cast<size_t>(level.a.nonZeros()) * 12;
+  for (size_t k = 0; k < prolongations_.size(); ++k) {
+    bytes += static_cast<size_t>(prolongations_[k].nonZeros() + restrictions_[k].nonZeros()) * 12;
   }
   return bytes;
 }

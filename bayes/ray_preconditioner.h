@@ -53,15 +53,14 @@ class RayPreconditioner {
   struct Level {
     Eigen::SparseMatrix<double, Eigen::RowMajor> a;  // full symmetric
     Eigen::VectorXd inverse_diagonal;
-    Eigen::SparseMatrix<double> p;                   // to this level from the next coarser (empty on the coarsest)
-    Eigen::SparseMatrix<double> pt;
   };
   void Cycle(int k, const Eigen::VectorXd& b, Eigen::VectorXd* x) const;
   static constexpr int kSweeps = 3;
 
   const SmoothingEnergy& energy_;
   std::vector<double> rays_;  // 3 per vertex
-  std::vector<Eigen::SparseMatrix<double>> prolongations_;
+  std::vector<Eigen::SparseMatrix<double>> prolongations_;  // level k+1 → level k (fixed)
+  std::vector<Eigen::SparseMatrix<double>> restrictions_;   // their transposes
   std::vector<Level> levels_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarsest_;
   int direct_vertices_;
