@@ -104,6 +104,26 @@ Vec<N> NelderMead(const std::function<double(const Vec<N>&)>& f, Vec<N> start, d
   return x[best];
 }
 
+// NelderMead (step 0.4) from each start; the end point with the lowest value, which goes to *nll. Each run's
+// iterations are added to *iterations.
+template <size_t N, size_t S>
+Vec<N> BestOfStarts(const std::function<double(const Vec<N>&)>& f, const std::array<Vec<N>, S>& starts,
+                    int max_iterations, int* iterations, double* nll) {
+  *nll = std::numeric_limits<double>::infinity();
+  Vec<N> best{};
+  for (const Vec<N>& start : starts) {
+    int it = 0;
+    double value = 0;
+    const Vec<N> p = NelderMead<N>(f, start, 0.4, max_iterations, &it, &value);
+    *iterations += it;
+    if (value < *nll) {
+      *nll = value;
+      best = p;
+    }
+  }
+  return best;
+}
+
 double Clamp(double v) { return std::clamp(v, kMinLog, kMaxLog); }
 double Logistic(double v) { return 1.0 / (1.0 + std::exp(-v)); }
 
@@ -322,6 +342,9 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
   DisparityNoiseModel model;
   model.form = options.form;
   model.samples = static_cast<int>(valid.size());
+  // Starts of the richer forms: the constant fit's σ and outlier share (as a logit).
+  const double s0 = constant.sigma;
+  const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
   if (options.form == NoiseForm::kConstant) {
     model.sigma_px = constant.sigma;
     model.outlier_fraction = constant.eps;
@@ -339,24 +362,12 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
           [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
           Logistic(p[3]), range);
     };
-    const double s0 = constant.sigma;
-    const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
     const std::array<Vec<4>, 3> starts = {
         Vec<4>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), std::log(0.1 * s0 / mean_jump), e0},
         Vec<4>{std::log(0.5 * s0), std::log(0.7 * s0 / med_pred), std::log(0.5 * s0 / mean_jump), e0},
         Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
-    double best_nll = std::numeric_limits<double>::infinity();
-    Vec<4> best{};
-    for (const Vec<4>& start : starts) {
-      int it = 0;
-      double nll = 0;
-      const Vec<4> p = NelderMead<4>(f, start, 0.4, 2500, &it, &nll);
-      sum.iterations += it;
-      if (nll < best_nll) {
-        best_nll = nll;
-        best = p;
-      }
-    }
+    double best_nll = 0;
+    const Vec<4> best = BestOfStarts<4>(f, starts, 2500, &sum.iterations, &best_nll);
     model.floor_px = std::exp(Clamp(best[0]));
     model.scale = std::exp(Clamp(best[1]));
     model.jump_scale = std::exp(Clamp(best[2]));
@@ -370,24 +381,12 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
       return MixtureNll(
           r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range);
     };
-    const double s0 = constant.sigma;
-    const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
     // Three starts: mostly floor, balanced, mostly scale; the likelihood can have a shallow second basin.
     const std::array<Vec<3>, 3> starts = {Vec<3>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), e0},
                                           Vec<3>{std::log(0.7 * s0), std::log(0.7 * s0 / med_pred), e0},
                                           Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
-    double best_nll = std::numeric_limits<double>::infinity();
-    Vec<3> best{};
-    for (const Vec<3>& start : starts) {
-      int it = 0;
-      double nll = 0;
-      const Vec<3> p = NelderMead<3>(f, start, 0.4, 1500, &it, &nll);
-      sum.iterations += it;
-      if (nll < best_nll) {
-        best_nll = nll;
-        best = p;
-      }
-    }
+    double best_nll = 0;
+    const Vec<3> best = BestOfStarts<3>(f, starts, 1500, &sum.iterations, &best_nll);
     model.floor_px = std::exp(Clamp(best[0]));
     model.scale = std::exp(Clamp(best[1]));
     model.outlier_fraction = Logistic(best[2]);
