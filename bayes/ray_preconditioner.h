@@ -51,7 +51,7 @@ class RayPreconditioner {
 
  private:
   struct Level {
-    Eigen::SparseMatrix<double, Eigen::RowMajor> a;  // full symmetric
+    Eigen::SparseMatrix<double, Eigen::RowMajor> a;  // full symmetric; empty on level 0 (that is a_)
     Eigen::VectorXd inverse_diagonal;
   };
   void Cycle(int k, const Eigen::VectorXd& b, Eigen::VectorXd* x) const;
@@ -67,7 +67,12 @@ class RayPreconditioner {
   bool analysed_ = false;
   bool valid_ = false;
   int updates_ = 0;
-  std::vector<Eigen::Triplet<double>> triplets_;
+  // A's entries refilled in place: the pattern of SmoothingEnergy::RayGaussNewton, its values, and for each value
+  // the positions in a_'s value array of its entry and (off the diagonal) of its mirror.
+  SmoothingEnergy::RayPattern pattern_;
+  std::vector<double> values_;
+  std::vector<int> slots_;  // 2 per value; −1: none
+  Eigen::SparseMatrix<double> a_;
 };
 
 }  // namespace rangebayes

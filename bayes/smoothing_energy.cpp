@@ -741,9 +741,52 @@ void SmoothingEnergy::ApplyDataInverse(const Eigen::VectorXd& v, Eigen::VectorXd
   });
 }
 
-void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std::vector<double>& rays,
-                                     std::vector<Eigen::Triplet<double>>* triplets) const {
+namespace {
+
+// The distinct vertices of the pair (t, s): t's three corners, then s's corners that t lacks.
+int PairVertices(const Faces& faces, int t, int s, int* verts) {
+  int m = 0;
+  for (int f : {t, s}) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = faces(f, k);
+      int j = 0;
+      while (j < m && verts[j] != v) ++j;
+      if (j == m) verts[m++] = v;
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+SmoothingEnergy::RayPattern SmoothingEnergy::RayGaussNewtonPattern() const {
   const int nf = num_faces(), nv = num_vertices_;
+  RayPattern pattern;
+  pattern.entries.reserve(static_cast<size_t>(nv) + 5 * neighbours_.size());
+  for (int i = 0; i < nv; ++i) pattern.entries.emplace_back(i, i);
+  pattern.face_offsets.resize(static_cast<size_t>(nf) + 1);
+  for (int t = 0; t < nf; ++t) {
+    pattern.face_offsets[static_cast<size_t>(t)] = pattern.entries.size();
+    for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
+      const int s = neighbours_[static_cast<size_t>(q)];
+      if (s < t) continue;
+      int verts[6];
+      const int m = PairVertices(faces_, t, s, verts);
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < m; ++j) {
+          if (verts[i] <= verts[j]) pattern.entries.emplace_back(verts[i], verts[j]);
+        }
+      }
+    }
+  }
+  pattern.face_offsets[static_cast<size_t>(nf)] = pattern.entries.size();
+  return pattern;
+}
+
+void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std::vector<double>& rays,
+                                     const RayPattern& pattern, std::vector<double>* values_out) const {
+  const int nf = num_faces(), nv = num_vertices_;
+  RB_CHECK(pattern.face_offsets.size() == static_cast<size_t>(nf) + 1, "RayGaussNewton: the pattern is of another mesh");
   const double* x = x_vector.data();
   ComputeNormals(x);
   // Per face and corner k: ∂n_t/∂t_v = P_t (e_k × r_v) / |c_t|, e_k = x_(k−1) − x_(k+1).
@@ -763,61 +806,57 @@ void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std:
       }
     }
   });
-  triplets->clear();
-  triplets->reserve(static_cast<size_t>(nv) + 10 * neighbours_.size());
-  for (int i = 0; i < nv; ++i) {
-    const Eigen::Vector3d ray(&rays[3 * static_cast<size_t>(i)]);
-    triplets->emplace_back(i, i, 2 * ray.dot(InformationMatrix(i) * ray));
-  }
+  std::vector<double>& values = *values_out;
+  values.resize(pattern.entries.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      const Eigen::Vector3d ray(&rays[3 * static_cast<size_t>(i)]);
+      values[static_cast<size_t>(i)] = 2 * ray.dot(InformationMatrix(i) * ray);
+    }
+  });
   const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
   const double beta = prior_weight_;
-  for (int t = 0; t < nf; ++t) {
-    for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
-      const int s = neighbours_[static_cast<size_t>(q)];
-      if (s < t) continue;
-      const Eigen::Vector3d u = Eigen::Vector3d(&normals_[3 * static_cast<size_t>(t)]) -
-                                Eigen::Vector3d(&normals_[3 * static_cast<size_t>(s)]);
-      Eigen::Matrix3d hu;
-      if (sqrt_potential != nullptr) {
-        const double e2 = face_epsilon_squared_.empty()
-                              ? sqrt_potential->epsilon_squared()
-                              : 0.5 * (face_epsilon_squared_[static_cast<size_t>(t)] + face_epsilon_squared_[static_cast<size_t>(s)]);
-        const double phi2 = u.squaredNorm() + e2, phi = std::sqrt(phi2);
-        hu = (Eigen::Matrix3d::Identity() - u * u.transpose() / phi2) / phi;
-      } else {
-        double value, weight;
-        potential_->EvaluateWeight(u.norm(), &value, &weight);
-        hu = std::max(weight, 0.0) * Eigen::Matrix3d::Identity();
-      }
-      // Columns of J_u over the (up to 4) vertices of the pair.
-      int verts[6];
-      Eigen::Vector3d cols[6];
-      int m = 0;
-      auto add = [&](int f, double sign) {
+  // Each face's pairs write their own run of values (pattern.face_offsets): parallel and in a fixed order.
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int t = r.begin(); t != r.end(); ++t) {
+      size_t out = pattern.face_offsets[static_cast<size_t>(t)];
+      for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
+        const int s = neighbours_[static_cast<size_t>(q)];
+        if (s < t) continue;
+        const Eigen::Vector3d u = Eigen::Vector3d(&normals_[3 * static_cast<size_t>(t)]) -
+                                  Eigen::Vector3d(&normals_[3 * static_cast<size_t>(s)]);
+        Eigen::Matrix3d hu;
+        if (sqrt_potential != nullptr) {
+          const double e2 = face_epsilon_squared_.empty() ? sqrt_potential->epsilon_squared()
+                                                          : 0.5 * (face_epsilon_squared_[static_cast<size_t>(t)] +
+                                                                   face_epsilon_squared_[static_cast<size_t>(s)]);
+          const double phi2 = u.squaredNorm() + e2, phi = std::sqrt(phi2);
+          hu = (Eigen::Matrix3d::Identity() - u * u.transpose() / phi2) / phi;
+        } else {
+          double value, weight;
+          potential_->EvaluateWeight(u.norm(), &value, &weight);
+          hu = std::max(weight, 0.0) * Eigen::Matrix3d::Identity();
+        }
+        // Columns of J_u over the (up to 4) vertices of the pair.
+        int verts[6];
+        const int m = PairVertices(faces_, t, s, verts);
+        Eigen::Vector3d cols[6];
+        for (int i = 0; i < m; ++i) cols[i].setZero();
         for (int k = 0; k < 3; ++k) {
-          const int v = faces_(f, k);
-          const Eigen::Vector3d c = sign * Eigen::Vector3d(&a[9 * static_cast<size_t>(f) + 3 * k]);
-          int j = 0;
-          while (j < m && verts[j] != v) ++j;
-          if (j == m) {
-            verts[m] = v;
-            cols[m++] = c;
-          } else {
-            cols[j] += c;
+          for (int i = 0; i < m; ++i) {
+            if (verts[i] == faces_(t, k)) cols[i] += Eigen::Vector3d(&a[9 * static_cast<size_t>(t) + 3 * k]);
+            if (verts[i] == faces_(s, k)) cols[i] -= Eigen::Vector3d(&a[9 * static_cast<size_t>(s) + 3 * k]);
           }
         }
-      };
-      add(t, 1.0);
-      add(s, -1.0);
-      for (int i = 0; i < m; ++i) {
-        const Eigen::Vector3d hc = hu * cols[i];
-        for (int j = 0; j < m; ++j) {
-          if (verts[i] > verts[j]) continue;
-          triplets->emplace_back(verts[i], verts[j], beta * hc.dot(cols[j]));
+        for (int i = 0; i < m; ++i) {
+          const Eigen::Vector3d hc = hu * cols[i];
+          for (int j = 0; j < m; ++j) {
+            if (verts[i] <= verts[j]) values[out++] = beta * hc.dot(cols[j]);
+          }
         }
       }
     }
-  }
+  });
 }
 
 double SmoothingEnergy::UniformDataInverseScale() const {

@@ -17,6 +17,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <utility>
 #include <vector>
 
 #include "bayes/potential.h"
@@ -78,13 +79,23 @@ class SmoothingEnergy {
   double UniformDataInverseScale() const;
 
   // The Gauss–Newton matrix of E in one direction per vertex (x_i + t_i r_i, r_i unit, 3 per vertex in `rays`),
-  // as the upper triangle (row ≤ column) of an #V×#V symmetric matrix in triplets: the data term's 2 r_iᵀ W_i r_i
-  // plus β Σ_pairs J_uᵀ H_u J_u, J_u the Jacobian of u = n_t − n_s in t and H_u the potential's curvature in u
-  // (for the square root (I − uuᵀ/φ²)/φ, positive definite; for other potentials the weight w = φ'/d times I).
-  // The normals' second derivatives are left out, so it is positive semi-definite. With a robust data term
-  // (SetRobustData) the data part is still the Gaussian's, an upper bound of its curvature.
-  void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays,
-                      std::vector<Eigen::Triplet<double>>* triplets) const;
+  // an #V×#V symmetric matrix: the data term's 2 r_iᵀ W_i r_i plus β Σ_pairs J_uᵀ H_u J_u, J_u the Jacobian of
+  // u = n_t − n_s in t and H_u the potential's curvature in u (for the square root (I − uuᵀ/φ²)/φ, positive
+  // definite; for other potentials the weight w = φ'/d times I). The normals' second derivatives are left out, so
+  // it is positive semi-definite. With a robust data term (SetRobustData) the data part is still the Gaussian's, an
+  // upper bound of its curvature.
+  //
+  // Its entries depend on the connectivity only: RayPattern lists them (row ≤ column, repeated where several
+  // pairs add to one entry) in the order in which RayGaussNewton writes their values, so that a caller assembles
+  // the matrix once and refills it in place.
+  struct RayPattern {
+    std::vector<std::pair<int, int>> entries;  // (row, column), row ≤ column; the #V diagonals first
+    std::vector<size_t> face_offsets;          // #F + 1: the first value of face t's pairs (t < s)
+  };
+  RayPattern RayGaussNewtonPattern() const;
+  // values: one per pattern.entries (resized).
+  void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays, const RayPattern& pattern,
+                      std::vector<double>* values) const;
   // W_i of vertex i (symmetric).
   Eigen::Matrix3d InformationMatrix(int i) const {
     double w[6];

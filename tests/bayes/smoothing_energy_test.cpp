@@ -146,8 +146,14 @@ TEST(SmoothingEnergy, RayGaussNewtonIsTheHessianOnAFlatSurface) {
   const SqrtPotential potential(0.04);
   const SmoothingEnergy energy(mesh, information, 2.4, potential);
   const Eigen::VectorXd x = energy.Measurements();
+  const SmoothingEnergy::RayPattern pattern = energy.RayGaussNewtonPattern();
+  std::vector<double> values;
+  energy.RayGaussNewton(x, rays, pattern, &values);
+  ASSERT_EQ(values.size(), pattern.entries.size());
   std::vector<Eigen::Triplet<double>> triplets;
-  energy.RayGaussNewton(x, rays, &triplets);
+  for (size_t q = 0; q < values.size(); ++q) {
+    triplets.emplace_back(pattern.entries[q].first, pattern.entries[q].second, values[q]);
+  }
   const int nv = mesh.num_vertices();
   Eigen::SparseMatrix<double> upper(nv, nv);
   upper.setFromTriplets(triplets.begin(), triplets.end());
