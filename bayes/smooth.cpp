@@ -41,6 +41,9 @@ constexpr int kWindow = 5;
 constexpr double kOrganizedGapTolerance = 1e-5;
 // Iterations between rebuilds of the ray preconditioner's matrix (SmoothOptions::precondition_rays).
 constexpr int kRayRefreshIterations = 20;
+// SmoothOptions::line_search_c2 = 0: the line search's curvature condition with and without the ray preconditioner.
+constexpr double kRayLineSearchC2 = 0.5;
+constexpr double kLineSearchC2 = 0.1;
 
 Preset PresetFor(SmoothTolerance tolerance) {
   switch (tolerance) {
@@ -320,7 +323,9 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
       const double curvature = energy.DataCurvature(p);
       alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
     }
-    LineSearchResult step = LineSearch(problem, x, p, e, slope, alpha_init, options.line_search_c2, &x_new, &g_new);
+    const double c2 = options.line_search_c2 > 0 ? options.line_search_c2
+                                                  : ray != nullptr ? kRayLineSearchC2 : kLineSearchC2;
+    LineSearchResult step = LineSearch(problem, x, p, e, slope, alpha_init, c2, &x_new, &g_new);
     if (!step.success) {
       if (since_restart == 0) {
         summary->termination = SmoothTermination::kNoProgress;
@@ -661,7 +666,8 @@ void SmoothOptions::Check() const {
            " is outside [0, 1e7]");
   RB_CHECK(energy_tolerance >= 0 && energy_tolerance < 1, "smooth: energy_tolerance ", energy_tolerance,
            " is outside [0, 1)");
-  RB_CHECK(line_search_c2 > 0 && line_search_c2 < 1, "smooth: line_search_c2 ", line_search_c2, " is outside (0, 1)");
+  RB_CHECK(line_search_c2 == 0 || (line_search_c2 > 0 && line_search_c2 < 1), "smooth: line_search_c2 ",
+           line_search_c2, " is outside (0, 1) (0: automatic)");
   RB_CHECK(epsilon_continuation_stages >= -1 && epsilon_continuation_stages <= 6,
            "smooth: epsilon_continuation_stages ", epsilon_continuation_stages, " is outside [-1, 6]");
   RB_CHECK(gap_tolerance >= 0 && gap_tolerance < 1, "smooth: gap_tolerance ", gap_tolerance, " is outside [0, 1)");

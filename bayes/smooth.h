@@ -52,8 +52,11 @@ struct SmoothOptions {
   // fraction of the energy; 0: the preset's (fast: off, it stops on the decrease per iteration; default 3e-4, on
   // organized meshes 1e-5; tight 1e-9). [0, 1)
   double gap_tolerance = 0;
-  // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1).
-  double line_search_c2 = 0.1;
+  // CG line search: accept a step when |φ'(α)| ≤ c2 |φ'(0)| (a Wolfe curvature condition); (0, 1), or 0: 0.5
+  // where CG runs on the ray preconditioner (its directions are close to Gauss–Newton steps, which a looser line
+  // search serves with fewer evaluations; chosen on four Middlebury training scenes, BENCHMARKS.md "Smoothing on
+  // real stereo"), else 0.1.
+  double line_search_c2 = 0;
   int max_iterations = 0;   // 0: the preset's (fast 300, default 2000, tight 20000); else [1, 1e7]
   int num_threads = 0;      // 0: all cores; else [1, 1024]. The result depends only on the input, not on this
   // Optional start of the minimiser (#V×3 positions in the caller's vertex order, finite; null: the measured

@@ -1,6 +1,9 @@
 #!/usr/bin/python3
 """The per-scene table of BENCHMARKS.md "Smoothing on real stereo" from the JSON lines of
-bench/stereo_smooth_scenes.sh:  bench/stereo_smooth_table.py scenes.jsonl"""
+bench/stereo_smooth_scenes.sh:  bench/stereo_smooth_table.py scenes.jsonl [REFERENCES.jsonl]
+
+REFERENCES.jsonl: stored reference solves (scene, reference summary, normal_deg, depth_mae_mm), used instead of
+the run's own (bench/stereo_smooth_references_q4.jsonl: every 4th pixel, made once; BENCHMARKS.md says how)."""
 import json
 import re
 import sys
@@ -19,12 +22,21 @@ for text in open(sys.argv[1]):
     record = json.loads(text)
     if "stereo_s" in record:
         current = {"scene": record["scene"], "stereo_s": record["stereo_s"], "smooth_s": record["smooth_s"],
-                   "e_default": energy(record["smooth"]), "e_reference": energy(record["reference"]),
-                   "evals_default": evaluations(record["smooth"]), "evals_reference": evaluations(record["reference"])}
+                   "e_default": energy(record["smooth"]), "evals_default": evaluations(record["smooth"])}
+        if record["reference"]:  # empty with NO_REFERENCE=1 (then stored references are needed)
+            current["e_reference"] = energy(record["reference"])
+            current["evals_reference"] = evaluations(record["reference"])
         rows.append(current)
     else:
         kind = record["mesh"].rsplit("/", 1)[1].split(".")[0]
         current[kind] = (record["normal_deg"], record["depth_mae_mm"])
+
+if len(sys.argv) > 2:
+    stored = {r["scene"]: r for r in map(json.loads, open(sys.argv[2]))}
+    for r in rows:
+        ref = stored[r["scene"]]
+        r["e_reference"], r["evals_reference"] = energy(ref["reference"]), evaluations(ref["reference"])
+        r["reference"] = (ref["normal_deg"], ref["depth_mae_mm"])
 
 print("| scene | raw ° / mm | default ° / mm | reference ° / mm | SGBM + bilateral ° / mm | default / peer normal "
       "| E default vs reference | Δ normal default − ref | final-solve evaluations default / reference "
