@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "bayes/smooth.h"
 #include "core/error.h"
 
 namespace rangebayes {
@@ -179,11 +180,8 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
   const std::vector<double> edge = LocalEdgeLength(m);
   std::vector<Eigen::Matrix3d> information(static_cast<size_t>(nv));
   for (int v = 0; v < nv; ++v) {
-    const Eigen::Matrix3d& c = fine.covariance[static_cast<size_t>(v)];
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
-    const Eigen::Vector3d values = solver.eigenvalues().cwiseMax(1e-6 * std::max(solver.eigenvalues().maxCoeff(), 1e-300));
-    information[static_cast<size_t>(v)] =
-        0.5 * solver.eigenvectors() * values.cwiseInverse().asDiagonal() * solver.eigenvectors().transpose();
+    RB_CHECK(InformationFromCovariance(fine.covariance[static_cast<size_t>(v)], &information[static_cast<size_t>(v)]),
+             "grid hierarchy: the covariance of vertex ", v, " is not finite and positive definite");
   }
   level.mesh.mesh.V.resize(nc, 3);
   level.mesh.covariance.resize(static_cast<size_t>(nc));

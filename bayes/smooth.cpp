@@ -538,22 +538,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   std::vector<Eigen::Matrix3d> information(noisy.covariance.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, information.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const Eigen::Matrix3d& c = noisy.covariance[i];
-      if (c(0, 0) > 0 && std::isfinite(c(0, 0)) && c(0, 0) == c(1, 1) && c(1, 1) == c(2, 2) && c(0, 1) == 0 &&
-          c(1, 0) == 0 && c(0, 2) == 0 && c(2, 0) == 0 && c(1, 2) == 0 && c(2, 1) == 0) {
-        // σ² I (every generic mesh): exactly isotropic, which the energy stores compactly.
-        information[i] = Eigen::Matrix3d::Identity() * (0.5 / c(0, 0));
-        continue;
-      }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
-      const Eigen::Vector3d values = solver.eigenvalues();
-      if (!c.allFinite() || solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) {
-        information[i].setConstant(std::nan(""));
-        continue;
-      }
-      information[i] = solver.eigenvectors() *
-                       (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
-                       solver.eigenvectors().transpose();
+      if (!InformationFromCovariance(noisy.covariance[i], &information[i])) information[i].setConstant(std::nan(""));
     }
   });
   for (size_t i = 0; i < information.size(); ++i) {
@@ -726,14 +711,25 @@ std::string SmoothSummary::BriefReport() const {
   return out;
 }
 
+bool InformationFromCovariance(const Eigen::Matrix3d& c, Eigen::Matrix3d* information) {
+  if (c(0, 0) > 0 && std::isfinite(c(0, 0)) && c(0, 0) == c(1, 1) && c(1, 1) == c(2, 2) && c(0, 1) == 0 &&
+      c(1, 0) == 0 && c(0, 2) == 0 && c(2, 0) == 0 && c(1, 2) == 0 && c(2, 1) == 0) {
+    *information = Eigen::Matrix3d::Identity() * (0.5 / c(0, 0));  // σ² I (every generic mesh)
+    return true;
+  }
+  if (!c.allFinite()) return false;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
+  const Eigen::Vector3d values = solver.eigenvalues();
+  if (solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) return false;
+  *information = solver.eigenvectors() * (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
+                 solver.eigenvectors().transpose();
+  return true;
+}
+
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
-  const Eigen::Matrix3d symmetric = 0.5 * (covariance + covariance.transpose());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(symmetric);
-  Eigen::Vector3d values = solver.eigenvalues();
-  RB_CHECK(solver.info() == Eigen::Success && values.allFinite() && values.maxCoeff() > 0,
-           "covariance is not positive definite");
-  values = values.cwiseMax(1e-6 * values.maxCoeff());
-  return 0.5 * solver.eigenvectors() * values.cwiseInverse().asDiagonal() * solver.eigenvectors().transpose();
+  Eigen::Matrix3d information;
+  RB_CHECK(InformationFromCovariance(covariance, &information), "covariance is not finite and positive definite");
+  return information;
 }
 
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options, SmoothSummary* summary_out) {

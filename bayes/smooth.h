@@ -171,7 +171,11 @@ struct SmoothSummary {
 // affects the result only through rounding.
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
-// The information matrix W = ½ Σ⁻¹ used for one covariance.
+// The information matrix W = ½ Σ⁻¹ that the smoother uses for a covariance Σ: symmetrised, eigenvalues below 1e-6
+// of the largest raised to it; σ² I gives (0.5 / σ²) I exactly (which the energy stores compactly). False when Σ
+// is not finite and positive definite.
+bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* information);
+// The same; throws Error when Σ is not finite and positive definite.
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
 
 }  // namespace rangebayes
