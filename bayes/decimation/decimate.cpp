@@ -366,7 +366,19 @@ Attempt PartitionOnce(const Problem& problem, double lambda, const DecimateOptio
 void CheckTopology(const Prepared& prep, const std::vector<std::pair<int, int>>& signature, Attempt* a) {
   a->fell_back = false;
   const int ns = static_cast<int>(prep.split_source.size());
-  if (TopologySignature(ns, a->triangulation.F) != signature || !IsManifold(a->triangulation.F, ns)) {
+  // On the used vertices renumbered (unused ones count in neither check), so that the checks of a small
+  // output cost its size, not the dense mesh's.
+  std::vector<int> compact(ns, -1);
+  Faces F(a->triangulation.F.rows(), 3);
+  int used = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      int& id = compact[a->triangulation.F(f, k)];
+      if (id < 0) id = used++;
+      F(f, k) = id;
+    }
+  }
+  if (TopologySignature(used, F) != signature || !IsManifold(F, used)) {
     a->fell_back = true;
     a->triangulation.F = prep.F;
     a->triangulation.face_patch = a->face_patch;
