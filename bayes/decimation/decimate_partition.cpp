@@ -461,7 +461,10 @@ class Climber {
     ++stats_->bfs_fallbacks;
     stamp_ += 2;
     const int mark_a = stamp_, mark_b = stamp_ + 1;
-    std::vector<int> qa{a}, qb{b};
+    std::vector<int>& qa = bfs_a_;
+    std::vector<int>& qb = bfs_b_;
+    qa.assign(1, a);
+    qb.assign(1, b);
     size_t ia = 0, ib = 0;
     mark_[a] = mark_a;
     mark_[b] = mark_b;
@@ -534,6 +537,7 @@ class Climber {
   int candidate_round_ = 0;
   std::vector<int> next_, prev_;
   std::vector<int> mark_;
+  std::vector<int> bfs_a_, bfs_b_;  // BfsConnects' queues, kept between calls
   int stamp_ = 0;
   std::vector<FuseEntry> seed_;  // the fuse phase's sorted seed candidates
 };
