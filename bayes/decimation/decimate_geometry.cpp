@@ -191,16 +191,14 @@ class Reducer {
         queue.pop();
         ++pops_;
         if (vf_[v].empty() || kept_[v]) continue;
-        Targets(v, &targets);
-        if (version != version_[v] && !targets.empty() && !queue.empty()) {
-          // Shortest edge first, lazily: a vertex whose neighbourhood changed is re-queued only when its
-          // shortest edge grew well past the next candidate's.
-          const double now = (poses_[0]->row(targets[0]) - poses_[0]->row(v)).squaredNorm();
-          if (now > 2.0 * std::get<0>(queue.top())) {
-            queue.emplace(now, v, version_[v]);
-            continue;
-          }
+        // Shortest edge first, lazily: a vertex whose neighbourhood changed is re-queued only when its
+        // shortest edge grew well past the next candidate's (found before sorting its targets).
+        const double now = Cost(v);
+        if (version != version_[v] && std::isfinite(now) && !queue.empty() && now > 2.0 * std::get<0>(queue.top())) {
+          queue.emplace(now, v, version_[v]);
+          continue;
         }
+        Targets(v, &targets);
         bool done = false;
         for (int u : targets) {
           if (TryCollapse(v, u)) {
@@ -308,7 +306,7 @@ class Reducer {
   // neighbours for a vertex on a chain, none otherwise.
   void Targets(int v, std::vector<int>* targets) {
     targets->clear();
-    Neighbourhood(v, &scratch_);
+    if (scratch_of_ != v) Neighbourhood(v, &scratch_);
     int features = 0;
     for (const Neighbour& n : scratch_) features += n.feature() ? 1 : 0;
     if (features != 0 && features != 2) return;
@@ -741,7 +739,7 @@ class Reducer {
   std::vector<std::pair<double, int>> by_length_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
-  std::vector<int> ring_;  // after a collapse: u and the former neighbours of v, whose stars changed
+  std::vector<int> ring_;              // after a collapse: u and the former neighbours of v, whose stars changed
   std::vector<int> work_, work_mark_;  // BudgetedChainPass: vertices to revisit after a chain collapse
   int work_round_ = 0;
   std::vector<std::tuple<double, int, int>> queue_seed_;
