@@ -12,6 +12,7 @@
 #include <string>
 #include <unordered_map>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "bayes/decimation/decimate_geometry.h"
@@ -365,7 +366,19 @@ Attempt PartitionOnce(const Problem& problem, double lambda, const DecimateOptio
 void CheckTopology(const Prepared& prep, const std::vector<std::pair<int, int>>& signature, Attempt* a) {
   a->fell_back = false;
   const int ns = static_cast<int>(prep.split_source.size());
-  if (TopologySignature(ns, a->triangulation.F) != signature || !IsManifold(a->triangulation.F, ns)) {
+  // On the used vertices renumbered (unused ones count in neither check), so that the checks of a small
+  // output cost its size, not the dense mesh's.
+  std::vector<int> compact(ns, -1);
+  Faces F(a->triangulation.F.rows(), 3);
+  int used = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      int& id = compact[a->triangulation.F(f, k)];
+      if (id < 0) id = used++;
+      F(f, k) = id;
+    }
+  }
+  if (TopologySignature(used, F) != signature || !IsManifold(F, used)) {
     a->fell_back = true;
     a->triangulation.F = prep.F;
     a->triangulation.face_patch = a->face_patch;
@@ -471,47 +484,72 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
   std::vector<Eigen::Triplet<double>> triplets;
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nn, 3);
   std::vector<double> diagonal(nn, 0.0);
-  for (int f = 0; f < dense_F.rows(); ++f) {
-    const double w = weight[f];
-    if (!(w > 0.0)) continue;
-    const Eigen::Vector3d a = dense_V.row(dense_F(f, 0)).transpose(), b = dense_V.row(dense_F(f, 1)).transpose(),
-                          c = dense_V.row(dense_F(f, 2)).transpose();
-    const Eigen::Vector3d u = (b - a).cross(c - a).normalized();
-    const Eigen::Vector3d p = (a + b + c) / 3.0;
-    double best = std::numeric_limits<double>::infinity();
-    int best_face = -1;
-    Eigen::Vector3d best_bary = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) {
-      const int o = output_of_dense[dense_F(f, k)];
-      if (o < 0) continue;
-      for (int g : faces_of[o]) {
-        if (coarse_patch[g] != dense_patch[f]) continue;
-        const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose(), x1 = coarse.V.row(coarse.F(g, 1)).transpose(),
-                              x2 = coarse.V.row(coarse.F(g, 2)).transpose();
-        // Barycentric coordinates of p's projection, clamped to the triangle.
-        const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0, d = p - x0;
-        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
-        if (!(det > 0.0)) continue;
-        const double l1 = (d22 * e1.dot(d) - d12 * e2.dot(d)) / det, l2 = (d11 * e2.dot(d) - d12 * e1.dot(d)) / det;
-        Eigen::Vector3d bary(1.0 - l1 - l2, l1, l2);
-        bary = bary.cwiseMax(0.0);
-        bary /= bary.sum();
-        const double dist = (bary(0) * x0 + bary(1) * x1 + bary(2) * x2 - p).squaredNorm();
-        if (dist < best) {
-          best = dist;
-          best_face = g;
-          best_bary = bary;
+  // Each dense face's projection in parallel (reads only), the system summed in face order afterwards.
+  const int nd = static_cast<int>(dense_F.rows());
+  std::vector<int> face_of(nd, -1);
+  std::vector<Eigen::Vector3d> bary_of(nd), normal_of(nd);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nd, 8192), [&](const tbb::blocked_range<int>& range) {
+    for (int f = range.begin(); f < range.end(); ++f) {
+      const double w = weight[f];
+      if (!(w > 0.0)) continue;
+      const Eigen::Vector3d a = dense_V.row(dense_F(f, 0)).transpose(), b = dense_V.row(dense_F(f, 1)).transpose(),
+                            c = dense_V.row(dense_F(f, 2)).transpose();
+      const Eigen::Vector3d u = (b - a).cross(c - a).normalized();
+      const Eigen::Vector3d p = (a + b + c) / 3.0;
+      double best = std::numeric_limits<double>::infinity();
+      int best_face = -1;
+      Eigen::Vector3d best_bary = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) {
+        const int o = output_of_dense[dense_F(f, k)];
+        if (o < 0) continue;
+        for (int g : faces_of[o]) {
+          if (coarse_patch[g] != dense_patch[f]) continue;
+          const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose(),
+                                x1 = coarse.V.row(coarse.F(g, 1)).transpose(),
+                                x2 = coarse.V.row(coarse.F(g, 2)).transpose();
+          // Barycentric coordinates of p's projection, clamped to the triangle.
+          const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0, d = p - x0;
+          const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+          if (!(det > 0.0)) continue;
+          const double l1 = (d22 * e1.dot(d) - d12 * e2.dot(d)) / det, l2 = (d11 * e2.dot(d) - d12 * e1.dot(d)) / det;
+          Eigen::Vector3d bary(1.0 - l1 - l2, l1, l2);
+          bary = bary.cwiseMax(0.0);
+          bary /= bary.sum();
+          const double dist = (bary(0) * x0 + bary(1) * x1 + bary(2) * x2 - p).squaredNorm();
+          if (dist < best) {
+            best = dist;
+            best_face = g;
+            best_bary = bary;
+          }
         }
       }
+      face_of[f] = best_face;
+      bary_of[f] = best_bary;
+      normal_of[f] = u;
     }
+  });
+  // The normal equations gathered per output face (a 3×3 block over its corner normals), then once per block.
+  std::vector<Eigen::Matrix3d> block(nc, Eigen::Matrix3d::Zero());
+  for (int f = 0; f < nd; ++f) {
+    const int best_face = face_of[f];
     if (best_face < 0) continue;
+    const double w = weight[f];
+    const Eigen::Vector3d& best_bary = bary_of[f];
+    const Eigen::Vector3d& u = normal_of[f];
+    block[best_face] += w * best_bary * best_bary.transpose();
     for (int i = 0; i < 3; ++i) {
       const int ni = corner->normal_index(best_face, i);
-      for (int j = 0; j < 3; ++j) {
-        triplets.emplace_back(ni, corner->normal_index(best_face, j), w * best_bary(i) * best_bary(j));
-      }
       rhs.row(ni) += w * best_bary(i) * u.transpose();
       diagonal[ni] += w * best_bary(i);
+    }
+  }
+  triplets.reserve(static_cast<size_t>(9 * nc + nn));
+  for (int g = 0; g < nc; ++g) {
+    if (block[g].isZero(0.0)) continue;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        triplets.emplace_back(corner->normal_index(g, i), corner->normal_index(g, j), block[g](i, j));
+      }
     }
   }
   double mean_diagonal = 0.0;

@@ -161,6 +161,7 @@ class Reducer {
       }
     }
     stamp_.assign(nv, 0);
+    work_mark_.assign(nv, 0);
     nb_mark_.assign(nv, 0);
     nb_slot_.assign(nv, 0);
     version_.assign(nv, 0);
@@ -190,16 +191,14 @@ class Reducer {
         queue.pop();
         ++pops_;
         if (vf_[v].empty() || kept_[v]) continue;
-        Targets(v, &targets);
-        if (version != version_[v] && !targets.empty() && !queue.empty()) {
-          // Shortest edge first, lazily: a vertex whose neighbourhood changed is re-queued only when its
-          // shortest edge grew well past the next candidate's.
-          const double now = (poses_[0]->row(targets[0]) - poses_[0]->row(v)).squaredNorm();
-          if (now > 2.0 * std::get<0>(queue.top())) {
-            queue.emplace(now, v, version_[v]);
-            continue;
-          }
+        // Shortest edge first, lazily: a vertex whose neighbourhood changed is re-queued only when its
+        // shortest edge grew well past the next candidate's (found before sorting its targets).
+        const double now = Cost(v);
+        if (version != version_[v] && std::isfinite(now) && !queue.empty() && now > 2.0 * std::get<0>(queue.top())) {
+          queue.emplace(now, v, version_[v]);
+          continue;
         }
+        Targets(v, &targets);
         bool done = false;
         for (int u : targets) {
           if (TryCollapse(v, u)) {
@@ -276,6 +275,7 @@ class Reducer {
   }
 
   void Neighbourhood(int v, std::vector<Neighbour>* out) {
+    scratch_of_ = out == &scratch_ ? v : -1;
     out->clear();
     ++nb_stamp_;
     for (int f : vf_[v]) {
@@ -306,7 +306,7 @@ class Reducer {
   // neighbours for a vertex on a chain, none otherwise.
   void Targets(int v, std::vector<int>* targets) {
     targets->clear();
-    Neighbourhood(v, &scratch_);
+    if (scratch_of_ != v) Neighbourhood(v, &scratch_);
     int features = 0;
     for (const Neighbour& n : scratch_) features += n.feature() ? 1 : 0;
     if (features != 0 && features != 2) return;
@@ -421,7 +421,8 @@ class Reducer {
   // For a chain vertex v collapsing onto chain neighbour u: the other chain neighbour w and whether every
   // chain vertex removed so far between u and w (and v) stays within the tolerance of segment uw.
   bool ChainKeepsShape(int v, int u, int* w_out) {
-    Neighbourhood(v, &scratch_);
+    // Callers try the targets Targets(v) just listed: the neighbourhood is usually still in scratch_.
+    if (scratch_of_ != v) Neighbourhood(v, &scratch_);
     int w = -1, features = 0;
     for (const Neighbour& n : scratch_) {
       if (!n.feature()) continue;
@@ -540,24 +541,34 @@ class Reducer {
         if (std::isfinite(error_of[x])) queue.emplace(error_of[x], x, version_[x]);
         refused[x] = 0;
       }
-      ++current_stamp_;
-      const int seen = current_stamp_;
-      for (size_t i = 0; i < vf_[onto].size(); ++i) {
-        for (int x : T_[vf_[onto][i]]) {
-          if (stamp_[x] == seen || x == onto || kept_[x] || vf_[x].empty()) continue;
-          stamp_[x] = seen;
-          if (chain[x]) {
-            if (refused[x]) {
-              refused[x] = 0;
-              if (std::isfinite(error_of[x])) queue.emplace(error_of[x], x, version_[x]);
-            }
-          } else if (alive_count_ > target) {
-            Targets(x, &inner);
-            for (int u : inner) {
-              if (TryCollapse(x, u)) {
-                record();
-                break;
-              }
+      // A refused collapse of x can become possible only when x's own star changes (the stars of its
+      // neighbours only grow stricter for it), so only the ring of the collapse is revisited, and in turn the
+      // ring of every interior collapse that then succeeds.
+      ++work_round_;
+      work_.clear();
+      auto push_ring = [&] {
+        for (int x : ring_) {
+          if (work_mark_[x] == work_round_) continue;
+          work_mark_[x] = work_round_;
+          work_.push_back(x);
+        }
+      };
+      push_ring();
+      for (size_t i = 0; i < work_.size(); ++i) {
+        const int x = work_[i];
+        if (x == onto || kept_[x] || vf_[x].empty()) continue;
+        if (chain[x]) {
+          if (refused[x]) {
+            refused[x] = 0;
+            if (std::isfinite(error_of[x])) queue.emplace(error_of[x], x, version_[x]);
+          }
+        } else if (alive_count_ > target) {
+          Targets(x, &inner);
+          for (int u : inner) {
+            if (TryCollapse(x, u)) {
+              record();
+              push_ring();
+              break;
             }
           }
         }
@@ -659,6 +670,7 @@ class Reducer {
       }
     }
     // Apply.
+    scratch_of_ = -1;
     if (w >= 0) {
       removed_on_edge_.Erase(EdgeKey(u, v));
       removed_on_edge_.Erase(EdgeKey(v, w));
@@ -684,6 +696,17 @@ class Reducer {
     collapsed_to_[v] = u;
     ++collapses_;
     // Only u and v's former neighbours see their stars change.
+    ring_.clear();
+    ++current_stamp_;
+    for (const std::vector<int>* faces : {&deleted_, &moved_}) {
+      for (int f : *faces) {
+        for (int x : T_[f]) {
+          if (x == v || stamp_[x] == current_stamp_) continue;
+          stamp_[x] = current_stamp_;
+          ring_.push_back(x);
+        }
+      }
+    }
     ++version_[u];
     for (int f : moved_) {
       for (int x : T_[f]) ++version_[x];
@@ -712,9 +735,13 @@ class Reducer {
   int collapses_ = 0;
   long long attempts_ = 0, pops_ = 0;
   std::vector<Neighbour> scratch_;
+  int scratch_of_ = -1;  // the vertex whose neighbourhood scratch_ holds (−1: none, or stale)
   std::vector<std::pair<double, int>> by_length_;
   std::vector<int> deleted_, moved_;
   std::vector<int> chain_points_;
+  std::vector<int> ring_;              // after a collapse: u and the former neighbours of v, whose stars changed
+  std::vector<int> work_, work_mark_;  // BudgetedChainPass: vertices to revisit after a chain collapse
+  int work_round_ = 0;
   std::vector<std::tuple<double, int, int>> queue_seed_;
   EdgeLists removed_on_edge_;
   double chain_tolerance_ = 0.0;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <queue>
 
+#include <tbb/parallel_for.h>
+
 #include "core/error.h"
 
 namespace rangebayes {
@@ -190,12 +192,60 @@ class Climber {
     return k;
   }
 
+  // The entries `emit(f, &list)` appends for every face, in face order, where emit appends nothing for a face
+  // unless it or an edge neighbour lies in a dirty patch (Dirty). Late in a climb few patches are dirty: then
+  // only their faces and those faces' neighbours are visited (sorted, so the order is the same). The faces
+  // are scanned in parallel in fixed blocks (emit only reads the climber's state), so the list is the same as
+  // a serial scan's.
+  template <typename Entry, typename Emit>
+  std::vector<Entry> CollectByFace(const Emit& emit) {
+    constexpr int kBlock = 8192;
+    const int nf = p_.num_faces();
+    long long dirty_faces = 0;
+    for (size_t k = 0; k < W_.size(); ++k) {
+      if (Dirty(static_cast<int>(k))) dirty_faces += size_[k];
+    }
+    const bool all = 4 * dirty_faces > nf;
+    if (!all) {
+      if (static_cast<int>(candidate_stamp_.size()) != nf) candidate_stamp_.assign(nf, 0);
+      ++candidate_round_;
+      candidates_.clear();
+      auto add = [&](int f) {
+        if (candidate_stamp_[f] == candidate_round_) return;
+        candidate_stamp_[f] = candidate_round_;
+        candidates_.push_back(f);
+      };
+      for (size_t k = 0; k < W_.size(); ++k) {
+        if (!Dirty(static_cast<int>(k))) continue;
+        for (int f = head_[k]; f >= 0; f = next_[f]) {
+          add(f);
+          for (int h : p_.neighbours[f]) {
+            if (h >= 0) add(h);
+          }
+        }
+      }
+      std::sort(candidates_.begin(), candidates_.end());
+    }
+    const int count = all ? nf : static_cast<int>(candidates_.size());
+    const int blocks = (count + kBlock - 1) / kBlock;
+    std::vector<std::vector<Entry>> parts(static_cast<size_t>(blocks));
+    tbb::parallel_for(0, blocks, [&](int b) {
+      std::vector<Entry>& part = parts[static_cast<size_t>(b)];
+      for (int i = b * kBlock, end = std::min(count, i + kBlock); i < end; ++i) emit(all ? i : candidates_[i], &part);
+    });
+    size_t total = 0;
+    for (const auto& part : parts) total += part.size();
+    std::vector<Entry> out;
+    out.reserve(total);
+    for (const auto& part : parts) out.insert(out.end(), part.begin(), part.end());
+    return out;
+  }
+
   // ---- fuse phase -------------------------------------------------------------------------------------
   std::int64_t FusePhase() {
     std::priority_queue<FuseEntry> queue;
     {
-      std::vector<FuseEntry> seed;
-      for (int f = 0; f < p_.num_faces(); ++f) {
+      std::vector<FuseEntry> seed = CollectByFace<FuseEntry>([&](int f, std::vector<FuseEntry>* out) {
         for (int e = 0; e < 3; ++e) {
           const int h = p_.neighbours[f][e];
           if (h < 0 || h < f) continue;
@@ -203,9 +253,9 @@ class Climber {
           if (a == b || !(Dirty(a) || Dirty(b))) continue;
           if (a > b) std::swap(a, b);
           const double gain = FuseGain(a, b);
-          if (gain > eps_) seed.push_back({gain, a, b, version_[a], version_[b]});
+          if (gain > eps_) out->push_back({gain, a, b, version_[a], version_[b]});
         }
-      }
+      });
       std::sort(seed.begin(), seed.end(), [](const FuseEntry& x, const FuseEntry& y) {
         return x.a != y.a ? x.a < y.a : x.b < y.b;
       });
@@ -319,14 +369,13 @@ class Climber {
   std::int64_t FacePhase() {
     std::priority_queue<FaceEntry> queue;
     {
-      std::vector<FaceEntry> seed;
-      for (int f = 0; f < p_.num_faces(); ++f) {
+      std::vector<FaceEntry> seed = CollectByFace<FaceEntry>([&](int f, std::vector<FaceEntry>* out) {
         bool touched = Dirty(g_[f]);
         for (int h : p_.neighbours[f]) touched = touched || (h >= 0 && Dirty(g_[h]));
-        if (!touched) continue;
+        if (!touched) return;
         const FaceEntry e = BestFaceMove(f);
-        if (e.gain > eps_) seed.push_back(e);
-      }
+        if (e.gain > eps_) out->push_back(e);
+      });
       queue = std::priority_queue<FaceEntry>(std::less<FaceEntry>(), std::move(seed));
     }
     std::int64_t applied = 0;
@@ -412,7 +461,10 @@ class Climber {
     ++stats_->bfs_fallbacks;
     stamp_ += 2;
     const int mark_a = stamp_, mark_b = stamp_ + 1;
-    std::vector<int> qa{a}, qb{b};
+    std::vector<int>& qa = bfs_a_;
+    std::vector<int>& qb = bfs_b_;
+    qa.assign(1, a);
+    qb.assign(1, b);
     size_t ia = 0, ib = 0;
     mark_[a] = mark_a;
     mark_[b] = mark_b;
@@ -481,8 +533,11 @@ class Climber {
   std::vector<int> size_, version_, alias_, head_;
   std::vector<char> alive_;
   std::vector<char> dirty_, seed_dirty_;
+  std::vector<int> candidate_stamp_, candidates_;  // CollectByFace's faces to visit
+  int candidate_round_ = 0;
   std::vector<int> next_, prev_;
   std::vector<int> mark_;
+  std::vector<int> bfs_a_, bfs_b_;  // BfsConnects' queues, kept between calls
   int stamp_ = 0;
   std::vector<FuseEntry> seed_;  // the fuse phase's sorted seed candidates
 };

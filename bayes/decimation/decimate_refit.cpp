@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <utility>
 #include <unordered_set>
+
+#include <tbb/parallel_for.h>
 
 #include "core/error.h"
 
@@ -235,17 +238,16 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
       Eigen::Vector3d bary;
     };
     std::vector<Sample> sample(nv, Sample{-1, Eigen::Vector3d::Zero()});
+    std::vector<double> sample_d2(nv, 0.0);
     std::vector<std::vector<int>> face_samples(C.rows());
-    std::vector<int> stamp(C.rows(), -1);
-    int stamp_id = 0;
-    auto project = [&](int j) {
+    // stamp: per coarse face, the last j that considered it (one array per block of a parallel scan).
+    auto project = [&](int j, std::vector<int>& stamp) {
       const Eigen::Vector3d p = Row(V, j);
       double best = std::numeric_limits<double>::infinity();
       Sample out{-1, Eigen::Vector3d::Zero()};
-      ++stamp_id;
       auto consider = [&](int f) {
-        if (stamp[f] == stamp_id) return;
-        stamp[f] = stamp_id;
+        if (stamp[f] == j) return;
+        stamp[f] = j;
         Eigen::Vector3d bary;
         const double d2 = ClosestPointOnTriangle(p, Row(X, C(f, 0)), Row(X, C(f, 1)), Row(X, C(f, 2)), &bary);
         if (d2 < best) {
@@ -266,10 +268,19 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
       for (auto& list : face_samples) list.clear();
       *sum_d2 = 0.0;
       *sum_w = 0.0;
+      // The projections in parallel (X is only read), the sums in vertex order as a serial scan makes them.
+      constexpr int kBlock = 16384;
+      tbb::parallel_for(0, (nv + kBlock - 1) / kBlock, [&](int block) {
+        std::vector<int> stamp(C.rows(), -1);
+        for (int j = block * kBlock, end = std::min(nv, j + kBlock); j < end; ++j) {
+          if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
+          std::tie(sample[j], sample_d2[j]) = project(j, stamp);
+        }
+      });
       for (int j = 0; j < nv; ++j) {
         if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
-        const auto [smp, d2] = project(j);
-        sample[j] = smp;
+        const Sample& smp = sample[j];
+        const double d2 = sample_d2[j];
         if (smp.face < 0) continue;
         face_samples[smp.face].push_back(j);
         *sum_d2 += vertex_area[j] * d2;
