@@ -841,20 +841,18 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
 }
 
 // Smooth() with an absolute deadline shared by all its stages and levels.
-Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& options, Clock::time_point deadline,
+Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, Clock::time_point deadline,
                   SmoothSummary* summary_out) {
   const auto start = Clock::now();
   const bool organized = noisy.has_covariance() && noisy.mesh.num_vertices() > 0 &&
                          noisy.pixel.rows() == noisy.mesh.num_vertices();
+  SmoothOptions options = caller_options;
+  if (organized && options.tolerance == SmoothTolerance::kDefault && options.gap_tolerance == 0) {
+    options.gap_tolerance = kOrganizedGapTolerance;  // organized meshes stop closer to the optimum by default
+  }
   const int continuation_stages = options.epsilon_continuation_stages >= 0
                                       ? options.epsilon_continuation_stages
                                       : (organized && options.initial_positions == nullptr ? 3 : 0);
-  if (organized && options.tolerance == SmoothTolerance::kDefault && options.gap_tolerance == 0) {
-    // Organized meshes stop closer to the optimum by default (kOrganizedGapTolerance).
-    SmoothOptions closer = options;
-    closer.gap_tolerance = kOrganizedGapTolerance;
-    return SmoothWithin(noisy, closer, deadline, summary_out);
-  }
   if (options.adaptive_epsilon && !organized && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
       options.face_epsilon_squared.empty() && options.initial_positions == nullptr) {
     SmoothOptions plain = options;
