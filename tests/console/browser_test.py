@@ -24,6 +24,8 @@ import tempfile
 import threading
 import time
 
+# Waits on rangebayes (not on Chromium) are multiplied by this: the sanitizer builds run it several times slower.
+TIMEOUT_FACTOR = float(os.environ.get("RANGEBAYES_TEST_TIMEOUT_FACTOR", "1"))
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RECORDING = os.path.join(REPO, "recordings", "synth_planes_320x240")
 
@@ -106,6 +108,7 @@ class Cdp:
         return r["result"].get("value")
 
     def wait_for(self, expression, timeout, what):
+        timeout *= TIMEOUT_FACTOR
         deadline = time.time() + timeout
         while time.time() < deadline:
             if self.evaluate(expression):
@@ -159,7 +162,7 @@ def start_replay(binary, out, extra):
     args = [binary, "replay", RECORDING, "--out", os.path.join(out, "run"), "--speed", "recorded",
             "--repeat", "100000", "--ui", "127.0.0.1:0"] + extra
     proc = subprocess.Popen(args, cwd=REPO, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
-    deadline = time.time() + 60
+    deadline = time.time() + 60 * TIMEOUT_FACTOR
     pattern = re.compile(r"console at (http://\S+/) \(control token ([0-9a-f]+)")
     while time.time() < deadline:
         with open(os.path.join(out, "replay.log"), "r", errors="replace") as f:
@@ -178,7 +181,7 @@ def stop_process(proc, sig=signal.SIGINT, timeout=20):
         return
     proc.send_signal(sig)
     try:
-        proc.wait(timeout=timeout)
+        proc.wait(timeout=timeout * TIMEOUT_FACTOR)
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
@@ -270,7 +273,7 @@ def main():
         rec = os.path.join(out, "run", "recordings", "browser_rec")
         check = subprocess.run([a.binary, "replay", rec, "--out", os.path.join(out, "reread"), "--no-smooth",
                                 "--no-decimate", "--no-previews", "--count", "3", "-q"], cwd=REPO, capture_output=True, text=True,
-                               timeout=120)
+                               timeout=120 * TIMEOUT_FACTOR)
         assert check.returncode == 0, f"the page's recording does not replay: {check.stdout}{check.stderr}"
         with open(os.path.join(rec, "frames.csv")) as f:
             frames = len(f.readlines()) - 1

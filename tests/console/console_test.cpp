@@ -69,9 +69,14 @@ std::string Post(int port, const std::string& body, const std::string& token) {
                             "\r\n\r\n" + body);
 }
 
+#ifndef RB_TEST_TIMEOUT_FACTOR
+#define RB_TEST_TIMEOUT_FACTOR 1  // set by tests/console/CMakeLists.txt
+#endif
+
 template <typename Predicate>
 bool WaitFor(Predicate done, double seconds = 20.0) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  const auto end =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds * RB_TEST_TIMEOUT_FACTOR);
   while (std::chrono::steady_clock::now() < end) {
     if (done()) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
