@@ -50,6 +50,7 @@ bool RayPreconditioner::Update(const Eigen::VectorXd& x) {
       slots_[2 * q] = slot(row, column);
       slots_[2 * q + 1] = row != column ? slot(column, row) : -1;
     }
+    pattern_.entries = {};  // placed: only the slots and the face offsets are needed from here on
   }
   energy_.RayGaussNewton(x, rays_, pattern_, &values_);
   double* a_values = a_.valuePtr();
@@ -154,7 +155,7 @@ void RayPreconditioner::Apply(const Eigen::VectorXd& g, Eigen::VectorXd* z) cons
 
 size_t RayPreconditioner::MemoryBytes() const {
   size_t bytes = rays_.size() * sizeof(double) + values_.capacity() * sizeof(double) +
-                 slots_.capacity() * sizeof(int) + pattern_.entries.capacity() * sizeof(std::pair<int, int>) +
+                 slots_.capacity() * sizeof(int) +
                  pattern_.face_offsets.capacity() * sizeof(size_t) + static_cast<size_t>(a_.nonZeros()) * 12;
   if (valid_) bytes += static_cast<size_t>(coarsest_.matrixL().nestedExpression().nonZeros()) * 12;
   for (const Level& level : levels_) bytes += static_cast<size_t>(level.a.nonZeros()) * 12;

@@ -68,7 +68,8 @@ class RayPreconditioner {
   bool valid_ = false;
   int updates_ = 0;
   // A's entries refilled in place: the pattern of SmoothingEnergy::RayGaussNewton, its values, and for each value
-  // the positions in a_'s value array of its entry and (off the diagonal) of its mirror.
+  // the positions in a_'s value array of its entry and (off the diagonal) of its mirror (the pattern keeps only
+  // its face offsets once the slots are made).
   SmoothingEnergy::RayPattern pattern_;
   std::vector<double> values_;
   std::vector<int> slots_;  // 2 per value; −1: none

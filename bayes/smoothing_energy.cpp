@@ -807,7 +807,7 @@ void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std:
     }
   });
   std::vector<double>& values = *values_out;
-  values.resize(pattern.entries.size());
+  values.resize(pattern.face_offsets.back());
   tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i != r.end(); ++i) {
       const Eigen::Vector3d ray(&rays[3 * static_cast<size_t>(i)]);

@@ -90,10 +90,11 @@ class SmoothingEnergy {
   // the matrix once and refills it in place.
   struct RayPattern {
     std::vector<std::pair<int, int>> entries;  // (row, column), row ≤ column; the #V diagonals first
-    std::vector<size_t> face_offsets;          // #F + 1: the first value of face t's pairs (t < s)
+    std::vector<size_t> face_offsets;          // #F + 1: the first value of face t's pairs (t < s); the last: all
   };
   RayPattern RayGaussNewtonPattern() const;
-  // values: one per pattern.entries (resized).
+  // values: one per entry (resized to pattern.face_offsets.back(); `entries` itself is not read, so a caller may
+  // drop it once it has placed them).
   void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays, const RayPattern& pattern,
                       std::vector<double>* values) const;
   // W_i of vertex i (symmetric).
