@@ -137,8 +137,7 @@ void RunFuse(const FuseArgs& args) {
       SmoothSummary summary;
       smoothed.push_back(SmoothScan(scan, smooth, &summary));
       progress.Finish();
-      std::printf("smoothing:  %s: %d iterations, %.3f s, %s\n", FileBaseName(scan.name).c_str(), summary.iterations,
-                  summary.time_s, SmoothTerminationName(summary.termination).c_str());
+      std::printf("smoothing:  %s\n%s", FileBaseName(scan.name).c_str(), summary.BriefReport().c_str());
     }
   }
   FuseSummary fuse_summary;
@@ -149,8 +148,7 @@ void RunFuse(const FuseArgs& args) {
   if (args.decimate) {
     DecimateSummary summary;
     const DecimatedMesh decimated = Decimate(model, {}, &summary);
-    std::printf("decimation: %d -> %d faces, %d patches, %.3f s\n", summary.input_faces, summary.output_faces,
-                summary.num_patches, summary.seconds_total);
+    std::printf("decimation:\n%s", summary.BriefReport().c_str());
     model = decimated.mesh;
   }
   WriteMesh(model, dir + "fused.ply");

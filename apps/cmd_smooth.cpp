@@ -96,19 +96,12 @@ void RunSmooth(const SmoothArgs& args) {
   NoiseModelChoice choice;
   noisy = ChooseNoiseModel(noisy, noise, args.ignore_covariance ? CovarianceSource::kGeneric : CovarianceSource::kAuto,
                            &choice);
-  if (choice.from_file) {
-    std::printf("noise:      per-vertex covariances from the file\n");
-  } else {
-    if (choice.replaced_file) {
-      Notice(args.quiet, "the file's per-vertex covariances are replaced by the generic noise model");
-    }
-    const GenericNoiseSummary& g = choice.generic;
-    std::printf("noise:      k = %.4g x mean edge %.6g = sigma %.6g model units (%s), across ratio %.3g\n",
-                g.noise_edge_multiple, g.mean_edge_length, g.sigma, g.estimated ? "estimated from the mesh" : "given",
-                args.across_ratio);
-    if (g.estimated && !(g.noise_edge_multiple > 0)) {
-      Notice(false, "warning: no noise measurable in this mesh; give --noise or --sigma");
-    }
+  if (choice.replaced_file) {
+    Notice(args.quiet, "the file's per-vertex covariances are replaced by the generic noise model");
+  }
+  std::printf("noise:      %s\n", choice.BriefReport().c_str());
+  if (!choice.from_file && choice.generic.estimated && !(choice.generic.noise_edge_multiple > 0)) {
+    Notice(false, "warning: no noise measurable in this mesh; give --noise or --sigma");
   }
   std::printf("prior:      %s, beta %.4g%s\n", args.prior.c_str(), options.prior_weight,
               !learned && options.prior == PriorKind::kSqrt

@@ -315,10 +315,7 @@ void AddSynth(CLI::App& app) {
     SynthWriteOptions w;
     w.overwrite = o->overwrite;
     WriteSyntheticRecording(rec, o->s, o->out, w);
-    double lo = 0, hi = 0;
-    cv::minMaxLoc(rec.disparity_px, &lo, &hi, nullptr, nullptr, rec.disparity_px == rec.disparity_px);
-    std::printf("synth: %s under %s pattern, %d frames of %dx%d, disparity %.1f-%.1f px, written to %s\n",
-                o->scene.c_str(), o->pattern.c_str(), o->s.frames, o->s.width, o->s.height, lo, hi, o->out.c_str());
+    std::printf("synth: %s, written to %s\n", rec.BriefReport(o->s).c_str(), o->out.c_str());
   });
 }
 

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "core/error.h"
@@ -137,6 +138,7 @@ double EstimateNoiseLevel(const Mesh& mesh) {
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options, GenericNoiseSummary* summary) {
   options.Check();
   GenericNoiseSummary s;
+  s.across_ratio = options.across_ratio;
   s.mean_edge_length = MeanEdgeLength(mesh);
   if (!std::isnan(options.sigma)) {
     s.sigma = options.sigma;
@@ -176,6 +178,15 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
   }
   if (summary != nullptr) *summary = s;
   return noisy;
+}
+
+std::string NoiseModelChoice::BriefReport() const {
+  if (from_file) return "per-vertex covariances from the file";
+  char line[256];
+  std::snprintf(line, sizeof(line), "k = %.4g x mean edge %.6g = sigma %.6g model units (%s), across ratio %.3g",
+                generic.noise_edge_multiple, generic.mean_edge_length, generic.sigma,
+                generic.estimated ? "estimated from the mesh" : "given", generic.across_ratio);
+  return line;
 }
 
 NoisyMesh ChooseNoiseModel(const NoisyMesh& input, const GenericNoiseOptions& options, CovarianceSource source,

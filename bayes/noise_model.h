@@ -4,6 +4,7 @@
 #pragma once
 
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "core/mesh.h"
@@ -28,6 +29,7 @@ struct GenericNoiseSummary {
   double noise_edge_multiple = 0;    // k used
   double sigma = 0;                  // σ along the normal, model units
   bool estimated = false;            // k came from EstimateNoiseLevel
+  double across_ratio = 1.0;         // the options' across_ratio (σ across the normal is σ / across_ratio)
 };
 
 // Estimate of k = σ / l_e (l_e of this, noisy, mesh), the level smoothing should assume: per vertex, the
@@ -59,6 +61,9 @@ struct NoiseModelChoice {
   bool from_file = false;          // the input's own covariances were kept
   bool replaced_file = false;      // the input had covariances and they were replaced by the generic model
   GenericNoiseSummary generic;     // when !from_file
+
+  // One line: where the covariances came from; for the generic model k, l_e, σ, whether k was estimated.
+  std::string BriefReport() const;
 };
 
 // The NoisyMesh to smooth: `input` itself when it has covariances, source is kAuto and neither

@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <random>
@@ -434,6 +435,16 @@ cv::Mat Shade(const std::vector<Sample>& samples, const PatternImage& pattern, i
 }
 
 }  // namespace
+
+std::string SynthRecording::BriefReport(const SynthOptions& options) const {
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(disparity_px, &lo, &hi, nullptr, nullptr, disparity_px == disparity_px);  // NaN (no surface) left out
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s under %s pattern, %d frames of %dx%d, disparity %.1f-%.1f px",
+                ToString(options.scene).c_str(), ToString(options.pattern).c_str(), static_cast<int>(left.size()),
+                disparity_px.cols, disparity_px.rows, lo, hi);
+  return line;
+}
 
 SynthRecording RenderSynthetic(const SynthOptions& options) {
   options.Check();

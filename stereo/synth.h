@@ -71,6 +71,9 @@ struct SynthRecording {
                                      // empty when pixel_jitter_px is 0 (the ray through the pixel centre)
   StereoRig rig;                     // is_rectified, P1/P2 filled
   CameraIntrinsics intrinsics;
+
+  // One line: the scene and pattern of `options` (those it was rendered with), frames, size, disparity range.
+  std::string BriefReport(const SynthOptions& options) const;
 };
 
 // Renders by analytic ray casting (planes, oriented boxes, spheres, capped cylinders), Lambertian shading

@@ -66,11 +66,13 @@ class GenericNoiseSummary:
     noise_edge_multiple: float
     sigma: float
     estimated: bool
+    across_ratio: float
 
 class NoiseModelChoice:
     from_file: bool
     replaced_file: bool
     generic: GenericNoiseSummary
+    def brief_report(self) -> str: ...
 
 class SmoothSummary:
     iterations: int

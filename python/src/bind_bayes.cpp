@@ -168,11 +168,14 @@ void BindBayes(py::module_& m) {
       .def_readonly("mean_edge_length", &GenericNoiseSummary::mean_edge_length, "l_e, model units")
       .def_readonly("noise_edge_multiple", &GenericNoiseSummary::noise_edge_multiple, "k used")
       .def_readonly("sigma", &GenericNoiseSummary::sigma, "σ along the normal, model units")
-      .def_readonly("estimated", &GenericNoiseSummary::estimated);
-  py::class_<NoiseModelChoice>(m, "NoiseModelChoice")
+      .def_readonly("estimated", &GenericNoiseSummary::estimated)
+      .def_readonly("across_ratio", &GenericNoiseSummary::across_ratio, "σ across the normal is σ / across_ratio");
+  py::class_<NoiseModelChoice>(m, "NoiseModelChoice",
+                               "brief_report() is the noise line that `rangebayes smooth` prints.")
       .def_readonly("from_file", &NoiseModelChoice::from_file)
       .def_readonly("replaced_file", &NoiseModelChoice::replaced_file)
-      .def_readonly("generic", &NoiseModelChoice::generic);
+      .def_readonly("generic", &NoiseModelChoice::generic)
+      .def("brief_report", &NoiseModelChoice::BriefReport);
 
   m.def("smooth", &SmoothPy, py::arg("mesh"), py::arg("noise") = py::none(), py::arg("sigma") = py::none(),
         py::arg("prior") = "sqrt",
