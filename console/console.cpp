@@ -172,7 +172,15 @@ void Console::Finish() {
 
 void Console::OnFrame(const StereoFrame& frame) {
   std::lock_guard<std::mutex> lock(record_mutex_);
-  if (recording_) recording_->queue.Push(frame);
+  if (!recording_) return;
+  // The recorder gets its own pixels. A shallow copy would share the buffers with the pipeline, which releases
+  // (and a source may reuse) them while the writer thread is still encoding the PNG; the ownership hand-over
+  // then rests on cv::Mat's reference count inside OpenCV, which ThreadSanitizer cannot follow and which does
+  // not protect against a source that writes into a buffer it hands out again. One copy per recorded frame.
+  StereoFrame own = frame;
+  own.left = frame.left.clone();
+  own.right = frame.right.clone();
+  recording_->queue.Push(std::move(own));
 }
 
 void Console::Work() {
