@@ -98,11 +98,9 @@ bool Connected(const Mesh& mesh, const std::vector<double>& edge, int a, int b, 
   return (mesh.V.row(a) - mesh.V.row(b)).squaredNorm() <= limit * limit;
 }
 
-// One level coarser than `fine` (empty mesh when no coarse cell exists).
-GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
-  const Mesh& m = fine.mesh;
-  const int nv = m.num_vertices();
-  // Faces per fine cell (keyed by its lower-left grid corner); a full cell has its two triangles.
+// Faces per fine cell (keyed by its lower-left grid corner; a full cell has its two triangles) and the sign of
+// the grid-space cross product of the input's faces (0 when no face spans a cell).
+std::vector<uint8_t> CountCellFaces(const Mesh& m, const Grid& grid, double* orientation_out) {
   std::vector<uint8_t> cell_faces(grid.at.size(), 0);
   double orientation = 0;  // sign of the grid-space cross product of the input's faces
   for (int f = 0; f < m.num_faces(); ++f) {
@@ -126,11 +124,17 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
       orientation = ax * by - ay * bx > 0 ? 1.0 : -1.0;
     }
   }
+  *orientation_out = orientation;
+  return cell_faces;
+}
+
+// Coarse faces over fine vertex indices: two per coarse cell whose four fine cells are full, oriented as the input.
+std::vector<Eigen::Vector3i> CoarseFaces(const Mesh& m, const Grid& grid, const std::vector<uint8_t>& cell_faces,
+                                         double orientation) {
   auto full = [&](int ci, int cj) {
     if (ci < 0 || cj < 0 || ci + 1 >= grid.width || cj + 1 >= grid.height) return false;
     return cell_faces[static_cast<size_t>(cj) * static_cast<size_t>(grid.width) + static_cast<size_t>(ci)] == 2;
   };
-  // Coarse faces over fine vertex indices first.
   std::vector<Eigen::Vector3i> faces;
   const int coarse_w = (grid.width + 1) / 2, coarse_h = (grid.height + 1) / 2;
   for (int cj = 0; cj + 1 < coarse_h; ++cj) {
@@ -160,10 +164,17 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
       }
     }
   }
-  GridLevel level;
-  if (faces.empty()) return level;
-  std::vector<int> coarse_of(static_cast<size_t>(nv), -1);
-  std::vector<int> fine_of;
+  return faces;
+}
+
+// Fills level's faces with the coarse ids of `faces`; coarse_of (per fine vertex, −1 where unused) and fine_of
+// (per coarse vertex) number the coarse vertices in order of first use.
+void NumberCoarseVertices(int nv, const std::vector<Eigen::Vector3i>& faces, std::vector<int>* coarse_of_out,
+                          std::vector<int>* fine_of_out, GridLevel* level_out) {
+  GridLevel& level = *level_out;
+  std::vector<int>& coarse_of = *coarse_of_out;
+  std::vector<int>& fine_of = *fine_of_out;
+  coarse_of.assign(static_cast<size_t>(nv), -1);
   for (const Eigen::Vector3i& t : faces) {
     for (int k = 0; k < 3; ++k) {
       if (coarse_of[static_cast<size_t>(t[k])] < 0) {
@@ -172,12 +183,20 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
       }
     }
   }
-  const int nc = static_cast<int>(fine_of.size());
   level.mesh.mesh.F.resize(static_cast<int>(faces.size()), 3);
   for (size_t t = 0; t < faces.size(); ++t) {
     for (int k = 0; k < 3; ++k) level.mesh.mesh.F(static_cast<int>(t), k) = coarse_of[static_cast<size_t>(faces[t][k])];
   }
-  const std::vector<double> edge = LocalEdgeLength(m);
+}
+
+// Coarse positions, covariances and pixels: per coarse vertex the information-weighted hat average of the
+// connected fine vertices of its 3×3 neighbourhood; throws when a fine covariance is not positive definite.
+void RestrictVertices(const NoisyMesh& fine, const Grid& grid, const std::vector<double>& edge,
+                      const std::vector<int>& fine_of, GridLevel* level_out) {
+  const Mesh& m = fine.mesh;
+  const int nv = m.num_vertices();
+  const int nc = static_cast<int>(fine_of.size());
+  GridLevel& level = *level_out;
   std::vector<Eigen::Matrix3d> information(static_cast<size_t>(nv));
   for (int v = 0; v < nv; ++v) {
     RB_CHECK(InformationFromCovariance(fine.covariance[static_cast<size_t>(v)], &information[static_cast<size_t>(v)]),
@@ -205,7 +224,13 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
     level.mesh.covariance[static_cast<size_t>(c)] = 0.5 * w_inverse;
     level.mesh.pixel.row(c) = fine.pixel.row(c0);
   }
-  // Prolongation: each fine vertex from the coarse corners of its cell.
+}
+
+// Prolongation: each fine vertex from the coarse corners of its cell (CSR in level's offsets, coarse, weight).
+void BuildProlongation(const Mesh& m, const Grid& grid, const std::vector<double>& edge,
+                       const std::vector<int>& coarse_of, GridLevel* level_out) {
+  const int nv = m.num_vertices();
+  GridLevel& level = *level_out;
   level.offsets.assign(static_cast<size_t>(nv) + 1, 0);
   for (int f = 0; f < nv; ++f) {
     const int gi = grid.i[static_cast<size_t>(f)], gj = grid.j[static_cast<size_t>(f)];
@@ -226,6 +251,22 @@ GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
     for (size_t k = static_cast<size_t>(size_before); k < level.weight.size(); ++k) level.weight[k] /= total;
     level.offsets[static_cast<size_t>(f) + 1] = static_cast<int>(level.coarse.size());
   }
+}
+
+// One level coarser than `fine` (empty mesh when no coarse cell exists).
+GridLevel Coarsen(const NoisyMesh& fine, const Grid& grid) {
+  const Mesh& m = fine.mesh;
+  const int nv = m.num_vertices();
+  double orientation = 0;
+  const std::vector<uint8_t> cell_faces = CountCellFaces(m, grid, &orientation);
+  const std::vector<Eigen::Vector3i> faces = CoarseFaces(m, grid, cell_faces, orientation);
+  GridLevel level;
+  if (faces.empty()) return level;
+  std::vector<int> coarse_of, fine_of;
+  NumberCoarseVertices(nv, faces, &coarse_of, &fine_of, &level);
+  const std::vector<double> edge = LocalEdgeLength(m);
+  RestrictVertices(fine, grid, edge, fine_of, &level);
+  BuildProlongation(m, grid, edge, coarse_of, &level);
   return level;
 }
 

@@ -37,6 +37,224 @@ CameraAxes MakeAxes(const RenderOptions& options) {
   return axes;
 }
 
+// An image of the given size filled with `background` (channels in [0, 1]).
+RgbImage FilledImage(int width, int height, const Eigen::Vector3f& background) {
+  RgbImage image(width, height);
+  for (int i = 0; i < width * height; ++i) {
+    for (int ch = 0; ch < 3; ++ch) image.rgb[static_cast<size_t>(i) * 3 + ch] = ToByte(background[ch]);
+  }
+  return image;
+}
+
+// Throws unless every face refers to vertices in [0, #V).
+void CheckFaceIndices(const Mesh& mesh) {
+  const int nv = mesh.num_vertices(), nf = mesh.num_faces();
+  for (int f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      RB_CHECK(mesh.F(f, k) >= 0 && mesh.F(f, k) < nv, "render: face ", f, " refers to vertex ", mesh.F(f, k),
+               ", but the mesh has ", nv, " vertices");
+    }
+  }
+}
+
+// Centre and radius of the bounding box of the finite vertices; false when there is none.
+bool FiniteBoundingSphere(const Mesh& mesh, Eigen::Vector3d* centre, double* radius) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    const Eigen::Vector3d p = mesh.V.row(v).transpose();
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (!(lo.array() <= hi.array()).all()) return false;
+  *centre = 0.5 * (lo + hi);
+  *radius = std::max(0.5 * (hi - lo).norm(), 1e-300);
+  return true;
+}
+
+// Per vertex its view coordinates (x right, y up, depth in front of the camera > 0 for perspective) and its
+// projection (NaN behind a perspective camera), with the extent of the finite projections.
+struct ViewVertices {
+  std::vector<Eigen::Vector3d> view;
+  std::vector<Eigen::Vector2d> projected;
+  double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x, min_y = min_x, max_y = -min_x;
+};
+
+// Projects every vertex; distance is the camera's distance from centre along the view axis (0 orthographic).
+ViewVertices ProjectVertices(const Mesh& mesh, const CameraAxes& axes, const Eigen::Vector3d& centre, double radius,
+                             double distance, bool perspective) {
+  const int nv = mesh.num_vertices();
+  ViewVertices out;
+  out.view.resize(static_cast<size_t>(nv));
+  out.projected.resize(static_cast<size_t>(nv));
+  for (int v = 0; v < nv; ++v) {
+    const Eigen::Vector3d d = mesh.V.row(v).transpose() - centre;
+    Eigen::Vector3d q(d.dot(axes.right), d.dot(axes.up), distance - d.dot(axes.back));
+    out.view[static_cast<size_t>(v)] = q;
+    Eigen::Vector2d p(q.x(), q.y());
+    if (perspective) p = (q.z() > 1e-12 * radius) ? Eigen::Vector2d(q.x() / q.z(), q.y() / q.z())
+                                                   : Eigen::Vector2d::Constant(std::nan(""));
+    out.projected[static_cast<size_t>(v)] = p;
+    if (p.allFinite()) {
+      out.min_x = std::min(out.min_x, p.x());
+      out.max_x = std::max(out.max_x, p.x());
+      out.min_y = std::min(out.min_y, p.y());
+      out.max_y = std::max(out.max_y, p.y());
+    }
+  }
+  return out;
+}
+
+// Maps projected coordinates to pixels (x right, y down), the given extent centred and scaled into the margins.
+struct PixelMap {
+  int width = 0, height = 0;
+  double scale = 1.0, mid_x = 0.0, mid_y = 0.0;
+  Eigen::Vector2d operator()(const Eigen::Vector2d& p) const {
+    return Eigen::Vector2d(0.5 * width + (p.x() - mid_x) * scale, 0.5 * height - (p.y() - mid_y) * scale);
+  }
+};
+
+// The pixel map of the projected extent, or for perspective of the field of view (tan_half = tan(fov / 2)).
+PixelMap MakePixelMap(const ViewVertices& extent, const RenderOptions& options, double tan_half, bool perspective) {
+  const int width = options.width_px, height = options.height_px;
+  double min_x = extent.min_x, max_x = extent.max_x, min_y = extent.min_y, max_y = extent.max_y;
+  if (perspective) {
+    // Fit the field of view rather than the projected extent, so that the framing does not jump between
+    // two renderings of similar meshes.
+    min_y = -tan_half;
+    max_y = tan_half;
+    const double aspect = static_cast<double>(width) / height;
+    min_x = -tan_half * aspect;
+    max_x = tan_half * aspect;
+  }
+  const double usable_w = width * (1.0 - 2.0 * options.margin_fraction);
+  const double usable_h = height * (1.0 - 2.0 * options.margin_fraction);
+  const double extent_x = std::max(max_x - min_x, 1e-300), extent_y = std::max(max_y - min_y, 1e-300);
+  PixelMap map;
+  map.width = width;
+  map.height = height;
+  map.scale = std::min(usable_w / extent_x, usable_h / extent_y);
+  map.mid_x = 0.5 * (min_x + max_x);
+  map.mid_y = 0.5 * (min_y + max_y);
+  return map;
+}
+
+// Lambert shading of normals given in world space (ToCamera) or camera space (Shade), in [ambient, 1].
+struct Shader {
+  const RenderOptions& options;
+  const CameraAxes& axes;
+  Eigen::Vector3d light;  // unit, in camera space
+  Eigen::Vector3d ToCamera(const Eigen::Vector3d& n) const {
+    return Eigen::Vector3d(n.dot(axes.right), n.dot(axes.up), n.dot(axes.back));
+  }
+  float Shade(Eigen::Vector3d n_camera) const {
+    const double len = n_camera.norm();
+    if (!(len > 0)) return static_cast<float>(options.ambient);
+    n_camera /= len;
+    double lambert = n_camera.dot(light);
+    if (options.two_sided) {
+      lambert = std::abs(lambert);
+    } else if (n_camera.z() < 0) {
+      lambert = 0;
+    }
+    return static_cast<float>(options.ambient + (1.0 - options.ambient) * std::max(0.0, lambert));
+  }
+};
+
+// What every face of one rendering reads: the projected vertices, the pixel map, the shading and the normals.
+struct FaceContext {
+  const Mesh& mesh;
+  const RenderOptions& options;
+  const ViewVertices& vertices;
+  const PixelMap& to_pixel;
+  const Shader& shader;
+  const Normals& vertex_normals;  // per vertex, used when smooth && !use_corners
+  bool perspective, smooth, use_corners;
+};
+
+// One screen triangle: pixel corners s, depth keys, its colour and its lighting (per corner when smooth).
+struct ScreenTriangle {
+  Eigen::Vector2d s[3];
+  double key[3];
+  double area2 = 0.0;
+  Eigen::Vector3d corner_n[3];
+  float corner_light[3];
+  float face_light = 0;
+  Eigen::Vector3f color;
+};
+
+// Sets up face f for rasterisation; false when a corner is not finite or its screen area is (near) zero.
+bool SetUpTriangle(const FaceContext& ctx, int f, ScreenTriangle* t) {
+  const Mesh& mesh = ctx.mesh;
+  const RenderOptions& options = ctx.options;
+  const int idx[3] = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+  Eigen::Vector2d* s = t->s;
+  bool ok = true;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector2d& p = ctx.vertices.projected[static_cast<size_t>(idx[k])];
+    const Eigen::Vector3d& q = ctx.vertices.view[static_cast<size_t>(idx[k])];
+    if (!p.allFinite() || !q.allFinite()) ok = false;
+    s[k] = ctx.to_pixel(p);
+    t->key[k] = ctx.perspective ? -1.0 / q.z() : q.z();
+  }
+  if (!ok) return false;
+  t->area2 = (s[1] - s[0]).x() * (s[2] - s[0]).y() - (s[1] - s[0]).y() * (s[2] - s[0]).x();
+  if (!(std::abs(t->area2) > 1e-12)) return false;
+
+  const Eigen::Vector3d face_normal = (mesh.V.row(idx[1]) - mesh.V.row(idx[0]))
+                                          .transpose()
+                                          .cross((mesh.V.row(idx[2]) - mesh.V.row(idx[0])).transpose());
+  if (ctx.smooth) {
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d& n = t->corner_n[k];
+      n = ctx.use_corners ? Eigen::Vector3d(options.corner_normals.row(3 * static_cast<Eigen::Index>(f) + k))
+                          : Eigen::Vector3d(ctx.vertex_normals.row(idx[k]));
+      if (!n.allFinite() || n.norm() == 0) n = face_normal;
+      n = ctx.shader.ToCamera(n);
+      t->corner_light[k] = ctx.shader.Shade(n);
+    }
+  } else {
+    t->face_light = ctx.shader.Shade(ctx.shader.ToCamera(face_normal));
+  }
+  t->color = options.face_colors.rows() > 0 ? Eigen::Vector3f(options.face_colors.row(f)) : options.base_color;
+  return true;
+}
+
+// Writes the pixels of t that pass the depth test (smaller key is closer) into zbuffer and image.
+void FillTriangle(const FaceContext& ctx, const ScreenTriangle& t, std::vector<double>* zbuffer, RgbImage* image) {
+  const int width = ctx.options.width_px, height = ctx.options.height_px;
+  const Eigen::Vector2d* s = t.s;
+  const int x0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].x(), s[1].x(), s[2].x()}))));
+  const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max({s[0].x(), s[1].x(), s[2].x()}))));
+  const int y0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].y(), s[1].y(), s[2].y()}))));
+  const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max({s[0].y(), s[1].y(), s[2].y()}))));
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const Eigen::Vector2d p(x + 0.5, y + 0.5);
+      // Barycentric weights of the pixel centre; the small tolerance closes cracks between faces.
+      double w[3];
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector2d& a = s[(k + 1) % 3];
+        const Eigen::Vector2d& b = s[(k + 2) % 3];
+        w[k] = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / t.area2;
+      }
+      if (w[0] < -1e-9 || w[1] < -1e-9 || w[2] < -1e-9) continue;
+      const double z = w[0] * t.key[0] + w[1] * t.key[1] + w[2] * t.key[2];
+      double& depth = (*zbuffer)[static_cast<size_t>(y) * width + x];
+      if (!(z < depth)) continue;
+      depth = z;
+      float intensity = t.face_light;
+      if (ctx.smooth) {
+        intensity = ctx.shader.Shade(w[0] * t.corner_n[0] + w[1] * t.corner_n[1] + w[2] * t.corner_n[2]);
+        if (!std::isfinite(intensity)) intensity = t.corner_light[0];
+      }
+      std::uint8_t* px = image->at(x, y);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = ToByte(t.color[ch] * intensity);
+    }
+  }
+}
+
 }  // namespace
 
 void RenderOptions::Check(const Mesh& mesh) const {
@@ -79,31 +297,14 @@ Normals AreaWeightedVertexNormals(const Mesh& mesh) {
 RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
   options.Check(mesh);
   const int width = options.width_px, height = options.height_px;
-  RgbImage image(width, height);
-  for (int i = 0; i < width * height; ++i) {
-    for (int ch = 0; ch < 3; ++ch) image.rgb[static_cast<size_t>(i) * 3 + ch] = ToByte(options.background[ch]);
-  }
+  RgbImage image = FilledImage(width, height, options.background);
   const int nv = mesh.num_vertices(), nf = mesh.num_faces();
   if (nv == 0 || nf == 0) return image;
-  for (int f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) {
-      RB_CHECK(mesh.F(f, k) >= 0 && mesh.F(f, k) < nv, "render: face ", f, " refers to vertex ", mesh.F(f, k),
-               ", but the mesh has ", nv, " vertices");
-    }
-  }
+  CheckFaceIndices(mesh);
 
-  // Bounding box of the finite vertices that faces use.
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d hi = -lo;
-  for (int v = 0; v < nv; ++v) {
-    const Eigen::Vector3d p = mesh.V.row(v).transpose();
-    if (!p.allFinite()) continue;
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  if (!(lo.array() <= hi.array()).all()) return image;
-  const Eigen::Vector3d centre = 0.5 * (lo + hi);
-  const double radius = std::max(0.5 * (hi - lo).norm(), 1e-300);
+  Eigen::Vector3d centre;
+  double radius = 0.0;
+  if (!FiniteBoundingSphere(mesh, &centre, &radius)) return image;
 
   const CameraAxes axes = MakeAxes(options);
   const bool perspective = options.projection == Projection::kPerspective;
@@ -111,44 +312,9 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
   // Perspective: camera on the view axis far enough for the bounding sphere to fit the field of view.
   const double distance = perspective ? radius / std::sin(0.5 * options.field_of_view_deg * M_PI / 180.0) * 1.05
                                       : 0.0;
-
-  // View coordinates: (x right, y up, depth in front of the camera > 0 for perspective).
-  std::vector<Eigen::Vector3d> view(static_cast<size_t>(nv));
-  std::vector<Eigen::Vector2d> projected(static_cast<size_t>(nv));
-  double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x, min_y = min_x, max_y = -min_x;
-  for (int v = 0; v < nv; ++v) {
-    const Eigen::Vector3d d = mesh.V.row(v).transpose() - centre;
-    Eigen::Vector3d q(d.dot(axes.right), d.dot(axes.up), distance - d.dot(axes.back));
-    view[static_cast<size_t>(v)] = q;
-    Eigen::Vector2d p(q.x(), q.y());
-    if (perspective) p = (q.z() > 1e-12 * radius) ? Eigen::Vector2d(q.x() / q.z(), q.y() / q.z())
-                                                   : Eigen::Vector2d::Constant(std::nan(""));
-    projected[static_cast<size_t>(v)] = p;
-    if (p.allFinite()) {
-      min_x = std::min(min_x, p.x());
-      max_x = std::max(max_x, p.x());
-      min_y = std::min(min_y, p.y());
-      max_y = std::max(max_y, p.y());
-    }
-  }
-  if (!(min_x <= max_x)) return image;
-  if (perspective) {
-    // Fit the field of view rather than the projected extent, so that the framing does not jump between
-    // two renderings of similar meshes.
-    min_y = -tan_half;
-    max_y = tan_half;
-    const double aspect = static_cast<double>(width) / height;
-    min_x = -tan_half * aspect;
-    max_x = tan_half * aspect;
-  }
-  const double usable_w = width * (1.0 - 2.0 * options.margin_fraction);
-  const double usable_h = height * (1.0 - 2.0 * options.margin_fraction);
-  const double extent_x = std::max(max_x - min_x, 1e-300), extent_y = std::max(max_y - min_y, 1e-300);
-  const double scale = std::min(usable_w / extent_x, usable_h / extent_y);
-  const double mid_x = 0.5 * (min_x + max_x), mid_y = 0.5 * (min_y + max_y);
-  auto to_pixel = [&](const Eigen::Vector2d& p) {
-    return Eigen::Vector2d(0.5 * width + (p.x() - mid_x) * scale, 0.5 * height - (p.y() - mid_y) * scale);
-  };
+  const ViewVertices vertices = ProjectVertices(mesh, axes, centre, radius, distance, perspective);
+  if (!(vertices.min_x <= vertices.max_x)) return image;
+  const PixelMap to_pixel = MakePixelMap(vertices, options, tan_half, perspective);
 
   Normals vertex_normals;
   const bool smooth = options.shading == Shading::kSmooth;
@@ -156,90 +322,15 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
   if (smooth && !use_corners) {
     vertex_normals = (mesh.N.rows() == nv) ? mesh.N : AreaWeightedVertexNormals(mesh);
   }
-  const Eigen::Vector3d light = options.light_in_camera.normalized();
-  auto to_camera = [&](const Eigen::Vector3d& n) {
-    return Eigen::Vector3d(n.dot(axes.right), n.dot(axes.up), n.dot(axes.back));
-  };
-  auto shade = [&](Eigen::Vector3d n_camera) -> float {
-    const double len = n_camera.norm();
-    if (!(len > 0)) return static_cast<float>(options.ambient);
-    n_camera /= len;
-    double lambert = n_camera.dot(light);
-    if (options.two_sided) {
-      lambert = std::abs(lambert);
-    } else if (n_camera.z() < 0) {
-      lambert = 0;
-    }
-    return static_cast<float>(options.ambient + (1.0 - options.ambient) * std::max(0.0, lambert));
-  };
+  const Shader shader{options, axes, options.light_in_camera.normalized()};
+  const FaceContext ctx{mesh, options, vertices, to_pixel, shader, vertex_normals, perspective, smooth, use_corners};
 
   // Depth key per pixel, smaller is closer: view depth (orthographic) or −1/depth (perspective, linear in
   // screen space).
   std::vector<double> zbuffer(static_cast<size_t>(width) * height, std::numeric_limits<double>::infinity());
   for (int f = 0; f < nf; ++f) {
-    const int idx[3] = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-    Eigen::Vector2d s[3];
-    double key[3];
-    bool ok = true;
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector2d& p = projected[static_cast<size_t>(idx[k])];
-      const Eigen::Vector3d& q = view[static_cast<size_t>(idx[k])];
-      if (!p.allFinite() || !q.allFinite()) ok = false;
-      s[k] = to_pixel(p);
-      key[k] = perspective ? -1.0 / q.z() : q.z();
-    }
-    if (!ok) continue;
-    const double area2 = (s[1] - s[0]).x() * (s[2] - s[0]).y() - (s[1] - s[0]).y() * (s[2] - s[0]).x();
-    if (!(std::abs(area2) > 1e-12)) continue;
-
-    const Eigen::Vector3d face_normal = (mesh.V.row(idx[1]) - mesh.V.row(idx[0]))
-                                            .transpose()
-                                            .cross((mesh.V.row(idx[2]) - mesh.V.row(idx[0])).transpose());
-    Eigen::Vector3d corner_n[3];
-    float corner_light[3];
-    float face_light = 0;
-    if (smooth) {
-      for (int k = 0; k < 3; ++k) {
-        corner_n[k] = use_corners ? Eigen::Vector3d(options.corner_normals.row(3 * static_cast<Eigen::Index>(f) + k))
-                                  : Eigen::Vector3d(vertex_normals.row(idx[k]));
-        if (!corner_n[k].allFinite() || corner_n[k].norm() == 0) corner_n[k] = face_normal;
-        corner_n[k] = to_camera(corner_n[k]);
-        corner_light[k] = shade(corner_n[k]);
-      }
-    } else {
-      face_light = shade(to_camera(face_normal));
-    }
-    const Eigen::Vector3f color =
-        options.face_colors.rows() > 0 ? Eigen::Vector3f(options.face_colors.row(f)) : options.base_color;
-
-    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].x(), s[1].x(), s[2].x()}))));
-    const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max({s[0].x(), s[1].x(), s[2].x()}))));
-    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].y(), s[1].y(), s[2].y()}))));
-    const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max({s[0].y(), s[1].y(), s[2].y()}))));
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        const Eigen::Vector2d p(x + 0.5, y + 0.5);
-        // Barycentric weights of the pixel centre; the small tolerance closes cracks between faces.
-        double w[3];
-        for (int k = 0; k < 3; ++k) {
-          const Eigen::Vector2d& a = s[(k + 1) % 3];
-          const Eigen::Vector2d& b = s[(k + 2) % 3];
-          w[k] = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / area2;
-        }
-        if (w[0] < -1e-9 || w[1] < -1e-9 || w[2] < -1e-9) continue;
-        const double z = w[0] * key[0] + w[1] * key[1] + w[2] * key[2];
-        double& depth = zbuffer[static_cast<size_t>(y) * width + x];
-        if (!(z < depth)) continue;
-        depth = z;
-        float intensity = face_light;
-        if (smooth) {
-          intensity = shade(w[0] * corner_n[0] + w[1] * corner_n[1] + w[2] * corner_n[2]);
-          if (!std::isfinite(intensity)) intensity = corner_light[0];
-        }
-        std::uint8_t* px = image.at(x, y);
-        for (int ch = 0; ch < 3; ++ch) px[ch] = ToByte(color[ch] * intensity);
-      }
-    }
+    ScreenTriangle t;
+    if (SetUpTriangle(ctx, f, &t)) FillTriangle(ctx, t, &zbuffer, &image);
   }
   return image;
 }
@@ -253,10 +344,7 @@ RgbImage SideBySide(const std::vector<RgbImage>& images, int gap_px, const Eigen
     height = std::max(height, im.height);
   }
   width += gap_px * static_cast<int>(images.size() - 1);
-  RgbImage out(width, height);
-  for (int i = 0; i < width * height; ++i) {
-    for (int ch = 0; ch < 3; ++ch) out.rgb[static_cast<size_t>(i) * 3 + ch] = ToByte(background[ch]);
-  }
+  RgbImage out = FilledImage(width, height, background);
   int x_offset = 0;
   for (const RgbImage& im : images) {
     for (int y = 0; y < im.height; ++y) {

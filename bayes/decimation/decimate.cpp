@@ -48,8 +48,8 @@ int Find(std::vector<int>& parent, int i) {
   return i;
 }
 
-Prepared Prepare(const std::vector<Mesh>& poses) {
-  Prepared out;
+// Throws unless every pose has pose 1's connectivity and finite positions.
+void CheckPoses(const std::vector<Mesh>& poses) {
   const Mesh& base = poses[0];
   const int nv = base.num_vertices();
   for (size_t m = 0; m < poses.size(); ++m) {
@@ -59,6 +59,12 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
              " vertices, ", poses[m].num_faces(), " faces vs ", nv, ", ", base.num_faces(), ")");
     RB_CHECK(poses[m].V.allFinite(), "decimate: pose ", m + 1, " has non-finite vertex positions");
   }
+}
+
+// base without the faces that repeat a vertex (their input ids into out->kept_faces, a notice when any);
+// throws on a face index outside [0, #V) or when no face is left.
+Mesh DropRepeatingFaces(const Mesh& base, Prepared* out) {
+  const int nv = base.num_vertices();
   RB_CHECK(base.num_faces() > 0, "decimate: the mesh has no faces");
   for (int f = 0; f < base.num_faces(); ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -66,25 +72,30 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
                ", but the mesh has ", nv, " vertices");
     }
     if (base.F(f, 0) == base.F(f, 1) || base.F(f, 1) == base.F(f, 2) || base.F(f, 0) == base.F(f, 2)) continue;
-    out.kept_faces.push_back(f);
+    out->kept_faces.push_back(f);
   }
-  const int dropped = base.num_faces() - static_cast<int>(out.kept_faces.size());
-  if (dropped > 0) out.notices.push_back(StrCat(dropped, " faces repeat a vertex; they were dropped"));
-  RB_CHECK(!out.kept_faces.empty(), "decimate: every face repeats a vertex");
+  const int dropped = base.num_faces() - static_cast<int>(out->kept_faces.size());
+  if (dropped > 0) out->notices.push_back(StrCat(dropped, " faces repeat a vertex; they were dropped"));
+  RB_CHECK(!out->kept_faces.empty(), "decimate: every face repeats a vertex");
   Mesh mesh;
   mesh.V = base.V;
-  mesh.F.resize(static_cast<Eigen::Index>(out.kept_faces.size()), 3);
-  for (size_t i = 0; i < out.kept_faces.size(); ++i) mesh.F.row(static_cast<Eigen::Index>(i)) = base.F.row(out.kept_faces[i]);
-  const int nf = mesh.num_faces();
+  mesh.F.resize(static_cast<Eigen::Index>(out->kept_faces.size()), 3);
+  for (size_t i = 0; i < out->kept_faces.size(); ++i) {
+    mesh.F.row(static_cast<Eigen::Index>(i)) = base.F.row(out->kept_faces[i]);
+  }
+  return mesh;
+}
 
-  // Corners joined across manifold, consistently oriented edges; each class becomes one split vertex.
-  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+// Union-find over the corners (3f + k) of mesh, joined across manifold, consistently oriented edges; counts
+// the edges with more than two faces and those whose two faces disagree in orientation.
+std::vector<int> JoinCorners(const Mesh& mesh, const EdgeTopology& topology, int* nonmanifold_edges,
+                             int* flipped_edges) {
+  const int nf = mesh.num_faces();
   std::vector<int> parent(static_cast<size_t>(nf) * 3);
   std::iota(parent.begin(), parent.end(), 0);
-  int nonmanifold_edges = 0, flipped_edges = 0;
   for (int e = 0; e < topology.edge_faces.rows(); ++e) {
     const int count = topology.edge_faces.size(e);
-    if (count > 2) ++nonmanifold_edges;
+    if (count > 2) ++*nonmanifold_edges;
     if (count != 2) continue;
     const int f = topology.edge_faces.begin(e)[0], g = topology.edge_faces.begin(e)[1];
     int kf = -1, kg = -1;
@@ -95,7 +106,7 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     const int fa = mesh.F(f, kf), fb = mesh.F(f, (kf + 1) % 3);
     const int ga = mesh.F(g, kg), gb = mesh.F(g, (kg + 1) % 3);
     if (!(fa == gb && fb == ga)) {
-      ++flipped_edges;
+      ++*flipped_edges;
       continue;
     }
     // corner kf of f holds fa = gb (corner kg+1 of g); corner kf+1 of f holds fb = ga (corner kg of g).
@@ -107,33 +118,85 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     unite(3 * f + kf, 3 * g + (kg + 1) % 3);
     unite(3 * f + (kf + 1) % 3, 3 * g + kg);
   }
+  return parent;
+}
+
+// One split vertex per corner class, numbered in order of first corner: fills out->F and out->split_source.
+void NumberSplitVertices(const Mesh& mesh, std::vector<int>& parent, Prepared* out) {
+  const int nf = mesh.num_faces();
   // Corners of one input vertex with no shared manifold edge can still be one fan only through a chain of
-  // corners; the union above already follows those chains.
+  // corners; the union of JoinCorners already follows those chains.
   std::vector<int> class_id(static_cast<size_t>(nf) * 3, -1);
-  out.F.resize(nf, 3);
+  out->F.resize(nf, 3);
   for (int f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {
       const int root = Find(parent, 3 * f + k);
       int& id = class_id[static_cast<size_t>(root)];
       if (id < 0) {
-        id = static_cast<int>(out.split_source.size());
-        out.split_source.push_back(mesh.F(f, k));
+        id = static_cast<int>(out->split_source.size());
+        out->split_source.push_back(mesh.F(f, k));
       }
-      out.F(f, k) = id;
+      out->F(f, k) = id;
     }
   }
-  const int ns = static_cast<int>(out.split_source.size());
+}
+
+// Locks the split vertices whose input vertex has several copies; counts the input vertices with several
+// copies and those with none.
+void LockSharedCopies(int nv, Prepared* out, int* split_vertices, int* unreferenced) {
+  const int ns = static_cast<int>(out->split_source.size());
   std::vector<int> copies(nv, 0);
-  for (int s : out.split_source) ++copies[s];
-  out.locked.assign(ns, 0);
-  int split_vertices = 0, unreferenced = 0;
+  for (int s : out->split_source) ++copies[s];
+  out->locked.assign(ns, 0);
   for (int s = 0; s < ns; ++s) {
-    if (copies[out.split_source[s]] > 1) out.locked[s] = 1;
+    if (copies[out->split_source[s]] > 1) out->locked[s] = 1;
   }
   for (int v = 0; v < nv; ++v) {
-    if (copies[v] > 1) ++split_vertices;
-    if (copies[v] == 0) ++unreferenced;
+    if (copies[v] > 1) ++*split_vertices;
+    if (copies[v] == 0) ++*unreferenced;
   }
+}
+
+// The split mesh's poses, edge topology (reused from the input's when the split is the identity) and
+// boundary vertices.
+void FinishSplitMesh(const std::vector<Mesh>& poses, bool identity, const EdgeTopology& topology, Prepared* out) {
+  const int ns = static_cast<int>(out->split_source.size());
+  out->poses.resize(poses.size());
+  for (size_t m = 0; m < poses.size(); ++m) {
+    out->poses[m].resize(ns, 3);
+    for (int s = 0; s < ns; ++s) out->poses[m].row(s) = poses[m].V.row(out->split_source[s]);
+  }
+  if (identity) {
+    out->topology = topology;
+  } else {
+    Mesh split;
+    split.V = out->poses[0];
+    split.F = out->F;
+    out->topology = ComputeEdgeTopology(split);
+  }
+  out->boundary_vertex.assign(ns, 0);
+  for (int e = 0; e < out->topology.edge_faces.rows(); ++e) {
+    if (out->topology.edge_faces.size(e) == 1) {
+      out->boundary_vertex[out->topology.edges(e, 0)] = 1;
+      out->boundary_vertex[out->topology.edges(e, 1)] = 1;
+    }
+  }
+}
+
+Prepared Prepare(const std::vector<Mesh>& poses) {
+  Prepared out;
+  CheckPoses(poses);
+  const int nv = poses[0].num_vertices();
+  const Mesh mesh = DropRepeatingFaces(poses[0], &out);
+
+  // Corners joined across manifold, consistently oriented edges; each class becomes one split vertex.
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  int nonmanifold_edges = 0, flipped_edges = 0;
+  std::vector<int> parent = JoinCorners(mesh, topology, &nonmanifold_edges, &flipped_edges);
+  NumberSplitVertices(mesh, parent, &out);
+  const int ns = static_cast<int>(out.split_source.size());
+  int split_vertices = 0, unreferenced = 0;
+  LockSharedCopies(nv, &out, &split_vertices, &unreferenced);
   if (nonmanifold_edges > 0 || flipped_edges > 0 || split_vertices > 0) {
     out.notices.push_back(StrCat("non-manifold input (", nonmanifold_edges, " edges with more than two faces, ",
                                  flipped_edges, " edges with inconsistent orientation, ", split_vertices,
@@ -148,26 +211,7 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     out.F = mesh.F;
     std::iota(out.split_source.begin(), out.split_source.end(), 0);
   }
-  out.poses.resize(poses.size());
-  for (size_t m = 0; m < poses.size(); ++m) {
-    out.poses[m].resize(ns, 3);
-    for (int s = 0; s < ns; ++s) out.poses[m].row(s) = poses[m].V.row(out.split_source[s]);
-  }
-  if (identity) {
-    out.topology = topology;
-  } else {
-    Mesh split;
-    split.V = out.poses[0];
-    split.F = out.F;
-    out.topology = ComputeEdgeTopology(split);
-  }
-  out.boundary_vertex.assign(ns, 0);
-  for (int e = 0; e < out.topology.edge_faces.rows(); ++e) {
-    if (out.topology.edge_faces.size(e) == 1) {
-      out.boundary_vertex[out.topology.edges(e, 0)] = 1;
-      out.boundary_vertex[out.topology.edges(e, 1)] = 1;
-    }
-  }
+  FinishSplitMesh(poses, identity, topology, &out);
   return out;
 }
 

@@ -69,6 +69,291 @@ double ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a
   return result(1 - v - w, v, w);
 }
 
+// Adds each dense face's plane, weighted by its area, to the quadric of every distinct cluster among its
+// corners (as in Garland–Heckbert), and sums each patch's face cross products into its unit normal.
+void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>* Q_out,
+                     std::vector<Eigen::Vector3d>* patch_normal_out) {
+  const Vertices& V = *in.dense_V;
+  const Faces& F = *in.dense_F;
+  const std::vector<int>& rep = *in.representative;
+  std::vector<Quadric>& Q = *Q_out;
+  std::vector<Eigen::Vector3d>& patch_normal = *patch_normal_out;
+  const int nf = static_cast<int>(F.rows());
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
+    const Eigen::Vector3d cr = (b - a).cross(c - a);
+    const double len = cr.norm();
+    const int k = (*in.dense_face_patch)[f];
+    if (k >= 0 && k < in.num_patches) patch_normal[k] += cr;
+    if (len <= area_eps) continue;
+    const Eigen::Vector3d n = cr / len;
+    const double area = 0.5 * len;
+    const double offset = n.dot(a);
+    int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
+    for (int j = 0; j < 3; ++j) {
+      if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
+      Q[r[j]].AddPlane(n, offset, area);
+    }
+  }
+  for (auto& n : patch_normal) {
+    const double len = n.norm();
+    n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+  }
+}
+
+// Adds, for each mesh-boundary edge (between boundary vertices, without its reverse), the plane through it
+// perpendicular to its face, weighted by boundary_weight × its squared length, to its endpoints' clusters.
+void AddBoundaryQuadrics(const RefitInput& in, double boundary_weight, std::vector<Quadric>* Qb_out) {
+  const Vertices& V = *in.dense_V;
+  const Faces& F = *in.dense_F;
+  const std::vector<int>& rep = *in.representative;
+  std::vector<Quadric>& Qb = *Qb_out;
+  const int nf = static_cast<int>(F.rows());
+  std::unordered_set<long long> directed;
+  auto key = [](int a, int b) { return (static_cast<long long>(a) << 32) | static_cast<unsigned>(b); };
+  for (int f = 0; f < nf; ++f) {
+    for (int j = 0; j < 3; ++j) {
+      const int x = F(f, j), y = F(f, (j + 1) % 3);
+      if ((*in.boundary_vertex)[x] && (*in.boundary_vertex)[y]) directed.insert(key(x, y));
+    }
+  }
+  for (int f = 0; f < nf; ++f) {
+    for (int j = 0; j < 3; ++j) {
+      const int x = F(f, j), y = F(f, (j + 1) % 3);
+      if (!(*in.boundary_vertex)[x] || !(*in.boundary_vertex)[y] || directed.count(key(y, x))) continue;
+      const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
+      const Eigen::Vector3d cr = (b - a).cross(c - a);
+      const Eigen::Vector3d e = Row(V, y) - Row(V, x);
+      Eigen::Vector3d m = e.cross(cr);
+      const double mlen = m.norm();
+      if (mlen <= 0.0) continue;
+      m /= mlen;
+      const double w = boundary_weight * e.squaredNorm();
+      const double offset = m.dot(Row(V, x));
+      const int rx = rep[x], ry = rep[y];
+      if (rx >= 0) Qb[rx].AddPlane(m, offset, w);
+      if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, offset, w);
+    }
+  }
+}
+
+// The coarse mesh being refitted: positions X (over dense vertex ids), the coarse stars, and the guarded move.
+struct CoarseState {
+  const Faces& C;
+  const std::vector<int>& coarse_face_patch;
+  const std::vector<Eigen::Vector3d>& patch_normal;
+  const VertexRefitOptions& options;
+  double area_eps;
+  Vertices X;
+  std::vector<std::vector<int>> star;  // per vertex, its coarse faces
+  std::vector<Eigen::Vector3d> before;  // scratch of GuardedMove
+
+  // Twice the area vector of coarse face f at the current positions.
+  Eigen::Vector3d CrossOf(int f) const {
+    const Eigen::Vector3d a = Row(X, C(f, 0)), b = Row(X, C(f, 1)), c = Row(X, C(f, 2));
+    return Eigen::Vector3d((b - a).cross(c - a));
+  }
+
+  // Moves v from where it is towards `target`, halving the step while a triangle of its star would lose its
+  // area, reverse or leave its patch's cone (where it was inside before); false when v stays.
+  bool GuardedMove(int v, const Eigen::Vector3d& target) {
+    if (!target.allFinite()) return false;
+    const Eigen::Vector3d x0 = Row(X, v);
+    before.clear();
+    for (int f : star[v]) before.push_back(CrossOf(f));
+    double t = 1.0;
+    for (int h = 0; h <= options.max_halvings; ++h, t *= 0.5) {
+      X.row(v) = (x0 + t * (target - x0)).transpose();
+      bool ok = true;
+      for (size_t i = 0; i < star[v].size() && ok; ++i) {
+        const int f = star[v][i];
+        const Eigen::Vector3d now = CrossOf(f);
+        const double len = now.norm();
+        const Eigen::Vector3d& pn = patch_normal[coarse_face_patch[f]];
+        const double min_cos = options.min_cos_to_patch_normal;
+        const bool cone_before = before[i].dot(pn) >= min_cos * before[i].norm();
+        ok = len > area_eps && now.dot(before[i]) > 0.0 && (!cone_before || now.dot(pn) >= min_cos * len);
+      }
+      if (ok) return true;
+    }
+    X.row(v) = x0.transpose();
+    return false;
+  }
+};
+
+// Phase 1: each movable vertex to the regularised minimiser of its cluster's face and boundary quadrics;
+// counts and quadric errors into s.
+void MoveToQuadricMinimisers(const Vertices& V, const std::vector<Quadric>& Q, const std::vector<Quadric>& Qb,
+                             const std::vector<char>& movable, CoarseState* st, VertexRefitSummary* s) {
+  const int nv = static_cast<int>(V.rows());
+  for (int v = 0; v < nv; ++v) {
+    if (!movable[v]) continue;
+    Quadric q = Q[v];
+    q.A += Qb[v].A;
+    q.b += Qb[v].b;
+    q.c += Qb[v].c;
+    const double trace = q.A.trace();
+    if (!(trace > 0.0)) continue;
+    const Eigen::Vector3d x0 = Row(V, v);
+    const double e0 = q.Error(x0);
+    const double alpha = st->options.regularisation * trace / 3.0;
+    const Eigen::Vector3d target = (q.A + alpha * Eigen::Matrix3d::Identity()).ldlt().solve(q.b + alpha * x0);
+    s->quadric_error_before += e0;
+    if (st->GuardedMove(v, target)) {
+      ++s->moved;
+      s->quadric_error_after += q.Error(Row(st->X, v));
+    } else {
+      ++s->blocked;
+      s->quadric_error_after += e0;
+    }
+  }
+}
+
+struct Sample {
+  int face;
+  Eigen::Vector3d bary;
+};
+
+// Dense vertices projected onto the coarse mesh: per dense vertex its face (−1: none) and squared distance,
+// per coarse face the dense vertices projected onto it.
+struct DenseSamples {
+  std::vector<Sample> sample;
+  std::vector<double> sample_d2;
+  std::vector<std::vector<int>> face_samples;
+};
+
+// One third of the area of each dense face on each of its corners.
+std::vector<double> VertexAreas(const Vertices& V, const Faces& F) {
+  const int nv = static_cast<int>(V.rows());
+  const int nf = static_cast<int>(F.rows());
+  std::vector<double> vertex_area(nv, 0.0);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    for (int j = 0; j < 3; ++j) vertex_area[F(f, j)] += area / 3.0;
+  }
+  return vertex_area;
+}
+
+// The closest point to dense vertex j on the star of its representative and the stars of the corners of the
+// best face found there, with its squared distance. stamp: per coarse face, the last j that considered it.
+std::pair<Sample, double> ProjectDenseVertex(const Vertices& V, const std::vector<int>& rep, const CoarseState& st,
+                                             int j, std::vector<int>& stamp) {
+  const Faces& C = st.C;
+  const Vertices& X = st.X;
+  const Eigen::Vector3d p = Row(V, j);
+  double best = std::numeric_limits<double>::infinity();
+  Sample out{-1, Eigen::Vector3d::Zero()};
+  auto consider = [&](int f) {
+    if (stamp[f] == j) return;
+    stamp[f] = j;
+    Eigen::Vector3d bary;
+    const double d2 = ClosestPointOnTriangle(p, Row(X, C(f, 0)), Row(X, C(f, 1)), Row(X, C(f, 2)), &bary);
+    if (d2 < best) {
+      best = d2;
+      out = {f, bary};
+    }
+  };
+  for (int f : st.star[rep[j]]) consider(f);
+  if (out.face >= 0) {
+    const int f0 = out.face;
+    for (int k = 0; k < 3; ++k) {
+      for (int f : st.star[C(f0, k)]) consider(f);
+    }
+  }
+  return std::make_pair(out, best);
+}
+
+// Projects every dense vertex with a representative and area onto the coarse mesh into ds; the area-weighted
+// sum of squared distances and the sum of the weights into sum_d2, sum_w.
+void AssignSamples(const Vertices& V, const std::vector<int>& rep, const std::vector<double>& vertex_area,
+                   const CoarseState& st, DenseSamples* ds, double* sum_d2, double* sum_w) {
+  const int nv = static_cast<int>(V.rows());
+  const Faces& C = st.C;
+  for (auto& list : ds->face_samples) list.clear();
+  *sum_d2 = 0.0;
+  *sum_w = 0.0;
+  // The projections in parallel (X is only read), the sums in vertex order as a serial scan makes them.
+  constexpr int kBlock = 16384;
+  tbb::parallel_for(0, (nv + kBlock - 1) / kBlock, [&](int block) {
+    std::vector<int> stamp(C.rows(), -1);
+    for (int j = block * kBlock, end = std::min(nv, j + kBlock); j < end; ++j) {
+      if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
+      std::tie(ds->sample[j], ds->sample_d2[j]) = ProjectDenseVertex(V, rep, st, j, stamp);
+    }
+  });
+  for (int j = 0; j < nv; ++j) {
+    if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
+    const Sample& smp = ds->sample[j];
+    const double d2 = ds->sample_d2[j];
+    if (smp.face < 0) continue;
+    ds->face_samples[smp.face].push_back(j);
+    *sum_d2 += vertex_area[j] * d2;
+    *sum_w += vertex_area[j];
+  }
+}
+
+// Moves v to the regularised minimiser of its boundary quadric plus its samples' squared point-to-plane
+// distances (Σ w b_v² (nᵀx − …)², b_v the sample's barycentric weight of v) through the guard.
+void FitVertexToSamples(const Vertices& V, const std::vector<double>& vertex_area, const Quadric& boundary,
+                        const DenseSamples& ds, int v, CoarseState* st) {
+  const Faces& C = st->C;
+  const Vertices& X = st->X;
+  Eigen::Matrix3d A = boundary.A;
+  Eigen::Vector3d rhs = boundary.b;
+  for (int f : st->star[v]) {
+    if (ds.face_samples[f].empty()) continue;
+    Eigen::Vector3d n = st->CrossOf(f);
+    const double len = n.norm();
+    if (len <= st->area_eps) continue;
+    n /= len;
+    int corner = 0;
+    while (C(f, corner) != v) ++corner;
+    for (int j : ds.face_samples[f]) {
+      const Eigen::Vector3d& b = ds.sample[j].bary;
+      Eigen::Vector3d rest = Row(V, j);
+      for (int k = 0; k < 3; ++k) {
+        if (k != corner) rest -= b[k] * Row(X, C(f, k));
+      }
+      const double bv = b[corner];
+      A += vertex_area[j] * bv * bv * n * n.transpose();
+      rhs += vertex_area[j] * bv * n.dot(rest) * n;
+    }
+  }
+  const double trace = A.trace();
+  if (!(trace > 0.0)) return;
+  const double alpha = st->options.regularisation * trace / 3.0;
+  const Eigen::Vector3d target = (A + alpha * Eigen::Matrix3d::Identity()).ldlt().solve(rhs + alpha * Row(V, v));
+  st->GuardedMove(v, target);
+}
+
+// Phase 2: fit to the dense vertices (point-to-plane, as in Hoppe et al. 1993's mesh optimisation). Each
+// dense vertex is projected onto the nearest coarse face around the vertex it collapsed onto; then every
+// kept vertex moves, one at a time, to the regularised minimiser of its samples' squared distances along
+// their faces' normals, for fit_rounds rounds; the fit RMS before and after into s.
+void FitToDenseVertices(const RefitInput& in, const std::vector<Quadric>& Qb, const std::vector<char>& movable,
+                        CoarseState* st, VertexRefitSummary* s) {
+  const Vertices& V = *in.dense_V;
+  const std::vector<int>& rep = *in.representative;
+  const int nv = static_cast<int>(V.rows());
+  const std::vector<double> vertex_area = VertexAreas(V, *in.dense_F);
+  DenseSamples ds;
+  ds.sample.assign(nv, Sample{-1, Eigen::Vector3d::Zero()});
+  ds.sample_d2.assign(nv, 0.0);
+  ds.face_samples.resize(st->C.rows());
+  double d2 = 0.0, w = 0.0;
+  AssignSamples(V, rep, vertex_area, *st, &ds, &d2, &w);
+  s->fit_rms_before = w > 0.0 ? std::sqrt(d2 / w) : 0.0;
+  for (int round = 0; round < st->options.fit_rounds; ++round) {
+    for (int v = 0; v < nv; ++v) {
+      if (!movable[v]) continue;
+      FitVertexToSamples(V, vertex_area, Qb[v], ds, v, st);
+    }
+    AssignSamples(V, rep, vertex_area, *st, &ds, &d2, &w);
+  }
+  s->fit_rms_after = w > 0.0 ? std::sqrt(d2 / w) : 0.0;
+}
+
 }  // namespace
 
 void VertexRefitOptions::Check() const {
@@ -101,8 +386,7 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   VertexRefitSummary& s = summary != nullptr ? *summary : local;
   s = VertexRefitSummary{};
 
-  // Quadrics per kept vertex, from the dense faces of its cluster (a face counts for each of its corners'
-  // clusters, as in Garland–Heckbert), and patch normals for the cone guard.
+  // Quadrics per kept vertex, from the dense faces of its cluster, and patch normals for the cone guard.
   std::vector<Quadric> Q(nv), Qb(nv);  // face planes of the cluster; boundary planes
   std::vector<char> kept(nv, 0);
   for (int v = 0; v < nv; ++v) {
@@ -111,220 +395,19 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   std::vector<Eigen::Vector3d> patch_normal(std::max(in.num_patches, 0), Eigen::Vector3d::Zero());
   double diag2 = (V.colwise().maxCoeff() - V.colwise().minCoeff()).squaredNorm();
   const double area_eps = 1e-14 * diag2;
-  for (int f = 0; f < nf; ++f) {
-    const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
-    const Eigen::Vector3d cr = (b - a).cross(c - a);
-    const double len = cr.norm();
-    const int k = (*in.dense_face_patch)[f];
-    if (k >= 0 && k < in.num_patches) patch_normal[k] += cr;
-    if (len <= area_eps) continue;
-    const Eigen::Vector3d n = cr / len;
-    const double area = 0.5 * len;
-    const double offset = n.dot(a);
-    int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
-    for (int j = 0; j < 3; ++j) {
-      if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
-      Q[r[j]].AddPlane(n, offset, area);
-    }
-  }
-  for (auto& n : patch_normal) {
-    const double len = n.norm();
-    n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
-  }
-  if (has_boundary && options.boundary_weight > 0.0) {
-    // Directed edges between boundary vertices; one without its reverse is on the mesh boundary.
-    std::unordered_set<long long> directed;
-    auto key = [](int a, int b) { return (static_cast<long long>(a) << 32) | static_cast<unsigned>(b); };
-    for (int f = 0; f < nf; ++f) {
-      for (int j = 0; j < 3; ++j) {
-        const int x = F(f, j), y = F(f, (j + 1) % 3);
-        if ((*in.boundary_vertex)[x] && (*in.boundary_vertex)[y]) directed.insert(key(x, y));
-      }
-    }
-    for (int f = 0; f < nf; ++f) {
-      for (int j = 0; j < 3; ++j) {
-        const int x = F(f, j), y = F(f, (j + 1) % 3);
-        if (!(*in.boundary_vertex)[x] || !(*in.boundary_vertex)[y] || directed.count(key(y, x))) continue;
-        const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
-        const Eigen::Vector3d cr = (b - a).cross(c - a);
-        const Eigen::Vector3d e = Row(V, y) - Row(V, x);
-        Eigen::Vector3d m = e.cross(cr);
-        const double mlen = m.norm();
-        if (mlen <= 0.0) continue;
-        m /= mlen;
-        const double w = options.boundary_weight * e.squaredNorm();
-        const double offset = m.dot(Row(V, x));
-        const int rx = rep[x], ry = rep[y];
-        if (rx >= 0) Qb[rx].AddPlane(m, offset, w);
-        if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, offset, w);
-      }
-    }
-  }
+  AddFaceQuadrics(in, area_eps, &Q, &patch_normal);
+  if (has_boundary && options.boundary_weight > 0.0) AddBoundaryQuadrics(in, options.boundary_weight, &Qb);
 
-  // Coarse stars.
-  std::vector<std::vector<int>> star(nv);
+  CoarseState st{C, *in.coarse_face_patch, patch_normal, options, area_eps, V, std::vector<std::vector<int>>(nv), {}};
   for (int f = 0; f < C.rows(); ++f) {
-    for (int j = 0; j < 3; ++j) star[C(f, j)].push_back(f);
+    for (int j = 0; j < 3; ++j) st.star[C(f, j)].push_back(f);
   }
-  Vertices X = V;
-  auto cross_of = [&](int f) {
-    const Eigen::Vector3d a = Row(X, C(f, 0)), b = Row(X, C(f, 1)), c = Row(X, C(f, 2));
-    return Eigen::Vector3d((b - a).cross(c - a));
-  };
-  std::vector<Eigen::Vector3d> before;
-  // Moves v from where it is towards `target`, halving the step while a triangle of its star would lose its
-  // area, reverse or leave its patch's cone (where it was inside before); false when v stays.
-  auto guarded_move = [&](int v, const Eigen::Vector3d& target) {
-    if (!target.allFinite()) return false;
-    const Eigen::Vector3d x0 = Row(X, v);
-    before.clear();
-    for (int f : star[v]) before.push_back(cross_of(f));
-    double t = 1.0;
-    for (int h = 0; h <= options.max_halvings; ++h, t *= 0.5) {
-      X.row(v) = (x0 + t * (target - x0)).transpose();
-      bool ok = true;
-      for (size_t i = 0; i < star[v].size() && ok; ++i) {
-        const int f = star[v][i];
-        const Eigen::Vector3d now = cross_of(f);
-        const double len = now.norm();
-        const Eigen::Vector3d& pn = patch_normal[(*in.coarse_face_patch)[f]];
-        const double min_cos = options.min_cos_to_patch_normal;
-        const bool cone_before = before[i].dot(pn) >= min_cos * before[i].norm();
-        ok = len > area_eps && now.dot(before[i]) > 0.0 && (!cone_before || now.dot(pn) >= min_cos * len);
-      }
-      if (ok) return true;
-    }
-    X.row(v) = x0.transpose();
-    return false;
-  };
-  auto movable = [&](int v) { return kept[v] && !star[v].empty() && !(has_fixed && (*in.fixed)[v]); };
+  std::vector<char> movable(nv, 0);
+  for (int v = 0; v < nv; ++v) movable[v] = kept[v] && !st.star[v].empty() && !(has_fixed && (*in.fixed)[v]);
 
-  // Phase 1: the regularised minimiser of each cluster's quadric.
-  for (int v = 0; v < nv; ++v) {
-    if (!movable(v)) continue;
-    Quadric q = Q[v];
-    q.A += Qb[v].A;
-    q.b += Qb[v].b;
-    q.c += Qb[v].c;
-    const double trace = q.A.trace();
-    if (!(trace > 0.0)) continue;
-    const Eigen::Vector3d x0 = Row(V, v);
-    const double e0 = q.Error(x0);
-    const double alpha = options.regularisation * trace / 3.0;
-    const Eigen::Vector3d target = (q.A + alpha * Eigen::Matrix3d::Identity()).ldlt().solve(q.b + alpha * x0);
-    s.quadric_error_before += e0;
-    if (guarded_move(v, target)) {
-      ++s.moved;
-      s.quadric_error_after += q.Error(Row(X, v));
-    } else {
-      ++s.blocked;
-      s.quadric_error_after += e0;
-    }
-  }
-
-  // Phase 2: fit to the dense vertices (point-to-plane, as in Hoppe et al. 1993's mesh optimisation). Each
-  // dense vertex is projected onto the nearest coarse face around the vertex it collapsed onto; then every
-  // kept vertex moves, one at a time, to the regularised minimiser of its samples' squared distances along
-  // their faces' normals (a quadric again: Σ w b_v² (nᵀx − …)², b_v its barycentric weight).
-  if (options.fit_rounds > 0) {
-    std::vector<double> vertex_area(nv, 0.0);
-    for (int f = 0; f < nf; ++f) {
-      const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
-      const double area = 0.5 * (b - a).cross(c - a).norm();
-      for (int j = 0; j < 3; ++j) vertex_area[F(f, j)] += area / 3.0;
-    }
-    struct Sample {
-      int face;
-      Eigen::Vector3d bary;
-    };
-    std::vector<Sample> sample(nv, Sample{-1, Eigen::Vector3d::Zero()});
-    std::vector<double> sample_d2(nv, 0.0);
-    std::vector<std::vector<int>> face_samples(C.rows());
-    // stamp: per coarse face, the last j that considered it (one array per block of a parallel scan).
-    auto project = [&](int j, std::vector<int>& stamp) {
-      const Eigen::Vector3d p = Row(V, j);
-      double best = std::numeric_limits<double>::infinity();
-      Sample out{-1, Eigen::Vector3d::Zero()};
-      auto consider = [&](int f) {
-        if (stamp[f] == j) return;
-        stamp[f] = j;
-        Eigen::Vector3d bary;
-        const double d2 = ClosestPointOnTriangle(p, Row(X, C(f, 0)), Row(X, C(f, 1)), Row(X, C(f, 2)), &bary);
-        if (d2 < best) {
-          best = d2;
-          out = {f, bary};
-        }
-      };
-      for (int f : star[rep[j]]) consider(f);
-      if (out.face >= 0) {
-        const int f0 = out.face;
-        for (int k = 0; k < 3; ++k) {
-          for (int f : star[C(f0, k)]) consider(f);
-        }
-      }
-      return std::make_pair(out, best);
-    };
-    auto assign = [&](double* sum_d2, double* sum_w) {
-      for (auto& list : face_samples) list.clear();
-      *sum_d2 = 0.0;
-      *sum_w = 0.0;
-      // The projections in parallel (X is only read), the sums in vertex order as a serial scan makes them.
-      constexpr int kBlock = 16384;
-      tbb::parallel_for(0, (nv + kBlock - 1) / kBlock, [&](int block) {
-        std::vector<int> stamp(C.rows(), -1);
-        for (int j = block * kBlock, end = std::min(nv, j + kBlock); j < end; ++j) {
-          if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
-          std::tie(sample[j], sample_d2[j]) = project(j, stamp);
-        }
-      });
-      for (int j = 0; j < nv; ++j) {
-        if (rep[j] < 0 || vertex_area[j] <= 0.0) continue;
-        const Sample& smp = sample[j];
-        const double d2 = sample_d2[j];
-        if (smp.face < 0) continue;
-        face_samples[smp.face].push_back(j);
-        *sum_d2 += vertex_area[j] * d2;
-        *sum_w += vertex_area[j];
-      }
-    };
-    double d2 = 0.0, w = 0.0;
-    assign(&d2, &w);
-    s.fit_rms_before = w > 0.0 ? std::sqrt(d2 / w) : 0.0;
-    for (int round = 0; round < options.fit_rounds; ++round) {
-      for (int v = 0; v < nv; ++v) {
-        if (!movable(v)) continue;
-        Eigen::Matrix3d A = Qb[v].A;
-        Eigen::Vector3d rhs = Qb[v].b;
-        for (int f : star[v]) {
-          if (face_samples[f].empty()) continue;
-          Eigen::Vector3d n = cross_of(f);
-          const double len = n.norm();
-          if (len <= area_eps) continue;
-          n /= len;
-          int corner = 0;
-          while (C(f, corner) != v) ++corner;
-          for (int j : face_samples[f]) {
-            const Eigen::Vector3d& b = sample[j].bary;
-            Eigen::Vector3d rest = Row(V, j);
-            for (int k = 0; k < 3; ++k) {
-              if (k != corner) rest -= b[k] * Row(X, C(f, k));
-            }
-            const double bv = b[corner];
-            A += vertex_area[j] * bv * bv * n * n.transpose();
-            rhs += vertex_area[j] * bv * n.dot(rest) * n;
-          }
-        }
-        const double trace = A.trace();
-        if (!(trace > 0.0)) continue;
-        const double alpha = options.regularisation * trace / 3.0;
-        const Eigen::Vector3d target = (A + alpha * Eigen::Matrix3d::Identity()).ldlt().solve(rhs + alpha * Row(V, v));
-        guarded_move(v, target);
-      }
-      assign(&d2, &w);
-    }
-    s.fit_rms_after = w > 0.0 ? std::sqrt(d2 / w) : 0.0;
-  }
-  return X;
+  MoveToQuadricMinimisers(V, Q, Qb, movable, &st, &s);
+  if (options.fit_rounds > 0) FitToDenseVertices(in, Qb, movable, &st, &s);
+  return std::move(st.X);
 }
 
 }  // namespace rangebayes
