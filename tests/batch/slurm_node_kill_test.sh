@@ -55,9 +55,14 @@ expect_in() {  # expect_in TEXT PATTERN WHAT
   grep -qF -- "$2" <<<"$1" || { echo "$1" >&2; fail "$3: expected '$2'"; }
 }
 
-# wait_for SECONDS WHAT COMMAND...: polls COMMAND every 0.1 s until it succeeds; fails naming WHAT after SECONDS.
+# Sanitizer builds run everything several times slower: every wait is scaled by the presets' timeout factor.
+factor=${RANGEBAYES_TEST_TIMEOUT_FACTOR:-1}
+[[ $factor =~ ^[1-9][0-9]*$ ]] || { echo "FAIL: RANGEBAYES_TEST_TIMEOUT_FACTOR '$factor' is not a whole number" >&2; exit 1; }
+
+# wait_for SECONDS WHAT COMMAND...: polls COMMAND every 0.1 s until it succeeds; fails naming WHAT after
+# SECONDS × the timeout factor.
 wait_for() {
-  local limit=$1 what=$2 i
+  local limit=$(($1 * factor)) what=$2 i
   shift 2
   for i in $(seq $((limit * 10))); do
     "$@" && return 0
