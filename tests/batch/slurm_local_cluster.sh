@@ -20,6 +20,19 @@ rb_cluster_have_binaries() {
     command -v squeue >/dev/null && command -v munged >/dev/null
 }
 
+# What a cluster test needs before it starts one: exits 77 (ctest's skip) when the Slurm or munge programs are
+# not installed, 1 when not root (slurmd runs jobs as the submitter, munged as the munge user).
+rb_cluster_require() {
+  if ! rb_cluster_have_binaries; then
+    echo "SKIP: slurmctld, slurmd, sbatch, squeue or munged not installed (scripts/setup.sh installs them)"
+    exit 77
+  fi
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "FAIL: needs root (slurmd runs jobs as the submitter, munged runs as the munge user)" >&2
+    exit 1
+  fi
+}
+
 # Echoes a TCP port on 127.0.0.1 that nothing listens on, starting the search at $1.
 rb_cluster_free_port() {
   local port=$1

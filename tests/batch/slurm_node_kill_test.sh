@@ -17,14 +17,7 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 # shellcheck source=slurm_local_cluster.sh
 source "$here"/slurm_local_cluster.sh
 
-if ! rb_cluster_have_binaries; then
-  echo "SKIP: slurmctld, slurmd, sbatch, squeue or munged not installed (scripts/setup.sh installs them)"
-  exit 77
-fi
-if [ "$(id -u)" -ne 0 ]; then
-  echo "FAIL: needs root (slurmd runs jobs as the submitter, munged runs as the munge user)" >&2
-  exit 1
-fi
+rb_cluster_require
 
 work=$(mktemp -d /tmp/rb_slurm_kill_test.XXXXXX)
 chmod 755 "$work"
