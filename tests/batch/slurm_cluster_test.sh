@@ -12,41 +12,14 @@ set -euo pipefail
 rb=$(realpath "$1")
 src=$(pwd)
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-# shellcheck source=slurm_local_cluster.sh
-source "$here"/slurm_local_cluster.sh
+# shellcheck source=slurm_test_harness.sh
+source "$here"/slurm_test_harness.sh
 
-rb_cluster_require
+rb_test_begin rb_slurm_test
 
-work=$(mktemp -d /tmp/rb_slurm_test.XXXXXX)
-chmod 755 "$work"
-cleanup() {
-  local rc=$?
-  rb_cluster_stop
-  if [ $rc -ne 0 ] && [ -d "$work" ]; then
-    echo "--- slurmctld log (tail)"; tail -n 20 "$work"/cluster/log/slurmctld.log 2>/dev/null || true
-    echo "--- slurmd log (tail)"; tail -n 20 "$work"/cluster/log/slurmd-node1.log 2>/dev/null || true
-  fi
-  rm -rf "$work"
-  exit $rc
-}
-trap cleanup EXIT
-
-fail() { echo "FAIL: $*" >&2; exit 1; }
-phase() { echo "[$SECONDS s] $*"; }
-expect_in() {  # expect_in TEXT PATTERN WHAT
-  grep -qF -- "$2" <<<"$1" || { echo "$1" >&2; fail "$3: expected '$2'"; }
-}
-
-# Polls squeue (sbatch --wait returns late) until job $1 has left the queue.
-wait_job() {
-  local id=$1 i
-  for i in $(seq 1200); do
-    [ -z "$(squeue --noheader --jobs "$id" 2>/dev/null)" ] && return 0
-    sleep 0.1
-  done
-  squeue >&2 || true
-  fail "job $id still queued after 120 s"
-}
+# sbatch --wait returns late: a job is done when it has left the queue.
+wait_job() { wait_for 120 "job $1 to leave the queue" job_gone "$1"; }
+running() { grep -qs '"state": "running"' "$1"; }
 
 rb_cluster_start "$work"/cluster 1
 phase "cluster up"
@@ -112,18 +85,11 @@ smooth meshes/real_angel_scan.obj angel.ply --tolerance tight --threads 1
 MANIFEST
 rq="$work"/requeue
 job3=$("$rb" batch submit "$m"/slow.txt --out "$rq")
-for i in $(seq 300); do
-  grep -qs '"state": "running"' "$rq"/status/0.json && break
-  sleep 0.1
-done
-grep -qs '"state": "running"' "$rq"/status/0.json || fail "the slow task never ran"
+wait_for 30 "the slow task to run" running "$rq"/status/0.json
 phase "slow task running"
 scontrol requeue "${job3}_0"
 # Slurm holds a requeued job for about two minutes (BeginTime); let it start again at once.
-for i in $(seq 300); do
-  squeue --noheader --jobs "$job3" --format=%T | grep -q PENDING && break
-  sleep 0.1
-done
+wait_for 30 "job $job3 to be requeued (pending)" job_pending "$job3"
 scontrol update JobId="${job3}_0" StartTime=now
 wait_job "$job3"
 phase "requeued job done"

@@ -1,5 +1,6 @@
 # Source this file: starts a throw-away Slurm cluster on loopback, everything under one temporary folder
-# (nothing in /etc, no systemd). Used by tests/batch/slurm_cluster_test.sh and bench/batch_slurm_bench.sh.
+# (nothing in /etc, no systemd). Used by the Slurm tests (through slurm_test_harness.sh) and
+# bench/batch_slurm_bench.sh.
 #
 #   rb_cluster_start ROOT [NODES [CPUS]]  # ROOT: a new temporary folder; NODES slurmd on this machine (1),
 #                                         # each offering CPUS job slots (default: nproc)

@@ -14,61 +14,11 @@ set -euo pipefail
 rb=$(realpath "$1")
 src=$(pwd)
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-# shellcheck source=slurm_local_cluster.sh
-source "$here"/slurm_local_cluster.sh
+# shellcheck source=slurm_test_harness.sh
+source "$here"/slurm_test_harness.sh
 
-rb_cluster_require
+rb_test_begin rb_slurm_kill_test
 
-work=$(mktemp -d /tmp/rb_slurm_kill_test.XXXXXX)
-chmod 755 "$work"
-
-# Every process whose command line names this test's folder (task processes, slurmstepd's children); the
-# folder's name is unique, so no process of another cluster on this machine matches.
-our_processes() {
-  ps -eo pid=,args= | awk -v dir="$work" 'index($0, dir) && !/awk/ { print $1 }' | grep -vx "$$" || true
-}
-
-cleanup() {
-  local rc=$?
-  rb_cluster_stop
-  local pid
-  for pid in $(our_processes); do kill -9 "$pid" 2>/dev/null || true; done
-  if [ $rc -ne 0 ] && [ -d "$work" ]; then
-    echo "--- slurmctld log (tail)"; tail -n 30 "$work"/cluster/log/slurmctld.log 2>/dev/null || true
-    echo "--- slurmd log (tail)"; tail -n 30 "$work"/cluster/log/slurmd-node1.log 2>/dev/null || true
-  fi
-  rm -rf "$work"
-  exit $rc
-}
-trap cleanup EXIT
-
-fail() { echo "FAIL: $*" >&2; exit 1; }
-phase() { echo "[$SECONDS s] $*"; }
-expect_in() {  # expect_in TEXT PATTERN WHAT
-  grep -qF -- "$2" <<<"$1" || { echo "$1" >&2; fail "$3: expected '$2'"; }
-}
-
-# Sanitizer builds run everything several times slower: every wait is scaled by the presets' timeout factor.
-factor=${RANGEBAYES_TEST_TIMEOUT_FACTOR:-1}
-[[ $factor =~ ^[1-9][0-9]*$ ]] || { echo "FAIL: RANGEBAYES_TEST_TIMEOUT_FACTOR '$factor' is not a whole number" >&2; exit 1; }
-
-# wait_for SECONDS WHAT COMMAND...: polls COMMAND every 0.1 s until it succeeds; fails naming WHAT after
-# SECONDS × the timeout factor.
-wait_for() {
-  local limit=$(($1 * factor)) what=$2 i
-  shift 2
-  for i in $(seq $((limit * 10))); do
-    "$@" && return 0
-    sleep 0.1
-  done
-  "$@" && return 0
-  sinfo -N >&2 || true
-  squeue >&2 || true
-  fail "$what: not after $limit s"
-}
-
-job_gone() { [ -z "$(squeue --noheader --jobs "$1" 2>/dev/null)" ]; }
-job_pending() { squeue --noheader --jobs "$1" --format=%T 2>/dev/null | grep -q PENDING; }
 node_state() { sinfo --noheader --nodes=node1 --format=%T 2>/dev/null | head -n 1; }
 node_is() { [ "$(node_state)" = "$1" ]; }
 node_down() { [[ $(node_state) == down* ]]; }
@@ -107,7 +57,9 @@ check_killed() {
   phase "nothing of $dir task $i published ($partial partial files in its temporary folder)"
 }
 
-rb_cluster_start "$work"/cluster 1
+# Two job slots whatever this process's CPU mask (the TSan suite pins each shard to one CPU, where nproc is 1
+# and the long task would run alone, after the short ones).
+rb_cluster_start "$work"/cluster 1 2
 phase "cluster up"
 
 m="$work"/manifest
@@ -125,7 +77,7 @@ echo "$long" >"$m"/long.txt
 
 # Batch A with --no-requeue: the dead node's job ends (NODE_FAIL), and `batch resubmit` brings its task back.
 # Batch B as submitted by default (--requeue): Slurm requeues the dead node's task itself. B is submitted
-# second, so its task starts once A's short tasks are done (the node has 2 CPUs).
+# second, so its task starts once A's short tasks are done (the node has 2 job slots).
 a="$work"/norequeue
 b="$work"/requeue
 job_a=$("$rb" batch submit "$m"/tasks.txt --out "$a" --slurm-arg=--no-requeue)
