@@ -275,17 +275,8 @@ void RemoveAbandonedWork(const BatchLayout& layout, int index) {
   }
 }
 
-}  // namespace
-
-BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options) {
-  options.Check();
-  const BatchLayout layout(dir);
-  const BatchRecord record = ReadBatchRecord(layout);
-  const std::vector<ManifestTask> tasks = ReadManifest(layout.manifest());
-  RB_CHECK(index >= 0 && index < static_cast<int>(tasks.size()), layout.dir, ": task ", index,
-           " out of range (the manifest has ", tasks.size(), " tasks, 0-", tasks.size() - 1, ")");
-  const ManifestTask& task = tasks[index];
-
+// The status of a task that starts now: attempt and job from Slurm's environment, run from its previous status.
+BatchTaskStatus StartingStatus(const BatchLayout& layout, int index, const std::vector<std::string>& arguments) {
   BatchTaskStatus status;
   status.index = index;
   status.state = "running";
@@ -297,8 +288,87 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   status.pid = static_cast<int>(getpid());
   status.node = Env("SLURMD_NODENAME");
   status.start_utc = NowUtc();
-  const std::vector<std::string> arguments = ResolveTaskArguments(task.arguments, record.manifest_dir);
   status.command = QuoteForShell(arguments);
+  return status;
+}
+
+// Runs the task's command with the signals forwarded to it; a command that cannot start gives start_error.
+ProcessExit RunCommand(const ProcessSpec& spec, const RunTaskOptions& options, std::string* start_error) {
+  ProcessExit exit;
+  SignalForwarding forwarding(options.forward_signals);
+  try {
+    const pid_t pid = StartProcess(spec);
+    g_child_pid = pid;
+    if (g_signal != 0) kill(pid, g_signal);
+    exit = WaitProcess(pid);
+  } catch (const Error& e) {
+    *start_error = e.what();
+  }
+  return exit;
+}
+
+std::string ReadFrom(const std::string& path, std::uintmax_t offset) {
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(static_cast<std::streamoff>(offset));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// The exit code and error line of a command that ended (or never started), from its output in the log.
+void RecordExit(const ProcessExit& exit, const std::string& start_error, int stop_signal, const std::string& output,
+                const std::string& log, BatchTaskStatus* status) {
+  if (!start_error.empty()) {
+    status->exit_code = 127;
+    status->error_line = start_error;
+    return;
+  }
+  status->exit_code = exit.exit_code;
+  if (exit.exit_code != 0) status->error_line = ErrorLine(output);
+  if (exit.signal != 0) {
+    status->error_line = "ended by signal " + std::to_string(exit.signal) +
+                         (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
+                         (status->error_line.empty() ? "" : "; last line: " + status->error_line);
+  } else if (exit.exit_code != 0 && status->error_line.empty()) {
+    // A command whose error line could not reach the log (a full disk) still fails with a line saying so.
+    status->error_line = "exit " + std::to_string(exit.exit_code) + " with no output in " + log;
+  }
+}
+
+// Publishes the work folder of a command that succeeded and was not stopped; else the task failed.
+void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, int stop_signal,
+                   BatchTaskStatus* status) {
+  if (status->exit_code == 0 && stop_signal == 0) {
+    try {
+      Publish(work, layout.task_dir(index));
+      status->state = "succeeded";
+      RemoveAbandonedWork(layout, index);
+    } catch (const Error& e) {
+      status->state = "failed";
+      status->exit_code = 1;
+      status->error_line = e.what();
+    }
+    return;
+  }
+  status->state = "failed";
+  if (status->exit_code == 0) {
+    status->exit_code = 128 + stop_signal;
+    status->error_line = "stopped by signal " + std::to_string(stop_signal) + " before its result was published";
+  }
+}
+
+}  // namespace
+
+BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options) {
+  options.Check();
+  const BatchLayout layout(dir);
+  const BatchRecord record = ReadBatchRecord(layout);
+  const std::vector<ManifestTask> tasks = ReadManifest(layout.manifest());
+  RB_CHECK(index >= 0 && index < static_cast<int>(tasks.size()), layout.dir, ": task ", index,
+           " out of range (the manifest has ", tasks.size(), " tasks, 0-", tasks.size() - 1, ")");
+  const ManifestTask& task = tasks[index];
+  const std::vector<std::string> arguments = ResolveTaskArguments(task.arguments, record.manifest_dir);
+  BatchTaskStatus status = StartingStatus(layout, index, arguments);
 
   fs::create_directories(layout.tasks_dir());
   fs::create_directories(fs::path(layout.log_file(index)).parent_path());
@@ -326,63 +396,14 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   spec.working_dir = work.string();
   spec.output_path = log;
   const auto start = std::chrono::steady_clock::now();
-  ProcessExit exit;
   std::string start_error;
-  {
-    SignalForwarding forwarding(options.forward_signals);
-    try {
-      const pid_t pid = StartProcess(spec);
-      g_child_pid = pid;
-      if (g_signal != 0) kill(pid, g_signal);
-      exit = WaitProcess(pid);
-    } catch (const Error& e) {
-      start_error = e.what();
-    }
-  }
+  const ProcessExit exit = RunCommand(spec, options, &start_error);
   status.duration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   status.end_utc = NowUtc();
 
-  std::string output;
-  {
-    std::ifstream in(log, std::ios::binary);
-    in.seekg(static_cast<std::streamoff>(log_start));
-    std::ostringstream text;
-    text << in.rdbuf();
-    output = text.str();
-  }
   const int stop_signal = g_signal;
-  if (!start_error.empty()) {
-    status.exit_code = 127;
-    status.error_line = start_error;
-  } else {
-    status.exit_code = exit.exit_code;
-    if (exit.exit_code != 0) status.error_line = ErrorLine(output);
-    if (exit.signal != 0) {
-      status.error_line = "ended by signal " + std::to_string(exit.signal) +
-                          (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
-                          (status.error_line.empty() ? "" : "; last line: " + status.error_line);
-    } else if (exit.exit_code != 0 && status.error_line.empty()) {
-      // A command whose error line could not reach the log (a full disk) still fails with a line saying so.
-      status.error_line = "exit " + std::to_string(exit.exit_code) + " with no output in " + log;
-    }
-  }
-  if (status.exit_code == 0 && stop_signal == 0) {
-    try {
-      Publish(work, layout.task_dir(index));
-      status.state = "succeeded";
-      RemoveAbandonedWork(layout, index);
-    } catch (const Error& e) {
-      status.state = "failed";
-      status.exit_code = 1;
-      status.error_line = e.what();
-    }
-  } else {
-    status.state = "failed";
-    if (status.exit_code == 0) {
-      status.exit_code = 128 + stop_signal;
-      status.error_line = "stopped by signal " + std::to_string(stop_signal) + " before its result was published";
-    }
-  }
+  RecordExit(exit, start_error, stop_signal, ReadFrom(log, log_start), log, &status);
+  PublishOrFail(layout, index, work, stop_signal, &status);
   fs::remove_all(work, ec);
   {
     std::ofstream footer(log, std::ios::app);

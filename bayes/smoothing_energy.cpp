@@ -280,6 +280,71 @@ RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const dou
 Isa ActiveIsa() { return Isa::kPortable; }
 #endif
 
+// The neighbour sums of Evaluate's portable face pass: for face t with unit normal nt, add Σ_s φ and
+// Σ_s w_ts (n_t − n_s) over its neighbours s (rows [offsets[t], offsets[t+1]) of neighbours) into sums[0] and
+// sums[1..3], one neighbour after another in row order.
+struct FaceNeighbours {
+  const int* offsets;
+  const int* neighbours;
+  const double* normals;
+};
+
+// Any potential: pair(t, s, d², &w) returns φ(d) and sets w = φ'(d)/d.
+template <typename Pair>
+void PairwiseSums(const FaceNeighbours& g, int t, const double* nt, double* sums, const Pair& pair) {
+  const int end = g.offsets[t + 1];
+  for (int q = g.offsets[t]; q < end; ++q) {
+    const int s = g.neighbours[q];
+    const double* ns = &g.normals[3 * static_cast<size_t>(s)];
+    const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
+    double weight;
+    sums[0] += pair(t, s, dx * dx + dy * dy + dz * dz, &weight);
+    sums[1] += weight * dx;
+    sums[2] += weight * dy;
+    sums[3] += weight * dz;
+  }
+}
+
+// The square root, φ = sqrt(d² + ε²) and w = 1/φ, two neighbours at a time in SSE2 lanes (sqrtpd, divpd):
+// the square roots and divisions were ~1/6 of an evaluation. Correctly rounded either way and summed in
+// the same order, so the bytes are those of the scalar loop. argument(t, s, d²) = d² + ε².
+template <typename Argument>
+void SquareRootSums(const FaceNeighbours& g, int t, const double* nt, double* sums, const Argument& argument) {
+  const int begin = g.offsets[t], end = g.offsets[t + 1];
+  for (int q = begin; q < end; q += 2) {
+    const bool two = q + 1 < end;
+    const int s0 = g.neighbours[q];
+    const int s1 = two ? g.neighbours[q + 1] : s0;
+    const double* n0 = &g.normals[3 * static_cast<size_t>(s0)];
+    const double* n1 = &g.normals[3 * static_cast<size_t>(s1)];
+    const double dx0 = nt[0] - n0[0], dy0 = nt[1] - n0[1], dz0 = nt[2] - n0[2];
+    const double dx1 = nt[0] - n1[0], dy1 = nt[1] - n1[1], dz1 = nt[2] - n1[2];
+    const double a0 = argument(t, s0, dx0 * dx0 + dy0 * dy0 + dz0 * dz0);
+    const double a1 = argument(t, s1, dx1 * dx1 + dy1 * dy1 + dz1 * dz1);
+    double value[2], weight[2];
+#if defined(__SSE2__)
+    const __m128d v = _mm_sqrt_pd(_mm_set_pd(a1, a0));
+    _mm_storeu_pd(value, v);
+    _mm_storeu_pd(weight, _mm_div_pd(_mm_set1_pd(1.0), v));
+#else
+    value[0] = std::sqrt(a0);
+    value[1] = std::sqrt(a1);
+    weight[0] = 1.0 / value[0];
+    weight[1] = 1.0 / value[1];
+#endif
+    sums[0] += value[0];
+    sums[1] += weight[0] * dx0;
+    sums[2] += weight[0] * dy0;
+    sums[3] += weight[0] * dz0;
+    if (two) {
+      sums[0] += value[1];
+      sums[1] += weight[1] * dx1;
+      sums[2] += weight[1] * dy1;
+      sums[3] += weight[1] * dz1;
+    }
+  }
+}
+
 }  // namespace
 
 void SetSmoothingKernel(SmoothingKernel kernel) { g_kernel = kernel; }
@@ -526,19 +591,53 @@ void SmoothingEnergy::ComputeNormals(const double* x) const {
 
 EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::VectorXd* gradient) const {
   RB_CHECK(x_vector.size() == z_.size(), "smoothing: state has ", x_vector.size(), " entries, expected ", z_.size());
-  const int nf = num_faces(), nv = num_vertices_;
   const double* x = x_vector.data();
-
   ComputeNormals(x);
+  const double prior_sum = PriorPass(x, gradient != nullptr);
+  if (gradient != nullptr) gradient->resize(z_.size());
+  const double data_sum = DataPass(x, gradient != nullptr ? gradient->data() : nullptr);
+  return EnergyParts{data_sum, prior_weight_ * prior_sum};
+}
 
-  // Pass 2: per face t, half of each pair's potential (both faces of a pair count it), then, for the gradient,
-  // h_t = β P_t g_t / |c_t| with g_t = Σ_s w_ts (n_t − n_s), and the face's three corner contributions
-  // h_t × e_k (e_k the edge opposite corner k) into h_[9t + 3k ..]. The pair kernel is a template argument so
-  // the square root (the default) is inlined; other potentials go through the virtual call.
-  const bool want_gradient = gradient != nullptr;
+// Pass 2: per face t, half of each pair's potential (both faces of a pair count it), then, for the gradient,
+// h_t = β P_t g_t / |c_t| with g_t = Σ_s w_ts (n_t − n_s), and the face's three corner contributions
+// h_t × e_k (e_k the edge opposite corner k) into h_[9t + 3k ..], or h_t alone on the wide path.
+double SmoothingEnergy::PriorPass(const double* x, bool want_gradient) const {
+  const int nf = num_faces();
+  // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
+  const bool wide = WideSquareRoot();
+  if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
+#if RB_SMOOTHING_AVX512
+  if (wide) {
+    const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+    const SqrtFacePassInput input{x,
+                                  faces_.data(),
+                                  normals_.data(),
+                                  inverse_length_.data(),
+                                  neighbour_offsets_.data(),
+                                  neighbours_.data(),
+                                  face_epsilon_squared_.empty() ? nullptr : face_epsilon_squared_.data(),
+                                  sqrt_potential != nullptr ? sqrt_potential->epsilon_squared() : 0.0,
+                                  prior_weight_,
+                                  want_gradient ? h_.data() : nullptr};
+    // Same range tree as DeterministicSum, same order inside each range: the same bytes.
+    return tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<int>(0, nf, kGrain), 0.0,
+        [&](const tbb::blocked_range<int>& r, double sum) {
+          return SqrtFacePassAvx512(input, r.begin(), r.end(), sum);
+        },
+        [](double a, double b) { return a + b; });
+  }
+#endif
+  return PortablePriorPass(x, want_gradient);
+}
+
+double SmoothingEnergy::PortablePriorPass(const double* x, bool want_gradient) const {
+  const int nf = num_faces();
   const double beta = prior_weight_;
-  // neighbour_sum(t, n_t, sums) adds face t's Σ_s φ and Σ_s w_ts (n_t − n_s) into sums[0] and sums[1..3], one
-  // neighbour after another in row order.
+  const FaceNeighbours graph{neighbour_offsets_.data(), neighbours_.data(), normals_.data()};
+  // The pair kernel is a template argument so the square root (the default) is inlined; other potentials go
+  // through the virtual call.
   auto face_pass = [&](auto neighbour_sum) {
     return DeterministicSum(nf, [&](int t) {
       const double* nt = &normals_[3 * static_cast<size_t>(t)];
@@ -567,122 +666,43 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
       return 0.5 * energy;
     });
   };
-  // Any potential: pair(t, s, d², &w) returns φ(d) and sets w = φ'(d)/d.
-  auto pairwise = [&](auto pair) {
-    return [&, pair](int t, const double* nt, double* sums) {
-      const int end = neighbour_offsets_[t + 1];
-      for (int q = neighbour_offsets_[t]; q < end; ++q) {
-        const int s = neighbours_[static_cast<size_t>(q)];
-        const double* ns = &normals_[3 * static_cast<size_t>(s)];
-        const double dx = nt[0] - ns[0], dy = nt[1] - ns[1], dz = nt[2] - ns[2];
-        double weight;
-        sums[0] += pair(t, s, dx * dx + dy * dy + dz * dz, &weight);
-        sums[1] += weight * dx;
-        sums[2] += weight * dy;
-        sums[3] += weight * dz;
-      }
-    };
-  };
-  // The square root, φ = sqrt(d² + ε²) and w = 1/φ, two neighbours at a time in SSE2 lanes (sqrtpd, divpd):
-  // the square roots and divisions were ~1/6 of an evaluation. Correctly rounded either way and summed in
-  // the same order, so the bytes are those of the scalar loop. argument(t, s, d²) = d² + ε².
-  auto square_root = [&](auto argument) {
-    return [&, argument](int t, const double* nt, double* sums) {
-      const int begin = neighbour_offsets_[t], end = neighbour_offsets_[t + 1];
-      for (int q = begin; q < end; q += 2) {
-        const bool two = q + 1 < end;
-        const int s0 = neighbours_[static_cast<size_t>(q)];
-        const int s1 = two ? neighbours_[static_cast<size_t>(q) + 1] : s0;
-        const double* n0 = &normals_[3 * static_cast<size_t>(s0)];
-        const double* n1 = &normals_[3 * static_cast<size_t>(s1)];
-        const double dx0 = nt[0] - n0[0], dy0 = nt[1] - n0[1], dz0 = nt[2] - n0[2];
-        const double dx1 = nt[0] - n1[0], dy1 = nt[1] - n1[1], dz1 = nt[2] - n1[2];
-        const double a0 = argument(t, s0, dx0 * dx0 + dy0 * dy0 + dz0 * dz0);
-        const double a1 = argument(t, s1, dx1 * dx1 + dy1 * dy1 + dz1 * dz1);
-        double value[2], weight[2];
-#if defined(__SSE2__)
-        const __m128d v = _mm_sqrt_pd(_mm_set_pd(a1, a0));
-        _mm_storeu_pd(value, v);
-        _mm_storeu_pd(weight, _mm_div_pd(_mm_set1_pd(1.0), v));
-#else
-        value[0] = std::sqrt(a0);
-        value[1] = std::sqrt(a1);
-        weight[0] = 1.0 / value[0];
-        weight[1] = 1.0 / value[1];
-#endif
-        sums[0] += value[0];
-        sums[1] += weight[0] * dx0;
-        sums[2] += weight[0] * dy0;
-        sums[3] += weight[0] * dz0;
-        if (two) {
-          sums[0] += value[1];
-          sums[1] += weight[1] * dx1;
-          sums[2] += weight[1] * dy1;
-          sums[3] += weight[1] * dz1;
-        }
-      }
-    };
-  };
-  double prior_sum;
-  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
-  // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
-  const bool wide = WideSquareRoot();
-  if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
-#if RB_SMOOTHING_AVX512
-  if (wide) {
-    const SqrtFacePassInput input{x,
-                                  faces_.data(),
-                                  normals_.data(),
-                                  inverse_length_.data(),
-                                  neighbour_offsets_.data(),
-                                  neighbours_.data(),
-                                  face_epsilon_squared_.empty() ? nullptr : face_epsilon_squared_.data(),
-                                  sqrt_potential != nullptr ? sqrt_potential->epsilon_squared() : 0.0,
-                                  beta,
-                                  want_gradient ? h_.data() : nullptr};
-    // Same range tree as DeterministicSum, same order inside each range: the same bytes.
-    prior_sum = tbb::parallel_deterministic_reduce(
-        tbb::blocked_range<int>(0, nf, kGrain), 0.0,
-        [&](const tbb::blocked_range<int>& r, double sum) {
-          return SqrtFacePassAvx512(input, r.begin(), r.end(), sum);
-        },
-        [](double a, double b) { return a + b; });
-  } else
-#endif
   if (!face_epsilon_squared_.empty()) {
     const double* face_e2 = face_epsilon_squared_.data();
-    prior_sum = face_pass(square_root([face_e2](int t, int s, double d2) { return d2 + 0.5 * (face_e2[t] + face_e2[s]); }));
-  } else if (sqrt_potential != nullptr) {
-    const double e2 = sqrt_potential->epsilon_squared();
-    prior_sum = face_pass(square_root([e2](int, int, double d2) { return d2 + e2; }));
-  } else {
-    const Potential& potential = *potential_;
-    prior_sum = face_pass(pairwise([&potential](int, int, double d2, double* weight) {
-      double value = 0;
-      potential.EvaluateWeight(std::sqrt(d2), &value, weight);
-      return value;
-    }));
+    const auto argument = [face_e2](int t, int s, double d2) { return d2 + 0.5 * (face_e2[t] + face_e2[s]); };
+    return face_pass([&](int t, const double* nt, double* sums) { SquareRootSums(graph, t, nt, sums, argument); });
   }
+  if (const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_)) {
+    const double e2 = sqrt_potential->epsilon_squared();
+    const auto argument = [e2](int, int, double d2) { return d2 + e2; };
+    return face_pass([&](int t, const double* nt, double* sums) { SquareRootSums(graph, t, nt, sums, argument); });
+  }
+  const Potential& potential = *potential_;
+  const auto pair = [&potential](int, int, double d2, double* weight) {
+    double value = 0;
+    potential.EvaluateWeight(std::sqrt(d2), &value, weight);
+    return value;
+  };
+  return face_pass([&](int t, const double* nt, double* sums) { PairwiseSums(graph, t, nt, sums, pair); });
+}
 
-  // Pass 3: per vertex, the data term and the gather of corner contributions in corner order.
-  if (want_gradient) gradient->resize(z_.size());
-  double* grad = want_gradient ? gradient->data() : nullptr;
+// Pass 3: per vertex, the data term and the gather of corner contributions in corner order.
+double SmoothingEnergy::DataPass(const double* x, double* grad) const {
+  const int nv = num_vertices_;
   const double* contributions = h_.data();
 #if RB_SMOOTHING_AVX512
-  if (wide) {
+  if (WideSquareRoot()) {
     if (corner_edges_.size() != 2 * corners_.size()) BuildCornerEdges();  // the kernel switched after construction
-    const double data_sum = tbb::parallel_deterministic_reduce(
+    return tbb::parallel_deterministic_reduce(
         tbb::blocked_range<int>(0, nv, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
           return GatherAvx512(x, z_.data(), information_.data(), isotropic_, corner_offsets_.data(), corners_.data(),
                               corner_edges_.data(), contributions, r.begin(), r.end(), grad, sum, data_nu_);
         },
         [](double a, double b) { return a + b; });
-    return EnergyParts{data_sum, beta * prior_sum};
   }
 #endif
   const double nu = data_nu_;
-  const double data_sum = DeterministicSum(nv, [&](int i) {
+  return DeterministicSum(nv, [&](int i) {
     double w[6];
     Information(i, w);
     const double rx = x[3 * i] - z_[3 * i], ry = x[3 * i + 1] - z_[3 * i + 1], rz = x[3 * i + 2] - z_[3 * i + 2];
@@ -706,7 +726,6 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
     }
     return nu > 0 ? 0.5 * nu * std::log1p(2 * q / nu) : q;
   });
-  return EnergyParts{data_sum, beta * prior_sum};
 }
 
 void SmoothingEnergy::SetRobustData(double nu) {

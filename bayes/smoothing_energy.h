@@ -125,6 +125,11 @@ class SmoothingEnergy {
 
  private:
   void ComputeNormals(const double* x) const;
+  // Evaluate's passes after ComputeNormals: the prior sum (before β) and, when want_gradient, the corner
+  // contributions into h_; then the data sum and, when grad is not null, the gradient (3 per vertex).
+  double PriorPass(const double* x, bool want_gradient) const;
+  double PortablePriorPass(const double* x, bool want_gradient) const;
+  double DataPass(const double* x, double* grad) const;
   // Evaluate runs the wide square-root kernels (h_ then holds h_t, 3 per face).
   bool WideSquareRoot() const;
   void BuildCornerEdges() const;

@@ -9,6 +9,18 @@
 #include "core/error.h"
 
 namespace rangebayes {
+
+void ValidateMeshOptions::Check() const {
+  RB_CHECK(zero_area_relative >= 0 && zero_area_relative < 0.5, "zero_area_relative must be in [0, 0.5), got ",
+           zero_area_relative);
+}
+
+bool MeshValidation::clean() const {
+  return out_of_range_indices == 0 && degenerate_faces == 0 && zero_area_faces == 0 && duplicate_faces == 0 &&
+         non_finite_vertices == 0 && unreferenced_vertices == 0 && non_manifold_edges == 0 &&
+         non_manifold_vertices == 0 && inconsistent_edges == 0;
+}
+
 namespace {
 
 int Find(std::vector<int>& parent, int x) {
@@ -25,25 +37,13 @@ void Unite(std::vector<int>& parent, int a, int b) {
   if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
 }
 
-}  // namespace
-
-void ValidateMeshOptions::Check() const {
-  RB_CHECK(zero_area_relative >= 0 && zero_area_relative < 0.5, "zero_area_relative must be in [0, 0.5), got ",
-           zero_area_relative);
-}
-
-bool MeshValidation::clean() const {
-  return out_of_range_indices == 0 && degenerate_faces == 0 && zero_area_faces == 0 && duplicate_faces == 0 &&
-         non_finite_vertices == 0 && unreferenced_vertices == 0 && non_manifold_edges == 0 &&
-         non_manifold_vertices == 0 && inconsistent_edges == 0;
-}
-
-MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options) {
-  options.Check();
-  MeshValidation result;
+// Vertex and face counts; returns the faces fit for the edge-based checks (indices in range, three distinct
+// vertices).
+std::vector<int> CountVertexAndFaceProblems(const Mesh& mesh, const ValidateMeshOptions& options,
+                                            MeshValidation* out) {
+  MeshValidation& result = *out;
   const int64_t nv = mesh.V.rows();
   const int64_t nf = mesh.F.rows();
-
   std::vector<char> finite(static_cast<size_t>(nv), 1);
   for (int64_t v = 0; v < nv; ++v) {
     if (!mesh.V.row(v).allFinite()) {
@@ -52,7 +52,6 @@ MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options
     }
   }
 
-  // Faces fit for the edge-based checks: indices in range, three distinct vertices.
   std::vector<int> good;
   good.reserve(static_cast<size_t>(nf));
   std::vector<char> used(static_cast<size_t>(nv), 0);
@@ -88,6 +87,11 @@ MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options
   result.duplicate_faces = static_cast<int64_t>(sorted_faces.size()) -
                            (std::unique(sorted_faces.begin(), sorted_faces.end()) - sorted_faces.begin());
 
+  return good;
+}
+
+void CountEdgeProblems(const Mesh& mesh, const std::vector<int>& good, MeshValidation* out) {
+  MeshValidation& result = *out;
   // Edges: one record per face side, (low, high) with the direction the face runs along it.
   struct Side {
     int low, high, face;
@@ -117,7 +121,10 @@ MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options
     }
     i = j;
   }
+}
 
+void CountBowTies(const Mesh& mesh, const std::vector<int>& good, MeshValidation* out) {
+  MeshValidation& result = *out;
   // Fans: corners at the same vertex are joined when their faces share an edge through that vertex; a
   // vertex whose corners fall into more than one group is a bow tie.
   const size_t num_corners = 3 * good.size();
@@ -161,6 +168,16 @@ MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options
       ++result.non_manifold_vertices;
     }
   }
+}
+
+}  // namespace
+
+MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options) {
+  options.Check();
+  MeshValidation result;
+  const std::vector<int> good = CountVertexAndFaceProblems(mesh, options, &result);
+  CountEdgeProblems(mesh, good, &result);
+  CountBowTies(mesh, good, &result);
   return result;
 }
 
