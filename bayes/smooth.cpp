@@ -16,6 +16,7 @@
 #include <deque>
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/grid_hierarchy.h"
@@ -55,6 +56,15 @@ Preset PresetFor(SmoothTolerance tolerance) {
       return {0, 1e-9, 0, 20000};
   }
   return {0, 3e-4, 0, 2000};
+}
+
+// The preset of options.tolerance with the tolerances and the iteration cap that options sets explicitly.
+Preset EffectivePreset(const SmoothOptions& options) {
+  Preset preset = PresetFor(options.tolerance);
+  if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
+  if (options.gap_tolerance > 0) preset.gap = options.gap_tolerance;
+  if (options.max_iterations > 0) preset.max_iterations = options.max_iterations;
+  return preset;
 }
 
 using Clock = std::chrono::steady_clock;
@@ -252,13 +262,96 @@ struct MinimiseResult {
   EnergyParts parts;
 };
 
+// M⁻¹ of Minimise's CG. M = blockdiag(2 W_i), the data term's Hessian (exact and constant), or with `ray` the
+// Gauss–Newton matrix of the depths along the rays. It removes the conditioning that anisotropic stereo
+// covariances add; when every W_i is the same multiple of I it is a global scale, which CG does not need (then
+// active is false and z = M⁻¹ g is kept implicit: zᵀg = scale · gᵀg).
+struct CgPreconditioner {
+  const SmoothingEnergy& energy;
+  bool active = false;
+  double scale = 0;
+  RayPreconditioner* ray = nullptr;
+
+  void Apply(const Eigen::VectorXd& v, Eigen::VectorXd* out) const {
+    if (ray != nullptr) {
+      ray->Apply(v, out);
+    } else {
+      energy.ApplyDataInverse(v, out);
+    }
+  }
+};
+
+CgPreconditioner MakeCgPreconditioner(const SmoothingEnergy& energy, const SmoothOptions& options,
+                                      RayPreconditioner* ray, const Eigen::VectorXd& x) {
+  CgPreconditioner m{energy};
+  m.active = !energy.uniform_isotropic();
+  m.scale = m.active ? 0.0 : energy.UniformDataInverseScale();
+  if (m.active && options.precondition_rays && ray != nullptr && ray->Update(x)) m.ray = ray;
+  return m;
+}
+
+// The first step length tried along p: the last step scaled by the slopes' ratio; with the ray preconditioner
+// p = −M⁻¹g with M ≈ the Hessian, so 1 (a Gauss–Newton step); else the minimum of the data term along p.
+double InitialStep(double alpha_prev, double slope_prev, double slope, const CgPreconditioner& m,
+                   const Eigen::VectorXd& p) {
+  if (alpha_prev > 0 && slope_prev < 0) return alpha_prev * std::min(slope_prev / slope, 10.0);
+  if (m.ray != nullptr) return 1;
+  const double curvature = m.energy.DataCurvature(p);
+  return curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
+}
+
+// PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner). Returns
+// β before the max; z becomes M⁻¹ g_new, gg its ‖g_new‖², zg its z_newᵀg_new.
+double PolakRibiere(const CgPreconditioner& m, const Eigen::VectorXd& g_new, const Eigen::VectorXd& g,
+                    Eigen::VectorXd* z, double* gg, double* zg) {
+  if (m.active) {
+    m.Apply(g_new, z);
+    const auto [zg_next, zg_cross] = DotPair(*z, g_new, g);
+    const double beta = (zg_next - zg_cross) / *zg;
+    *zg = zg_next;
+    *gg = Dot(g_new, g_new);
+    return beta;
+  }
+  const auto [gg_new, gg_cross] = DotPair(g_new, g_new, g);
+  const double beta = (gg_new - gg_cross) / *gg;
+  *gg = gg_new;
+  *zg = m.scale * *gg;
+  return beta;
+}
+
+// After an iteration that reached energy e (already in summary->energy): records the distance estimate,
+// reports progress, and returns the termination that ends the solve now, if any.
+std::optional<SmoothTermination> StopAfter(const Preset& preset, const SmoothOptions& options, int iteration,
+                                           int max_iterations, double e, double gradient_stop,
+                                           Clock::time_point deadline, double* first_remaining,
+                                           SmoothSummary* summary) {
+  const double remaining = RemainingDecrease(summary->energy);
+  summary->remaining_decrease = remaining;
+  const double relative_remaining = remaining / std::max(std::abs(e), 1e-300);
+  if (*first_remaining < 0 && std::isfinite(relative_remaining)) *first_remaining = relative_remaining;
+  const int count = static_cast<int>(summary->energy.size());
+  double decrease = -1;
+  if (count > kWindow) {
+    const double old = summary->energy[static_cast<size_t>(count - 1 - kWindow)];
+    decrease = (old - e) / std::max(std::abs(e), 1e-300) / kWindow;
+  }
+  if (options.progress) {
+    options.progress(ProgressFraction(*first_remaining, relative_remaining, preset.gap > 0 ? preset.gap : preset.energy,
+                                      iteration, max_iterations),
+                     "smoothing");
+  }
+  if (preset.gap > 0 && relative_remaining <= preset.gap) return SmoothTermination::kOptimalityGapConverged;
+  if (preset.energy > 0 && decrease >= 0 && decrease < preset.energy) return SmoothTermination::kEnergyConverged;
+  if (summary->final_gradient_norm <= gradient_stop) return SmoothTermination::kGradientConverged;
+  if (Clock::now() >= deadline) return SmoothTermination::kTimeLimit;
+  return std::nullopt;
+}
+
 MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::time_point deadline,
                         SmoothSummary* summary, const Eigen::VectorXd* start = nullptr,
                         RayPreconditioner* ray = nullptr) {
-  Preset preset = PresetFor(options.tolerance);
-  if (options.energy_tolerance > 0) preset.energy = options.energy_tolerance;
-  if (options.gap_tolerance > 0) preset.gap = options.gap_tolerance;
-  const int max_iterations = options.max_iterations > 0 ? options.max_iterations : preset.max_iterations;
+  const Preset preset = EffectivePreset(options);
+  const int max_iterations = preset.max_iterations;
   const SmoothingEnergy& energy = problem.energy();
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(energy.num_vertices());
   const int restart_every = std::max(50, static_cast<int>(n));
@@ -274,24 +367,11 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
   summary->initial_gradient_norm = std::sqrt(gg);
   summary->final_gradient_norm = summary->initial_gradient_norm;
   summary->termination = SmoothTermination::kMaxIterations;
-  // The preconditioner M = blockdiag(2 W_i), the data term's Hessian (exact and constant). It removes the
-  // conditioning that anisotropic stereo covariances add; when every W_i is the same multiple of I it is a
-  // global scale, which CG does not need (then z = M⁻¹ g is kept implicit).
-  const bool precondition = !energy.uniform_isotropic();
-  const double scale = precondition ? 0.0 : energy.UniformDataInverseScale();
+  CgPreconditioner m = MakeCgPreconditioner(energy, options, ray, x);
   Eigen::VectorXd z;
-  if (!precondition || !options.precondition_rays) ray = nullptr;
-  if (ray != nullptr && !ray->Update(x)) ray = nullptr;
-  auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
-    if (ray) {
-      ray->Apply(v, out);
-    } else {
-      energy.ApplyDataInverse(v, out);
-    }
-  };
-  if (precondition) apply(g, &z);
-  const Eigen::VectorXd& zg = precondition ? z : g;  // the preconditioned gradient (g itself without)
-  double zg_old = precondition ? Dot(z, g) : scale * gg;
+  if (m.active) m.Apply(g, &z);
+  const Eigen::VectorXd& zg = m.active ? z : g;  // the preconditioned gradient (g itself without)
+  double zg_old = m.active ? Dot(z, g) : m.scale * gg;
   if (!(summary->initial_gradient_norm > 0)) {
     summary->termination = SmoothTermination::kGradientConverged;
     return {x, parts};
@@ -314,17 +394,9 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
       ++summary->restarts;
       since_restart = 0;
     }
-    double alpha_init;
-    if (alpha_prev > 0 && slope_prev < 0) {
-      alpha_init = alpha_prev * std::min(slope_prev / slope, 10.0);
-    } else if (ray != nullptr) {
-      alpha_init = 1;  // p = −M⁻¹g with M ≈ the Hessian: a Gauss–Newton step
-    } else {
-      const double curvature = energy.DataCurvature(p);
-      alpha_init = curvature > 0 ? -slope / curvature : 1.0 / std::sqrt(-slope);
-    }
+    const double alpha_init = InitialStep(alpha_prev, slope_prev, slope, m, p);
     const double c2 = options.line_search_c2 > 0 ? options.line_search_c2
-                                                  : ray != nullptr ? kRayLineSearchC2 : kLineSearchC2;
+                                                  : m.ray != nullptr ? kRayLineSearchC2 : kLineSearchC2;
     LineSearchResult step = LineSearch(problem, x, p, e, slope, alpha_init, c2, &x_new, &g_new);
     if (!step.success) {
       if (since_restart == 0) {
@@ -339,68 +411,27 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
       --iteration;
       continue;
     }
-    const double e_new = step.energy;
     summary->iterations = iteration;
     x.swap(x_new);
-    // PR+ (preconditioned): β = max(0, z_newᵀ(g_new − g) / zᵀg), z = M⁻¹ g (z = g without a preconditioner).
-    double beta_pr, zg_new;
     // A new M (the Gauss–Newton matrix at the current state) every kRayRefreshIterations: CG restarts on it.
-    const bool refreshed = ray != nullptr && iteration % kRayRefreshIterations == 0;
+    const bool refreshed = m.ray != nullptr && iteration % kRayRefreshIterations == 0;
     if (refreshed) {
-      if (!ray->Update(x)) ray = nullptr;
+      if (!m.ray->Update(x)) m.ray = nullptr;
       since_restart = restart_every;
     }
-    if (precondition) {
-      apply(g_new, &z);
-      const auto [zg_next, zg_cross] = DotPair(z, g_new, g);
-      beta_pr = (zg_next - zg_cross) / zg_old;
-      zg_new = zg_next;
-      gg = Dot(g_new, g_new);
-    } else {
-      const auto [gg_new, gg_cross] = DotPair(g_new, g_new, g);
-      beta_pr = (gg_new - gg_cross) / gg;
-      gg = gg_new;
-      zg_new = scale * gg;
-    }
-    zg_old = zg_new;
+    const double beta_pr = PolakRibiere(m, g_new, g, &z, &gg, &zg_old);
     g.swap(g_new);
     alpha_prev = refreshed ? 0 : step.alpha;
     slope_prev = slope;
-    e = e_new;
+    e = step.energy;
     parts = step.parts;
     summary->energy.push_back(e);
     summary->final_gradient_norm = std::sqrt(gg);
     ++since_restart;
 
-    const double remaining = RemainingDecrease(summary->energy);
-    summary->remaining_decrease = remaining;
-    const double relative_remaining = remaining / std::max(std::abs(e), 1e-300);
-    if (first_remaining < 0 && std::isfinite(relative_remaining)) first_remaining = relative_remaining;
-    const int count = static_cast<int>(summary->energy.size());
-    double decrease = -1;
-    if (count > kWindow) {
-      const double old = summary->energy[static_cast<size_t>(count - 1 - kWindow)];
-      decrease = (old - e) / std::max(std::abs(e), 1e-300) / kWindow;
-    }
-    if (options.progress) {
-      options.progress(ProgressFraction(first_remaining, relative_remaining, preset.gap > 0 ? preset.gap : preset.energy,
-                                        iteration, max_iterations),
-                       "smoothing");
-    }
-    if (preset.gap > 0 && relative_remaining <= preset.gap) {
-      summary->termination = SmoothTermination::kOptimalityGapConverged;
-      break;
-    }
-    if (preset.energy > 0 && decrease >= 0 && decrease < preset.energy) {
-      summary->termination = SmoothTermination::kEnergyConverged;
-      break;
-    }
-    if (summary->final_gradient_norm <= gradient_stop) {
-      summary->termination = SmoothTermination::kGradientConverged;
-      break;
-    }
-    if (Clock::now() >= deadline) {
-      summary->termination = SmoothTermination::kTimeLimit;
+    if (const auto stop = StopAfter(preset, options, iteration, max_iterations, e, gradient_stop, deadline,
+                                    &first_remaining, summary)) {
+      summary->termination = *stop;
       break;
     }
     if (since_restart >= restart_every) {
@@ -412,7 +443,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
       slope_known = true;
     }
   }
-  if (ray != nullptr) summary->memory_bytes += ray->MemoryBytes();
+  if (m.ray != nullptr) summary->memory_bytes += m.ray->MemoryBytes();
   summary->memory_bytes += static_cast<size_t>(n) * sizeof(double) * 5 + sizeof(double) * static_cast<size_t>(z.size());
   return {x, parts};
 }
