@@ -373,17 +373,34 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   RB_CHECK(prior_weight >= 0 && std::isfinite(prior_weight), "smoothing: prior weight ", prior_weight,
            " must be finite and non-negative");
   RB_CHECK(measured.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
-  if (face_epsilon_squared != nullptr) {
-    RB_CHECK(dynamic_cast<const SqrtPotential*>(&potential) != nullptr,
-             "smoothing: a per-face epsilon_squared needs the square-root potential, not ", potential.Name());
-    RB_CHECK(static_cast<int>(face_epsilon_squared->size()) == nf, "smoothing: ", face_epsilon_squared->size(),
-             " per-face epsilon_squared values for ", nf, " faces");
-    for (int f = 0; f < nf; ++f) {
-      const double e2 = (*face_epsilon_squared)[static_cast<size_t>(f)];
-      RB_CHECK(e2 > 0 && e2 <= 4, "smoothing: epsilon_squared of face ", f, " is ", e2, ", outside (0, 4]");
-    }
-    face_epsilon_squared_ = *face_epsilon_squared;
+  if (face_epsilon_squared != nullptr) SetFaceEpsilonSquared(*face_epsilon_squared);
+  SetInformation(information);
+  MarkActiveFaces();
+  BuildCorners();
+  BuildFaceNeighbours();
+  normals_.assign(3 * static_cast<size_t>(nf), 0.0);
+  inverse_length_.assign(static_cast<size_t>(nf), 0.0);
+  // 3 per face for the wide square-root path; Evaluate grows it to 9 when it runs the portable one.
+  h_.assign((WideSquareRoot() ? 3 : 9) * static_cast<size_t>(nf), 0.0);
+  if (WideSquareRoot()) BuildCornerEdges();
+}
+
+void SmoothingEnergy::SetFaceEpsilonSquared(const std::vector<double>& face_epsilon_squared) {
+  const int nf = num_faces();
+  const Potential& potential = *potential_;
+  RB_CHECK(dynamic_cast<const SqrtPotential*>(&potential) != nullptr,
+           "smoothing: a per-face epsilon_squared needs the square-root potential, not ", potential.Name());
+  RB_CHECK(static_cast<int>(face_epsilon_squared.size()) == nf, "smoothing: ", face_epsilon_squared.size(),
+           " per-face epsilon_squared values for ", nf, " faces");
+  for (int f = 0; f < nf; ++f) {
+    const double e2 = face_epsilon_squared[static_cast<size_t>(f)];
+    RB_CHECK(e2 > 0 && e2 <= 4, "smoothing: epsilon_squared of face ", f, " is ", e2, ", outside (0, 4]");
   }
+  face_epsilon_squared_ = face_epsilon_squared;
+}
+
+void SmoothingEnergy::SetInformation(const std::vector<Eigen::Matrix3d>& information) {
+  const int nv = num_vertices_;
   // Isotropic W_i = w_i I (every generic mesh) is stored as one number per vertex instead of six.
   isotropic_ = true;
   for (int i = 0; i < nv && isotropic_; ++i) {
@@ -412,8 +429,11 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
     w[4] = 0.5 * (W(1, 2) + W(2, 1));
     w[5] = W(2, 2);
   }
+}
 
-  // Active faces: distinct indices and a measured area that is not negligible.
+// Active faces: distinct indices and a measured area that is not negligible.
+void SmoothingEnergy::MarkActiveFaces() {
+  const int nv = num_vertices_, nf = num_faces();
   active_.assign(static_cast<size_t>(nf), 1);
   std::vector<double> area2(static_cast<size_t>(nf), 0.0);
   double sum_area2 = 0;
@@ -438,8 +458,11 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
     }
     if (!active_[static_cast<size_t>(f)]) ++num_inactive_faces_;
   }
+}
 
-  // Vertex → corners of active faces, ascending.
+// Vertex → corners of active faces, ascending.
+void SmoothingEnergy::BuildCorners() {
+  const int nv = num_vertices_, nf = num_faces();
   corner_offsets_.assign(static_cast<size_t>(nv) + 1, 0);
   for (int f = 0; f < nf; ++f) {
     if (!active_[static_cast<size_t>(f)]) continue;
@@ -447,74 +470,68 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   }
   for (int v = 0; v < nv; ++v) corner_offsets_[v + 1] += corner_offsets_[v];
   corners_.resize(static_cast<size_t>(corner_offsets_[nv]));
-  {
-    std::vector<int> fill(corner_offsets_.begin(), corner_offsets_.end() - 1);
-    for (int f = 0; f < nf; ++f) {
-      if (!active_[static_cast<size_t>(f)]) continue;
-      for (int k = 0; k < 3; ++k) corners_[static_cast<size_t>(fill[faces_(f, k)]++)] = 3 * f + k;
-    }
+  std::vector<int> fill(corner_offsets_.begin(), corner_offsets_.end() - 1);
+  for (int f = 0; f < nf; ++f) {
+    if (!active_[static_cast<size_t>(f)]) continue;
+    for (int k = 0; k < 3; ++k) corners_[static_cast<size_t>(fill[faces_(f, k)]++)] = 3 * f + k;
   }
+}
 
-  // Face adjacency over active faces (the pairs of ComputeFacePairs, both directions, each row ascending):
-  // the active faces around an edge's first vertex that also hold its second. Linear time through the
-  // corner lists above, where the sort in ComputeEdgeTopology took a third of the setup at 1M faces.
-  {
-    auto collect = [&](int t, std::vector<int>* out) {
-      out->clear();
-      if (!active_[static_cast<size_t>(t)]) return;
-      for (int k = 0; k < 3; ++k) {
-        const int u = faces_(t, k), v = faces_(t, k == 2 ? 0 : k + 1);
-        for (int q = corner_offsets_[u]; q < corner_offsets_[u + 1]; ++q) {
-          const int s = corners_[static_cast<size_t>(q)] / 3;
-          if (s != t && (faces_(s, 0) == v || faces_(s, 1) == v || faces_(s, 2) == v)) out->push_back(s);
-        }
+// Face adjacency over active faces (the pairs of ComputeFacePairs, both directions, each row ascending):
+// the active faces around an edge's first vertex that also hold its second. Linear time through the
+// corner lists above, where the sort in ComputeEdgeTopology took a third of the setup at 1M faces.
+void SmoothingEnergy::BuildFaceNeighbours() {
+  const int nf = num_faces();
+  auto collect = [&](int t, std::vector<int>* out) {
+    out->clear();
+    if (!active_[static_cast<size_t>(t)]) return;
+    for (int k = 0; k < 3; ++k) {
+      const int u = faces_(t, k), v = faces_(t, k == 2 ? 0 : k + 1);
+      for (int q = corner_offsets_[u]; q < corner_offsets_[u + 1]; ++q) {
+        const int s = corners_[static_cast<size_t>(q)] / 3;
+        if (s != t && (faces_(s, 0) == v || faces_(s, 1) == v || faces_(s, 2) == v)) out->push_back(s);
       }
-      std::sort(out->begin(), out->end());
-      out->erase(std::unique(out->begin(), out->end()), out->end());  // two faces sharing two edges: one pair
-    };
-    // One search per face into three slots per face (every face of a manifold mesh has at most three
-    // neighbours), compacted in place; a second search only for faces with more (non-manifold edges).
-    neighbour_offsets_.assign(static_cast<size_t>(nf) + 1, 0);
-    neighbours_.resize(3 * static_cast<size_t>(nf));
+    }
+    std::sort(out->begin(), out->end());
+    out->erase(std::unique(out->begin(), out->end()), out->end());  // two faces sharing two edges: one pair
+  };
+  // One search per face into three slots per face (every face of a manifold mesh has at most three
+  // neighbours), compacted in place; a second search only for faces with more (non-manifold edges).
+  neighbour_offsets_.assign(static_cast<size_t>(nf) + 1, 0);
+  neighbours_.resize(3 * static_cast<size_t>(nf));
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+    std::vector<int> buffer;
+    for (int t = r.begin(); t != r.end(); ++t) {
+      collect(t, &buffer);
+      neighbour_offsets_[static_cast<size_t>(t) + 1] = static_cast<int>(buffer.size());
+      std::copy_n(buffer.begin(), std::min<size_t>(buffer.size(), 3), neighbours_.begin() + 3 * static_cast<size_t>(t));
+    }
+  });
+  bool all_fit = true;
+  for (int f = 0; f < nf; ++f) {
+    all_fit = all_fit && neighbour_offsets_[f + 1] <= 3;
+    neighbour_offsets_[f + 1] += neighbour_offsets_[f];
+  }
+  if (all_fit) {
+    // offsets[f] ≤ 3f: moving left in increasing f never overwrites a slot not yet moved.
+    for (int f = 0; f < nf; ++f) {
+      const int count = neighbour_offsets_[f + 1] - neighbour_offsets_[f];
+      for (int k = 0; k < count; ++k) {
+        neighbours_[static_cast<size_t>(neighbour_offsets_[f] + k)] = neighbours_[3 * static_cast<size_t>(f) + k];
+      }
+    }
+    neighbours_.resize(static_cast<size_t>(neighbour_offsets_[nf]));
+    neighbours_.shrink_to_fit();
+  } else {
+    neighbours_.assign(static_cast<size_t>(neighbour_offsets_[nf]), 0);
     tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
       std::vector<int> buffer;
       for (int t = r.begin(); t != r.end(); ++t) {
         collect(t, &buffer);
-        neighbour_offsets_[static_cast<size_t>(t) + 1] = static_cast<int>(buffer.size());
-        std::copy_n(buffer.begin(), std::min<size_t>(buffer.size(), 3), neighbours_.begin() + 3 * static_cast<size_t>(t));
+        std::copy(buffer.begin(), buffer.end(), neighbours_.begin() + neighbour_offsets_[static_cast<size_t>(t)]);
       }
     });
-    bool all_fit = true;
-    for (int f = 0; f < nf; ++f) {
-      all_fit = all_fit && neighbour_offsets_[f + 1] <= 3;
-      neighbour_offsets_[f + 1] += neighbour_offsets_[f];
-    }
-    if (all_fit) {
-      // offsets[f] ≤ 3f: moving left in increasing f never overwrites a slot not yet moved.
-      for (int f = 0; f < nf; ++f) {
-        const int count = neighbour_offsets_[f + 1] - neighbour_offsets_[f];
-        for (int k = 0; k < count; ++k) {
-          neighbours_[static_cast<size_t>(neighbour_offsets_[f] + k)] = neighbours_[3 * static_cast<size_t>(f) + k];
-        }
-      }
-      neighbours_.resize(static_cast<size_t>(neighbour_offsets_[nf]));
-      neighbours_.shrink_to_fit();
-    } else {
-      neighbours_.assign(static_cast<size_t>(neighbour_offsets_[nf]), 0);
-      tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
-        std::vector<int> buffer;
-        for (int t = r.begin(); t != r.end(); ++t) {
-          collect(t, &buffer);
-          std::copy(buffer.begin(), buffer.end(), neighbours_.begin() + neighbour_offsets_[static_cast<size_t>(t)]);
-        }
-      });
-    }
   }
-  normals_.assign(3 * static_cast<size_t>(nf), 0.0);
-  inverse_length_.assign(static_cast<size_t>(nf), 0.0);
-  // 3 per face for the wide square-root path; Evaluate grows it to 9 when it runs the portable one.
-  h_.assign((WideSquareRoot() ? 3 : 9) * static_cast<size_t>(nf), 0.0);
-  if (WideSquareRoot()) BuildCornerEdges();
 }
 
 void SmoothingEnergy::BuildCornerEdges() const {

@@ -124,6 +124,12 @@ class SmoothingEnergy {
   size_t MemoryBytes() const;
 
  private:
+  // The constructor's steps, in this order.
+  void SetFaceEpsilonSquared(const std::vector<double>& face_epsilon_squared);
+  void SetInformation(const std::vector<Eigen::Matrix3d>& information);
+  void MarkActiveFaces();
+  void BuildCorners();
+  void BuildFaceNeighbours();
   void ComputeNormals(const double* x) const;
   // Evaluate's passes after ComputeNormals: the prior sum (before β) and, when want_gradient, the corner
   // contributions into h_; then the data sum and, when grad is not null, the gradient (3 per vertex).
