@@ -352,13 +352,14 @@ std::vector<CalibrationImagePair> PairCalibrationImages(const std::vector<std::s
 
 namespace {
 
-StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
-                                StereoCalibrationSummary* summary, const ProgressCallback& progress) {
-  const BoardModel board = MakeBoard(options.board);
-  StereoCalibrationSummary local;
-  StereoCalibrationSummary& sum = summary ? *summary : local;
-  sum = StereoCalibrationSummary{};
-  cv::Size size;
+// Detects the board in every pair (a view per pair in sum->views, with the reason when it is skipped); the
+// pairs seen in both images, their corners in the same order. size: the images' size.
+std::vector<PairDetection> DetectPairs(const std::vector<CalibrationImagePair>& pairs,
+                                       const StereoCalibrationOptions& options, const BoardModel& board,
+                                       const ProgressCallback& progress, cv::Size* size_out,
+                                       StereoCalibrationSummary* summary) {
+  StereoCalibrationSummary& sum = *summary;
+  cv::Size& size = *size_out;
   std::vector<PairDetection> found;
   for (size_t i = 0; i < pairs.size(); ++i) {
     if (progress) progress(static_cast<double>(i) / static_cast<double>(pairs.size() + 1), "detecting boards");
@@ -397,11 +398,16 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
     sum.views.push_back(view);
     found.push_back(std::move(p));
   }
-  sum.pairs_found = static_cast<int>(found.size());
-  RB_CHECK(sum.pairs_found >= options.min_pairs, "only ", sum.pairs_found, " of ", pairs.size(),
-           " image pairs show the board in both images; at least ", options.min_pairs, " are needed");
+  return found;
+}
 
-  if (progress) progress(0.8, "calibrating");
+// Calibrates on the found pairs, flags views whose stereo RMS is far above the median (median + k·MAD), and
+// when options.drop_outliers calibrates again without them. Returns the calibration; kept: the views it used.
+StageResult CalibrateDroppingOutliers(const std::vector<PairDetection>& found, const cv::Size& size,
+                                      const StereoCalibrationOptions& options, std::vector<PairDetection>* kept_out,
+                                      StereoCalibrationSummary* summary) {
+  StereoCalibrationSummary& sum = *summary;
+  std::vector<PairDetection>& kept = *kept_out;
   StageResult stage = Calibrate(found, size, options);
   sum.rms_stereo_all_px = stage.rms_stereo;
   sum.median_view_rms_px = Median(stage.view_stereo);
@@ -410,7 +416,6 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
   const double sigma_mad = 1.4826 * Median(deviations);
   sum.flag_threshold_px = std::max(sum.median_view_rms_px + options.outlier_mad_factor * sigma_mad,
                                    options.outlier_min_ratio * sum.median_view_rms_px);
-  std::vector<PairDetection> kept;
   for (size_t i = 0; i < found.size(); ++i) {
     CalibrationView& v = sum.views[static_cast<size_t>(found[i].index)];
     v.flagged = stage.view_stereo[i] > sum.flag_threshold_px;
@@ -439,15 +444,14 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
   sum.rms_left_px = stage.rms_left;
   sum.rms_right_px = stage.rms_right;
   sum.rms_stereo_px = stage.rms_stereo;
+  return stage;
+}
 
-  cv::Mat R1, R2, P1, P2, Q;
-  try {
-    cv::stereoRectify(stage.K_left, stage.D_left, stage.K_right, stage.D_right, size, stage.R, stage.T, R1, R2, P1, P2,
-                      Q, cv::CALIB_ZERO_DISPARITY, 0.0);
-  } catch (const cv::Exception& e) {
-    RB_FAIL("stereo rectification failed in OpenCV (", e.err, ")");
-  }
-
+// The rectified corners' vertical disagreement (mean and max) and the board's coverage of each image.
+void MeasureRectification(const std::vector<PairDetection>& kept, const StageResult& stage, const cv::Mat& R1,
+                          const cv::Mat& R2, const cv::Mat& P1, const cv::Mat& P2, const cv::Size& size,
+                          const StereoCalibrationOptions& options, StereoCalibrationSummary* summary) {
+  StereoCalibrationSummary& sum = *summary;
   std::vector<std::vector<cv::Point2f>> all_left, all_right;
   double sum_dy = 0, max_dy = 0;
   size_t count = 0;
@@ -468,7 +472,11 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
   sum.epipolar_error_max_px = max_dy;
   Coverage(all_left, size, options.coverage_grid, &sum.coverage_left, &sum.grid_coverage_left);
   Coverage(all_right, size, options.coverage_grid, &sum.coverage_right, &sum.grid_coverage_right);
+}
 
+StereoRig MakeRig(const StageResult& stage, const cv::Mat& R1, const cv::Mat& R2, const cv::Mat& P1,
+                  const cv::Mat& P2, const cv::Mat& Q, const cv::Size& size, const std::vector<PairDetection>& kept,
+                  const StereoCalibrationSummary& sum) {
   StereoRig rig;
   rig.width = size.width;
   rig.height = size.height;
@@ -497,6 +505,33 @@ StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, 
     rig.view_names.push_back(std::filesystem::path(v.left).filename().string());
     rig.view_rms_stereo_px.push_back(v.rms_stereo_px);
   }
+  return rig;
+}
+
+StereoRig CalibrateWithDetector(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
+                                StereoCalibrationSummary* summary, const ProgressCallback& progress) {
+  const BoardModel board = MakeBoard(options.board);
+  StereoCalibrationSummary local;
+  StereoCalibrationSummary& sum = summary ? *summary : local;
+  sum = StereoCalibrationSummary{};
+  cv::Size size;
+  const std::vector<PairDetection> found = DetectPairs(pairs, options, board, progress, &size, &sum);
+  sum.pairs_found = static_cast<int>(found.size());
+  RB_CHECK(sum.pairs_found >= options.min_pairs, "only ", sum.pairs_found, " of ", pairs.size(),
+           " image pairs show the board in both images; at least ", options.min_pairs, " are needed");
+
+  if (progress) progress(0.8, "calibrating");
+  std::vector<PairDetection> kept;
+  const StageResult stage = CalibrateDroppingOutliers(found, size, options, &kept, &sum);
+  cv::Mat R1, R2, P1, P2, Q;
+  try {
+    cv::stereoRectify(stage.K_left, stage.D_left, stage.K_right, stage.D_right, size, stage.R, stage.T, R1, R2, P1, P2,
+                      Q, cv::CALIB_ZERO_DISPARITY, 0.0);
+  } catch (const cv::Exception& e) {
+    RB_FAIL("stereo rectification failed in OpenCV (", e.err, ")");
+  }
+  MeasureRectification(kept, stage, R1, R2, P1, P2, size, options, &sum);
+  StereoRig rig = MakeRig(stage, R1, R2, P1, P2, Q, size, kept, sum);
   if (progress) progress(1.0, "calibrating");
   sum.detector_used = options.board.detector;
   return rig;
