@@ -302,12 +302,11 @@ void WriteDisparityNoiseModel(const DisparityNoiseModel& model, const std::strin
   if (model.window_px > 0) fs << "window_px" << model.window_px;
 }
 
-DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options,
-                                           NoiseFitSummary* summary) {
-  options.Check();
-  NoiseFitSummary local;
-  NoiseFitSummary& sum = summary ? *summary : local;
-  sum = NoiseFitSummary{};
+namespace {
+
+// The samples a fit of options.form can use (finite residual; for the richer forms a predicted σ too),
+// thinned evenly to options.max_samples.
+std::vector<NoiseSample> UsableSamples(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options) {
   std::vector<NoiseSample> valid;
   for (const NoiseSample& s : samples) {
     if (!std::isfinite(s.residual_px)) continue;
@@ -324,80 +323,72 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     for (int i = 0; i < options.max_samples; ++i) thinned.push_back(valid[static_cast<size_t>(i * step)]);
     valid.swap(thinned);
   }
-  std::vector<double> r, pred, absr, jump;
-  for (const NoiseSample& s : valid) {
-    r.push_back(s.residual_px);
-    pred.push_back(s.sigma_pred_px);
-    jump.push_back(std::isfinite(s.jump_px) ? s.jump_px : 0.0);
-    absr.push_back(std::abs(s.residual_px));
-  }
-  double range = options.outlier_range_px;
-  if (range <= 0) range = *std::max_element(absr.begin(), absr.end());
-  range = std::max(range, 1e-6);
-  sum.robust_sigma_px = 1.4826 * Median(absr);
+  return valid;
+}
 
-  const ConstantFit constant = FitConstant(r, range);
-  sum.constant_sigma_px = constant.sigma;
+// The residuals of the usable samples and what the richer forms scale with.
+struct NoiseColumns {
+  std::vector<double> r, pred, jump;
+};
 
-  DisparityNoiseModel model;
-  model.form = options.form;
-  model.samples = static_cast<int>(valid.size());
-  // Starts of the richer forms: the constant fit's σ and outlier share (as a logit).
-  const double s0 = constant.sigma;
-  const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
-  if (options.form == NoiseForm::kConstant) {
-    model.sigma_px = constant.sigma;
-    model.outlier_fraction = constant.eps;
-    sum.log_likelihood = -constant.nll;
-    sum.iterations = constant.iterations;
-  } else if (options.form == NoiseForm::kLearned) {
-    const double med_pred = std::max(Median(pred), 1e-6);
-    double mean_jump = 0;
-    for (double j : jump) mean_jump += j / static_cast<double>(jump.size());
-    mean_jump = std::max(mean_jump, 1e-3);
-    const auto f = [&](const Vec<4>& p) {
-      const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1])), c = std::exp(Clamp(p[2]));
-      return MixtureNll(
-          r,
-          [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
-          Logistic(p[3]), range);
-    };
-    const std::array<Vec<4>, 3> starts = {
-        Vec<4>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), std::log(0.1 * s0 / mean_jump), e0},
-        Vec<4>{std::log(0.5 * s0), std::log(0.7 * s0 / med_pred), std::log(0.5 * s0 / mean_jump), e0},
-        Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
-    double best_nll = 0;
-    const Vec<4> best = BestOfStarts<4>(f, starts, 2500, &sum.iterations, &best_nll);
-    model.floor_px = std::exp(Clamp(best[0]));
-    model.scale = std::exp(Clamp(best[1]));
-    model.jump_scale = std::exp(Clamp(best[2]));
-    model.outlier_fraction = Logistic(best[3]);
-    model.sigma_px = constant.sigma;
-    sum.log_likelihood = -best_nll;
-  } else {
-    const double med_pred = std::max(Median(pred), 1e-6);
-    const auto f = [&](const Vec<3>& p) {
-      const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1]));
-      return MixtureNll(
-          r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range);
-    };
-    // Three starts: mostly floor, balanced, mostly scale; the likelihood can have a shallow second basin.
-    const std::array<Vec<3>, 3> starts = {Vec<3>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), e0},
-                                          Vec<3>{std::log(0.7 * s0), std::log(0.7 * s0 / med_pred), e0},
-                                          Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
-    double best_nll = 0;
-    const Vec<3> best = BestOfStarts<3>(f, starts, 1500, &sum.iterations, &best_nll);
-    model.floor_px = std::exp(Clamp(best[0]));
-    model.scale = std::exp(Clamp(best[1]));
-    model.outlier_fraction = Logistic(best[2]);
-    model.sigma_px = constant.sigma;
-    sum.log_likelihood = -best_nll;
-  }
-  model.sigma_px = std::max(model.sigma_px, options.min_sigma_px);
-  model.floor_px = std::max(model.floor_px, options.min_sigma_px);
-  sum.outlier_fraction = model.outlier_fraction;
+// The learned form, σ = sqrt(floor² + (scale·σ_pred)² + (jump_scale·jump)²) plus outliers: the best of three
+// starts, which begin at s0 (the constant fit's σ) and e0 (its outlier share, as a logit).
+void FitLearned(const NoiseColumns& columns, double range, double s0, double e0, DisparityNoiseModel* model,
+                NoiseFitSummary* sum) {
+  const std::vector<double>& r = columns.r;
+  const std::vector<double>& pred = columns.pred;
+  const std::vector<double>& jump = columns.jump;
+  const double med_pred = std::max(Median(pred), 1e-6);
+  double mean_jump = 0;
+  for (double j : jump) mean_jump += j / static_cast<double>(jump.size());
+  mean_jump = std::max(mean_jump, 1e-3);
+  const auto f = [&](const Vec<4>& p) {
+    const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1])), c = std::exp(Clamp(p[2]));
+    return MixtureNll(
+        r,
+        [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
+        Logistic(p[3]), range);
+  };
+  const std::array<Vec<4>, 3> starts = {
+      Vec<4>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), std::log(0.1 * s0 / mean_jump), e0},
+      Vec<4>{std::log(0.5 * s0), std::log(0.7 * s0 / med_pred), std::log(0.5 * s0 / mean_jump), e0},
+      Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
+  double best_nll = 0;
+  const Vec<4> best = BestOfStarts<4>(f, starts, 2500, &sum->iterations, &best_nll);
+  model->floor_px = std::exp(Clamp(best[0]));
+  model->scale = std::exp(Clamp(best[1]));
+  model->jump_scale = std::exp(Clamp(best[2]));
+  model->outlier_fraction = Logistic(best[3]);
+  sum->log_likelihood = -best_nll;
+}
 
-  // Depth check: constant σ per equal-count depth bin, then a least-squares line through the bins.
+// The floor-and-scale form, σ = sqrt(floor² + (scale·σ_pred)²) plus outliers; s0 and e0 as in FitLearned.
+void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, double e0, DisparityNoiseModel* model,
+                      NoiseFitSummary* sum) {
+  const std::vector<double>& r = columns.r;
+  const std::vector<double>& pred = columns.pred;
+  const double med_pred = std::max(Median(pred), 1e-6);
+  const auto f = [&](const Vec<3>& p) {
+    const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1]));
+    return MixtureNll(
+        r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range);
+  };
+  // Three starts: mostly floor, balanced, mostly scale; the likelihood can have a shallow second basin.
+  const std::array<Vec<3>, 3> starts = {Vec<3>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), e0},
+                                        Vec<3>{std::log(0.7 * s0), std::log(0.7 * s0 / med_pred), e0},
+                                        Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
+  double best_nll = 0;
+  const Vec<3> best = BestOfStarts<3>(f, starts, 1500, &sum->iterations, &best_nll);
+  model->floor_px = std::exp(Clamp(best[0]));
+  model->scale = std::exp(Clamp(best[1]));
+  model->outlier_fraction = Logistic(best[2]);
+  sum->log_likelihood = -best_nll;
+}
+
+// Depth check: constant σ per equal-count depth bin, then a least-squares line through the bins.
+void FitDepthTrend(const std::vector<NoiseSample>& valid, double range, const NoiseFitOptions& options,
+                   NoiseFitSummary* summary) {
+  NoiseFitSummary& sum = *summary;
   std::vector<size_t> order;
   for (size_t i = 0; i < valid.size(); ++i)
     if (std::isfinite(valid[i].depth_m)) order.push_back(i);
@@ -435,6 +426,52 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     const double den = sw * sxx - sx * sx;
     sum.depth_slope_px_per_m = den > 1e-12 * sw * sw ? (sw * sxy - sx * sy) / den : 0.0;
   }
+}
+
+}  // namespace
+
+DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& samples, const NoiseFitOptions& options,
+                                           NoiseFitSummary* summary) {
+  options.Check();
+  NoiseFitSummary local;
+  NoiseFitSummary& sum = summary ? *summary : local;
+  sum = NoiseFitSummary{};
+  const std::vector<NoiseSample> valid = UsableSamples(samples, options);
+  NoiseColumns columns;
+  std::vector<double> absr;
+  for (const NoiseSample& s : valid) {
+    columns.r.push_back(s.residual_px);
+    columns.pred.push_back(s.sigma_pred_px);
+    columns.jump.push_back(std::isfinite(s.jump_px) ? s.jump_px : 0.0);
+    absr.push_back(std::abs(s.residual_px));
+  }
+  double range = options.outlier_range_px;
+  if (range <= 0) range = *std::max_element(absr.begin(), absr.end());
+  range = std::max(range, 1e-6);
+  sum.robust_sigma_px = 1.4826 * Median(absr);
+
+  const ConstantFit constant = FitConstant(columns.r, range);
+  sum.constant_sigma_px = constant.sigma;
+
+  DisparityNoiseModel model;
+  model.form = options.form;
+  model.samples = static_cast<int>(valid.size());
+  model.sigma_px = constant.sigma;
+  const double s0 = constant.sigma;
+  const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
+  if (options.form == NoiseForm::kConstant) {
+    model.outlier_fraction = constant.eps;
+    sum.log_likelihood = -constant.nll;
+    sum.iterations = constant.iterations;
+  } else if (options.form == NoiseForm::kLearned) {
+    FitLearned(columns, range, s0, e0, &model, &sum);
+  } else {
+    FitFloorAndScale(columns, range, s0, e0, &model, &sum);
+  }
+  model.sigma_px = std::max(model.sigma_px, options.min_sigma_px);
+  model.floor_px = std::max(model.floor_px, options.min_sigma_px);
+  sum.outlier_fraction = model.outlier_fraction;
+  FitDepthTrend(valid, range, options, &sum);
   model.depth_slope_px_per_m = sum.depth_slope_px_per_m;
   return model;
 }
