@@ -15,12 +15,15 @@ RgbImage FromRgbMat(const cv::Mat& m) {
   return out;
 }
 
-}  // namespace
 
-RgbImage NoiseReportFigure(const std::vector<NoiseSample>& samples, const DisparityNoiseModel& model,
-                           const NoiseFitSummary& fit) {
-  const int w = 480, h = 360, margin = 40;
-  cv::Mat canvas(h, 2 * w, CV_8UC3, cv::Scalar(255, 255, 255));
+constexpr int kPanelWidth = 480, kPanelHeight = 360, kMargin = 40;
+
+// Left panel: the histogram of the residuals (a density) against the constant model and the fitted one,
+// each a mixture over the samples' predicted σ with the uniform outlier share.
+void DrawResidualHistogram(const std::vector<NoiseSample>& samples, const DisparityNoiseModel& model,
+                           const NoiseFitSummary& fit, cv::Mat* image) {
+  cv::Mat& canvas = *image;
+  const int w = kPanelWidth, h = kPanelHeight, margin = kMargin;
   const double half = std::max(4.0 * fit.constant_sigma_px, 1e-3);
   const int bins = 80;
   std::vector<double> hist(bins, 0.0);
@@ -35,11 +38,9 @@ RgbImage NoiseReportFigure(const std::vector<NoiseSample>& samples, const Dispar
   const double n = static_cast<double>(std::max<size_t>(residuals.size(), 1));
   const double bin_w = 2 * half / bins;
   for (double& v : hist) v /= n * bin_w;  // density
-  const double range = std::max_element(residuals.begin(), residuals.end(),
-                                        [](double a, double b) { return std::abs(a) < std::abs(b); }) != residuals.end()
-                           ? std::abs(*std::max_element(residuals.begin(), residuals.end(),
-                                                        [](double a, double b) { return std::abs(a) < std::abs(b); }))
-                           : 1.0;
+  const auto largest = std::max_element(residuals.begin(), residuals.end(),
+                                         [](double a, double b) { return std::abs(a) < std::abs(b); });
+  const double range = largest != residuals.end() ? std::abs(*largest) : 1.0;
   const auto density = [&](double x, const DisparityNoiseModel& m) {
     double g = 0;
     const size_t step = std::max<size_t>(1, preds.size() / 2000);
@@ -83,45 +84,58 @@ RgbImage NoiseReportFigure(const std::vector<NoiseSample>& samples, const Dispar
     std::snprintf(text, sizeof(text), "floor %.3f px, k %.2f", model.floor_px, model.scale);
     cv::putText(canvas, text, cv::Point(margin + 200, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(220, 0, 0), 1);
   }
+}
 
-  // σ against depth.
-  if (!fit.depth_bins.empty()) {
-    double zlo = fit.depth_bins.front().depth_m, zhi = fit.depth_bins.back().depth_m;
-    if (zhi - zlo < 1e-6) {
-      zlo -= 0.05;
-      zhi += 0.05;
-    }
-    const double pad = 0.1 * (zhi - zlo);
-    zlo -= pad;
-    zhi += pad;
-    double smax = fit.constant_sigma_px;
-    for (const NoiseDepthBin& b : fit.depth_bins) smax = std::max(smax, b.sigma_px);
-    smax *= 1.3;
-    const auto qx = [&](double z) { return w + margin + static_cast<int>((z - zlo) / (zhi - zlo) * (w - 2 * margin)); };
-    const auto qy = [&](double s) { return h - margin - static_cast<int>(s / smax * (h - 2 * margin)); };
-    cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(2 * w - margin, h - margin), cv::Scalar(0, 0, 0));
-    cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(w + margin, margin), cv::Scalar(0, 0, 0));
-    cv::line(canvas, cv::Point(qx(zlo), qy(fit.constant_sigma_px)), cv::Point(qx(zhi), qy(fit.constant_sigma_px)),
-             cv::Scalar(0, 0, 220), 1, cv::LINE_AA);
-    double mz = 0, ms = 0, cnt = 0;
-    for (const NoiseDepthBin& b : fit.depth_bins) {
-      mz += b.count * b.depth_m;
-      ms += b.count * b.sigma_px;
-      cnt += b.count;
-    }
-    mz /= cnt;
-    ms /= cnt;
-    const double slope = fit.depth_slope_px_per_m;
-    cv::line(canvas, cv::Point(qx(zlo), qy(ms + slope * (zlo - mz))), cv::Point(qx(zhi), qy(ms + slope * (zhi - mz))),
-             cv::Scalar(220, 0, 0), 1, cv::LINE_AA);
-    for (const NoiseDepthBin& b : fit.depth_bins) {
-      cv::circle(canvas, cv::Point(qx(b.depth_m), qy(b.sigma_px)), 4, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
-    }
-    std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope %.3f px/m", zlo, zhi, slope);
-    cv::putText(canvas, text, cv::Point(w + margin, h - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
-    std::snprintf(text, sizeof(text), "max %.3f px", smax);
-    cv::putText(canvas, text, cv::Point(w + margin, margin - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
+// Right panel: σ_d per depth bin, the constant σ and the fitted slope through the bins' weighted mean.
+void DrawSigmaByDepth(const NoiseFitSummary& fit, cv::Mat* image) {
+  if (fit.depth_bins.empty()) return;
+  cv::Mat& canvas = *image;
+  const int w = kPanelWidth, h = kPanelHeight, margin = kMargin;
+  char text[160];
+  double zlo = fit.depth_bins.front().depth_m, zhi = fit.depth_bins.back().depth_m;
+  if (zhi - zlo < 1e-6) {
+    zlo -= 0.05;
+    zhi += 0.05;
   }
+  const double pad = 0.1 * (zhi - zlo);
+  zlo -= pad;
+  zhi += pad;
+  double smax = fit.constant_sigma_px;
+  for (const NoiseDepthBin& b : fit.depth_bins) smax = std::max(smax, b.sigma_px);
+  smax *= 1.3;
+  const auto qx = [&](double z) { return w + margin + static_cast<int>((z - zlo) / (zhi - zlo) * (w - 2 * margin)); };
+  const auto qy = [&](double s) { return h - margin - static_cast<int>(s / smax * (h - 2 * margin)); };
+  cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(2 * w - margin, h - margin), cv::Scalar(0, 0, 0));
+  cv::line(canvas, cv::Point(w + margin, h - margin), cv::Point(w + margin, margin), cv::Scalar(0, 0, 0));
+  cv::line(canvas, cv::Point(qx(zlo), qy(fit.constant_sigma_px)), cv::Point(qx(zhi), qy(fit.constant_sigma_px)),
+           cv::Scalar(0, 0, 220), 1, cv::LINE_AA);
+  double mz = 0, ms = 0, cnt = 0;
+  for (const NoiseDepthBin& b : fit.depth_bins) {
+    mz += b.count * b.depth_m;
+    ms += b.count * b.sigma_px;
+    cnt += b.count;
+  }
+  mz /= cnt;
+  ms /= cnt;
+  const double slope = fit.depth_slope_px_per_m;
+  cv::line(canvas, cv::Point(qx(zlo), qy(ms + slope * (zlo - mz))), cv::Point(qx(zhi), qy(ms + slope * (zhi - mz))),
+           cv::Scalar(220, 0, 0), 1, cv::LINE_AA);
+  for (const NoiseDepthBin& b : fit.depth_bins) {
+    cv::circle(canvas, cv::Point(qx(b.depth_m), qy(b.sigma_px)), 4, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
+  }
+  std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope %.3f px/m", zlo, zhi, slope);
+  cv::putText(canvas, text, cv::Point(w + margin, h - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
+  std::snprintf(text, sizeof(text), "max %.3f px", smax);
+  cv::putText(canvas, text, cv::Point(w + margin, margin - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
+}
+
+}  // namespace
+
+RgbImage NoiseReportFigure(const std::vector<NoiseSample>& samples, const DisparityNoiseModel& model,
+                           const NoiseFitSummary& fit) {
+  cv::Mat canvas(kPanelHeight, 2 * kPanelWidth, CV_8UC3, cv::Scalar(255, 255, 255));
+  DrawResidualHistogram(samples, model, fit, &canvas);
+  DrawSigmaByDepth(fit, &canvas);
   return FromRgbMat(canvas);
 }
 
