@@ -20,7 +20,7 @@
 // What `rangebayes smooth` uses (its default for the square-root prior): SmoothAdaptiveEpsilon below — a fast
 // pre-pass of 40–80 iterations, a gate that tells a curved mesh from a piecewise-flat one, on curved meshes the
 // detail rule (the pre-pass's normals averaged over 4 rings before d is read) and a final solve started from the
-// pre-pass. Measured (BENCHMARKS.md "Adaptive ε", fourth session): every issue target met with the true noise
+// pre-pass. Measured (BENCHMARKS.md "Adaptive ε"): every issue target met with the true noise
 // level (igea 0.3 9.89°, child 0.3 6.84°, CAD cases identical to the global ε²), within 10% with the level
 // estimated; on child 166 evaluations in all against 276 for the global ε² alone. The library's Smooth() and the
 // pipeline keep the global ε² (the live path has a time budget).
@@ -95,7 +95,7 @@ struct AutoAdaptiveEpsilonOptions {
   // benchmark meshes (BENCHMARKS.md "Adaptive ε"): CAD shapes 1.4e-4–1.0e-3, scans 9.7e-3–1.8e-2, noise level
   // given or estimated; 3e-3 sits between them (a factor ≥ 3 from each side).
   double min_gate_median_epsilon_squared = 3e-3;
-  // Iteration cap of the pre-pass (fast tolerance); 0: the preset's (300). [0, 1e7]. 80 (fourth session; was 0):
+  // Iteration cap of the pre-pass (fast tolerance); 0: the preset's (300). [0, 1e7]. 80:
   // the gate only needs the noise creases of a CAD shape gone, not a converged pre-pass. Its median ε² falls fast
   // on CAD shapes while they resolve (fandisk 0.7: 9.7e-3 / 5.3e-3 / 7.9e-4 / 1.2e-4 at 30 / 40 / 80 / 227
   // iterations) and slowly on scans (child: 1.6e-2 / 1.3e-2 / 1.06e-2 / 9.7e-3 at 30 / 40 / 80 / 131); at 80

@@ -55,7 +55,7 @@ struct Case {
   double k, target;
 };
 
-// Meshes the rules were never looked at while they were chosen (third session): noise level given where the
+// Meshes the rules were never looked at while they were chosen: noise level given where the
 // file name states it, else estimated (NaN k).
 std::vector<Case> HeldOutCases() {
   const double none = std::nan("");
