@@ -85,6 +85,259 @@ struct PairSystem {
   double sum_sigma2 = 0, sum_distance2 = 0;
 };
 
+// What stays fixed while the poses move: the scans, their indices and the constants derived from the options.
+struct AlignmentProblem {
+  const std::vector<Scan>& scans;
+  const std::vector<ScanIndex>& index;
+  const RegisterOptions& options;
+  double edge;     // mean edge length over the scans, the unit of the distances in options
+  double cos_max;  // cosine of the largest angle between the normals of a correspondence
+  double c2;       // squared robust scale
+};
+
+// One ordered pair (a, b) at the current poses: what every correspondence of scan a against scan b shares.
+struct PairFrame {
+  const Scan& sa;
+  const Scan& sb;
+  const ScanIndex& ia;
+  const ScanIndex& ib;
+  Eigen::Isometry3d pose_a, pose_b;
+  Eigen::Matrix3d Ra, Rb;
+  Eigen::Isometry3d b_from_a;
+  double slide2;
+};
+
+// Caps TBB's threads for the lifetime of the returned object; none when num_threads is 0 (all cores).
+std::unique_ptr<tbb::global_control> LimitThreads(int num_threads) {
+  std::unique_ptr<tbb::global_control> threads;
+  if (num_threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, num_threads);
+  }
+  return threads;
+}
+
+// Builds the index of every scan and returns the mean edge length over the scans.
+double IndexScans(const std::vector<Scan>& scans, const RegisterOptions& options, std::vector<ScanIndex>* index) {
+  const int n = static_cast<int>(scans.size());
+  double edge = 0;
+  for (int s = 0; s < n; ++s) {
+    RB_CHECK(scans[s].normal.rows() == scans[s].num_vertices() && scans[s].ray.rows() == scans[s].num_vertices() &&
+                 scans[s].noisy.has_covariance(),
+             scans[s].name, ": scan lacks normals, rays or covariances");
+    BuildIndex(scans[s], options.seed + static_cast<std::uint64_t>(s), options.boundary_rings, &(*index)[s]);
+    edge += scans[s].mean_edge / n;
+  }
+  RB_CHECK(edge > 0, "alignment: the scans have no edges");
+  return edge;
+}
+
+// Pairs whose world boxes, grown by the correspondence distance, meet.
+std::vector<std::pair<int, int>> OverlappingPairs(const std::vector<ScanIndex>& index,
+                                                  const std::vector<Eigen::Isometry3d>& pose, double max_distance) {
+  const int n = static_cast<int>(index.size());
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<Eigen::AlignedBox3d> world_box(n);
+  for (int s = 0; s < n; ++s) {
+    for (int k = 0; k < 8; ++k) {
+      world_box[s].extend(pose[s] * index[s].box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
+    }
+  }
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      if (a == b) continue;
+      Eigen::AlignedBox3d grown = world_box[a];
+      grown.min().array() -= max_distance;
+      grown.max().array() += max_distance;
+      if (grown.intersects(world_box[b])) pairs.emplace_back(a, b);
+    }
+  }
+  return pairs;
+}
+
+// Adds the robust residual of vertex i of scan a against vertex j of scan b, weighted by both covariances plus
+// sliding across b's normal nq (world frame), to the pair's normal equations and statistics.
+void AddCorrespondence(const PairFrame& pair, double c2, int i, int j, const Eigen::Vector3d& nq, PairSystem* sys) {
+  const Eigen::Vector3d p = pair.sa.noisy.mesh.V.row(i);
+  const Eigen::Vector3d q = pair.sb.noisy.mesh.V.row(j);
+  const Eigen::Matrix3d& Ra = pair.Ra;
+  const Eigen::Matrix3d& Rb = pair.Rb;
+  const Eigen::Vector3d xa = pair.pose_a * p, xb = pair.pose_b * q;
+  const Eigen::Vector3d r = xa - xb;
+  const Eigen::Matrix3d point_cov = Ra * pair.sa.noisy.covariance[i] * Ra.transpose() +
+                                    Rb * pair.sb.noisy.covariance[j] * Rb.transpose();
+  const Eigen::Matrix3d C = point_cov + pair.slide2 * (Eigen::Matrix3d::Identity() - nq * nq.transpose());
+  const Eigen::Matrix3d W = C.inverse();
+  const double e2 = r.dot(W * r);
+  const double weight = 1.0 / (1.0 + e2 / c2);
+  sys->cost += c2 * std::log1p(e2 / c2);
+  Eigen::Matrix<double, 3, 12> J;
+  J.block<3, 3>(0, 0) = -Skew(xa);
+  J.block<3, 3>(0, 3).setIdentity();
+  J.block<3, 3>(0, 6) = Skew(xb);
+  J.block<3, 3>(0, 9) = -Eigen::Matrix3d::Identity();
+  const Eigen::Matrix<double, 12, 3> JtW = J.transpose() * (weight * W);
+  sys->H.noalias() += JtW * J;
+  sys->g.noalias() += JtW * r;
+  ++sys->report.correspondences;
+  const double along = r.dot(nq);
+  sys->sum_distance2 += along * along;
+  sys->sum_sigma2 += along * along / nq.dot(point_cov * nq);
+}
+
+// The normal equations of the ordered pair (a, b): the first `samples` of a's shuffled interior vertices,
+// each paired with its nearest interior vertex of b within max_distance whose normal agrees.
+void LinearizePair(const AlignmentProblem& problem, const std::vector<Eigen::Isometry3d>& pose,
+                   std::pair<int, int> ab, double max_distance, int samples, PairSystem* sys) {
+  const int a = ab.first, b = ab.second;
+  const Scan& sb = problem.scans[b];
+  const PairFrame pair{problem.scans[a], sb, problem.index[a], problem.index[b], pose[a], pose[b],
+                       pose[a].linear(), pose[b].linear(), pose[b].inverse() * pose[a],
+                       std::pow(problem.options.slide_sigma_edges * sb.mean_edge, 2)};
+  sys->report.a = a;
+  sys->report.b = b;
+  const int count = std::min<int>(samples, static_cast<int>(pair.ia.sample_order.size()));
+  std::vector<int> nn(1);
+  std::vector<float> nn_d2(1);
+  for (int m = 0; m < count; ++m) {
+    const int i = pair.ia.sample_order[m];
+    const Eigen::Vector3d p = pair.sa.noisy.mesh.V.row(i);
+    const Eigen::Vector3d y = pair.b_from_a * p;
+    if (!(pair.ib.box.exteriorDistance(y) < max_distance)) continue;
+    ++sys->report.samples;
+    const pcl::PointXYZ query(static_cast<float>(y.x()), static_cast<float>(y.y()), static_cast<float>(y.z()));
+    if (pair.ib.tree.nearestKSearch(query, 1, nn, nn_d2) < 1) continue;
+    const int j = pair.ib.tree_vertex[nn[0]];
+    if (pair.ib.boundary[j]) continue;
+    const Eigen::Vector3d q = sb.noisy.mesh.V.row(j);
+    if ((y - q).norm() > max_distance) continue;
+    const Eigen::Vector3d np = pair.Ra * pair.sa.normal.row(i).transpose();
+    const Eigen::Vector3d nq = pair.Rb * sb.normal.row(j).transpose();
+    if (np.dot(nq) < problem.cos_max) continue;
+    AddCorrespondence(pair, problem.c2, i, j, nq, sys);
+  }
+}
+
+// The 6(n−1) normal equations of all pairs, scan 0 fixed.
+struct NormalEquations {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd g;
+  double cost = 0;
+};
+
+NormalEquations Assemble(const std::vector<std::pair<int, int>>& pairs, const std::vector<PairSystem>& systems,
+                         int n) {
+  const int dof = 6 * (n - 1);
+  NormalEquations eq;
+  eq.H = Eigen::MatrixXd::Zero(dof, dof);
+  eq.g = Eigen::VectorXd::Zero(dof);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const int s[2] = {pairs[k].first, pairs[k].second};
+    eq.cost += systems[k].cost;
+    for (int u = 0; u < 2; ++u) {
+      if (s[u] == 0) continue;
+      eq.g.segment<6>(6 * (s[u] - 1)) += systems[k].g.segment<6>(6 * u);
+      for (int v = 0; v < 2; ++v) {
+        if (s[v] == 0) continue;
+        eq.H.block<6, 6>(6 * (s[u] - 1), 6 * (s[v] - 1)) += systems[k].H.block<6, 6>(6 * u, 6 * v);
+      }
+    }
+  }
+  return eq;
+}
+
+void CheckEveryScanOverlaps(const std::vector<Scan>& scans, const NormalEquations& eq, double max_distance) {
+  for (int s = 1; s < static_cast<int>(scans.size()); ++s) {
+    const double info = eq.H.block<6, 6>(6 * (s - 1), 6 * (s - 1)).trace();
+    RB_CHECK(info > 0, scans[s].name, ": overlaps no other scan (no correspondence within ", max_distance,
+             " model units); check its initial pose");
+  }
+}
+
+// Solves the damped system and applies the step to every pose but the first; returns the largest step
+// (rotation in radians, translation in edge lengths).
+double TakeDampedStep(double edge, NormalEquations* eq, std::vector<Eigen::Isometry3d>* pose) {
+  Eigen::MatrixXd& H = eq->H;
+  const double damping = 1e-9 * H.diagonal().maxCoeff();
+  H.diagonal().array() += damping;
+  const Eigen::VectorXd delta = -H.ldlt().solve(eq->g);
+  double largest = 0;
+  for (int s = 1; s < static_cast<int>(pose->size()); ++s) {
+    const Eigen::Vector3d w = delta.segment<3>(6 * (s - 1));
+    const Eigen::Vector3d v = delta.segment<3>(6 * (s - 1) + 3);
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    if (w.norm() > 0) step.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+    step.translation() = v;
+    (*pose)[s] = step * (*pose)[s];
+    Eigen::Matrix3d R = (*pose)[s].linear();
+    (*pose)[s].linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
+    largest = std::max({largest, w.norm(), v.norm() / edge});
+  }
+  return largest;
+}
+
+// Gauss–Newton over the levels of max_distance_edges; returns the pair systems of the last iteration.
+std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen::Isometry3d>* pose,
+                              RegisterSummary* local) {
+  const RegisterOptions& options = problem.options;
+  const int n = static_cast<int>(problem.scans.size());
+  const int levels = static_cast<int>(options.max_distance_edges.size());
+  std::vector<PairSystem> last;
+  for (int level = 0; level < levels; ++level) {
+    const double max_distance = options.max_distance_edges[level] * problem.edge;
+    const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
+    for (int it = 0; it < options.iterations_per_level; ++it) {
+      const std::vector<std::pair<int, int>> pairs = OverlappingPairs(problem.index, *pose, max_distance);
+      std::vector<PairSystem> systems(pairs.size());
+      tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
+        LinearizePair(problem, *pose, pairs[k], max_distance, samples, &systems[k]);
+      });
+      // Assemble the 6n system (scan 0 fixed) and take one damped Gauss–Newton step.
+      NormalEquations eq = Assemble(pairs, systems, n);
+      local->cost.push_back(eq.cost);
+      ++local->iterations;
+      last = std::move(systems);
+      CheckEveryScanOverlaps(problem.scans, eq, max_distance);
+      if (TakeDampedStep(problem.edge, &eq, pose) < options.converged_step) break;
+    }
+    ++local->levels;
+  }
+  return last;
+}
+
+// Reports from the last correspondences; a scan without enough overlap is an error.
+void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last, RegisterSummary* local) {
+  const std::vector<Scan>& scans = problem.scans;
+  const RegisterOptions& options = problem.options;
+  const int n = static_cast<int>(scans.size());
+  std::vector<double> best_overlap(n, 0.0);
+  std::vector<int> best_partner(n, -1);
+  for (PairSystem& sys : *last) {
+    PairReport& r = sys.report;
+    if (r.correspondences == 0) continue;
+    r.overlap = r.samples > 0 ? static_cast<double>(r.correspondences) / r.samples : 0.0;
+    r.rms_sigma = std::sqrt(sys.sum_sigma2 / r.correspondences);
+    r.rms_distance = std::sqrt(sys.sum_distance2 / r.correspondences);
+    const double share = static_cast<double>(r.correspondences) /
+                         std::max<size_t>(1, std::min<size_t>(options.final_samples_per_scan,
+                                                              problem.index[r.a].sample_order.size()));
+    if (share > best_overlap[r.a]) {
+      best_overlap[r.a] = share;
+      best_partner[r.a] = r.b;
+    }
+    local->pairs.push_back(r);
+  }
+  for (int s = 0; s < n; ++s) {
+    RB_CHECK(best_overlap[s] >= options.min_overlap, scans[s].name, ": overlaps no other scan after alignment (",
+             100.0 * best_overlap[s], "% of its samples found a partner",
+             best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
+             100.0 * options.min_overlap, "% needed): check its pose or leave it out");
+  }
+  std::sort(local->pairs.begin(), local->pairs.end(), [](const PairReport& x, const PairReport& y) {
+    return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
+           std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));
+  });
+}
+
 }  // namespace
 
 void RegisterOptions::Check() const {
@@ -119,172 +372,15 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
   RB_CHECK(n >= 2, "alignment needs at least two scans, got ", n);
   RB_CHECK(static_cast<int>(initial.size()) == n, "alignment: ", initial.size(), " initial poses for ", n,
            " scans");
-  std::unique_ptr<tbb::global_control> threads;
-  if (options.num_threads > 0) {
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                    options.num_threads);
-  }
+  const std::unique_ptr<tbb::global_control> threads = LimitThreads(options.num_threads);
   std::vector<ScanIndex> index(n);
-  double edge = 0;
-  for (int s = 0; s < n; ++s) {
-    RB_CHECK(scans[s].normal.rows() == scans[s].num_vertices() && scans[s].ray.rows() == scans[s].num_vertices() &&
-                 scans[s].noisy.has_covariance(),
-             scans[s].name, ": scan lacks normals, rays or covariances");
-    BuildIndex(scans[s], options.seed + static_cast<std::uint64_t>(s), options.boundary_rings, &index[s]);
-    edge += scans[s].mean_edge / n;
-  }
-  RB_CHECK(edge > 0, "alignment: the scans have no edges");
+  const double edge = IndexScans(scans, options, &index);
   std::vector<Eigen::Isometry3d> pose = initial;
   RegisterSummary local;
-  const double cos_max = std::cos(options.max_normal_angle_deg * M_PI / 180.0);
-  const double c2 = options.robust_scale_sigma * options.robust_scale_sigma;
-  const int levels = static_cast<int>(options.max_distance_edges.size());
-  std::vector<PairSystem> last;
-  for (int level = 0; level < levels; ++level) {
-    const double max_distance = options.max_distance_edges[level] * edge;
-    const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
-    for (int it = 0; it < options.iterations_per_level; ++it) {
-      // Pairs whose world boxes, grown by the correspondence distance, meet.
-      std::vector<std::pair<int, int>> pairs;
-      std::vector<Eigen::AlignedBox3d> world_box(n);
-      for (int s = 0; s < n; ++s) {
-        for (int k = 0; k < 8; ++k) {
-          world_box[s].extend(pose[s] * index[s].box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
-        }
-      }
-      for (int a = 0; a < n; ++a) {
-        for (int b = 0; b < n; ++b) {
-          if (a == b) continue;
-          Eigen::AlignedBox3d grown = world_box[a];
-          grown.min().array() -= max_distance;
-          grown.max().array() += max_distance;
-          if (grown.intersects(world_box[b])) pairs.emplace_back(a, b);
-        }
-      }
-      std::vector<PairSystem> systems(pairs.size());
-      tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
-        const int a = pairs[k].first, b = pairs[k].second;
-        const Scan& sa = scans[a];
-        const Scan& sb = scans[b];
-        const Eigen::Matrix3d Ra = pose[a].linear(), Rb = pose[b].linear();
-        const Eigen::Isometry3d b_from_a = pose[b].inverse() * pose[a];
-        const double slide2 = std::pow(options.slide_sigma_edges * sb.mean_edge, 2);
-        PairSystem& sys = systems[k];
-        sys.report.a = a;
-        sys.report.b = b;
-        const int count = std::min<int>(samples, static_cast<int>(index[a].sample_order.size()));
-        std::vector<int> nn(1);
-        std::vector<float> nn_d2(1);
-        for (int m = 0; m < count; ++m) {
-          const int i = index[a].sample_order[m];
-          const Eigen::Vector3d p = sa.noisy.mesh.V.row(i);
-          const Eigen::Vector3d y = b_from_a * p;
-          if (!(index[b].box.exteriorDistance(y) < max_distance)) continue;
-          ++sys.report.samples;
-          const pcl::PointXYZ query(static_cast<float>(y.x()), static_cast<float>(y.y()), static_cast<float>(y.z()));
-          if (index[b].tree.nearestKSearch(query, 1, nn, nn_d2) < 1) continue;
-          const int j = index[b].tree_vertex[nn[0]];
-          if (index[b].boundary[j]) continue;
-          const Eigen::Vector3d q = sb.noisy.mesh.V.row(j);
-          if ((y - q).norm() > max_distance) continue;
-          const Eigen::Vector3d np = Ra * sa.normal.row(i).transpose();
-          const Eigen::Vector3d nq = Rb * sb.normal.row(j).transpose();
-          if (np.dot(nq) < cos_max) continue;
-          const Eigen::Vector3d xa = pose[a] * p, xb = pose[b] * q;
-          const Eigen::Vector3d r = xa - xb;
-          const Eigen::Matrix3d point_cov = Ra * sa.noisy.covariance[i] * Ra.transpose() +
-                                            Rb * sb.noisy.covariance[j] * Rb.transpose();
-          const Eigen::Matrix3d C = point_cov + slide2 * (Eigen::Matrix3d::Identity() - nq * nq.transpose());
-          const Eigen::Matrix3d W = C.inverse();
-          const double e2 = r.dot(W * r);
-          const double weight = 1.0 / (1.0 + e2 / c2);
-          sys.cost += c2 * std::log1p(e2 / c2);
-          Eigen::Matrix<double, 3, 12> J;
-          J.block<3, 3>(0, 0) = -Skew(xa);
-          J.block<3, 3>(0, 3).setIdentity();
-          J.block<3, 3>(0, 6) = Skew(xb);
-          J.block<3, 3>(0, 9) = -Eigen::Matrix3d::Identity();
-          const Eigen::Matrix<double, 12, 3> JtW = J.transpose() * (weight * W);
-          sys.H.noalias() += JtW * J;
-          sys.g.noalias() += JtW * r;
-          ++sys.report.correspondences;
-          const double along = r.dot(nq);
-          sys.sum_distance2 += along * along;
-          sys.sum_sigma2 += along * along / nq.dot(point_cov * nq);
-        }
-      });
-      // Assemble the 6n system (scan 0 fixed) and take one damped Gauss–Newton step.
-      const int dof = 6 * (n - 1);
-      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(dof, dof);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(dof);
-      double cost = 0;
-      for (size_t k = 0; k < pairs.size(); ++k) {
-        const int s[2] = {pairs[k].first, pairs[k].second};
-        cost += systems[k].cost;
-        for (int u = 0; u < 2; ++u) {
-          if (s[u] == 0) continue;
-          g.segment<6>(6 * (s[u] - 1)) += systems[k].g.segment<6>(6 * u);
-          for (int v = 0; v < 2; ++v) {
-            if (s[v] == 0) continue;
-            H.block<6, 6>(6 * (s[u] - 1), 6 * (s[v] - 1)) += systems[k].H.block<6, 6>(6 * u, 6 * v);
-          }
-        }
-      }
-      local.cost.push_back(cost);
-      ++local.iterations;
-      last = std::move(systems);
-      for (int s = 1; s < n; ++s) {
-        const double info = H.block<6, 6>(6 * (s - 1), 6 * (s - 1)).trace();
-        RB_CHECK(info > 0, scans[s].name, ": overlaps no other scan (no correspondence within ", max_distance,
-                 " model units); check its initial pose");
-      }
-      const double damping = 1e-9 * H.diagonal().maxCoeff();
-      H.diagonal().array() += damping;
-      const Eigen::VectorXd delta = -H.ldlt().solve(g);
-      double largest = 0;
-      for (int s = 1; s < n; ++s) {
-        const Eigen::Vector3d w = delta.segment<3>(6 * (s - 1));
-        const Eigen::Vector3d v = delta.segment<3>(6 * (s - 1) + 3);
-        Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
-        if (w.norm() > 0) step.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
-        step.translation() = v;
-        pose[s] = step * pose[s];
-        Eigen::Matrix3d R = pose[s].linear();
-        pose[s].linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
-        largest = std::max({largest, w.norm(), v.norm() / edge});
-      }
-      if (largest < options.converged_step) break;
-    }
-    ++local.levels;
-  }
-  // Reports from the last correspondences; a scan without enough overlap is an error.
-  std::vector<double> best_overlap(n, 0.0);
-  std::vector<int> best_partner(n, -1);
-  for (PairSystem& sys : last) {
-    PairReport& r = sys.report;
-    if (r.correspondences == 0) continue;
-    r.overlap = r.samples > 0 ? static_cast<double>(r.correspondences) / r.samples : 0.0;
-    r.rms_sigma = std::sqrt(sys.sum_sigma2 / r.correspondences);
-    r.rms_distance = std::sqrt(sys.sum_distance2 / r.correspondences);
-    const double share = static_cast<double>(r.correspondences) /
-                         std::max<size_t>(1, std::min<size_t>(options.final_samples_per_scan,
-                                                              index[r.a].sample_order.size()));
-    if (share > best_overlap[r.a]) {
-      best_overlap[r.a] = share;
-      best_partner[r.a] = r.b;
-    }
-    local.pairs.push_back(r);
-  }
-  for (int s = 0; s < n; ++s) {
-    RB_CHECK(best_overlap[s] >= options.min_overlap, scans[s].name, ": overlaps no other scan after alignment (",
-             100.0 * best_overlap[s], "% of its samples found a partner",
-             best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
-             100.0 * options.min_overlap, "% needed): check its pose or leave it out");
-  }
-  std::sort(local.pairs.begin(), local.pairs.end(), [](const PairReport& x, const PairReport& y) {
-    return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
-           std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));
-  });
+  const AlignmentProblem problem{scans, index, options, edge, std::cos(options.max_normal_angle_deg * M_PI / 180.0),
+                                 options.robust_scale_sigma * options.robust_scale_sigma};
+  std::vector<PairSystem> last = Align(problem, &pose, &local);
+  ReportPairs(problem, &last, &local);
   local.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (summary) *summary = local;
   return pose;

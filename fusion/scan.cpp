@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
@@ -35,6 +36,207 @@ void OrientTowardsSensor(Scan* scan) {
   scan->mean_edge = mesh.num_faces() > 0 ? MeanEdgeLength(mesh) : 0.0;
 }
 
+// Grid cells as pixel positions: Smooth then solves the scan as an organized mesh (coarse to fine).
+void SetPixelPositions(const RangeGridScan& grid, Scan* scan) {
+  const int w = grid.width, h = grid.height;
+  scan->noisy.pixel.setConstant(scan->noisy.mesh.num_vertices(), 2, -1.0f);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+      if (v >= 0) scan->noisy.pixel.row(v) << static_cast<float>(x), static_cast<float>(y);
+    }
+  }
+}
+
+// The line of one grid row in the (y, z) plane: the mean of its points and its unit direction (z ≤ 0).
+struct RowLine {
+  Eigen::Vector2d mean, direction;
+  int points;
+  double residual2;  // sum of the squared distances of the points from the line
+};
+
+std::optional<RowLine> FitRow(const RangeGridScan& grid, int y, const RangeGridScanOptions& options) {
+  const Vertices& V = grid.mesh.mesh.V;
+  const int w = grid.width;
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  int n = 0;
+  for (int x = 0; x < w; ++x) {
+    const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+    if (v < 0) continue;
+    c += Eigen::Vector2d(V(v, 1), V(v, 2));
+    ++n;
+  }
+  if (n < 3) return std::nullopt;
+  c /= n;
+  Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+  for (int x = 0; x < w; ++x) {
+    const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
+    if (v < 0) continue;
+    const Eigen::Vector2d d = Eigen::Vector2d(V(v, 1), V(v, 2)) - c;
+    S += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(S);
+  // A row needs extent along its ray (5 σ) to define it.
+  if (!(eig.eigenvalues()(1) > n * 25.0 * options.sigma_range * options.sigma_range)) return std::nullopt;
+  Eigen::Vector2d d = eig.eigenvectors().col(1);
+  if (d.y() > 0) d = -d;
+  return RowLine{c, d, n, eig.eigenvalues()(0)};
+}
+
+// The least-squares normal equations A·centre = rhs of the point closest to all row lines, and what the
+// parallel and axis ray models fall back on.
+struct RowFit {
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  Eigen::Vector2d mean_direction = Eigen::Vector2d::Zero();
+  double residual2 = 0;
+  int fitted_points = 0, fitted_rows = 0;
+};
+
+// Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
+RowFit FitRows(const RangeGridScan& grid, const RangeGridScanOptions& options) {
+  RowFit fit;
+  std::vector<Eigen::Vector2d> row_dir(grid.height, Eigen::Vector2d::Zero());
+  for (int y = 0; y < grid.height; ++y) {
+    const std::optional<RowLine> line = FitRow(grid, y, options);
+    if (!line) continue;
+    const Eigen::Vector2d& c = line->mean;
+    const Eigen::Vector2d& d = line->direction;
+    row_dir[y] = d;
+    fit.residual2 += line->residual2;
+    fit.fitted_points += line->points;
+    ++fit.fitted_rows;
+    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - d * d.transpose();
+    fit.A += P;
+    fit.rhs += P * c;
+    fit.mean_direction += d;
+  }
+  return fit;
+}
+
+// Rays from the fan's centre when the rows pin one down, else parallel to the rows, else along -z.
+void AssignRays(const RowFit& fit, Scan* scan, RangeGridScanSummary* local) {
+  const Vertices& V = scan->noisy.mesh.V;
+  const int nv = static_cast<int>(V.rows());
+  scan->ray.resize(nv, 3);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> conditioning(fit.A);
+  const bool fan = fit.fitted_rows >= 2 && conditioning.eigenvalues()(0) > 1e-6 * conditioning.eigenvalues()(1);
+  if (fan) {
+    const Eigen::Vector2d centre = fit.A.ldlt().solve(fit.rhs);
+    local->ray_model = "fan";
+    local->sensor_centre = Eigen::Vector3d(0, centre.x(), centre.y());
+    for (int i = 0; i < nv; ++i) {
+      const Eigen::Vector3d r(0, V(i, 1) - centre.x(), V(i, 2) - centre.y());
+      scan->ray.row(i) = r.norm() > 0 ? r.normalized() : Eigen::Vector3d(0, 0, -1);
+    }
+  } else {
+    Eigen::Vector3d r(0, 0, -1);
+    local->ray_model = "axis";
+    if (fit.fitted_rows > 0 && fit.mean_direction.norm() > 0) {
+      r = Eigen::Vector3d(0, fit.mean_direction.x(), fit.mean_direction.y()).normalized();
+      local->ray_model = "parallel";
+    }
+    for (int i = 0; i < nv; ++i) scan->ray.row(i) = r;
+  }
+}
+
+// Grid triangulation with the depth-image discontinuity cut, measured along the ray.
+class GridTriangulation {
+ public:
+  GridTriangulation(const RangeGridScan& grid, const Vertices& ray, const RangeGridScanOptions& options)
+      : grid_(grid),
+        V_(grid.mesh.mesh.V),
+        ray_(ray),
+        slope_(std::tan(options.max_slope_deg * M_PI / 180.0)),
+        allowed_noise_(options.max_jump_sigma * std::sqrt(2.0) * options.sigma_range) {}
+
+  // Grid neighbours (left–right and up–down) that both hold a vertex and are cut apart.
+  int CountCuts() const {
+    const int w = grid_.width, h = grid_.height;
+    int cuts = 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const int i0 = Cell(x, y);
+        if (i0 < 0) continue;
+        if (x + 1 < w && Cell(x + 1, y) >= 0) cuts += !Connected(i0, Cell(x + 1, y));
+        if (y + 1 < h && Cell(x, y + 1) >= 0) cuts += !Connected(i0, Cell(x, y + 1));
+      }
+    }
+    return cuts;
+  }
+
+  // Vertex indices, three per triangle, quad by quad in row order.
+  std::vector<int> Triangulate() const {
+    std::vector<int> faces;
+    for (int y = 0; y + 1 < grid_.height; ++y) {
+      for (int x = 0; x + 1 < grid_.width; ++x) TriangulateQuad(x, y, &faces);
+    }
+    return faces;
+  }
+
+ private:
+  int Cell(int x, int y) const { return grid_.cell_vertex[static_cast<size_t>(y) * grid_.width + x]; }
+
+  bool Connected(int a, int b) const {
+    if (a < 0 || b < 0) return false;
+    const Eigen::Vector3d d = V_.row(a) - V_.row(b);
+    const Eigen::Vector3d r = (ray_.row(a) + ray_.row(b)).normalized();
+    const double along = std::abs(d.dot(r));
+    const double across = (d - d.dot(r) * r).norm();
+    return along <= slope_ * across + allowed_noise_;
+  }
+
+  void TriangulateQuad(int x, int y, std::vector<int>* faces) const {
+    const Vertices& V = V_;
+    const int i0 = Cell(x, y), i1 = Cell(x + 1, y), i2 = Cell(x, y + 1), i3 = Cell(x + 1, y + 1);
+    const bool e01 = Connected(i0, i1), e02 = Connected(i0, i2), e13 = Connected(i1, i3);
+    const bool e23 = Connected(i2, i3), e03 = Connected(i0, i3), e12 = Connected(i1, i2);
+    const bool A3 = e02 && e23 && e03, B3 = e03 && e13 && e01;
+    const bool C3 = e02 && e12 && e01, D3 = e12 && e23 && e13;
+    const auto put = [&](int a, int b, int c) { faces->insert(faces->end(), {a, b, c}); };
+    if (A3 && B3 && C3 && D3) {
+      if ((V.row(i0) - V.row(i3)).squaredNorm() <= (V.row(i1) - V.row(i2)).squaredNorm()) {
+        put(i0, i2, i3);
+        put(i0, i3, i1);
+      } else {
+        put(i0, i2, i1);
+        put(i1, i2, i3);
+      }
+    } else if (A3 && B3) {
+      put(i0, i2, i3);
+      put(i0, i3, i1);
+    } else if (C3 && D3) {
+      put(i0, i2, i1);
+      put(i1, i2, i3);
+    } else if (A3) {
+      put(i0, i2, i3);
+    } else if (B3) {
+      put(i0, i3, i1);
+    } else if (C3) {
+      put(i0, i2, i1);
+    } else if (D3) {
+      put(i1, i2, i3);
+    }
+  }
+
+  const RangeGridScan& grid_;
+  const Vertices& V_;
+  const Vertices& ray_;
+  const double slope_, allowed_noise_;
+};
+
+// Triangulation scanners lose range precision where the surface turns away from the ray; see
+// RangeGridScanOptions::min_cos_incidence.
+void InflateForIncidence(const RangeGridScanOptions& options, Scan* scan) {
+  if (options.min_cos_incidence < 1) {
+    for (int i = 0; i < scan->noisy.mesh.num_vertices(); ++i) {
+      if (scan->normal.row(i).squaredNorm() < 0.5) continue;
+      const double c = std::max(-scan->normal.row(i).dot(scan->ray.row(i)), options.min_cos_incidence);
+      scan->noisy.covariance[i] = RayCovariance(scan->ray.row(i), options.sigma_range / c, options.sigma_lateral);
+    }
+  }
+}
+
 }  // namespace
 
 void RangeGridScanOptions::Check() const {
@@ -54,151 +256,26 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   const Vertices& V = grid.mesh.mesh.V;
   RB_CHECK(V.rows() > 0, name, ": empty scan (no vertices)");
   RB_CHECK(V.allFinite(), name, ": vertex positions are not all finite");
-  const int w = grid.width, h = grid.height;
   Scan scan;
   scan.name = name;
   scan.noisy.mesh.V = V;
   const int nv = static_cast<int>(V.rows());
-  // Grid cells as pixel positions: Smooth then solves the scan as an organized mesh (coarse to fine).
-  scan.noisy.pixel.setConstant(nv, 2, -1.0f);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
-      if (v >= 0) scan.noisy.pixel.row(v) << static_cast<float>(x), static_cast<float>(y);
-    }
-  }
-
-  // Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
-  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
-  Eigen::Vector2d mean_direction = Eigen::Vector2d::Zero();
-  double residual2 = 0;
-  int fitted_points = 0, fitted_rows = 0;
-  std::vector<Eigen::Vector2d> row_dir(h, Eigen::Vector2d::Zero());
-  for (int y = 0; y < h; ++y) {
-    Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    int n = 0;
-    for (int x = 0; x < w; ++x) {
-      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
-      if (v < 0) continue;
-      c += Eigen::Vector2d(V(v, 1), V(v, 2));
-      ++n;
-    }
-    if (n < 3) continue;
-    c /= n;
-    Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
-    for (int x = 0; x < w; ++x) {
-      const int v = grid.cell_vertex[static_cast<size_t>(y) * w + x];
-      if (v < 0) continue;
-      const Eigen::Vector2d d = Eigen::Vector2d(V(v, 1), V(v, 2)) - c;
-      S += d * d.transpose();
-    }
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(S);
-    // A row needs extent along its ray (5 σ) to define it.
-    if (!(eig.eigenvalues()(1) > n * 25.0 * options.sigma_range * options.sigma_range)) continue;
-    Eigen::Vector2d d = eig.eigenvectors().col(1);
-    if (d.y() > 0) d = -d;
-    row_dir[y] = d;
-    residual2 += eig.eigenvalues()(0);
-    fitted_points += n;
-    ++fitted_rows;
-    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - d * d.transpose();
-    A += P;
-    rhs += P * c;
-    mean_direction += d;
-  }
+  SetPixelPositions(grid, &scan);
+  const RowFit fit = FitRows(grid, options);
   RangeGridScanSummary local;
-  local.row_fit_rms = fitted_points > 0 ? std::sqrt(residual2 / fitted_points) : 0.0;
-  scan.ray.resize(nv, 3);
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> conditioning(A);
-  const bool fan = fitted_rows >= 2 && conditioning.eigenvalues()(0) > 1e-6 * conditioning.eigenvalues()(1);
-  if (fan) {
-    const Eigen::Vector2d centre = A.ldlt().solve(rhs);
-    local.ray_model = "fan";
-    local.sensor_centre = Eigen::Vector3d(0, centre.x(), centre.y());
-    for (int i = 0; i < nv; ++i) {
-      const Eigen::Vector3d r(0, V(i, 1) - centre.x(), V(i, 2) - centre.y());
-      scan.ray.row(i) = r.norm() > 0 ? r.normalized() : Eigen::Vector3d(0, 0, -1);
-    }
-  } else {
-    Eigen::Vector3d r(0, 0, -1);
-    local.ray_model = "axis";
-    if (fitted_rows > 0 && mean_direction.norm() > 0) {
-      r = Eigen::Vector3d(0, mean_direction.x(), mean_direction.y()).normalized();
-      local.ray_model = "parallel";
-    }
-    for (int i = 0; i < nv; ++i) scan.ray.row(i) = r;
-  }
+  local.row_fit_rms = fit.fitted_points > 0 ? std::sqrt(fit.residual2 / fit.fitted_points) : 0.0;
+  AssignRays(fit, &scan, &local);
   scan.noisy.covariance.resize(nv);
   for (int i = 0; i < nv; ++i) {
     scan.noisy.covariance[i] = RayCovariance(scan.ray.row(i), options.sigma_range, options.sigma_lateral);
   }
-
-  // Grid triangulation with the depth-image discontinuity cut, measured along the ray.
-  const double slope = std::tan(options.max_slope_deg * M_PI / 180.0);
-  const double allowed_noise = options.max_jump_sigma * std::sqrt(2.0) * options.sigma_range;
-  const auto cell = [&](int x, int y) { return grid.cell_vertex[static_cast<size_t>(y) * w + x]; };
-  const auto connected = [&](int a, int b) {
-    if (a < 0 || b < 0) return false;
-    const Eigen::Vector3d d = V.row(a) - V.row(b);
-    const Eigen::Vector3d r = (scan.ray.row(a) + scan.ray.row(b)).normalized();
-    const double along = std::abs(d.dot(r));
-    const double across = (d - d.dot(r) * r).norm();
-    return along <= slope * across + allowed_noise;
-  };
-  std::vector<int> faces;
-  int cuts = 0;
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const int i0 = cell(x, y);
-      if (i0 < 0) continue;
-      if (x + 1 < w && cell(x + 1, y) >= 0) cuts += !connected(i0, cell(x + 1, y));
-      if (y + 1 < h && cell(x, y + 1) >= 0) cuts += !connected(i0, cell(x, y + 1));
-    }
-  }
-  for (int y = 0; y + 1 < h; ++y) {
-    for (int x = 0; x + 1 < w; ++x) {
-      const int i0 = cell(x, y), i1 = cell(x + 1, y), i2 = cell(x, y + 1), i3 = cell(x + 1, y + 1);
-      const bool e01 = connected(i0, i1), e02 = connected(i0, i2), e13 = connected(i1, i3);
-      const bool e23 = connected(i2, i3), e03 = connected(i0, i3), e12 = connected(i1, i2);
-      const bool A3 = e02 && e23 && e03, B3 = e03 && e13 && e01;
-      const bool C3 = e02 && e12 && e01, D3 = e12 && e23 && e13;
-      const auto put = [&](int a, int b, int c) { faces.insert(faces.end(), {a, b, c}); };
-      if (A3 && B3 && C3 && D3) {
-        if ((V.row(i0) - V.row(i3)).squaredNorm() <= (V.row(i1) - V.row(i2)).squaredNorm()) {
-          put(i0, i2, i3);
-          put(i0, i3, i1);
-        } else {
-          put(i0, i2, i1);
-          put(i1, i2, i3);
-        }
-      } else if (A3 && B3) {
-        put(i0, i2, i3);
-        put(i0, i3, i1);
-      } else if (C3 && D3) {
-        put(i0, i2, i1);
-        put(i1, i2, i3);
-      } else if (A3) {
-        put(i0, i2, i3);
-      } else if (B3) {
-        put(i0, i3, i1);
-      } else if (C3) {
-        put(i0, i2, i1);
-      } else if (D3) {
-        put(i1, i2, i3);
-      }
-    }
-  }
+  const GridTriangulation triangulation(grid, scan.ray, options);
+  const int cuts = triangulation.CountCuts();
+  const std::vector<int> faces = triangulation.Triangulate();
   RB_CHECK(!faces.empty(), name, ": empty scan (no triangle: no two neighbouring grid cells hold vertices)");
   scan.noisy.mesh.F = Eigen::Map<const Faces>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
   OrientTowardsSensor(&scan);
-  if (options.min_cos_incidence < 1) {
-    for (int i = 0; i < nv; ++i) {
-      if (scan.normal.row(i).squaredNorm() < 0.5) continue;
-      const double c = std::max(-scan.normal.row(i).dot(scan.ray.row(i)), options.min_cos_incidence);
-      scan.noisy.covariance[i] = RayCovariance(scan.ray.row(i), options.sigma_range / c, options.sigma_lateral);
-    }
-  }
+  InflateForIncidence(options, &scan);
   local.vertices = nv;
   local.faces = scan.noisy.mesh.num_faces();
   local.cut_edges = cuts;
