@@ -615,6 +615,458 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
   }
 }
 
+// The summary's fields that the options and the input sizes decide, before anything runs.
+void StartSummary(const std::vector<Mesh>& poses, const DecimateOptions& options, DecimateSummary* s) {
+  *s = DecimateSummary{};
+  s->input_faces = poses[0].num_faces();
+  s->target_faces = options.target_faces;
+  s->refitted = options.refit_vertices;
+  s->poses = static_cast<int>(poses.size());
+}
+
+void NoteComponentsAndLoops(const std::vector<std::pair<int, int>>& signature, std::vector<std::string>* notices) {
+  int loops = 0;
+  for (const auto& c : signature) loops += c.second;
+  if (signature.size() > 1) {
+    notices->push_back(StrCat("the mesh has ", signature.size(), " components; patches never span two"));
+  }
+  if (loops > 0) notices->push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
+}
+
+// Finds a bracket [lo, hi] (hi/lo ≤ 1 + resolution, lo "too many", hi "fits") of `eval` (λ → fits?, log faces)
+// within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
+// roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
+// assumes faces ∝ 1/λ), by a factor of 1 + 2·resolution to 64, overshooting a little. Then safeguarded
+// interpolation in log λ against log faces (regula falsi); a step that did not halve the bracket is followed by
+// a bisection step; a point within the resolution of an end is moved to just that far, which can close the
+// bracket.
+template <typename Eval>
+class LambdaBracket {
+ public:
+  LambdaBracket(Eval& eval, double log_budget, double resolution)
+      : eval_(eval), log_budget_(log_budget), resolution_(resolution), res_step_(std::log(1.0 + resolution)) {}
+
+  // Returns {lo, hi}; call once.
+  std::pair<double, double> Find(double lo0, double hi0, double start, int max_evals) {
+    lo0_ = lo0;
+    hi0_ = hi0;
+    lo_ = lo0;
+    hi_ = hi0;
+    max_evals_ = max_evals;
+    if (lo_ <= 0.0 || hi_ <= 0.0) Extrapolate(start);
+    Interpolate();
+    return {lo_, hi_};
+  }
+
+ private:
+  std::pair<bool, double> Go(double l) {
+    ++evals_;
+    const auto [ok, lf] = eval_(l);
+    if (ok) {
+      hi_ = l;
+      f_hi_ = lf;
+    } else {
+      lo_ = l;
+      f_lo_ = lf;
+    }
+    return std::make_pair(ok, lf);
+  }
+
+  double Factor(double lf) const {
+    double slope = -1.0;  // d log faces / d log λ
+    if (prev_l_ > 0.0 && std::abs(std::log(l_ / prev_l_)) > 1e-9) {
+      slope = std::min(-0.2, (lf - prev_lf_) / std::log(l_ / prev_l_));
+    }
+    return std::clamp(std::exp(1.3 * std::abs((log_budget_ - lf) / slope)), 1.0 + 2.0 * resolution_, 64.0);
+  }
+
+  void Extrapolate(double start) {
+    l_ = start;
+    auto [ok, lf] = Go(l_);
+    while (evals_ < max_evals_ && (lo_ <= 0.0 || hi_ <= 0.0) && l_ > 1e-12 && l_ < 1e12) {
+      const double next = ok ? l_ / Factor(lf) : l_ * Factor(lf);
+      prev_l_ = l_;
+      prev_lf_ = lf;
+      l_ = next;
+      if (ok && lo0_ > 0.0 && l_ <= lo0_) break;
+      if (!ok && hi0_ > 0.0 && l_ >= hi0_) break;
+      std::tie(ok, lf) = Go(l_);
+    }
+  }
+
+  void Interpolate() {
+    bool bisect_next = false;
+    while (lo_ > 0.0 && hi_ > 0.0 && hi_ > lo_ * (1.0 + resolution_) && evals_ < max_evals_) {
+      const double width = std::log(hi_ / lo_);
+      double t = 0.5;
+      if (!bisect_next && f_lo_ > f_hi_ && lo_ != lo0_ && hi_ != hi0_) {
+        t = std::clamp((f_lo_ - log_budget_) / (f_lo_ - f_hi_), 0.0, 1.0);
+      }
+      double x = std::log(lo_) + t * width;
+      x = std::clamp(x, std::log(lo_) + 0.5 * res_step_, std::log(hi_) - 0.5 * res_step_);
+      if (x - std::log(lo_) < res_step_) x = std::log(lo_) + res_step_ * 0.999;
+      if (std::log(hi_) - x < res_step_) x = std::log(hi_) - res_step_ * 0.999;
+      Go(std::exp(x));
+      bisect_next = !bisect_next && std::log(hi_ / lo_) > 0.5 * width;
+    }
+  }
+
+  Eval& eval_;
+  const double log_budget_, resolution_, res_step_;
+  double lo0_ = 0.0, hi0_ = 0.0;
+  double lo_ = 0.0, hi_ = 0.0, f_lo_ = 0.0, f_hi_ = 0.0;
+  int evals_ = 0, max_evals_ = 0;
+  double l_ = 0.0, prev_l_ = 0.0, prev_lf_ = 0.0;  // the extrapolation's last two λ and the log faces at prev_l_
+};
+
+// Search λ in log scale on "the straightened patches fit in the budget" (see decimate.h, Target faces).
+class LambdaSearch {
+ public:
+  LambdaSearch(const Prepared& prep, const Problem& problem, const std::vector<std::pair<int, int>>& signature,
+               const DecimateOptions& options, DecimateSummary* s)
+      : prep_(prep),
+        problem_(problem),
+        signature_(signature),
+        options_(options),
+        s_(*s),
+        target_(options.target_faces),
+        budget_(std::max(
+            1, static_cast<int>(std::lround((1.0 - options.chain_reserve_share) * static_cast<double>(target_))))),
+        log_budget_(std::log(static_cast<double>(budget_))) {
+    s_.budget_faces = budget_;
+  }
+
+  // The attempt at the λ found, which goes to *lambda; fills the search's fields of the summary.
+  Attempt Run(double* lambda) {
+    GuidedRounds();
+    BisectRemaining();
+    return Finish(lambda);
+  }
+
+ private:
+  static int FacesOf(const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); }
+  bool Closed() const { return lo_ > 0.0 && hi_ > 0.0 && hi_ <= lo_ * (1.0 + options_.lambda_resolution); }
+  bool Inside(double l) const { return l > 0.0 && l > lo_ && (hi_ <= 0.0 || l < hi_); }
+
+  // Hill climbings by λ, each a function of λ alone: the first climb (at the smallest λ climbed from single
+  // faces) is the base, and every larger λ starts from the base's partition (a warm start: coarsening a finer
+  // partition costs a fraction of a climb from single faces). A λ climbed before is reused.
+  const Attempt& Climb(double l) {
+    auto it = climbs_.find(l);
+    if (it == climbs_.end()) {
+      const bool warm = base_lambda_ > 0.0 && l > base_lambda_;
+      Attempt a = PartitionOnce(problem_, l, options_, nullptr, warm ? &climbs_.at(base_lambda_).face_patch : nullptr);
+      if (!warm) {
+        // A new, smaller base: the climbs from the old one are dropped, so that every cached climb above
+        // the base starts from it.
+        climbs_.clear();
+        base_lambda_ = l;
+      }
+      s_.seconds_search_partition += a.seconds_partition;
+      it = climbs_.emplace(l, std::move(a)).first;
+    }
+    return it->second;
+  }
+
+  // A full evaluation: hill climbing and triangulation with the budget, the triangulation at the target
+  // recorded on the way. Several run in parallel; their outcomes are applied in order.
+  std::vector<char> Evaluate(const std::vector<double>& ls) {
+    std::vector<Attempt> attempts;
+    for (double l : ls) attempts.push_back(Climb(l));
+    tbb::parallel_for(size_t{0}, attempts.size(),
+                      [&](size_t i) { GeometryOnce(prep_, options_, budget_, signature_, &attempts[i], target_); });
+    std::vector<char> ok(ls.size());
+    for (size_t i = 0; i < ls.size(); ++i) {
+      ++steps_;
+      s_.seconds_search_geometry += attempts[i].seconds_geometry;
+      ok[i] = FacesOf(attempts[i]) <= budget_ ? 1 : 0;
+      if (ok[i]) {
+        if (hi_ <= 0.0 || ls[i] < hi_) {
+          hi_ = ls[i];
+          fits_ = std::move(attempts[i]);
+        }
+      } else if (ls[i] > lo_) {
+        lo_ = ls[i];
+        too_many_ = std::move(attempts[i]);
+      }
+    }
+    if (options_.progress) {
+      options_.progress(std::min(0.99, static_cast<double>(steps_) / options_.max_bisection_steps), "searching lambda");
+    }
+    return ok;
+  }
+
+  // The full evaluations decide; a cheap one guides them: the hill climbing alone, with the triangle count
+  // predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces to such vertices measured on the
+  // last full evaluations (before any: 2, a closed mesh of triangulated patches with V corners has about 2V
+  // triangles).
+  int CornersOf(const std::vector<int>& g) const {
+    const DecimationProblem& pr = problem_.problem;
+    const int ns = static_cast<int>(prep_.split_source.size());
+    std::vector<unsigned char> features(ns, 0);
+    for (int f = 0; f < pr.num_faces(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int h = pr.neighbours[f][k];
+        if (h >= 0 && (h < f || g[h] == g[f])) continue;
+        for (int v : {pr.corners[f][k], pr.corners[f][(k + 1) % 3]}) {
+          features[v] = static_cast<unsigned char>(std::min(255, features[v] + 1));
+        }
+      }
+    }
+    int count = 0;
+    for (int v = 0; v < ns; ++v) count += (features[v] >= 3 || prep_.locked[v]) ? 1 : 0;
+    return std::max(1, count);
+  }
+
+  std::pair<bool, double> Cheap(double l) {
+    const double predicted = ratio_ * CornersOf(Climb(l).face_patch);
+    return std::make_pair(predicted <= budget_, std::log(std::max(1.0, predicted)));
+  }
+
+  // Each round evaluates in parallel the guide's smallest fitting λ b and the step below it, b / (1 +
+  // resolution), so a guide that is right closes the bracket in one round; the ratio is then recalibrated
+  // on the results.
+  void GuidedRounds() {
+    auto cheap = [this](double l) { return Cheap(l); };
+    while (!Closed() && steps_ < options_.max_bisection_steps) {
+      if (hi_ > 0.0 && fits_.num_patches >= prep_.F.rows()) break;  // every face its own patch fits
+      LambdaBracket bracket(cheap, log_budget_, options_.lambda_resolution);
+      const double b = bracket.Find(lo_, hi_, hi_ > 0.0 ? hi_ : (lo_ > 0.0 ? lo_ : options_.lambda), 40).second;
+      std::vector<double> ls;
+      if (Inside(b)) ls.push_back(b);
+      const double below = b / (1.0 + options_.lambda_resolution);
+      if (Inside(below) && steps_ + static_cast<int>(ls.size()) < options_.max_bisection_steps) ls.push_back(below);
+      if (ls.empty()) break;
+      Evaluate(ls);
+      Recalibrate(ls);
+    }
+  }
+
+  void Recalibrate(const std::vector<double>& ls) {
+    double sum = 0.0;
+    int count = 0;
+    for (double l : ls) {
+      const Attempt& at = l == hi_ ? fits_ : too_many_;
+      if (l == hi_ || l == lo_) {
+        sum += static_cast<double>(FacesOf(at)) / CornersOf(at.face_patch);
+        ++count;
+      }
+    }
+    if (count > 0) ratio_ = sum / count;
+  }
+
+  // Whatever the guide left open is closed by full evaluations alone (bisection in log λ).
+  void BisectRemaining() {
+    while (!Closed() && steps_ < options_.max_bisection_steps && !(hi_ > 0.0 && fits_.num_patches >= prep_.F.rows())) {
+      double l;
+      if (lo_ <= 0.0) {
+        l = hi_ / 4.0;
+      } else if (hi_ <= 0.0) {
+        l = lo_ * 4.0;
+      } else {
+        l = std::sqrt(lo_ * hi_);
+      }
+      if (l < 1e-12 || l > 1e12) break;
+      Evaluate({l});
+    }
+  }
+
+  Attempt Finish(double* lambda) {
+    s_.bisection_steps = steps_;
+    s_.lambda_too_many = lo_;
+    s_.lambda_fits = hi_;
+    s_.faces_too_many = lo_ > 0.0 ? FacesOf(too_many_) : 0;
+    s_.faces_fits = hi_ > 0.0 ? FacesOf(fits_) : 0;
+    Attempt best;
+    if (hi_ > 0.0) {
+      *lambda = hi_;
+      best = std::move(fits_);
+      if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
+    } else {
+      // Even one patch per component needs more triangles than the budget: the fewest found.
+      *lambda = lo_;
+      best = std::move(too_many_);
+      UseRecorded(prep_, options_, target_, signature_, &best);
+      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ", lo_,
+                                  " (the patches' corners and guarded vertices)"));
+    }
+    return best;
+  }
+
+  const Prepared& prep_;
+  const Problem& problem_;
+  const std::vector<std::pair<int, int>>& signature_;
+  const DecimateOptions& options_;
+  DecimateSummary& s_;
+  const int target_;
+  const int budget_;
+  const double log_budget_;
+  int steps_ = 0;
+  Attempt too_many_, fits_;  // the attempts at the bracket ends
+  double lo_ = 0.0, hi_ = 0.0;
+  std::map<double, Attempt> climbs_;
+  double base_lambda_ = 0.0;
+  double ratio_ = 2.0;
+};
+
+// Outputs: compact the kept split vertices, weld copies of one input vertex back together. What every pose's
+// output shares.
+struct WeldedOutput {
+  Faces F;                                 // over output vertices
+  std::vector<int> out_of_input;           // per input vertex, its output vertex (−1: not kept)
+  std::vector<int> vertex_source;          // per output vertex, its input vertex
+  std::vector<int> vertex_split;           // per output vertex, the split vertex it was made from
+  std::vector<int> dense_face_patch;       // per input face, its patch (−1: dropped)
+  std::vector<std::vector<int>> polygons;  // per patch
+};
+
+WeldedOutput WeldOutput(const Mesh& base, const Prepared& prep, const Attempt& best) {
+  const PatchTriangulation& tri = best.triangulation;
+  WeldedOutput w;
+  w.out_of_input.assign(base.num_vertices(), -1);
+  w.F.resize(tri.F.rows(), 3);
+  for (int f = 0; f < tri.F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int input = prep.split_source[tri.F(f, k)];
+      int& id = w.out_of_input[input];
+      if (id < 0) {
+        id = static_cast<int>(w.vertex_source.size());
+        w.vertex_source.push_back(input);
+        w.vertex_split.push_back(tri.F(f, k));
+      }
+      w.F(f, k) = id;
+    }
+  }
+  w.dense_face_patch.assign(base.num_faces(), -1);
+  for (size_t i = 0; i < prep.kept_faces.size(); ++i) w.dense_face_patch[prep.kept_faces[i]] = best.face_patch[i];
+  w.polygons = PatchPolygons(w.F, tri.face_patch, best.num_patches);
+  return w;
+}
+
+// One pose's output over the welded connectivity: positions (refitted or the input's) and shading normals.
+class PoseOutput {
+ public:
+  PoseOutput(const Prepared& prep, const Problem& problem, const Attempt& best, const WeldedOutput& welded,
+             const DecimateOptions& options)
+      : prep_(prep), problem_(problem), best_(best), tri_(best.triangulation), welded_(welded), options_(options) {}
+
+  // Pose m of the input; adds its vertex refit to *s.
+  DecimatedMesh Build(const Mesh& pose, size_t m, DecimateSummary* s) const {
+    DecimatedMesh d;
+    d.mesh.F = welded_.F;
+    d.mesh.V.resize(static_cast<Eigen::Index>(welded_.vertex_source.size()), 3);
+    if (options_.refit_vertices && !best_.fell_back) {
+      RefitPositions(m, s, &d.mesh.V);
+    } else {
+      for (size_t i = 0; i < welded_.vertex_source.size(); ++i) {
+        d.mesh.V.row(static_cast<Eigen::Index>(i)) = pose.V.row(welded_.vertex_source[i]);
+      }
+    }
+    d.face_patch = tri_.face_patch;
+    d.vertex_source = welded_.vertex_source;
+    d.dense_face_patch = welded_.dense_face_patch;
+    d.polygons = welded_.polygons;
+    d.num_patches = best_.num_patches;
+    FieldNormals(m, d.mesh, &d.corner_normals);
+    if (options_.corner_normal_ridge > 0.0 && !best_.fell_back) RefitNormals(m, d.mesh, &d.corner_normals);
+    return d;
+  }
+
+ private:
+  void RefitPositions(size_t m, DecimateSummary* s, Vertices* V) const {
+    RefitInput in;
+    in.dense_V = &prep_.poses[m];
+    in.dense_F = &prep_.F;
+    in.dense_face_patch = &best_.face_patch;
+    in.representative = &tri_.representative;
+    in.boundary_vertex = &prep_.boundary_vertex;
+    in.fixed = &prep_.locked;  // copies of one input vertex stay where it is, so that they weld back
+    in.coarse_F = &tri_.F;
+    in.coarse_face_patch = &tri_.face_patch;
+    in.num_patches = best_.num_patches;
+    VertexRefitSummary rs;
+    const Vertices moved = RefitVertices(in, options_.refit, &rs);
+    for (size_t i = 0; i < welded_.vertex_split.size(); ++i) {
+      V->row(static_cast<Eigen::Index>(i)) = moved.row(welded_.vertex_split[i]);
+    }
+    s->refit_moved += rs.moved;
+    s->refit_blocked += rs.blocked;
+    s->refit_quadric_before += rs.quadric_error_before;
+    s->refit_quadric_after += rs.quadric_error_after;
+    if (m == 0) {
+      s->refit_rms_before = rs.fit_rms_before;
+      s->refit_rms_after = rs.fit_rms_after;
+    }
+  }
+
+  void FieldNormals(size_t m, const Mesh& mesh, CornerNormals* corner_normals) const {
+    const Faces& F = welded_.F;
+    const auto fields = FitPatchNormalFields(prep_.poses[m], prep_.F, problem_.weight, best_.face_patch,
+                                             best_.num_patches, options_.shading_regularisation);
+    // One normal per (vertex, patch) pair.
+    std::unordered_map<long long, int> index;
+    std::vector<Eigen::Vector3d> normals;
+    corner_normals->normal_index.resize(F.rows(), 3);
+    for (int f = 0; f < F.rows(); ++f) {
+      const int k = tri_.face_patch[f];
+      for (int c = 0; c < 3; ++c) {
+        const int v = F(f, c);
+        const long long key = static_cast<long long>(v) * best_.num_patches + k;
+        auto [it, inserted] = index.emplace(key, static_cast<int>(normals.size()));
+        if (inserted) normals.push_back(fields[k].Evaluate(mesh.V.row(v).transpose()));
+        corner_normals->normal_index(f, c) = it->second;
+      }
+    }
+    corner_normals->normals.resize(static_cast<Eigen::Index>(normals.size()), 3);
+    for (size_t i = 0; i < normals.size(); ++i) {
+      corner_normals->normals.row(static_cast<Eigen::Index>(i)) = normals[i].transpose();
+    }
+  }
+
+  void RefitNormals(size_t m, const Mesh& mesh, CornerNormals* corner_normals) const {
+    const int ns = static_cast<int>(prep_.split_source.size());
+    std::vector<int> output_of_dense(ns, -1);
+    for (int v = 0; v < ns; ++v) {
+      const int r = tri_.representative[v];
+      if (r >= 0) output_of_dense[v] = welded_.out_of_input[prep_.split_source[r]];
+    }
+    RefitCornerNormals(prep_.poses[m], prep_.F, best_.face_patch, problem_.weight, output_of_dense, mesh,
+                       tri_.face_patch, options_.corner_normal_ridge, corner_normals);
+  }
+
+  const Prepared& prep_;
+  const Problem& problem_;
+  const Attempt& best_;
+  const PatchTriangulation& tri_;
+  const WeldedOutput& welded_;
+  const DecimateOptions& options_;
+};
+
+// The summary's fields that the chosen attempt and the output decide.
+void RecordOutcome(const Attempt& best, const WeldedOutput& welded, DecimateSummary* s) {
+  const PatchTriangulation& tri = best.triangulation;
+  s->num_patches = best.num_patches;
+  s->output_faces = static_cast<int>(welded.F.rows());
+  s->output_vertices = static_cast<int>(welded.vertex_source.size());
+  s->energy = best.stats.energy;
+  s->data_energy = best.stats.data_energy;
+  s->fuses = best.stats.fuses;
+  s->splits = best.stats.splits;
+  s->swaps = best.stats.swaps;
+  s->rejected_disconnecting = best.stats.rejected_disconnecting;
+  s->rounds = best.stats.rounds;
+  s->converged = best.stats.converged;
+  s->kept_corner_vertices = tri.kept_corner_vertices;
+  s->blocked_vertices = tri.blocked_vertices;
+  s->max_chain_error_rel = tri.max_chain_error_rel;
+  s->fell_back_to_dense = best.fell_back;
+  if (best.fell_back) {
+    s->notices.push_back("the reduced mesh failed the topology check; the dense faces were kept (please report)");
+  }
+  s->seconds_partition = best.seconds_partition;
+  s->seconds_geometry = best.seconds_geometry;
+}
+
 }  // namespace
 
 void DecimateOptions::Check() const {
@@ -639,24 +1091,13 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   const auto t_start = Clock::now();
   DecimateSummary local;
   DecimateSummary& s = summary != nullptr ? *summary : local;
-  s = DecimateSummary{};
-  s.input_faces = poses[0].num_faces();
-  s.target_faces = options.target_faces;
-  s.refitted = options.refit_vertices;
-  s.poses = static_cast<int>(poses.size());
+  StartSummary(poses, options, &s);
   const Prepared prep = Prepare(poses);
   s.notices = prep.notices;
   const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
   const int ns = static_cast<int>(prep.split_source.size());
   const auto signature = TopologySignature(ns, prep.F, prep.topology);
-  {
-    int loops = 0;
-    for (const auto& c : signature) loops += c.second;
-    if (signature.size() > 1) {
-      s.notices.push_back(StrCat("the mesh has ", signature.size(), " components; patches never span two"));
-    }
-    if (loops > 0) s.notices.push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
-  }
+  NoteComponentsAndLoops(signature, &s.notices);
 
   Attempt best;
   double lambda = options.lambda;
@@ -666,312 +1107,17 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
     s.seconds_search_partition = best.seconds_partition;
     s.seconds_search_geometry = best.seconds_geometry;
   } else {
-    // Search λ in log scale on "the straightened patches fit in the budget" (see decimate.h, Target faces).
-    const int target = options.target_faces;
-    const int budget = std::max(
-        1, static_cast<int>(std::lround((1.0 - options.chain_reserve_share) * static_cast<double>(target))));
-    s.budget_faces = budget;
-    int steps = 0;
-    Attempt too_many, fits;  // the attempts at the bracket ends
-    double lo = 0.0, hi = 0.0;
-    auto faces_of = [](const Attempt& a) { return static_cast<int>(a.triangulation.F.rows()); };
-    // Hill climbings by λ, each a function of λ alone: the first climb (at the smallest λ climbed from single
-    // faces) is the base, and every larger λ starts from the base's partition (a warm start: coarsening a finer
-    // partition costs a fraction of a climb from single faces). A λ climbed before is reused.
-    std::map<double, Attempt> climbs;
-    double base_lambda = 0.0;
-    auto climb = [&](double l) -> const Attempt& {
-      auto it = climbs.find(l);
-      if (it == climbs.end()) {
-        const bool warm = base_lambda > 0.0 && l > base_lambda;
-        Attempt a = PartitionOnce(problem, l, options, nullptr, warm ? &climbs.at(base_lambda).face_patch : nullptr);
-        if (!warm) {
-          // A new, smaller base: the climbs from the old one are dropped, so that every cached climb above
-          // the base starts from it.
-          climbs.clear();
-          base_lambda = l;
-        }
-        s.seconds_search_partition += a.seconds_partition;
-        it = climbs.emplace(l, std::move(a)).first;
-      }
-      return it->second;
-    };
-    // A full evaluation: hill climbing and triangulation with the budget, the triangulation at the target
-    // recorded on the way. Several run in parallel; their outcomes are applied in order.
-    auto evaluate = [&](const std::vector<double>& ls) {
-      std::vector<Attempt> attempts;
-      for (double l : ls) attempts.push_back(climb(l));
-      tbb::parallel_for(size_t{0}, attempts.size(),
-                        [&](size_t i) { GeometryOnce(prep, options, budget, signature, &attempts[i], target); });
-      std::vector<char> ok(ls.size());
-      for (size_t i = 0; i < ls.size(); ++i) {
-        ++steps;
-        s.seconds_search_geometry += attempts[i].seconds_geometry;
-        ok[i] = faces_of(attempts[i]) <= budget ? 1 : 0;
-        if (ok[i]) {
-          if (hi <= 0.0 || ls[i] < hi) {
-            hi = ls[i];
-            fits = std::move(attempts[i]);
-          }
-        } else if (ls[i] > lo) {
-          lo = ls[i];
-          too_many = std::move(attempts[i]);
-        }
-      }
-      if (options.progress) {
-        options.progress(std::min(0.99, static_cast<double>(steps) / options.max_bisection_steps), "searching lambda");
-      }
-      return ok;
-    };
-    const double log_budget = std::log(static_cast<double>(budget));
-    const double res_step = std::log(1.0 + options.lambda_resolution);
-    // Finds a bracket [a, b] (b/a ≤ 1 + resolution, a "too many", b "fits") of `eval` (λ → fits?, log faces)
-    // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
-    // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
-    // assumes faces ∝ 1/λ), by a factor of 1 + 2·resolution to 64, overshooting a little. Then safeguarded interpolation in
-    // log λ against log faces (regula falsi); a step that did not halve the bracket is followed by a bisection
-    // step; a point within the resolution of an end is moved to just that far, which can close the bracket.
-    auto bracket = [&](auto&& eval, double lo0, double hi0, double start, int max_evals, double* a_out,
-                       double* b_out) {
-      double lo = lo0, hi = hi0, f_lo = 0.0, f_hi = 0.0;
-      int evals = 0;
-      auto go = [&](double l) {
-        ++evals;
-        const auto [ok, lf] = eval(l);
-        if (ok) {
-          hi = l;
-          f_hi = lf;
-        } else {
-          lo = l;
-          f_lo = lf;
-        }
-        return std::make_pair(ok, lf);
-      };
-      double l = start, prev_l = 0.0, prev_lf = 0.0;
-      auto factor = [&](double lf) {
-        double slope = -1.0;  // d log faces / d log λ
-        if (prev_l > 0.0 && std::abs(std::log(l / prev_l)) > 1e-9) {
-          slope = std::min(-0.2, (lf - prev_lf) / std::log(l / prev_l));
-        }
-        return std::clamp(std::exp(1.3 * std::abs((log_budget - lf) / slope)), 1.0 + 2.0 * options.lambda_resolution, 64.0);
-      };
-      if (lo <= 0.0 || hi <= 0.0) {
-        auto [ok, lf] = go(l);
-        while (evals < max_evals && (lo <= 0.0 || hi <= 0.0) && l > 1e-12 && l < 1e12) {
-          const double next = ok ? l / factor(lf) : l * factor(lf);
-          prev_l = l;
-          prev_lf = lf;
-          l = next;
-          if (ok && lo0 > 0.0 && l <= lo0) break;
-          if (!ok && hi0 > 0.0 && l >= hi0) break;
-          std::tie(ok, lf) = go(l);
-        }
-      }
-      bool bisect_next = false;
-      while (lo > 0.0 && hi > 0.0 && hi > lo * (1.0 + options.lambda_resolution) && evals < max_evals) {
-        const double width = std::log(hi / lo);
-        double t = 0.5;
-        if (!bisect_next && f_lo > f_hi && lo != lo0 && hi != hi0) {
-          t = std::clamp((f_lo - log_budget) / (f_lo - f_hi), 0.0, 1.0);
-        }
-        double x = std::log(lo) + t * width;
-        x = std::clamp(x, std::log(lo) + 0.5 * res_step, std::log(hi) - 0.5 * res_step);
-        if (x - std::log(lo) < res_step) x = std::log(lo) + res_step * 0.999;
-        if (std::log(hi) - x < res_step) x = std::log(hi) - res_step * 0.999;
-        go(std::exp(x));
-        bisect_next = !bisect_next && std::log(hi / lo) > 0.5 * width;
-      }
-      *a_out = lo;
-      *b_out = hi;
-    };
-    // The full evaluations decide; a cheap one guides them: the hill climbing alone, with the triangle count
-    // predicted as (vertices where ≥ 3 patch sides meet) × the ratio of faces to such vertices measured on the
-    // last full evaluations (before any: 2, a closed mesh of triangulated patches with V corners has about 2V
-    // triangles).
-    auto corners_of = [&](const std::vector<int>& g) {
-      const DecimationProblem& pr = problem.problem;
-      std::vector<unsigned char> features(ns, 0);
-      for (int f = 0; f < pr.num_faces(); ++f) {
-        for (int k = 0; k < 3; ++k) {
-          const int h = pr.neighbours[f][k];
-          if (h >= 0 && (h < f || g[h] == g[f])) continue;
-          for (int v : {pr.corners[f][k], pr.corners[f][(k + 1) % 3]}) features[v] = static_cast<unsigned char>(std::min(255, features[v] + 1));
-        }
-      }
-      int count = 0;
-      for (int v = 0; v < ns; ++v) count += (features[v] >= 3 || prep.locked[v]) ? 1 : 0;
-      return std::max(1, count);
-    };
-    double ratio = 2.0;
-    auto cheap = [&](double l) {
-      const double predicted = ratio * corners_of(climb(l).face_patch);
-      return std::make_pair(predicted <= budget, std::log(std::max(1.0, predicted)));
-    };
-    auto closed = [&] { return lo > 0.0 && hi > 0.0 && hi <= lo * (1.0 + options.lambda_resolution); };
-    auto inside = [&](double l) { return l > 0.0 && l > lo && (hi <= 0.0 || l < hi); };
-    // Each round evaluates in parallel the guide's smallest fitting λ b and the step below it, b / (1 +
-    // resolution), so a guide that is right closes the bracket in one round; the ratio is then recalibrated
-    // on the results.
-    while (!closed() && steps < options.max_bisection_steps) {
-      if (hi > 0.0 && fits.num_patches >= prep.F.rows()) break;  // every face its own patch fits
-      double a = 0.0, b = 0.0;
-      bracket(cheap, lo, hi, hi > 0.0 ? hi : (lo > 0.0 ? lo : lambda), 40, &a, &b);
-      std::vector<double> ls;
-      if (inside(b)) ls.push_back(b);
-      const double below = b / (1.0 + options.lambda_resolution);
-      if (inside(below) && steps + static_cast<int>(ls.size()) < options.max_bisection_steps) ls.push_back(below);
-      if (ls.empty()) break;
-      evaluate(ls);
-      double sum = 0.0;
-      int count = 0;
-      for (double l : ls) {
-        const Attempt& at = l == hi ? fits : too_many;
-        if (l == hi || l == lo) {
-          sum += static_cast<double>(faces_of(at)) / corners_of(at.face_patch);
-          ++count;
-        }
-      }
-      if (count > 0) ratio = sum / count;
-    }
-    // Whatever the guide left open is closed by full evaluations alone (bisection in log λ).
-    while (!closed() && steps < options.max_bisection_steps && !(hi > 0.0 && fits.num_patches >= prep.F.rows())) {
-      double l;
-      if (lo <= 0.0) {
-        l = hi / 4.0;
-      } else if (hi <= 0.0) {
-        l = lo * 4.0;
-      } else {
-        l = std::sqrt(lo * hi);
-      }
-      if (l < 1e-12 || l > 1e12) break;
-      evaluate({l});
-    }
-    s.bisection_steps = steps;
-    s.lambda_too_many = lo;
-    s.lambda_fits = hi;
-    s.faces_too_many = lo > 0.0 ? faces_of(too_many) : 0;
-    s.faces_fits = hi > 0.0 ? faces_of(fits) : 0;
-    if (hi > 0.0) {
-      lambda = hi;
-      best = std::move(fits);
-      if (budget < target) UseRecorded(prep, options, target, signature, &best);
-    } else {
-      // Even one patch per component needs more triangles than the budget: the fewest found.
-      lambda = lo;
-      best = std::move(too_many);
-      UseRecorded(prep, options, target, signature, &best);
-      s.notices.push_back(StrCat("target ", target, " faces not reachable: ", faces_of(best),
-                                 " faces at lambda ", lo, " (the patches' corners and guarded vertices)"));
-    }
+    best = LambdaSearch(prep, problem, signature, options, &s).Run(&lambda);
   }
   s.lambda = lambda;
 
-  // Outputs: compact the kept split vertices, weld copies of one input vertex back together.
-  const PatchTriangulation& tri = best.triangulation;
-  std::vector<int> out_of_input(poses[0].num_vertices(), -1);
-  std::vector<int> vertex_source, vertex_split;
-  Faces F(tri.F.rows(), 3);
-  for (int f = 0; f < tri.F.rows(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const int input = prep.split_source[tri.F(f, k)];
-      int& id = out_of_input[input];
-      if (id < 0) {
-        id = static_cast<int>(vertex_source.size());
-        vertex_source.push_back(input);
-        vertex_split.push_back(tri.F(f, k));
-      }
-      F(f, k) = id;
-    }
-  }
-  std::vector<int> dense_face_patch(poses[0].num_faces(), -1);
-  for (size_t i = 0; i < prep.kept_faces.size(); ++i) dense_face_patch[prep.kept_faces[i]] = best.face_patch[i];
-  const auto polygons = PatchPolygons(F, tri.face_patch, best.num_patches);
-
+  const WeldedOutput welded = WeldOutput(poses[0], prep, best);
+  const PoseOutput pose_output(prep, problem, best, welded, options);
   std::vector<DecimatedMesh> out(poses.size());
   const auto t_refit = Clock::now();
-  for (size_t m = 0; m < poses.size(); ++m) {
-    DecimatedMesh& d = out[m];
-    d.mesh.F = F;
-    d.mesh.V.resize(static_cast<Eigen::Index>(vertex_source.size()), 3);
-    if (options.refit_vertices && !best.fell_back) {
-      RefitInput in;
-      in.dense_V = &prep.poses[m];
-      in.dense_F = &prep.F;
-      in.dense_face_patch = &best.face_patch;
-      in.representative = &tri.representative;
-      in.boundary_vertex = &prep.boundary_vertex;
-      in.fixed = &prep.locked;  // copies of one input vertex stay where it is, so that they weld back
-      in.coarse_F = &tri.F;
-      in.coarse_face_patch = &tri.face_patch;
-      in.num_patches = best.num_patches;
-      VertexRefitSummary rs;
-      const Vertices moved = RefitVertices(in, options.refit, &rs);
-      for (size_t i = 0; i < vertex_split.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = moved.row(vertex_split[i]);
-      s.refit_moved += rs.moved;
-      s.refit_blocked += rs.blocked;
-      s.refit_quadric_before += rs.quadric_error_before;
-      s.refit_quadric_after += rs.quadric_error_after;
-      if (m == 0) {
-        s.refit_rms_before = rs.fit_rms_before;
-        s.refit_rms_after = rs.fit_rms_after;
-      }
-    } else {
-      for (size_t i = 0; i < vertex_source.size(); ++i) d.mesh.V.row(static_cast<Eigen::Index>(i)) = poses[m].V.row(vertex_source[i]);
-    }
-    d.face_patch = tri.face_patch;
-    d.vertex_source = vertex_source;
-    d.dense_face_patch = dense_face_patch;
-    d.polygons = polygons;
-    d.num_patches = best.num_patches;
-    const auto fields = FitPatchNormalFields(prep.poses[m], prep.F, problem.weight, best.face_patch,
-                                             best.num_patches, options.shading_regularisation);
-    // One normal per (vertex, patch) pair.
-    std::unordered_map<long long, int> index;
-    std::vector<Eigen::Vector3d> normals;
-    d.corner_normals.normal_index.resize(F.rows(), 3);
-    for (int f = 0; f < F.rows(); ++f) {
-      const int k = tri.face_patch[f];
-      for (int c = 0; c < 3; ++c) {
-        const int v = F(f, c);
-        const long long key = static_cast<long long>(v) * best.num_patches + k;
-        auto [it, inserted] = index.emplace(key, static_cast<int>(normals.size()));
-        if (inserted) normals.push_back(fields[k].Evaluate(d.mesh.V.row(v).transpose()));
-        d.corner_normals.normal_index(f, c) = it->second;
-      }
-    }
-    d.corner_normals.normals.resize(static_cast<Eigen::Index>(normals.size()), 3);
-    for (size_t i = 0; i < normals.size(); ++i) d.corner_normals.normals.row(static_cast<Eigen::Index>(i)) = normals[i].transpose();
-    if (options.corner_normal_ridge > 0.0 && !best.fell_back) {
-      std::vector<int> output_of_dense(ns, -1);
-      for (int v = 0; v < ns; ++v) {
-        const int r = tri.representative[v];
-        if (r >= 0) output_of_dense[v] = out_of_input[prep.split_source[r]];
-      }
-      RefitCornerNormals(prep.poses[m], prep.F, best.face_patch, problem.weight, output_of_dense, d.mesh,
-                         tri.face_patch, options.corner_normal_ridge, &d.corner_normals);
-    }
-  }
+  for (size_t m = 0; m < poses.size(); ++m) out[m] = pose_output.Build(poses[m], m, &s);
 
-  s.num_patches = best.num_patches;
-  s.output_faces = static_cast<int>(F.rows());
-  s.output_vertices = static_cast<int>(vertex_source.size());
-  s.energy = best.stats.energy;
-  s.data_energy = best.stats.data_energy;
-  s.fuses = best.stats.fuses;
-  s.splits = best.stats.splits;
-  s.swaps = best.stats.swaps;
-  s.rejected_disconnecting = best.stats.rejected_disconnecting;
-  s.rounds = best.stats.rounds;
-  s.converged = best.stats.converged;
-  s.kept_corner_vertices = tri.kept_corner_vertices;
-  s.blocked_vertices = tri.blocked_vertices;
-  s.max_chain_error_rel = tri.max_chain_error_rel;
-  s.fell_back_to_dense = best.fell_back;
-  if (best.fell_back) {
-    s.notices.push_back("the reduced mesh failed the topology check; the dense faces were kept (please report)");
-  }
-  s.seconds_partition = best.seconds_partition;
-  s.seconds_geometry = best.seconds_geometry;
+  RecordOutcome(best, welded, &s);
   s.seconds_refit_and_shading = Seconds(t_refit);
   s.seconds_total = Seconds(t_start);
   if (options.progress) options.progress(1.0, "done");

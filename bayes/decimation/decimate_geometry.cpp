@@ -582,6 +582,20 @@ class Reducer {
     int w = -1;
     if (!ChainKeepsShape(v, u, &w)) return false;
     if (boundary_[v] && !boundary_[u]) return false;
+    SplitStar(v, u);
+    if (deleted_.empty()) return false;
+    if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
+    int apex_stamp = 0;
+    if (!LinkConditionHolds(v, u, &apex_stamp)) return false;
+    if (!EveryPatchKeepsAFace()) return false;
+    if (!MovedFacesStayValid(v, u, apex_stamp)) return false;
+    ApplyCollapse(v, u, w);
+    MarkChangedStars(v, u);
+    return true;
+  }
+
+  // v's faces: those on edge uv into deleted_, the others into moved_.
+  void SplitStar(int v, int u) {
     deleted_.clear();
     moved_.clear();
     for (int f : vf_[v]) {
@@ -592,9 +606,11 @@ class Reducer {
         moved_.push_back(f);
       }
     }
-    if (deleted_.empty()) return false;
-    if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
-    // Link condition: common neighbours of u and v are exactly the apexes of the faces on edge uv.
+  }
+
+  // Link condition: common neighbours of u and v are exactly the apexes of the faces on edge uv. The apexes
+  // keep the stamp *apex_stamp, for MovedFacesStayValid.
+  bool LinkConditionHolds(int v, int u, int* apex_stamp) {
     ++current_stamp_;
     int opposite = 0;
     for (int f : deleted_) {
@@ -605,22 +621,26 @@ class Reducer {
         }
       }
     }
-    const int apex_stamp = current_stamp_;
+    (void)opposite;
+    *apex_stamp = current_stamp_;
     ++current_stamp_;
     for (int f : vf_[v]) {
       for (int x : T_[f]) {
-        if (x != u && x != v && stamp_[x] != apex_stamp) stamp_[x] = current_stamp_;
+        if (x != u && x != v && stamp_[x] != *apex_stamp) stamp_[x] = current_stamp_;
       }
     }
-    const int v_stamp = current_stamp_;
-    // A common neighbour off the edge breaks the link condition. Scan whichever side is cheaper: u's star, or
-    // the stars of v's (few) neighbours looking for u; u is often a hub that has absorbed many collapses.
+    return !SharesNeighbourOffEdge(v, u, current_stamp_);
+  }
+
+  // A common neighbour off the edge breaks the link condition. Scan whichever side is cheaper: u's star, or
+  // the stars of v's (few) neighbours looking for u; u is often a hub that has absorbed many collapses.
+  bool SharesNeighbourOffEdge(int v, int u, int v_stamp) const {
     size_t cost_v_side = 0;
     for (int f : moved_) cost_v_side += vf_[T_[f][0]].size() + vf_[T_[f][1]].size() + vf_[T_[f][2]].size();
     if (vf_[u].size() <= cost_v_side) {
       for (int f : vf_[u]) {
         for (int x : T_[f]) {
-          if (x != u && x != v && stamp_[x] == v_stamp) return false;
+          if (x != u && x != v && stamp_[x] == v_stamp) return true;
         }
       }
     } else {
@@ -629,47 +649,69 @@ class Reducer {
           if (x == v || stamp_[x] != v_stamp) continue;
           for (int g : vf_[x]) {
             const auto& t = T_[g];
-            if (t[0] == u || t[1] == u || t[2] == u) return false;
+            if (t[0] == u || t[1] == u || t[2] == u) return true;
           }
         }
       }
     }
-    (void)opposite;
-    // Every patch keeps at least one face.
+    return false;
+  }
+
+  // Every patch keeps at least one face.
+  bool EveryPatchKeepsAFace() const {
     for (int f : deleted_) {
       int same = 0;
       for (int g : deleted_) same += patch_[g] == patch_[f] ? 1 : 0;
       if (patch_count_[patch_[f]] - same < 1) return false;
     }
-    // No duplicate faces, no flips, no zero areas.
+    return true;
+  }
+
+  // No duplicate faces, no flips, no zero areas.
+  bool MovedFacesStayValid(int v, int u, int apex_stamp) const {
     for (int f : moved_) {
       std::array<int, 3> t = T_[f];
       for (int& x : t) {
         if (x == v) x = u;
       }
-      // With the link condition holding, a duplicate of (u, x, y) can only exist when x and y are both apexes
-      // of edge uv (the last collapse of a tetrahedron); refuse that case.
-      int apexes = 0;
-      for (int x : t) apexes += (x != u && stamp_[x] == apex_stamp) ? 1 : 0;
-      if (apexes == 2) {
-        for (int g : vf_[u]) {
-          const auto& s = T_[g];
-          int shared = 0;
-          for (int x : t) shared += (s[0] == x || s[1] == x || s[2] == x) ? 1 : 0;
-          if (shared == 3) return false;
-        }
-      }
-      const int k = patch_[f];
-      for (size_t m = 0; m < poses_.size(); ++m) {
-        const Eigen::Vector3d now = FaceCross(*poses_[m], t);
-        const Eigen::Vector3d before = FaceCross(*poses_[m], T_[f]);
-        const double len = now.norm();
-        if (len <= area_eps_) return false;
-        if (before.squaredNorm() > area_eps_ * area_eps_ && now.dot(before) <= 0.0) return false;
-        if (now.dot(patch_normal_[m][k]) < options_.min_cos_to_patch_normal * len) return false;
+      if (DuplicatesAFace(t, u, apex_stamp)) return false;
+      if (!KeepsAreaAndOrientation(f, t)) return false;
+    }
+    return true;
+  }
+
+  // With the link condition holding, a duplicate of (u, x, y) can only exist when x and y are both apexes
+  // of edge uv (the last collapse of a tetrahedron); refuse that case.
+  bool DuplicatesAFace(const std::array<int, 3>& t, int u, int apex_stamp) const {
+    int apexes = 0;
+    for (int x : t) apexes += (x != u && stamp_[x] == apex_stamp) ? 1 : 0;
+    if (apexes == 2) {
+      for (int g : vf_[u]) {
+        const auto& s = T_[g];
+        int shared = 0;
+        for (int x : t) shared += (s[0] == x || s[1] == x || s[2] == x) ? 1 : 0;
+        if (shared == 3) return true;
       }
     }
-    // Apply.
+    return false;
+  }
+
+  // Face f as t (v moved onto u), in every pose: not of zero area, not flipped, close enough to its patch's normal.
+  bool KeepsAreaAndOrientation(int f, const std::array<int, 3>& t) const {
+    const int k = patch_[f];
+    for (size_t m = 0; m < poses_.size(); ++m) {
+      const Eigen::Vector3d now = FaceCross(*poses_[m], t);
+      const Eigen::Vector3d before = FaceCross(*poses_[m], T_[f]);
+      const double len = now.norm();
+      if (len <= area_eps_) return false;
+      if (before.squaredNorm() > area_eps_ * area_eps_ && now.dot(before) <= 0.0) return false;
+      if (now.dot(patch_normal_[m][k]) < options_.min_cos_to_patch_normal * len) return false;
+    }
+    return true;
+  }
+
+  // Apply: v onto u, with w v's other chain neighbour (−1: v is inside a patch).
+  void ApplyCollapse(int v, int u, int w) {
     scratch_of_ = -1;
     if (w >= 0) {
       removed_on_edge_.Erase(EdgeKey(u, v));
@@ -695,7 +737,10 @@ class Reducer {
     vf_[v].clear();
     collapsed_to_[v] = u;
     ++collapses_;
-    // Only u and v's former neighbours see their stars change.
+  }
+
+  // Only u and v's former neighbours see their stars change.
+  void MarkChangedStars(int v, int u) {
     ring_.clear();
     ++current_stamp_;
     for (const std::vector<int>* faces : {&deleted_, &moved_}) {
@@ -714,7 +759,6 @@ class Reducer {
     for (int f : deleted_) {
       for (int x : T_[f]) ++version_[x];
     }
-    return true;
   }
 
   const std::vector<const Vertices*>& poses_;
