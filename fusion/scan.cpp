@@ -96,13 +96,11 @@ struct RowFit {
 // Each grid row lies on one ray in the (y, z) plane: fit its line, then the common centre of the fan.
 RowFit FitRows(const RangeGridScan& grid, const RangeGridScanOptions& options) {
   RowFit fit;
-  std::vector<Eigen::Vector2d> row_dir(grid.height, Eigen::Vector2d::Zero());
   for (int y = 0; y < grid.height; ++y) {
     const std::optional<RowLine> line = FitRow(grid, y, options);
     if (!line) continue;
     const Eigen::Vector2d& c = line->mean;
     const Eigen::Vector2d& d = line->direction;
-    row_dir[y] = d;
     fit.residual2 += line->residual2;
     fit.fitted_points += line->points;
     ++fit.fitted_rows;

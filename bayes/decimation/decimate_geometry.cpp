@@ -612,16 +612,11 @@ class Reducer {
   // keep the stamp *apex_stamp, for MovedFacesStayValid.
   bool LinkConditionHolds(int v, int u, int* apex_stamp) {
     ++current_stamp_;
-    int opposite = 0;
     for (int f : deleted_) {
       for (int x : T_[f]) {
-        if (x != u && x != v && stamp_[x] != current_stamp_) {
-          stamp_[x] = current_stamp_;
-          ++opposite;
-        }
+        if (x != u && x != v) stamp_[x] = current_stamp_;
       }
     }
-    (void)opposite;
     *apex_stamp = current_stamp_;
     ++current_stamp_;
     for (int f : vf_[v]) {
