@@ -322,9 +322,8 @@ double PolakRibiere(const CgPreconditioner& m, const Eigen::VectorXd& g_new, con
 // After an iteration that reached energy e (already in summary->energy): records the distance estimate,
 // reports progress, and returns the termination that ends the solve now, if any.
 std::optional<SmoothTermination> StopAfter(const Preset& preset, const SmoothOptions& options, int iteration,
-                                           int max_iterations, double e, double gradient_stop,
-                                           Clock::time_point deadline, double* first_remaining,
-                                           SmoothSummary* summary) {
+                                           double e, double gradient_stop, Clock::time_point deadline,
+                                           double* first_remaining, SmoothSummary* summary) {
   const double remaining = RemainingDecrease(summary->energy);
   summary->remaining_decrease = remaining;
   const double relative_remaining = remaining / std::max(std::abs(e), 1e-300);
@@ -337,7 +336,7 @@ std::optional<SmoothTermination> StopAfter(const Preset& preset, const SmoothOpt
   }
   if (options.progress) {
     options.progress(ProgressFraction(*first_remaining, relative_remaining, preset.gap > 0 ? preset.gap : preset.energy,
-                                      iteration, max_iterations),
+                                      iteration, preset.max_iterations),
                      "smoothing");
   }
   if (preset.gap > 0 && relative_remaining <= preset.gap) return SmoothTermination::kOptimalityGapConverged;
@@ -351,7 +350,6 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
                         SmoothSummary* summary, const Eigen::VectorXd* start = nullptr,
                         RayPreconditioner* ray = nullptr) {
   const Preset preset = EffectivePreset(options);
-  const int max_iterations = preset.max_iterations;
   const SmoothingEnergy& energy = problem.energy();
   const Eigen::Index n = 3 * static_cast<Eigen::Index>(energy.num_vertices());
   const int restart_every = std::max(50, static_cast<int>(n));
@@ -384,7 +382,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
   double known_slope = 0;
   double first_remaining = -1;
   int since_restart = 0;
-  for (int iteration = 1; iteration <= max_iterations; ++iteration) {
+  for (int iteration = 1; iteration <= preset.max_iterations; ++iteration) {
     // g·p comes from the pass that built p (ScaleSubtractDot) when there was one.
     double slope = slope_known ? known_slope : Dot(g, p);
     slope_known = false;
@@ -429,7 +427,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     summary->final_gradient_norm = std::sqrt(gg);
     ++since_restart;
 
-    if (const auto stop = StopAfter(preset, options, iteration, max_iterations, e, gradient_stop, deadline,
+    if (const auto stop = StopAfter(preset, options, iteration, e, gradient_stop, deadline,
                                     &first_remaining, summary)) {
       summary->termination = *stop;
       break;

@@ -15,7 +15,6 @@ RgbImage FromRgbMat(const cv::Mat& m) {
   return out;
 }
 
-
 constexpr int kPanelWidth = 480, kPanelHeight = 360, kMargin = 40;
 
 // Left panel: the histogram of the residuals (a density) against the constant model and the fitted one,
