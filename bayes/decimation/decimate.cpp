@@ -831,10 +831,13 @@ class LambdaSearch {
     while (!Closed() && steps_ < options_.max_bisection_steps) {
       if (hi_ > 0.0 && fits_.num_patches >= prep_.F.rows()) break;  // every face its own patch fits
       LambdaBracket bracket(cheap, log_budget_, options_.lambda_resolution);
-      const double b = bracket.Find(lo_, hi_, hi_ > 0.0 ? hi_ : (lo_ > 0.0 ? lo_ : options_.lambda), 40).second;
+      const auto [guide_lo, b] = bracket.Find(lo_, hi_, hi_ > 0.0 ? hi_ : (lo_ > 0.0 ? lo_ : options_.lambda), 40);
       std::vector<double> ls;
       if (Inside(b)) ls.push_back(b);
-      const double below = b / (1.0 + options_.lambda_resolution);
+      // The guide's own too-many end when it lies within the resolution below b: its climb is cached, and
+      // the bracket closes on it just as well.
+      double below = b / (1.0 + options_.lambda_resolution);
+      if (guide_lo > below && guide_lo < b && climbs_.count(guide_lo) > 0) below = guide_lo;
       if (Inside(below) && steps_ + static_cast<int>(ls.size()) < options_.max_bisection_steps) ls.push_back(below);
       if (ls.empty()) break;
       Evaluate(ls);
