@@ -74,7 +74,8 @@ EdgeTopology ComputeEdgeTopology(const Mesh& mesh) {
         int b = mesh.F(f, (k + 1) % 3);
         if (a == b) continue;
         if (a > b) std::swap(a, b);
-        halves[static_cast<size_t>(fill[a]++)] = {(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b), f, k};
+        const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
+        halves[static_cast<size_t>(fill[a]++)] = {key, f, k};
       }
     }
   }

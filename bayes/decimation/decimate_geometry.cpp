@@ -105,8 +105,8 @@ class EdgeLists {
   size_t used_ = 0, tombstones_ = 0;
 };
 
-// Per vertex, the faces around it, in one pooled array (a std::vector per vertex was a quarter of a
-// reduction's setup on a stereo mesh, and scattered its lists over the heap). A list that outgrows its slot
+// Per vertex, the faces around it, in one pooled array (a std::vector per vertex meant about a million
+// allocations per reduction of a 526k-face stereo mesh, its lists scattered over the heap). A list that outgrows its slot
 // moves to the end of the pool with twice the room; the order within a list is as with std::vector.
 class StarLists {
  public:
@@ -145,7 +145,8 @@ class StarLists {
   void PushBack(int v, int f) {
     if (size_[v] == capacity_[v]) {
       const int capacity = std::max(4, 2 * capacity_[v]);
-      if (used_ + static_cast<size_t>(capacity) > pool_.size()) pool_.resize(2 * (used_ + static_cast<size_t>(capacity)));
+      const size_t needed = used_ + static_cast<size_t>(capacity);
+      if (needed > pool_.size()) pool_.resize(2 * needed);
       std::copy_n(pool_.begin() + static_cast<std::ptrdiff_t>(start_[v]), size_[v],
                   pool_.begin() + static_cast<std::ptrdiff_t>(used_));
       start_[v] = used_;
