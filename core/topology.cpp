@@ -54,20 +54,47 @@ EdgeTopology ComputeEdgeTopology(const Mesh& mesh) {
     int face;
     int corner;
   };
-  std::vector<HalfEdge> halves;
-  halves.reserve(static_cast<size_t>(num_faces) * 3);
+  // Ordered by (key, face, corner): bucketed by the smaller vertex (a counting sort, linear; a comparison sort
+  // of every half-edge was most of this function on large meshes), each bucket filled in (face, corner) order
+  // and then sorted stably by the larger vertex.
+  std::vector<int> bucket_start(static_cast<size_t>(mesh.num_vertices()) + 1, 0);
   for (int f = 0; f < num_faces; ++f) {
     for (int k = 0; k < 3; ++k) {
-      int a = mesh.F(f, k);
-      int b = mesh.F(f, (k + 1) % 3);
-      if (a == b) continue;
-      if (a > b) std::swap(a, b);
-      halves.push_back({(static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b), f, k});
+      const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+      if (a != b) ++bucket_start[static_cast<size_t>(std::min(a, b)) + 1];
     }
   }
-  std::sort(halves.begin(), halves.end(), [](const HalfEdge& x, const HalfEdge& y) {
-    return x.key != y.key ? x.key < y.key : (x.face != y.face ? x.face < y.face : x.corner < y.corner);
-  });
+  for (size_t v = 1; v < bucket_start.size(); ++v) bucket_start[v] += bucket_start[v - 1];
+  std::vector<HalfEdge> halves(static_cast<size_t>(bucket_start.back()));
+  {
+    std::vector<int> fill(bucket_start.begin(), bucket_start.end() - 1);
+    for (int f = 0; f < num_faces; ++f) {
+      for (int k = 0; k < 3; ++k) {
+        int a = mesh.F(f, k);
+        int b = mesh.F(f, (k + 1) % 3);
+        if (a == b) continue;
+        if (a > b) std::swap(a, b);
+        const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
+        halves[static_cast<size_t>(fill[a]++)] = {key, f, k};
+      }
+    }
+  }
+  for (size_t v = 0; v + 1 < bucket_start.size(); ++v) {
+    // A bucket holds a vertex's edges to larger vertices, usually a handful: insertion sort, stable.
+    if (bucket_start[v + 1] - bucket_start[v] > 32) {
+      std::stable_sort(halves.begin() + bucket_start[v], halves.begin() + bucket_start[v + 1],
+                       [](const HalfEdge& x, const HalfEdge& y) { return x.key < y.key; });
+      continue;
+    }
+    for (int i = bucket_start[v] + 1; i < bucket_start[v + 1]; ++i) {
+      const HalfEdge h = halves[static_cast<size_t>(i)];
+      int j = i;
+      for (; j > bucket_start[v] && halves[static_cast<size_t>(j - 1)].key > h.key; --j) {
+        halves[static_cast<size_t>(j)] = halves[static_cast<size_t>(j - 1)];
+      }
+      halves[static_cast<size_t>(j)] = h;
+    }
+  }
 
   EdgeTopology topology;
   topology.face_edges.setConstant(num_faces, 3, -1);

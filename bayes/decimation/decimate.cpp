@@ -769,26 +769,21 @@ class LambdaSearch {
   }
 
   // A full evaluation: hill climbing and triangulation with the budget, the triangulation at the target
-  // recorded on the way. Several run in parallel; their outcomes are applied in order.
-  std::vector<char> Evaluate(const std::vector<double>& ls) {
-    std::vector<Attempt> attempts;
-    for (double l : ls) attempts.push_back(Climb(l));
-    tbb::parallel_for(size_t{0}, attempts.size(),
-                      [&](size_t i) { GeometryOnce(prep_, options_, budget_, signature_, &attempts[i], target_); });
-    std::vector<char> ok(ls.size());
-    for (size_t i = 0; i < ls.size(); ++i) {
-      ++steps_;
-      s_.seconds_search_geometry += attempts[i].seconds_geometry;
-      ok[i] = FacesOf(attempts[i]) <= budget_ ? 1 : 0;
-      if (ok[i]) {
-        if (hi_ <= 0.0 || ls[i] < hi_) {
-          hi_ = ls[i];
-          fits_ = std::move(attempts[i]);
-        }
-      } else if (ls[i] > lo_) {
-        lo_ = ls[i];
-        too_many_ = std::move(attempts[i]);
+  // recorded on the way. True when it fits.
+  bool Evaluate(double l) {
+    Attempt attempt = Climb(l);
+    GeometryOnce(prep_, options_, budget_, signature_, &attempt, target_);
+    ++steps_;
+    s_.seconds_search_geometry += attempt.seconds_geometry;
+    const bool ok = FacesOf(attempt) <= budget_;
+    if (ok) {
+      if (hi_ <= 0.0 || l < hi_) {
+        hi_ = l;
+        fits_ = std::move(attempt);
       }
+    } else if (l > lo_) {
+      lo_ = l;
+      too_many_ = std::move(attempt);
     }
     if (options_.progress) {
       options_.progress(std::min(0.99, static_cast<double>(steps_) / options_.max_bisection_steps), "searching lambda");
@@ -823,22 +818,30 @@ class LambdaSearch {
     return std::make_pair(predicted <= budget_, std::log(std::max(1.0, predicted)));
   }
 
-  // Each round evaluates in parallel the guide's smallest fitting λ b and the step below it, b / (1 +
+  // Each round evaluates the guide's smallest fitting λ b and, when b fits, the step below it, b / (1 +
   // resolution), so a guide that is right closes the bracket in one round; the ratio is then recalibrated
-  // on the results.
+  // on the results. When b has too many the step below would have too many as well and decide nothing; run in
+  // parallel with b it cost a third of the 1.06M-face stereo case (docs/journal/decimation.md, round 4).
   void GuidedRounds() {
     auto cheap = [this](double l) { return Cheap(l); };
     while (!Closed() && steps_ < options_.max_bisection_steps) {
       if (hi_ > 0.0 && fits_.num_patches >= prep_.F.rows()) break;  // every face its own patch fits
       LambdaBracket bracket(cheap, log_budget_, options_.lambda_resolution);
-      const double b = bracket.Find(lo_, hi_, hi_ > 0.0 ? hi_ : (lo_ > 0.0 ? lo_ : options_.lambda), 40).second;
+      const auto [guide_lo, b] = bracket.Find(lo_, hi_, hi_ > 0.0 ? hi_ : (lo_ > 0.0 ? lo_ : options_.lambda), 40);
       std::vector<double> ls;
       if (Inside(b)) ls.push_back(b);
-      const double below = b / (1.0 + options_.lambda_resolution);
+      // The guide's own too-many end when it lies within the resolution below b: its climb is cached, and
+      // the bracket closes on it just as well.
+      double below = b / (1.0 + options_.lambda_resolution);
+      if (guide_lo > below && guide_lo < b && climbs_.count(guide_lo) > 0) below = guide_lo;
       if (Inside(below) && steps_ + static_cast<int>(ls.size()) < options_.max_bisection_steps) ls.push_back(below);
       if (ls.empty()) break;
-      Evaluate(ls);
-      Recalibrate(ls);
+      std::vector<double> evaluated{ls[0]};
+      if (Evaluate(ls[0]) && ls.size() > 1) {
+        Evaluate(ls[1]);
+        evaluated.push_back(ls[1]);
+      }
+      Recalibrate(evaluated);
     }
   }
 
@@ -867,7 +870,7 @@ class LambdaSearch {
         l = std::sqrt(lo_ * hi_);
       }
       if (l < 1e-12 || l > 1e12) break;
-      Evaluate({l});
+      Evaluate(l);
     }
   }
 

@@ -27,8 +27,8 @@
 // decimations (hill climbing + triangulation) decide the bracket; the search is guided by the hill climbing
 // alone, predicting the count from the vertices where ≥ 3 patch sides meet (times the faces per such vertex
 // measured on the last full runs, 2 before any), with power-law extrapolation and safeguarded interpolation.
-// Each round runs two full decimations in parallel (TBB): at the guide's smallest fitting λ and one resolution
-// step below it. The hill climbings of the search start from the partition at the smallest λ climbed (warm
+// Each round runs a full decimation at the guide's smallest fitting λ and, when that fits, another one
+// resolution step below it. The hill climbings of the search start from the partition at the smallest λ climbed (warm
 // starts: coarsening it costs a fraction of a climb from single faces, and each λ's result depends on λ
 // alone), and the output at the full budget is recorded on the way of the fitting run's chain pass.
 #pragma once

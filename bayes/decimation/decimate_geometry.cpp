@@ -105,22 +105,89 @@ class EdgeLists {
   size_t used_ = 0, tombstones_ = 0;
 };
 
+// Per vertex, the faces around it, in one pooled array (a std::vector per vertex meant about a million
+// allocations per reduction of a 526k-face stereo mesh, its lists scattered over the heap). A list that outgrows its slot
+// moves to the end of the pool with twice the room; the order within a list is as with std::vector.
+class StarLists {
+ public:
+  struct Star {
+    const int* first;
+    int count;
+    const int* begin() const { return first; }
+    const int* end() const { return first + count; }
+    size_t size() const { return static_cast<size_t>(count); }
+    bool empty() const { return count == 0; }
+  };
+
+  // F's faces around each of nv vertices, in face order.
+  StarLists(int nv, const Faces& F) : start_(nv), size_(nv, 0), capacity_(nv, 0) {
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) ++capacity_[F(f, k)];
+    }
+    size_t total = 0;
+    for (int v = 0; v < nv; ++v) {
+      start_[v] = total;
+      total += static_cast<size_t>(capacity_[v]);
+    }
+    pool_.resize(total + total / 2);
+    used_ = total;
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int v = F(f, k);
+        pool_[start_[v] + size_[v]++] = static_cast<int>(f);
+      }
+    }
+  }
+
+  size_t size() const { return size_.size(); }
+  Star operator[](int v) const { return {pool_.data() + start_[v], size_[v]}; }
+
+  void PushBack(int v, int f) {
+    if (size_[v] == capacity_[v]) {
+      const int capacity = std::max(4, 2 * capacity_[v]);
+      const size_t needed = used_ + static_cast<size_t>(capacity);
+      if (needed > pool_.size()) pool_.resize(2 * needed);
+      std::copy_n(pool_.begin() + static_cast<std::ptrdiff_t>(start_[v]), size_[v],
+                  pool_.begin() + static_cast<std::ptrdiff_t>(used_));
+      start_[v] = used_;
+      capacity_[v] = capacity;
+      used_ += static_cast<size_t>(capacity);
+    }
+    pool_[start_[v] + size_[v]++] = f;
+  }
+
+  // Removes f (a member) from v's list, keeping the order of the others.
+  void Erase(int v, int f) {
+    int* first = pool_.data() + start_[v];
+    int* last = first + size_[v];
+    int* at = std::find(first, last, f);
+    std::copy(at + 1, last, at);
+    --size_[v];
+  }
+
+  void Clear(int v) { size_[v] = 0; }
+
+ private:
+  std::vector<size_t> start_;
+  std::vector<int> size_, capacity_;
+  std::vector<int> pool_;
+  size_t used_ = 0;
+};
+
 class Reducer {
  public:
   Reducer(const std::vector<const Vertices*>& poses, const Faces& F, const std::vector<int>& face_patch,
           int num_patches, const std::vector<char>& locked, const PatchTriangulationOptions& options,
           const std::vector<char>& boundary_vertex)
-      : poses_(poses), patch_(face_patch), options_(options) {
+      : poses_(poses), patch_(face_patch), options_(options), vf_(static_cast<int>(poses[0]->rows()), F) {
     const int nv = static_cast<int>(poses[0]->rows());
     const int nf = static_cast<int>(F.rows());
     T_.resize(nf);
     alive_face_.assign(nf, 1);
-    vf_.resize(nv);
     patch_count_.assign(num_patches, 0);
     for (int f = 0; f < nf; ++f) {
       for (int k = 0; k < 3; ++k) {
         T_[f][k] = F(f, k);
-        vf_[F(f, k)].push_back(f);
       }
       ++patch_count_[face_patch[f]];
     }
@@ -719,17 +786,16 @@ class Reducer {
       --patch_count_[patch_[f]];
       for (int x : T_[f]) {
         if (x == v) continue;
-        auto& list = vf_[x];
-        list.erase(std::find(list.begin(), list.end(), f));
+        vf_.Erase(x, f);
       }
     }
     for (int f : moved_) {
       for (int& x : T_[f]) {
         if (x == v) x = u;
       }
-      vf_[u].push_back(f);
+      vf_.PushBack(u, f);
     }
-    vf_[v].clear();
+    vf_.Clear(v);
     collapsed_to_[v] = u;
     ++collapses_;
   }
@@ -761,7 +827,7 @@ class Reducer {
   PatchTriangulationOptions options_;
   std::vector<std::array<int, 3>> T_;
   std::vector<char> alive_face_;
-  std::vector<std::vector<int>> vf_;
+  StarLists vf_;
   std::vector<int> patch_count_;
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;
   std::vector<char> boundary_, kept_;

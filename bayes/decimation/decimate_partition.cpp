@@ -117,6 +117,7 @@ class Climber {
     alias_.push_back(k);
     head_.push_back(-1);
     dirty_.push_back(1);
+    additions_.push_back(0);
     return k;
   }
 
@@ -329,6 +330,7 @@ class Climber {
     size_[gone] = 0;
     alive_[gone] = 0;
     alias_[gone] = keep;
+    ++additions_[keep];
     ++version_[keep];
     ++version_[gone];
     dirty_[keep] = 1;
@@ -391,6 +393,7 @@ class Climber {
       }
       if (!RemovalKeepsContiguous(f)) {
         ++stats_->rejected_disconnecting;
+        RememberDisconnecting(f);
         continue;
       }
       int target = e.target;
@@ -427,6 +430,7 @@ class Climber {
     --size_[from];
     ++size_[to];
     g_[f] = to;
+    ++additions_[to];
     ++version_[from];
     ++version_[to];
     dirty_[from] = 1;
@@ -490,6 +494,34 @@ class Climber {
     }
   }
 
+  // Which of f's edge neighbours lie in f's patch, one bit per edge.
+  int InPatchMask(int f) const {
+    int mask = 0;
+    for (int e = 0; e < 3; ++e) {
+      const int h = p_.neighbours[f][e];
+      if (h >= 0 && g_[h] == g_[f]) mask |= 1 << e;
+    }
+    return mask;
+  }
+
+  // A removal found disconnecting stays so while its patch gains no face and keeps f's in-patch neighbours:
+  // the patch without f is then a subgraph of what it was, so the neighbours stay apart.
+  void RememberDisconnecting(int f) {
+    if (disconnecting_patch_.empty()) {
+      disconnecting_patch_.assign(g_.size(), -1);
+      disconnecting_additions_.assign(g_.size(), 0);
+      disconnecting_mask_.assign(g_.size(), 0);
+    }
+    disconnecting_patch_[f] = g_[f];
+    disconnecting_additions_[f] = additions_[g_[f]];
+    disconnecting_mask_[f] = static_cast<char>(InPatchMask(f));
+  }
+
+  bool KnownDisconnecting(int f) const {
+    return !disconnecting_patch_.empty() && disconnecting_patch_[f] == g_[f] &&
+           disconnecting_additions_[f] == additions_[g_[f]] && disconnecting_mask_[f] == InPatchMask(f);
+  }
+
   bool RemovalKeepsContiguous(int f) {
     const int k = g_[f];
     const auto& nb = p_.neighbours[f];
@@ -501,6 +533,7 @@ class Climber {
       count += in[e];
     }
     if (count <= 1) return true;
+    if (KnownDisconnecting(f)) return false;
     // Union-find over the (up to) three in-patch neighbours; neighbours e and e+1 share corner e+1.
     int parent[3] = {0, 1, 2};
     auto find = [&](int x) {
@@ -538,6 +571,10 @@ class Climber {
   std::vector<int> next_, prev_;
   std::vector<int> mark_;
   std::vector<int> bfs_a_, bfs_b_;  // BfsConnects' queues, kept between calls
+  std::vector<int> additions_;       // per patch, faces it has gained (moves in, fuses)
+  // Per face, the last removal found disconnecting: its patch, that patch's additions then, and InPatchMask.
+  std::vector<int> disconnecting_patch_, disconnecting_additions_;
+  std::vector<char> disconnecting_mask_;
   int stamp_ = 0;
   std::vector<FuseEntry> seed_;  // the fuse phase's sorted seed candidates
 };

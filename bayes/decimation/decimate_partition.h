@@ -35,7 +35,7 @@ struct PartitionStats {
   std::int64_t splits = 0;
   std::int64_t swaps = 0;
   std::int64_t rejected_disconnecting = 0;  // split/swap candidates refused because they cut a patch
-  std::int64_t bfs_fallbacks = 0;           // contiguity tests the local fan walk could not decide
+  std::int64_t bfs_fallbacks = 0;           // contiguity searches run (the fan walk and earlier refusals undecided)
   int rounds = 0;
   bool converged = false;  // a full sweep over all pairs and faces found no improving move
   int num_patches = 0;
