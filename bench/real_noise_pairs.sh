@@ -2,12 +2,17 @@
 # Real-noise benchmark (issue #16, BENCHMARKS.md "Real sensor noise, part 2"): per Middlebury scene with ground
 # truth, the raw mesh of `rangebayes stereo` (defaults, the scene's search range, every DOWNSAMPLE-th pixel) and
 # the same connectivity with each vertex moved along its pixel ray to the ground-truth depth (faces touching a
-# vertex without ground truth are dropped from both). Writes OUT/<set>/<scene>/{noisy_cov,noisy,gt}.ply and one
-# JSON line per scene; then scores the raw mesh, the default stereo path (`smooth noisy_cov.ply`, covariances
-# kept) and the default generic path (`smooth noisy.ply`, no covariances, no noise level).
+# vertex without ground truth are dropped from both). Writes OUT/<set>/<scene>/{noisy_cov,noisy,gt}.ply, one JSON
+# line per scene and the pairs lists of `rangebayes learn-prior` (and bench/smooth_pairs.sh) per split:
+# OUT/<split>_pairs.txt (noisy_cov.ply, the stereo path), OUT/<split>_pairs_generic.txt (noisy.ply, the generic
+# path); then scores the raw mesh, the default stereo path (`smooth noisy_cov.ply`, covariances kept) and the
+# default generic path (`smooth noisy.ply`, no covariances, no noise level). OUT lies outside the repository.
 # KS="0.5 1 2": also the generic path at each given k (`smooth noisy.ply --noise k`), for the hindsight curve.
 # PAIRS_ONLY=1: build the pairs only. STEREO_ARGS="--noise-model noise.yaml": extra flags of `rangebayes stereo`
 # (e.g. the learned disparity-noise model). STEREO_ONLY=1: score the raw mesh and the stereo default path only.
+# The D435 Gray-code plane (test split; DATA/graycode_stereo_d435_zengzhik, no licence: read from ../shared only) is
+# turned into a 2014-layout scene under OUT/<scene>/scene: frame 00 (projected wallpaper), the pseudo ground truth
+# disparity_graycode.npy as disp0GT.pfm (0: unknown), the rig of bench/calibration_noise_graycode.sh as calib.txt.
 #   bench/real_noise_pairs.sh BUILD_DIR OUT_DIR [DOWNSAMPLE] [SPLIT...]     SPLIT: train validation test (default all)
 set -euo pipefail
 build=$1; out=$2; ds=${3:-4}; shift $(( $# >= 3 ? 3 : 2 ))
@@ -32,16 +37,45 @@ split[test]="middlebury_2014_trainingQ/Playroom middlebury_2014_trainingQ/Shelve
   middlebury_2005_2006_thirdsize/Reindeer middlebury_2005_2006_thirdsize/Rocks1 middlebury_2005_2006_thirdsize/Rocks2
   middlebury_2005_2006_thirdsize/Wood1 middlebury_2005_2006_thirdsize/Wood2 middlebury_2001_extra/poster
   middlebury_2001_extra/sawtooth middlebury_v2_2001_2003/cones middlebury_v2_2001_2003/teddy
-  middlebury_v2_2001_2003/tsukuba middlebury_v2_2001_2003/venus"
+  middlebury_v2_2001_2003/tsukuba middlebury_v2_2001_2003/venus graycode_stereo_d435_zengzhik"
+# The Gray-code plane as a Middlebury 2014 folder DST (numbers from the source repository's main.py, SOURCES.md).
+graycode_scene() {
+  mkdir -p "$2"
+  ln -sf "$(realpath "$1/frames/00-left.png")" "$2/im0.png"
+  ln -sf "$(realpath "$1/frames/00-right.png")" "$2/im1.png"
+  printf '%s\n' "cam0=[640.07 0 642.22; 0 640.07 355.13; 0 0 1]" "cam1=[640.07 0 642.22; 0 640.07 355.13; 0 0 1]" \
+    doffs=0 baseline=49.97 width=1280 height=720 ndisp=96 > "$2/calib.txt"
+  python3 - "$1/disparity_graycode.npy" "$2/disp0GT.pfm" <<'PY'
+import array, ast, sys
+raw = open(sys.argv[1], 'rb').read()
+assert raw[:6] == b'\x93NUMPY', 'not a .npy file'
+n = int.from_bytes(raw[8:10], 'little') if raw[6] == 1 else int.from_bytes(raw[8:12], 'little')
+start = (10 if raw[6] == 1 else 12) + n
+header = ast.literal_eval(raw[start - n:start].decode('latin1'))
+assert header['descr'] == '<f4' and not header['fortran_order'], header
+rows, cols = header['shape']
+d = array.array('f', raw[start:start + 4 * rows * cols])
+d = array.array('f', (x if x > 0 else float('inf') for x in d))
+with open(sys.argv[2], 'wb') as out:
+    out.write(f'Pf\n{cols} {rows}\n-1.0\n'.encode())
+    for r in reversed(range(rows)):
+        out.write(d[r * cols:(r + 1) * cols].tobytes())
+PY
+}
 splits=("$@"); [ ${#splits[@]} -gt 0 ] || splits=(train validation test)
+mkdir -p "$out"
 for sp in "${splits[@]}"; do
+  : > "$out/${sp}_pairs.txt"; : > "$out/${sp}_pairs_generic.txt"
   for s in ${split[$sp]}; do
-    d=$out/$s; mkdir -p "$d"
-    ndisp=$($ev rig "$data/$s" "$d/rig.yaml")
-    for f in im0.png imL.png view1.png im2.ppm im2.png; do [ -f "$data/$s/$f" ] && left=$data/$s/$f && break; done
-    for f in im1.png imR.png view5.png im6.ppm im6.png; do [ -f "$data/$s/$f" ] && right=$data/$s/$f && break; done
+    d=$out/$s; mkdir -p "$d"; src=$data/$s
+    if [ -f "$src/disparity_graycode.npy" ]; then graycode_scene "$src" "$d/scene"; src=$d/scene; fi
+    ndisp=$($ev rig "$src" "$d/rig.yaml")
+    for f in im0.png imL.png view1.png im2.ppm im2.png; do [ -f "$src/$f" ] && left=$src/$f && break; done
+    for f in im1.png imR.png view5.png im6.ppm im6.png; do [ -f "$src/$f" ] && right=$src/$f && break; done
     $rb stereo "$left" "$right" --rig "$d/rig.yaml" --num-disparities "$ndisp" --out "$d" --downsample "$ds" ${STEREO_ARGS:-} -q > "$d/stereo.log"
-    echo "{\"split\": \"$sp\", \"pair\": $($ev pair "$data/$s" "$d/rig.yaml" "$d/mesh.ply" "$d")}"
+    echo "{\"split\": \"$sp\", \"scene\": \"$s\", \"pair\": $($ev pair "$src" "$d/rig.yaml" "$d/mesh.ply" "$d")}"
+    echo "$s/noisy_cov.ply $s/gt.ply" >> "$out/${sp}_pairs.txt"
+    echo "$s/noisy.ply $s/gt.ply" >> "$out/${sp}_pairs_generic.txt"
     [ -n "${PAIRS_ONLY:-}" ] && continue
     $rb smooth "$d/noisy_cov.ply" "$d/stereo_default.ply" -q > "$d/smooth_cov.log"
     if [ -n "${STEREO_ONLY:-}" ]; then
