@@ -45,21 +45,15 @@ graycode_scene() {
   ln -sf "$(realpath "$1/frames/00-right.png")" "$2/im1.png"
   printf '%s\n' "cam0=[640.07 0 642.22; 0 640.07 355.13; 0 0 1]" "cam1=[640.07 0 642.22; 0 640.07 355.13; 0 0 1]" \
     doffs=0 baseline=49.97 width=1280 height=720 ndisp=96 > "$2/calib.txt"
-  python3 - "$1/disparity_graycode.npy" "$2/disp0GT.pfm" <<'PY'
-import array, ast, sys
-raw = open(sys.argv[1], 'rb').read()
-assert raw[:6] == b'\x93NUMPY', 'not a .npy file'
-n = int.from_bytes(raw[8:10], 'little') if raw[6] == 1 else int.from_bytes(raw[8:12], 'little')
-start = (10 if raw[6] == 1 else 12) + n
-header = ast.literal_eval(raw[start - n:start].decode('latin1'))
-assert header['descr'] == '<f4' and not header['fortran_order'], header
-rows, cols = header['shape']
-d = array.array('f', raw[start:start + 4 * rows * cols])
-d = array.array('f', (x if x > 0 else float('inf') for x in d))
+  /usr/bin/python3 - "$1/disparity_graycode.npy" "$2/disp0GT.pfm" <<'PY'
+import sys
+import numpy as np
+d = np.load(sys.argv[1])
+assert d.ndim == 2 and d.dtype == np.float32, (d.shape, d.dtype)
+d = np.where(d > 0, d, np.inf).astype('<f4')
 with open(sys.argv[2], 'wb') as out:
-    out.write(f'Pf\n{cols} {rows}\n-1.0\n'.encode())
-    for r in reversed(range(rows)):
-        out.write(d[r * cols:(r + 1) * cols].tobytes())
+    out.write(f'Pf\n{d.shape[1]} {d.shape[0]}\n-1.0\n'.encode())
+    out.write(np.ascontiguousarray(d[::-1]).tobytes())
 PY
 }
 splits=("$@"); [ ${#splits[@]} -gt 0 ] || splits=(train validation test)
