@@ -1,12 +1,12 @@
 // rangebayes: one binary, subcommands registered by apps/cmd_*.cpp.
 #include <CLI/CLI.hpp>
-#include <malloc.h>
 
 #include <cstdio>
 #include <exception>
 #include <string>
 
 #include "apps/command.h"
+#include "core/allocator.h"
 #include "core/error.h"
 
 namespace {
@@ -27,12 +27,7 @@ std::string ParsedName(const CLI::App& app) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Per frame the pipeline allocates and frees the same buffers again (the solver's, the images'): served from
-  // glibc's default mmap threshold (128 KiB, adapting upward) and trimmed back to the system, each frame paid
-  // its page faults again (a third of a live-path smoothing call; BENCHMARKS.md "Capture and pipeline").
-  // Blocks up to 32 MiB (glibc's maximum) come from the heap, and up to 256 MiB of free heap stay mapped.
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  rangebayes::ConfigureMallocForRepeatedBuffers();
   CLI::App app{
       "rangebayes: stereo range scanning to clean, compact meshes (Diebel, Thrun, Bruenig, ACM TOG 2006).\n"
       "Run 'rangebayes SUBCOMMAND --help' for the options of each subcommand."};

@@ -5,6 +5,10 @@ The C++ library from Python. Entry points: read_mesh / write_mesh, smooth (the s
 read_noise_model / write_noise_model, open_recording / replay, learn_prior. Every library error is a
 rangebayes.Error (a RuntimeError) with the library's message. Open3D interop: to_open3d / from_open3d
 (when open3d is installed). Long calls release the GIL.
+
+Importing sets glibc's malloc as the `rangebayes` CLI does, so that buffers freed by one call are reused by the
+next instead of being faulted in again: blocks up to 32 MiB come from the heap and up to 256 MiB of free heap
+stay mapped. A GLIBC_TUNABLES environment variable that sets any glibc.malloc tunable is left as it is.
 """
 
 from ._rangebayes import *  # noqa: F401,F403

@@ -8,6 +8,7 @@
 #include <memory>
 #include <opencv2/core.hpp>
 
+#include "core/allocator.h"
 #include "core/error.h"
 #include "python/src/bindings.h"
 
@@ -53,6 +54,10 @@ py::object PopKeyword(py::dict& kwargs, const char* name) {
 PYBIND11_MODULE(_rangebayes, m) {
   namespace rp = rangebayes::python;
   m.doc() = "rangebayes: stereo range scanning to clean, compact meshes (C++ library bindings)";
+  // The CLI's malloc settings (core/allocator.h): "applied", or "user tunables" when GLIBC_TUNABLES sets them.
+  m.attr("_malloc") = rangebayes::ConfigureMallocForRepeatedBuffers() == rangebayes::MallocConfiguration::kApplied
+                          ? "applied"
+                          : "user tunables";
   // rangebayes.Error: every rangebayes::Error, same message; a subclass of RuntimeError.
   static pybind11::handle error = pybind11::register_exception<rangebayes::Error>(m, "Error", PyExc_RuntimeError);
   // OpenCV's own errors (from a stage the library hands an image to) are library errors too.

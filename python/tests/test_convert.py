@@ -1,5 +1,9 @@
 """numpy -> Mesh / NoisyMesh: every layout copies exactly, bad values are a clear ValueError (never a crash)."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -135,3 +139,14 @@ def test_assignment_of_the_same_shape_is_in_place_and_keeps_views():
     plain = rb.NoisyMesh(V, F)
     plain.covariances = np.broadcast_to(np.eye(3), (4, 3, 3))  # no covariances yet: any count
     assert plain.has_covariance
+
+
+@pytest.mark.parametrize("tunables, expected", [(None, "applied"),
+                                                ("glibc.malloc.trim_threshold=1000000", "user tunables")])
+def test_import_sets_malloc_as_the_cli_unless_the_user_did(tunables, expected):
+    env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
+    if tunables is not None:
+        env["GLIBC_TUNABLES"] = tunables
+    out = subprocess.run([sys.executable, "-c", "import rangebayes; print(rangebayes._rangebayes._malloc)"],
+                         env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected
