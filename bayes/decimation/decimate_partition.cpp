@@ -507,19 +507,14 @@ class Climber {
   // A removal found disconnecting stays so while its patch gains no face and keeps f's in-patch neighbours:
   // the patch without f is then a subgraph of what it was, so the neighbours stay apart.
   void RememberDisconnecting(int f) {
-    if (disconnecting_patch_.empty()) {
-      disconnecting_patch_.assign(g_.size(), -1);
-      disconnecting_additions_.assign(g_.size(), 0);
-      disconnecting_mask_.assign(g_.size(), 0);
-    }
-    disconnecting_patch_[f] = g_[f];
-    disconnecting_additions_[f] = additions_[g_[f]];
-    disconnecting_mask_[f] = static_cast<char>(InPatchMask(f));
+    if (disconnecting_.empty()) disconnecting_.assign(g_.size(), DisconnectingRemoval{});
+    disconnecting_[f] = {g_[f], additions_[g_[f]], InPatchMask(f)};
   }
 
   bool KnownDisconnecting(int f) const {
-    return !disconnecting_patch_.empty() && disconnecting_patch_[f] == g_[f] &&
-           disconnecting_additions_[f] == additions_[g_[f]] && disconnecting_mask_[f] == InPatchMask(f);
+    if (disconnecting_.empty()) return false;
+    const DisconnectingRemoval& known = disconnecting_[f];
+    return known.patch == g_[f] && known.additions == additions_[g_[f]] && known.in_patch_mask == InPatchMask(f);
   }
 
   bool RemovalKeepsContiguous(int f) {
@@ -572,9 +567,13 @@ class Climber {
   std::vector<int> mark_;
   std::vector<int> bfs_a_, bfs_b_;  // BfsConnects' queues, kept between calls
   std::vector<int> additions_;       // per patch, faces it has gained (moves in, fuses)
-  // Per face, the last removal found disconnecting: its patch, that patch's additions then, and InPatchMask.
-  std::vector<int> disconnecting_patch_, disconnecting_additions_;
-  std::vector<char> disconnecting_mask_;
+  // Per face, the last removal found disconnecting (patch -1: none); allocated on the first one.
+  struct DisconnectingRemoval {
+    int patch = -1;
+    int additions = 0;      // the patch's additions_ then
+    int in_patch_mask = 0;  // InPatchMask then
+  };
+  std::vector<DisconnectingRemoval> disconnecting_;
   int stamp_ = 0;
   std::vector<FuseEntry> seed_;  // the fuse phase's sorted seed candidates
 };

@@ -60,7 +60,7 @@ py::array RealArray(py::handle obj, const std::vector<py::ssize_t>& shape, const
 // can be huge: the head and tail of the buffer (up to 2 MB each, malloc's blocks are not 2 MB aligned) stay
 // small pages, and are populated in one call instead of one fault per 4 kB page (kernels without
 // MADV_POPULATE_WRITE, before 5.14, refuse it and fault as before).
-void AdviseHugePages(void* data, size_t bytes) {
+void PrepareFreshBuffer(void* data, size_t bytes) {
   constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
   constexpr std::uintptr_t kPage = 4096;
   if (data == nullptr || bytes < 4 * kHuge) return;
@@ -251,7 +251,7 @@ void AssignVertices(py::handle obj, const std::string& what, Vertices* V) {
   const size_t bytes = sizeof(double) * 3 * static_cast<size_t>(n);
   const Placement place = Place(a, n, V->rows(), V->data(), bytes, what);
   Vertices fresh(place.through_fresh ? n : 0, 3);
-  AdviseHugePages(fresh.data(), bytes);
+  PrepareFreshBuffer(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
   const py::ssize_t bad = Fill(n, place.through_fresh ? fresh.data() : V->data(), !place.through_fresh,
@@ -277,7 +277,7 @@ void AssignFaces(py::handle obj, const std::string& what, Eigen::Index num_verti
   const size_t bytes = sizeof(int) * 3 * static_cast<size_t>(m);
   const Placement place = Place(a, m, F->rows(), F->data(), bytes, what);
   Faces fresh(place.through_fresh ? m : 0, 3);
-  AdviseHugePages(fresh.data(), bytes);
+  PrepareFreshBuffer(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1);
   const py::ssize_t bad = Fill(m, place.through_fresh ? fresh.data() : F->data(), !place.through_fresh,
@@ -306,7 +306,7 @@ void AssignCovariances(py::handle obj, const std::string& what, std::vector<Eige
   const Placement place = Place(a, n, static_cast<py::ssize_t>(covariance->size()), covariance->data(), bytes, what);
   // Eigen leaves the elements uninitialised, so the pages are first touched by the copy.
   std::vector<Eigen::Matrix3d> fresh(place.through_fresh ? static_cast<size_t>(n) : 0);
-  AdviseHugePages(fresh.data(), bytes);
+  PrepareFreshBuffer(fresh.data(), bytes);
   const char* src = static_cast<const char*>(a.data());
   const py::ssize_t s0 = a.strides(0), s1 = a.strides(1), s2 = a.strides(2);
   double* out = place.through_fresh ? (fresh.empty() ? nullptr : fresh[0].data()) : (*covariance)[0].data();
