@@ -173,7 +173,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
       ->check(CLI::Range(0.0, 0.99));
   sub->add_flag("--uniform-weights", a->uniform, "weight every face 1 (the paper) instead of by its area");
   sub->add_flag("--no-refit", a->no_refit,
-                "keep the kept vertices where they are in the input (no quadric refit of their positions)");
+                "keep the kept vertices where they are in the input (no refit of their positions, no edge flips)");
   sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
   sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
   AddQuietFlag(sub, &a->quiet);

@@ -7,8 +7,8 @@
 // --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL;
 // --no-vsa skips VSA only; --no-refit turns the vertex refit off; --both prints ours without the refit
 // ("bayes-sub", vertices a subset of the input's) before ours with it; --refit-reg X sets
-// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds, --corner-ridge X
-// DecimateOptions::corner_normal_ridge (0: the patch fields' normals at the corners).
+// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds, --flip-sweeps N its flip_sweeps (0: no
+// edge flips), --corner-ridge X DecimateOptions::corner_normal_ridge (0: the patch fields' normals at the corners).
 //
 // Per method and share it prints: output triangles, symmetric Hausdorff and RMS surface distance (relative to
 // the bounding-box diagonal, from area-uniform samples on both surfaces), the area-weighted angle between each
@@ -360,6 +360,7 @@ int main(int argc, char** argv) {
   bool bayes_only = false, no_vsa = false, refit = true, both = false;
   double refit_reg = VertexRefitOptions{}.regularisation;
   int fit_rounds = VertexRefitOptions{}.fit_rounds;
+  int flip_sweeps = VertexRefitOptions{}.flip_sweeps;
   double corner_ridge = DecimateOptions{}.corner_normal_ridge;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -369,6 +370,8 @@ int main(int argc, char** argv) {
       bayes_only = true;
     } else if (arg == "--fit-rounds" && i + 1 < argc) {
       fit_rounds = std::atoi(argv[++i]);
+    } else if (arg == "--flip-sweeps" && i + 1 < argc) {
+      flip_sweeps = std::atoi(argv[++i]);
     } else if (arg == "--refit-reg" && i + 1 < argc) {
       refit_reg = std::atof(argv[++i]);
     } else if (arg == "--corner-ridge" && i + 1 < argc) {
@@ -407,6 +410,7 @@ int main(int argc, char** argv) {
       options.refit_vertices = pass == 1 && refit;
       options.refit.regularisation = refit_reg;
       options.refit.fit_rounds = fit_rounds;
+      options.refit.flip_sweeps = flip_sweeps;
       options.corner_normal_ridge = corner_ridge;
       DecimateSummary summary;
       ours = Decimate(ref.dense, options, &summary);
@@ -417,8 +421,9 @@ int main(int argc, char** argv) {
       }
       Print(options.refit_vertices ? "bayes" : "bayes-sub", share, Evaluate(ref, {{ours.mesh, corner}}), t_ours);
       std::printf("           (%d patches, lambda %.4g, chain reserve %.2f, chain error up to %.3g%% of the diagonal, "
-                  "refit: %d moved, %d blocked, fit rms %.3g -> %.3g)\n",
-                  summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel, summary.refit_moved,
+                  "refit: %d flips, %d moved, %d blocked, fit rms %.3g -> %.3g)\n",
+                  summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel, summary.refit_flips,
+                  summary.refit_moved,
                   summary.refit_blocked, summary.refit_rms_before, summary.refit_rms_after);
     }
     if (bayes_only) continue;

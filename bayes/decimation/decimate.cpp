@@ -946,6 +946,46 @@ WeldedOutput WeldOutput(const Mesh& base, const Prepared& prep, const Attempt& b
   return w;
 }
 
+// The vertex refit's input for pose m of the chosen attempt.
+RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, size_t m) {
+  RefitInput in;
+  in.dense_V = &prep.poses[m];
+  in.dense_F = &prep.F;
+  in.dense_face_patch = &best.face_patch;
+  in.representative = &best.triangulation.representative;
+  in.boundary_vertex = &prep.boundary_vertex;
+  in.fixed = &prep.locked;  // copies of one input vertex stay where it is, so that they weld back
+  in.coarse_F = &best.triangulation.F;
+  in.coarse_face_patch = &best.triangulation.face_patch;
+  in.num_patches = best.num_patches;
+  return in;
+}
+
+// The discrete half of the refit, before its continuous half (decimate_refit.h): edges inside patches flipped
+// where the other diagonal lies closer to the dense vertices, judged at the positions of the refit's quadric
+// step in every pose (so that the flips suit where the vertices will stand); returns the flips. The refit then
+// runs in full on the flipped connectivity, which every pose shares.
+int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, Attempt* best) {
+  VertexRefitOptions quadric_step = options.refit;
+  quadric_step.fit_rounds = 0;
+  std::vector<Vertices> quadric(prep.poses.size());
+  tbb::parallel_for(size_t{0}, prep.poses.size(),
+                    [&](size_t m) { quadric[m] = RefitVertices(RefitInputFor(prep, *best, m), quadric_step); });
+  EdgeFlipInput flip;
+  for (size_t m = 0; m < prep.poses.size(); ++m) {
+    flip.dense_poses.push_back(&prep.poses[m]);
+    flip.coarse_poses.push_back(&quadric[m]);
+  }
+  flip.dense_F = &prep.F;
+  flip.dense_face_patch = &best->face_patch;
+  flip.representative = &best->triangulation.representative;
+  flip.coarse_face_patch = &best->triangulation.face_patch;
+  flip.num_patches = best->num_patches;
+  EdgeFlipSummary fs;
+  FlipEdgesToFit(flip, options.refit.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
+  return fs.flips;
+}
+
 // One pose's output over the welded connectivity: positions (refitted or the input's) and shading normals.
 class PoseOutput {
  public:
@@ -977,18 +1017,8 @@ class PoseOutput {
 
  private:
   void RefitPositions(size_t m, DecimateSummary* s, Vertices* V) const {
-    RefitInput in;
-    in.dense_V = &prep_.poses[m];
-    in.dense_F = &prep_.F;
-    in.dense_face_patch = &best_.face_patch;
-    in.representative = &tri_.representative;
-    in.boundary_vertex = &prep_.boundary_vertex;
-    in.fixed = &prep_.locked;  // copies of one input vertex stay where it is, so that they weld back
-    in.coarse_F = &tri_.F;
-    in.coarse_face_patch = &tri_.face_patch;
-    in.num_patches = best_.num_patches;
     VertexRefitSummary rs;
-    const Vertices moved = RefitVertices(in, options_.refit, &rs);
+    const Vertices moved = RefitVertices(RefitInputFor(prep_, best_, m), options_.refit, &rs);
     for (size_t i = 0; i < welded_.vertex_split.size(); ++i) {
       V->row(static_cast<Eigen::Index>(i)) = moved.row(welded_.vertex_split[i]);
     }
@@ -1114,10 +1144,13 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   }
   s.lambda = lambda;
 
+  const auto t_refit = Clock::now();
+  if (options.refit_vertices && !best.fell_back && options.refit.flip_sweeps > 0) {
+    s.refit_flips = FlipEdgesBeforeRefit(prep, options, &best);
+  }
   const WeldedOutput welded = WeldOutput(poses[0], prep, best);
   const PoseOutput pose_output(prep, problem, best, welded, options);
   std::vector<DecimatedMesh> out(poses.size());
-  const auto t_refit = Clock::now();
   for (size_t m = 0; m < poses.size(); ++m) out[m] = pose_output.Build(poses[m], m, &s);
 
   RecordOutcome(best, welded, &s);
@@ -1193,9 +1226,9 @@ std::string DecimateSummary::BriefReport() const {
   out += line;
   if (refitted) {
     std::snprintf(line, sizeof(line),
-                  "vertex refit: %d moved, %d kept in place by the flip guard; quadric error %.4g -> %.4g, fit RMS "
-                  "%.4g -> %.4g\n",
-                  refit_moved, refit_blocked, refit_quadric_before, refit_quadric_after, refit_rms_before,
+                  "vertex refit: %d edges flipped, %d vertices moved, %d kept in place by the flip guard; quadric "
+                  "error %.4g -> %.4g, fit RMS %.4g -> %.4g\n",
+                  refit_flips, refit_moved, refit_blocked, refit_quadric_before, refit_quadric_after, refit_rms_before,
                   refit_rms_after);
     out += line;
   }

@@ -115,6 +115,7 @@ struct DecimateSummary {
   double seconds_search_partition = 0.0, seconds_search_geometry = 0.0;
   // Vertex refit, summed over poses: vertices moved and kept in place, Σ quadric error before and after.
   int refit_moved = 0, refit_blocked = 0;
+  int refit_flips = 0;  // edges flipped inside patches before the refit (VertexRefitOptions::flip_sweeps)
   double refit_quadric_before = 0.0, refit_quadric_after = 0.0;
   // Of the first pose: the fit's area-weighted RMS distance of the dense vertices to the coarse faces, before
   // and after the fit rounds (VertexRefitSummary).

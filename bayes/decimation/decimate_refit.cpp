@@ -3,10 +3,12 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <tuple>
-#include <utility>
+#include <unordered_map>
 #include <unordered_set>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 
@@ -235,32 +237,52 @@ std::vector<double> VertexAreas(const Vertices& V, const Faces& F) {
   return vertex_area;
 }
 
-// The closest point to dense vertex j on the star of its representative and the stars of the corners of the
-// best face found there, with its squared distance. stamp: per coarse face, the last j that considered it.
+// Steps of the walk that projects a dense vertex onto the coarse mesh: from the star of its representative to
+// the stars of the best face's corners, while that finds a nearer face.
+constexpr int kProjectionSteps = 8;
+
+// That walk for query j from the faces of star[start]; distance2(f) is the squared distance to coarse face f.
+// Returns the nearest face found (−1: none) and its squared distance in *best. stamp: per coarse face, the last
+// query that considered it.
+template <class Distance2>
+int WalkToNearestFace(const std::vector<std::vector<int>>& star, const Faces& C, int start, int j,
+                      std::vector<int>& stamp, const Distance2& distance2, double* best) {
+  *best = std::numeric_limits<double>::infinity();
+  int out = -1;
+  auto consider = [&](int f) {
+    if (stamp[f] == j) return;
+    stamp[f] = j;
+    const double d2 = distance2(f);
+    if (d2 < *best) {
+      *best = d2;
+      out = f;
+    }
+  };
+  for (int f : star[start]) consider(f);
+  for (int step = 0; step < kProjectionSteps && out >= 0; ++step) {
+    const int f0 = out;
+    for (int k = 0; k < 3; ++k) {
+      for (int f : star[C(f0, k)]) consider(f);
+    }
+    if (out == f0) break;
+  }
+  return out;
+}
+
+// The closest point to dense vertex j found by that walk, with its squared distance.
 std::pair<Sample, double> ProjectDenseVertex(const Vertices& V, const std::vector<int>& rep, const CoarseState& st,
                                              int j, std::vector<int>& stamp) {
   const Faces& C = st.C;
   const Vertices& X = st.X;
   const Eigen::Vector3d p = Row(V, j);
-  double best = std::numeric_limits<double>::infinity();
-  Sample out{-1, Eigen::Vector3d::Zero()};
-  auto consider = [&](int f) {
-    if (stamp[f] == j) return;
-    stamp[f] = j;
-    Eigen::Vector3d bary;
-    const double d2 = ClosestPointOnTriangle(p, Row(X, C(f, 0)), Row(X, C(f, 1)), Row(X, C(f, 2)), &bary);
-    if (d2 < best) {
-      best = d2;
-      out = {f, bary};
-    }
+  auto distance2 = [&](int f, Eigen::Vector3d* bary) {
+    return ClosestPointOnTriangle(p, Row(X, C(f, 0)), Row(X, C(f, 1)), Row(X, C(f, 2)), bary);
   };
-  for (int f : st.star[rep[j]]) consider(f);
-  if (out.face >= 0) {
-    const int f0 = out.face;
-    for (int k = 0; k < 3; ++k) {
-      for (int f : st.star[C(f0, k)]) consider(f);
-    }
-  }
+  Eigen::Vector3d bary;
+  double best = 0.0;
+  const int face = WalkToNearestFace(st.star, C, rep[j], j, stamp, [&](int f) { return distance2(f, &bary); }, &best);
+  Sample out{face, Eigen::Vector3d::Zero()};
+  if (face >= 0) best = distance2(face, &out.bary);
   return std::make_pair(out, best);
 }
 
@@ -364,6 +386,7 @@ void VertexRefitOptions::Check() const {
            "decimate: refit min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(fit_rounds >= 0, "decimate: refit fit_rounds must be ≥ 0, got ", fit_rounds);
   RB_CHECK(max_halvings >= 0, "decimate: refit max_halvings must be ≥ 0, got ", max_halvings);
+  RB_CHECK(flip_sweeps >= 0, "decimate: refit flip_sweeps must be ≥ 0, got ", flip_sweeps);
 }
 
 Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, VertexRefitSummary* summary) {
@@ -408,6 +431,267 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   MoveToQuadricMinimisers(V, Q, Qb, movable, &st, &s);
   if (options.fit_rounds > 0) FitToDenseVertices(in, Qb, movable, &st, &s);
   return std::move(st.X);
+}
+
+}  // namespace rangebayes
+
+namespace rangebayes {
+namespace {
+
+uint64_t EdgeKey(int a, int b) {
+  const auto lo = static_cast<uint32_t>(std::min(a, b)), hi = static_cast<uint32_t>(std::max(a, b));
+  return (static_cast<uint64_t>(lo) << 32) | hi;
+}
+
+// The coarse mesh and its samples during FlipEdgesToFit.
+class Flipper {
+ public:
+  Flipper(const EdgeFlipInput& in, double min_cos, Faces* C) : in_(in), min_cos_(min_cos), C_(*C) {
+    const Vertices& V0 = *in.dense_poses[0];
+    const int nv = static_cast<int>(V0.rows());
+    weight_ = VertexAreas(V0, *in.dense_F);
+    area_eps_ = 1e-14 * (V0.colwise().maxCoeff() - V0.colwise().minCoeff()).squaredNorm();
+    patch_normal_.resize(in.dense_poses.size());
+    for (size_t m = 0; m < in.dense_poses.size(); ++m) {
+      patch_normal_[m] = PatchNormals(*in.dense_poses[m]);
+    }
+    star_.resize(nv);
+    for (int f = 0; f < C_.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) star_[C_(f, k)].push_back(f);
+    }
+    face_samples_.resize(C_.rows());
+    d2_.assign(in.dense_poses.size(), std::vector<double>(nv, 0.0));
+    changed_.assign(C_.rows(), 1);
+    // The nearest faces in parallel (C and the positions are only read), the lists in vertex order.
+    const std::vector<int>& rep = *in.representative;
+    std::vector<int> face_of(nv, -1);
+    constexpr int kBlock = 16384;
+    tbb::parallel_for(0, (nv + kBlock - 1) / kBlock, [&](int block) {
+      std::vector<int> stamp(C_.rows(), -1);
+      for (int j = block * kBlock, end = std::min(nv, j + kBlock); j < end; ++j) {
+        if (rep[j] < 0 || !(weight_[j] > 0.0) || star_[rep[j]].empty()) continue;
+        const int f = Nearest(j, stamp);
+        face_of[j] = f;
+        if (f < 0) continue;
+        for (size_t m = 0; m < d2_.size(); ++m) d2_[m][j] = Distance2(m, j, C_(f, 0), C_(f, 1), C_(f, 2));
+      }
+    });
+    for (int j = 0; j < nv; ++j) {
+      if (face_of[j] >= 0) face_samples_[face_of[j]].push_back(j);
+    }
+  }
+
+  // Over the samples at their faces' distances, first pose.
+  double Rms() const {
+    double sum = 0.0, w = 0.0;
+    for (int f = 0; f < C_.rows(); ++f) {
+      for (int j : face_samples_[f]) {
+        sum += weight_[j] * d2_[0][j];
+        w += weight_[j];
+      }
+    }
+    return w > 0.0 ? std::sqrt(sum / w) : 0.0;
+  }
+
+  // One sweep over the edges in key order; edges of faces flipped in this sweep wait for the next. Returns
+  // the number of flips.
+  int Sweep() {
+    std::unordered_map<uint64_t, std::pair<int, int>> faces_of;
+    faces_of.reserve(static_cast<size_t>(C_.rows()) * 2);
+    for (int f = 0; f < C_.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        auto [it, inserted] = faces_of.try_emplace(EdgeKey(C_(f, k), C_(f, (k + 1) % 3)), f, -1);
+        if (!inserted) it->second.second = it->second.second == -1 ? f : -2;  // −2: more than two faces
+      }
+    }
+    std::vector<std::tuple<uint64_t, int, int>> edges;
+    edges.reserve(faces_of.size());
+    for (const auto& [key, fs] : faces_of) {
+      if (fs.second >= 0 && (*in_.coarse_face_patch)[fs.first] == (*in_.coarse_face_patch)[fs.second]) {
+        edges.emplace_back(key, fs.first, fs.second);
+      }
+    }
+    std::sort(edges.begin(), edges.end());
+    std::unordered_set<uint64_t> exists;
+    exists.reserve(faces_of.size());
+    for (const auto& entry : faces_of) exists.insert(entry.first);
+    // After the first sweep only edges with a face flipped in the last sweep are tried: for the others the
+    // samples, the guard and the cost are as when they were refused (only a refusal because the other diagonal
+    // existed could now go the other way, and is not revisited).
+    std::vector<char> touched(C_.rows(), 0);
+    int flips = 0;
+    for (const auto& [key, f1, f2] : edges) {
+      if (touched[f1] || touched[f2] || !(changed_[f1] || changed_[f2])) continue;
+      if (TryFlip(f1, f2, &exists)) {
+        touched[f1] = touched[f2] = 1;
+        ++flips;
+      }
+    }
+    changed_.swap(touched);
+    return flips;
+  }
+
+ private:
+  Eigen::Vector3d At(size_t m, int v) const { return Row(*in_.dense_poses[m], v); }
+  Eigen::Vector3d Corner(size_t m, int v) const {
+    return Row(in_.coarse_poses.empty() ? *in_.dense_poses[m] : *in_.coarse_poses[m], v);
+  }
+
+  std::vector<Eigen::Vector3d> PatchNormals(const Vertices& V) const {
+    const Faces& F = *in_.dense_F;
+    std::vector<Eigen::Vector3d> n(std::max(in_.num_patches, 0), Eigen::Vector3d::Zero());
+    for (int f = 0; f < F.rows(); ++f) {
+      const int k = (*in_.dense_face_patch)[f];
+      if (k < 0 || k >= in_.num_patches) continue;
+      const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
+      n[k] += (b - a).cross(c - a);
+    }
+    for (auto& x : n) {
+      const double len = x.norm();
+      x = len > 0.0 ? Eigen::Vector3d(x / len) : Eigen::Vector3d::Zero();
+    }
+    return n;
+  }
+
+  double Distance2(size_t m, int j, int a, int b, int c) const {
+    Eigen::Vector3d bary;
+    return ClosestPointOnTriangle(At(m, j), Corner(m, a), Corner(m, b), Corner(m, c), &bary);
+  }
+
+  // The nearest coarse face to dense vertex j in the first pose (WalkToNearestFace from its representative).
+  int Nearest(int j, std::vector<int>& stamp) const {
+    double best = 0.0;
+    return WalkToNearestFace(
+        star_, C_, (*in_.representative)[j], j, stamp,
+        [&](int f) { return Distance2(0, j, C_(f, 0), C_(f, 1), C_(f, 2)); }, &best);
+  }
+
+  // Whether triangle (a, b, c) keeps an area and stays in its patch's cone in pose m, at the coarse positions
+  // (dense: at the dense ones); its area vector into *cross.
+  bool Acceptable(size_t m, bool dense, int a, int b, int c, int patch, Eigen::Vector3d* cross) const {
+    auto at = [&](int v) { return dense ? At(m, v) : Corner(m, v); };
+    const Eigen::Vector3d pa = at(a);
+    *cross = (at(b) - pa).cross(at(c) - pa);
+    const double len = cross->norm();
+    return len > area_eps_ && cross->dot(patch_normal_[m][patch]) >= min_cos_ * len;
+  }
+
+  void Remove(int v, int f) {
+    auto& s = star_[v];
+    s.erase(std::find(s.begin(), s.end(), f));
+  }
+
+  bool TryFlip(int f1, int f2, std::unordered_set<uint64_t>* exists) {
+    // f1 = (u, v, c) with the edge u → v, f2 = (v, u, d).
+    int k1 = -1;
+    for (int k = 0; k < 3 && k1 < 0; ++k) {
+      const int x = C_(f1, k), y = C_(f1, (k + 1) % 3);
+      for (int l = 0; l < 3; ++l) {
+        if (C_(f2, l) == y && C_(f2, (l + 1) % 3) == x) k1 = k;
+      }
+    }
+    if (k1 < 0) return false;  // the two faces disagree in orientation
+    const int u = C_(f1, k1), v = C_(f1, (k1 + 1) % 3), c = C_(f1, (k1 + 2) % 3);
+    int d = -1;
+    for (int l = 0; l < 3; ++l) {
+      if (C_(f2, l) != u && C_(f2, l) != v) d = C_(f2, l);
+    }
+    if (d < 0 || d == c || exists->count(EdgeKey(c, d))) return false;
+    const int patch = (*in_.coarse_face_patch)[f1];
+    // At the coarse positions, and at the dense ones where the refit starts (its guard then keeps the cone).
+    for (size_t m = 0; m < in_.dense_poses.size(); ++m) {
+      for (const bool dense : {false, true}) {
+        Eigen::Vector3d n1, n2;
+        if (!Acceptable(m, dense, c, u, d, patch, &n1) || !Acceptable(m, dense, d, v, c, patch, &n2) ||
+            !(n1.dot(n2) > 0.0)) {
+          return false;
+        }
+      }
+    }
+    // Each sample of the two faces goes to the nearer new triangle in the first pose, at its distances there
+    // in every pose.
+    samples_.assign(face_samples_[f1].begin(), face_samples_[f1].end());
+    samples_.insert(samples_.end(), face_samples_[f2].begin(), face_samples_[f2].end());
+    if (samples_.empty()) return false;
+    const size_t poses = d2_.size(), ns = samples_.size();
+    first_.resize(ns);
+    next_d2_.resize(poses * ns);
+    double before = 0.0, after = 0.0;
+    for (size_t i = 0; i < ns; ++i) {
+      const int j = samples_[i];
+      for (size_t m = 0; m < poses; ++m) {
+        const double d1 = Distance2(m, j, c, u, d), d2 = Distance2(m, j, d, v, c);
+        if (m == 0) first_[i] = d1 <= d2;
+        next_d2_[m * ns + i] = first_[i] ? d1 : d2;
+        before += weight_[j] * d2_[m][j];
+        after += weight_[j] * next_d2_[m * ns + i];
+      }
+    }
+    if (!(after < (1.0 - 1e-6) * before)) return false;
+    C_.row(f1) << c, u, d;
+    C_.row(f2) << d, v, c;
+    exists->erase(EdgeKey(u, v));
+    exists->insert(EdgeKey(c, d));
+    Remove(u, f2);
+    Remove(v, f1);
+    star_[c].push_back(f2);
+    star_[d].push_back(f1);
+    face_samples_[f1].clear();
+    face_samples_[f2].clear();
+    for (size_t i = 0; i < ns; ++i) {
+      const int j = samples_[i];
+      face_samples_[first_[i] ? f1 : f2].push_back(j);
+      for (size_t m = 0; m < poses; ++m) d2_[m][j] = next_d2_[m * ns + i];
+    }
+    return true;
+  }
+
+  const EdgeFlipInput& in_;
+  const double min_cos_;
+  Faces& C_;
+  std::vector<double> weight_;
+  double area_eps_ = 0.0;
+  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;  // per pose, per patch
+  std::vector<std::vector<int>> star_;                      // per dense vertex, its coarse faces
+  std::vector<std::vector<int>> face_samples_;              // per coarse face, its dense vertices
+  std::vector<std::vector<double>> d2_;                     // per pose, per dense vertex: squared distance to its face
+  std::vector<char> changed_;                               // per coarse face: flipped in the last sweep
+  std::vector<int> samples_;                                // TryFlip's scratch
+  std::vector<char> first_;
+  std::vector<double> next_d2_;
+};
+
+}  // namespace
+
+void FlipEdgesToFit(const EdgeFlipInput& in, double min_cos_to_patch_normal, int max_sweeps, Faces* coarse_F,
+                    EdgeFlipSummary* summary) {
+  EdgeFlipSummary local;
+  EdgeFlipSummary& s = summary != nullptr ? *summary : local;
+  s = EdgeFlipSummary{};
+  RB_CHECK(!in.dense_poses.empty() && in.dense_F && in.dense_face_patch && in.representative &&
+               in.coarse_face_patch && coarse_F,
+           "decimate: edge flip input incomplete");
+  const Eigen::Index nv = in.dense_poses[0]->rows();
+  RB_CHECK(in.coarse_poses.empty() || in.coarse_poses.size() == in.dense_poses.size(),
+           "decimate: edge flip needs coarse positions for every pose or none");
+  for (const Vertices* V : in.dense_poses) RB_CHECK(V->rows() == nv, "decimate: edge flip pose size mismatch");
+  for (const Vertices* X : in.coarse_poses) RB_CHECK(X->rows() == nv, "decimate: edge flip pose size mismatch");
+  RB_CHECK(static_cast<Eigen::Index>(in.representative->size()) == nv,
+           "decimate: edge flip representative size mismatch");
+  RB_CHECK(static_cast<Eigen::Index>(in.dense_face_patch->size()) == in.dense_F->rows(),
+           "decimate: edge flip patch map size mismatch");
+  RB_CHECK(static_cast<Eigen::Index>(in.coarse_face_patch->size()) == coarse_F->rows(),
+           "decimate: edge flip coarse patch size mismatch");
+  if (max_sweeps <= 0 || coarse_F->rows() == 0) return;
+  Flipper flipper(in, min_cos_to_patch_normal, coarse_F);
+  s.fit_rms_before = flipper.Rms();
+  while (s.sweeps < max_sweeps) {
+    ++s.sweeps;
+    const int flips = flipper.Sweep();
+    s.flips += flips;
+    if (flips == 0) break;
+  }
+  s.fit_rms_after = flipper.Rms();
 }
 
 }  // namespace rangebayes

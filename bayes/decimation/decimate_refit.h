@@ -14,7 +14,9 @@
 // nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser of the
 // area-weighted point-to-plane distances of the samples on its faces, weighted by their barycentric share, plus
 // the boundary planes), under the same guard; this lowers the surface distance further (Hoppe et al. 1993).
-// Connectivity is untouched, so manifoldness and the patch map are kept as they are.
+// RefitVertices leaves the connectivity untouched, so manifoldness and the patch map are kept as they are.
+// FlipEdgesToFit below is the discrete half: the decimator runs the quadric step alone, flips edges at those
+// positions, then RefitVertices in full on the flipped faces (DecimateOptions::refit, flip_sweeps).
 #pragma once
 
 #include <vector>
@@ -29,6 +31,7 @@ struct VertexRefitOptions {
   double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
   int max_halvings = 4;                   // step halvings tried before a vertex stays, ≥ 0
   int fit_rounds = 2;                     // rounds of the fit to the dense vertices after the quadric step, ≥ 0
+  int flip_sweeps = 4;                    // sweeps of FlipEdgesToFit before the full refit (at most), ≥ 0; 0: none
 
   // Throws Error naming the field that is out of range.
   void Check() const;
@@ -60,5 +63,35 @@ struct RefitInput {
 // inconsistent sizes.
 Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& options = {},
                        VertexRefitSummary* summary = nullptr);
+
+// The discrete half of the same fit: edges between two coarse faces of one patch are flipped where the other
+// diagonal of their quadrilateral lies closer to the dense vertices (Hoppe et al. 1993's edge swap). Each dense
+// vertex is a sample of the coarse face nearest to it around its representative (in the first pose); a flip is
+// taken when the samples of the two faces, each moved to the nearer new triangle (first pose), come closer to
+// their faces (squared distances weighted by the dense vertex areas, summed over the poses) by more than 1e-6
+// of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused
+// when the new edge exists already (so the mesh stays manifold with the same vertices, faces and patches) or
+// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal or fold onto its
+// partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
+struct EdgeFlipInput {
+  std::vector<const Vertices*> dense_poses;            // per pose, the dense positions (the samples)
+  std::vector<const Vertices*> coarse_poses;           // per pose, the coarse vertices' positions; empty: dense
+  const Faces* dense_F = nullptr;
+  const std::vector<int>* dense_face_patch = nullptr;  // per dense face, its patch
+  const std::vector<int>* representative = nullptr;    // per dense vertex, its kept vertex, or −1
+  const std::vector<int>* coarse_face_patch = nullptr; // per coarse face, its patch
+  int num_patches = 0;
+};
+
+struct EdgeFlipSummary {
+  int flips = 0;
+  int sweeps = 0;
+  // Area-weighted RMS distance of the dense vertices to their coarse faces (first pose), before and after.
+  double fit_rms_before = 0.0, fit_rms_after = 0.0;
+};
+
+// Flips edges of *coarse_F (faces over dense vertex ids) in place. Throws Error for inconsistent sizes.
+void FlipEdgesToFit(const EdgeFlipInput& input, double min_cos_to_patch_normal, int max_sweeps, Faces* coarse_F,
+                    EdgeFlipSummary* summary = nullptr);
 
 }  // namespace rangebayes

@@ -663,10 +663,12 @@ TEST(DecimateRefit, PlanarSheetsStayPlanar) {
 
 TEST(DecimateRefit, BringsAFacetedSphereCloserToItsVolume) {
   // A coarse polytope with its vertices on the sphere lies inside it; the quadric places them outside, so the
-  // refitted one loses less volume (and so less surface distance) than the vertex subset.
+  // refitted one loses less volume (and so less surface distance) than the vertex subset. Without edge flips, so
+  // that both have the same faces.
   const Mesh sphere = Sphere(4);
   DecimateOptions options;
   options.target_faces = 100;
+  options.refit.flip_sweeps = 0;
   const DecimatedMesh refit = Decimate(sphere, options);
   options.refit_vertices = false;
   const DecimatedMesh subset = Decimate(sphere, options);
@@ -740,6 +742,80 @@ TEST(DecimateRefit, FlatInputAndFixedVerticesStay) {
   VertexRefitOptions bad;
   bad.regularisation = 0.0;
   EXPECT_THROW(RefitVertices(in, bad), Error);
+}
+
+TEST(DecimateRefit, EdgeFlipsTakeTheDiagonalAlongARidge) {
+  // A roof over the unit square, z = 0.3 (1 − |x − y|), with its ridge on the diagonal (0,0)–(1,1), sampled on a
+  // 9×9 grid whose cells are cut along that diagonal's direction, so the dense mesh is the roof exactly. The
+  // coarse mesh of its four corners cut along the other diagonal misses the ridge; one flip makes it the roof.
+  constexpr int n = 9;
+  Vertices V(n * n, 3);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double x = j / (n - 1.0), y = i / (n - 1.0);
+      V.row(i * n + j) << x, y, 0.3 * (1.0 - std::abs(x - y));
+    }
+  }
+  Faces F(2 * (n - 1) * (n - 1), 3);
+  int f = 0;
+  for (int i = 0; i + 1 < n; ++i) {
+    for (int j = 0; j + 1 < n; ++j) {
+      const int a = i * n + j, b = a + 1, c = a + n + 1, d = a + n;
+      F.row(f++) << a, b, c;
+      F.row(f++) << a, c, d;
+    }
+  }
+  const int c00 = 0, c10 = n - 1, c11 = n * n - 1, c01 = n * (n - 1);
+  std::vector<int> rep(n * n);
+  for (int v = 0; v < n * n; ++v) {
+    const bool right = V(v, 0) >= 0.5, top = V(v, 1) >= 0.5;
+    rep[v] = top ? (right ? c11 : c01) : (right ? c10 : c00);
+  }
+  const std::vector<int> dense_patch(F.rows(), 0);
+  Faces C(2, 3);
+  C << c00, c10, c01, c10, c11, c01;  // the diagonal (1,0)–(0,1)
+  std::vector<int> coarse_patch = {0, 0};
+  EdgeFlipInput in;
+  in.dense_poses = {&V};
+  in.dense_F = &F;
+  in.dense_face_patch = &dense_patch;
+  in.representative = &rep;
+  in.coarse_face_patch = &coarse_patch;
+  in.num_patches = 1;
+
+  Faces flipped = C;
+  EdgeFlipSummary summary;
+  FlipEdgesToFit(in, 0.02, 4, &flipped, &summary);
+  EXPECT_EQ(summary.flips, 1);
+  EXPECT_EQ(summary.sweeps, 2);  // the second sweep finds nothing more
+  EXPECT_GT(summary.fit_rms_before, 0.01);
+  EXPECT_LT(summary.fit_rms_after, 1e-12);
+  for (int g = 0; g < 2; ++g) {
+    const std::set<int> corners = {flipped(g, 0), flipped(g, 1), flipped(g, 2)};
+    EXPECT_TRUE(corners.count(c00) && corners.count(c11));
+    // Same orientation as the input: the normal points up.
+    const Eigen::Vector3d a = V.row(flipped(g, 0)), b = V.row(flipped(g, 1)), c = V.row(flipped(g, 2));
+    EXPECT_GT((b - a).cross(c - a).z(), 0.0);
+  }
+
+  // An edge between two patches is a chain: never flipped. No sweeps: nothing happens.
+  coarse_patch = {0, 1};
+  std::vector<int> two_patches(F.rows());
+  for (int g = 0; g < F.rows(); ++g) two_patches[g] = V(F(g, 0), 0) + V(F(g, 0), 1) < 1.0 ? 0 : 1;
+  in.dense_face_patch = &two_patches;
+  in.num_patches = 2;
+  Faces kept = C;
+  FlipEdgesToFit(in, 0.02, 4, &kept, &summary);
+  EXPECT_EQ(summary.flips, 0);
+  EXPECT_EQ(kept, C);
+  coarse_patch = {0, 0};
+  in.dense_face_patch = &dense_patch;
+  in.num_patches = 1;
+  FlipEdgesToFit(in, 0.02, 0, &kept, &summary);
+  EXPECT_EQ(kept, C);
+  const std::vector<int> short_rep(3, 0);
+  in.representative = &short_rep;
+  EXPECT_THROW(FlipEdgesToFit(in, 0.02, 4, &kept), Error);
 }
 
 }  // namespace
