@@ -26,6 +26,14 @@ void ProgressPrinter::Update(double fraction, std::string_view stage) {
   if (elapsed_s < 1.0) return;
   if (!std::isfinite(fraction)) fraction = 0.0;
   fraction = std::fmin(std::fmax(fraction, 0.0), 1.0);
+  // The bar never goes back within a stage: estimates that move both ways would otherwise print a line at
+  // every decile they cross, in either direction.
+  if (stage != stage_) {
+    stage_.assign(stage.data(), stage.size());
+    shown_fraction_ = 0.0;
+    last_decile_ = -1;
+  }
+  shown_fraction_ = fraction = std::fmax(fraction, shown_fraction_);
   const double left_s = fraction > 0.01 ? elapsed_s * (1.0 - fraction) / fraction : -1.0;
   char eta[32] = "";
   if (left_s >= 0) std::snprintf(eta, sizeof(eta), ", %.0f s left", left_s);
@@ -39,7 +47,7 @@ void ProgressPrinter::Update(double fraction, std::string_view stage) {
     shown_ = true;
   } else {
     const int decile = static_cast<int>(fraction * 10.0);
-    if (decile == last_decile_) return;
+    if (decile <= last_decile_) return;
     last_decile_ = decile;
     std::fprintf(stderr, "%.*s: %3.0f%% after %.1f s%s\n", static_cast<int>(stage.size()), stage.data(),
                  fraction * 100.0, elapsed_s, eta);

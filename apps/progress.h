@@ -1,5 +1,5 @@
 // Progress on stderr for long runs: silent for the first second and when quiet, a single updating line on a
-// terminal, and a line per 10% otherwise (logs stay short).
+// terminal, and a line per 10% otherwise (logs stay short). Within a stage the fraction shown never decreases.
 #pragma once
 
 #include <chrono>
@@ -27,6 +27,8 @@ class ProgressPrinter {
   bool is_terminal_;
   bool shown_ = false;
   int last_decile_ = -1;
+  std::string stage_;            // the stage of the last update
+  double shown_fraction_ = 0.0;  // the largest fraction of that stage so far
   std::chrono::steady_clock::time_point start_;
   std::chrono::steady_clock::time_point last_print_;
 };

@@ -814,13 +814,24 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
     const Clock::duration left = limited ? deadline - solve_start : Clock::duration::zero();
     std::vector<SqrtPotential> stage_potentials;  // outlive their use by the energy
     stage_potentials.reserve(static_cast<size_t>(stages));
+    // The caller's progress covers the whole call: solve k of the stages + 1 solves reports within
+    // [k, k + 1] / (stages + 1) (they take similar times: docs/journal/smoothing-real-stereo.md, round 7), and
+    // what is reported never goes back (each solve's own estimate moves both ways with the rate of decrease).
+    double reported = 0;
+    auto progress_of_solve = [&](int k) -> ProgressCallback {
+      if (!options.progress) return nullptr;
+      return [&reported, &options, k, stages](double fraction, std::string_view stage) {
+        reported = std::max(reported, (k + std::clamp(fraction, 0.0, 1.0)) / (stages + 1));
+        options.progress(reported, stage);
+      };
+    };
     for (int s = stages; s >= 0; --s) {
       const bool last = s == 0;
       if (!last && Clock::now() >= deadline) continue;
       SmoothOptions o = options;
+      o.progress = progress_of_solve(stages - s);
       if (!last) {
         o.sqrt_epsilon_squared = std::min(4.0, options.sqrt_epsilon_squared * std::pow(10.0, s));
-        o.progress = nullptr;
         stage_potentials.emplace_back(o.sqrt_epsilon_squared);
       }
       energy.SetPotential(last ? *fine->potential : stage_potentials.back());

@@ -4,9 +4,12 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <numeric>
 #include <string>
+#include <string_view>
+#include <vector>
 #include <random>
 
 #include "bayes/grid_hierarchy.h"
@@ -258,6 +261,34 @@ TEST(Smooth, TimeLimit) {
   EXPECT_TRUE(tiny.V.allFinite());
   options.time_limit_s = -1;
   EXPECT_THROW(Smooth(input, options), Error);
+}
+
+// Progress covers the whole call on an organized mesh: each of the three continuation stages and the final solve
+// report within their quarter, the reported fraction never decreases, and reporting changes nothing (same bytes).
+TEST(Smooth, ProgressCoversEveryStageAndNeverGoesBack) {
+  const NoisyMesh input = testing::RangeGrid(40, 32, 0.03, 0.001, 8);
+  SmoothOptions options;
+  SmoothSummary silent_summary;
+  const Mesh silent = Smooth(input, options, &silent_summary);
+  std::vector<double> fractions;
+  options.progress = [&](double fraction, std::string_view stage) {
+    EXPECT_EQ(stage, "smoothing");
+    fractions.push_back(fraction);
+  };
+  const Mesh reported = Smooth(input, options);
+  EXPECT_EQ(std::memcmp(silent.V.data(), reported.V.data(), sizeof(double) * silent.V.size()), 0);
+  ASSERT_FALSE(fractions.empty());
+  std::array<int, 4> per_quarter{};
+  for (size_t i = 0; i < fractions.size(); ++i) {
+    ASSERT_GE(fractions[i], 0.0);
+    ASSERT_LE(fractions[i], 1.0);
+    if (i > 0) {
+      ASSERT_GE(fractions[i], fractions[i - 1]) << "at report " << i;
+    }
+    ++per_quarter[static_cast<size_t>(std::min(3, static_cast<int>(fractions[i] * 4)))];
+  }
+  // Every solve runs more than one iteration here, so each quarter hears from its own solve.
+  for (int q = 0; q < 4; ++q) EXPECT_GT(per_quarter[static_cast<size_t>(q)], 0) << "quarter " << q;
 }
 
 // The multilevel path reaches the same minimum as the single-level solve (both tight) on a small range grid.
