@@ -5,10 +5,13 @@
 //
 //   bench_calibration NAME:LEFT_GLOB:RIGHT_GLOB:COLSxROWS ...
 #include <cstdio>
+#include <exception>
+#include <stdexcept>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <regex>
 #include <unistd.h>
 #include <string>
 #include <vector>
@@ -48,7 +51,7 @@ std::vector<rb::CalibrationImagePair> Derive(const std::vector<rb::CalibrationIm
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_calibration NAME:LEFT_GLOB:RIGHT_GLOB:COLSxROWS ...\n");
     return 2;
@@ -60,6 +63,10 @@ int main(int argc, char** argv) {
   for (int a = 1; a < argc; ++a) {
     const std::string spec = argv[a];
     const size_t c1 = spec.find(':'), c2 = spec.find(':', c1 + 1), c3 = spec.rfind(':');
+    if (c1 == std::string::npos || c2 == std::string::npos || c3 == c2 ||
+        !std::regex_match(spec.substr(c3 + 1), std::regex("[0-9]{1,4}x[0-9]{1,4}"))) {
+      throw std::invalid_argument("'" + spec + "' is not NAME:LEFT_GLOB:RIGHT_GLOB:COLSxROWS");
+    }
     const std::string name = spec.substr(0, c1), left = spec.substr(c1 + 1, c2 - c1 - 1),
                       right = spec.substr(c2 + 1, c3 - c2 - 1), board = spec.substr(c3 + 1);
     const size_t x = board.find('x');
@@ -99,4 +106,14 @@ int main(int argc, char** argv) {
   fs::remove_all(tmp);
   std::printf("default worse than classic + cornerSubPix on %d of %d sets\n", worse, rows);
   return 0;
+}
+
+// Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
+int main(int argc, char** argv) {
+  try {
+    return RunBench(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_calibration: error: %s\n", e.what());
+    return 1;
+  }
 }

@@ -6,6 +6,7 @@
 //   bench_console_soak [REPEATS=10] [ROUNDS=2]     (from the repository root)
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -19,7 +20,7 @@
 
 namespace rb = rangebayes;
 
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   const int repeats = argc > 1 ? std::atoi(argv[1]) : 10;
   const int rounds = argc > 2 ? std::atoi(argv[2]) : 2;
   const rb::Recording recording = rb::OpenRecording("recordings/synth_planes_320x240");
@@ -58,4 +59,14 @@ int main(int argc, char** argv) {
   }
   std::filesystem::remove_all(dir);
   return 0;
+}
+
+// Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
+int main(int argc, char** argv) {
+  try {
+    return RunBench(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_console_soak: error: %s\n", e.what());
+    return 1;
+  }
 }

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <random>
 #include <string>
 #include <vector>
@@ -350,7 +351,7 @@ void Print(const char* method, double share, const Metrics& m, double seconds) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: %s MESH [SHARE ...]\n", argv[0]);
     return 2;
@@ -439,4 +440,14 @@ int main(int argc, char** argv) {
     Print("vsa", share, Evaluate(ref, {{vsa, SmoothCorners(vsa)}, {vsa, FlatCorners(vsa)}}), t_vsa);
   }
   return 0;
+}
+
+// Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
+int main(int argc, char** argv) {
+  try {
+    return RunBench(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_decimate_compare: error: %s\n", e.what());
+    return 1;
+  }
 }

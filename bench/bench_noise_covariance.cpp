@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <string>
 
 #include "bayes/smooth.h"
@@ -59,7 +60,7 @@ double DepthRms(const Mesh& mesh, const NoisyMesh& noisy, const cv::Mat& depth_g
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   const double noise = argc > 1 ? std::atof(argv[1]) : 4.0;
   const SynthScene scene = ParseSynthScene(argc > 2 ? argv[2] : "box");
 
@@ -102,4 +103,14 @@ int main(int argc, char** argv) {
                 ss.iterations, ss.time_s);
   }
   return 0;
+}
+
+// Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
+int main(int argc, char** argv) {
+  try {
+    return RunBench(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_noise_covariance: error: %s\n", e.what());
+    return 1;
+  }
 }
