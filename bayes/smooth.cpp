@@ -29,7 +29,7 @@ namespace {
 
 struct Preset {
   double energy;    // relative energy decrease over kWindow iterations, divided by kWindow; 0: off
-  double gap;       // optimality gap bound ½ gᵀM⁻¹g relative to |E|; 0: off
+  double gap;       // distance to the optimum (RemainingDecrease) relative to |E|; 0: off
   double gradient;  // ‖g‖ / ‖g_0‖
   int max_iterations;
 };

@@ -64,4 +64,16 @@ std::optional<std::pair<TimedImage, TimedImage>> FramePairer::Pop() {
   return std::nullopt;
 }
 
+StereoFrame StereoFrameOf(std::pair<TimedImage, TimedImage>&& pair, std::int64_t index) {
+  StereoFrame f;
+  f.left = std::move(pair.first.image);
+  f.right = std::move(pair.second.image);
+  f.timestamp_left_ns = pair.first.timestamp_ns;
+  f.timestamp_right_ns = pair.second.timestamp_ns;
+  f.sequence_left = pair.first.sequence;
+  f.sequence_right = pair.second.sequence;
+  f.index = index;
+  return f;
+}
+
 }  // namespace rangebayes

@@ -7,6 +7,8 @@
 #include <opencv2/core.hpp>
 #include <utility>
 
+#include "capture/stereo_frame.h"
+
 namespace rangebayes {
 
 // One image from one camera. timestamp_ns: driver capture time (monotonic clock); sequence: driver frame
@@ -44,6 +46,9 @@ class FramePairer {
   std::int64_t unpaired_left_ = 0;
   std::int64_t unpaired_right_ = 0;
 };
+
+// The stereo frame of a pair that FramePairer::Pop returned, numbered `index` (the images are moved out).
+StereoFrame StereoFrameOf(std::pair<TimedImage, TimedImage>&& pair, std::int64_t index);
 
 // Counts frames lost by a driver from its sequence numbers.
 class SequenceGapCounter {

@@ -218,14 +218,7 @@ FrameResult LibcameraStereoSource::Next() {
     result.reason = StrCat("no stereo pair within ", impl_->options.timeout_ms, " ms");
     return result;
   }
-  StereoFrame& f = result.frame;
-  f.left = std::move(pair->first.image);
-  f.right = std::move(pair->second.image);
-  f.timestamp_left_ns = pair->first.timestamp_ns;
-  f.timestamp_right_ns = pair->second.timestamp_ns;
-  f.sequence_left = pair->first.sequence;
-  f.sequence_right = pair->second.sequence;
-  f.index = impl_->next_index++;
+  result.frame = StereoFrameOf(std::move(*pair), impl_->next_index++);
   ++impl_->stats.frames_delivered;
   result.status = FrameStatus::kFrame;
   return result;

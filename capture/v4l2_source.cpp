@@ -71,14 +71,7 @@ FrameResult V4l2StereoSource::Next() {
   FrameResult result;
   while (true) {
     if (auto pair = pairer_.Pop()) {
-      StereoFrame& f = result.frame;
-      f.left = std::move(pair->first.image);
-      f.right = std::move(pair->second.image);
-      f.timestamp_left_ns = pair->first.timestamp_ns;
-      f.timestamp_right_ns = pair->second.timestamp_ns;
-      f.sequence_left = pair->first.sequence;
-      f.sequence_right = pair->second.sequence;
-      f.index = next_index_++;
+      result.frame = StereoFrameOf(std::move(*pair), next_index_++);
       result.status = FrameStatus::kFrame;
       ++stats_.frames_delivered;
       return result;

@@ -11,6 +11,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "core/mesh_io_internal.h"
@@ -224,46 +225,43 @@ T Load(const char* p, bool swap) {
   }
 }
 
-double LoadDouble(PlyType type, const char* p, bool swap) {
+// The value at p as type `type` (a little- or big-endian scalar of that PLY type), handed to f as its C++ type.
+template <typename F>
+auto LoadAs(PlyType type, const char* p, bool swap, F&& f) {
   switch (type) {
     case PlyType::kInt8:
-      return Load<int8_t>(p, swap);
+      return f(Load<int8_t>(p, swap));
     case PlyType::kUint8:
-      return Load<uint8_t>(p, swap);
+      return f(Load<uint8_t>(p, swap));
     case PlyType::kInt16:
-      return Load<int16_t>(p, swap);
+      return f(Load<int16_t>(p, swap));
     case PlyType::kUint16:
-      return Load<uint16_t>(p, swap);
+      return f(Load<uint16_t>(p, swap));
     case PlyType::kInt32:
-      return Load<int32_t>(p, swap);
+      return f(Load<int32_t>(p, swap));
     case PlyType::kUint32:
-      return Load<uint32_t>(p, swap);
+      return f(Load<uint32_t>(p, swap));
     case PlyType::kFloat32:
-      return Load<float>(p, swap);
+      return f(Load<float>(p, swap));
     case PlyType::kFloat64:
-      return Load<double>(p, swap);
+      break;
   }
-  return 0;
+  return f(Load<double>(p, swap));
 }
 
-// Integer types only (checked in the header).
+double LoadDouble(PlyType type, const char* p, bool swap) {
+  return LoadAs(type, p, swap, [](auto value) { return static_cast<double>(value); });
+}
+
+// Integer types only (checked in the header); −1 for the others.
 int64_t LoadInt(PlyType type, const char* p, bool swap) {
-  switch (type) {
-    case PlyType::kInt8:
-      return Load<int8_t>(p, swap);
-    case PlyType::kUint8:
-      return Load<uint8_t>(p, swap);
-    case PlyType::kInt16:
-      return Load<int16_t>(p, swap);
-    case PlyType::kUint16:
-      return Load<uint16_t>(p, swap);
-    case PlyType::kInt32:
-      return Load<int32_t>(p, swap);
-    case PlyType::kUint32:
-      return Load<uint32_t>(p, swap);
-    default:
+  return LoadAs(type, p, swap, [](auto value) -> int64_t {
+    if constexpr (std::is_floating_point_v<decltype(value)>) {
       return -1;
-  }
+    } else {
+      return static_cast<int64_t>(value);
+    }
+  });
 }
 
 // Reads the body, one element at a time, into the mesh.
