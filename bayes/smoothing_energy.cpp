@@ -819,6 +819,23 @@ SmoothingEnergy::RayPattern SmoothingEnergy::RayGaussNewtonPattern() const {
   return pattern;
 }
 
+namespace {
+// The pair's weight w = φ'(d)/d: H = w I majorises the potential's curvature in u (the IRLS model).
+double PairWeight(const Potential& potential, const SqrtPotential* sqrt_potential, double e2,
+                  const Eigen::Vector3d& u) {
+  if (sqrt_potential != nullptr) return 1.0 / std::sqrt(u.squaredNorm() + e2);
+  double value, weight;
+  potential.EvaluateWeight(u.norm(), &value, &weight);
+  return std::max(weight, 0.0);
+}
+}  // namespace
+
+double SmoothingEnergy::PairEpsilonSquared(const SqrtPotential* sqrt_potential, int t, int s) const {
+  if (sqrt_potential == nullptr) return 0.0;
+  if (face_epsilon_squared_.empty()) return sqrt_potential->epsilon_squared();
+  return 0.5 * (face_epsilon_squared_[static_cast<size_t>(t)] + face_epsilon_squared_[static_cast<size_t>(s)]);
+}
+
 void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std::vector<double>& rays,
                                      const RayPattern& pattern, std::vector<double>* values_out) const {
   const int nf = num_faces(), nv = num_vertices_;
@@ -863,10 +880,7 @@ void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std:
                                   Eigen::Vector3d(&normals_[3 * static_cast<size_t>(s)]);
         Eigen::Matrix3d hu;
         if (sqrt_potential != nullptr) {
-          const double e2 = face_epsilon_squared_.empty() ? sqrt_potential->epsilon_squared()
-                                                          : 0.5 * (face_epsilon_squared_[static_cast<size_t>(t)] +
-                                                                   face_epsilon_squared_[static_cast<size_t>(s)]);
-          const double phi2 = u.squaredNorm() + e2, phi = std::sqrt(phi2);
+          const double phi2 = u.squaredNorm() + PairEpsilonSquared(sqrt_potential, t, s), phi = std::sqrt(phi2);
           hu = (Eigen::Matrix3d::Identity() - u * u.transpose() / phi2) / phi;
         } else {
           double value, weight;
@@ -893,6 +907,69 @@ void SmoothingEnergy::RayGaussNewton(const Eigen::VectorXd& x_vector, const std:
       }
     }
   });
+}
+
+void SmoothingEnergy::StiffVertices(const Eigen::VectorXd& x_vector, double relative_cut, std::vector<int>* vertices,
+                                    std::vector<Eigen::Matrix3d>* blocks) const {
+  const int nf = num_faces(), nv = num_vertices_;
+  const double* x = x_vector.data();
+  vertices->clear();
+  blocks->clear();
+  ComputeNormals(x);
+  const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
+  // Per face: β w_t / |c_t|², w_t = Σ_s w_ts over its neighbours.
+  std::vector<double> face_weight(static_cast<size_t>(nf), 0.0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int t = r.begin(); t != r.end(); ++t) {
+      const double inv = inverse_length_[static_cast<size_t>(t)];
+      if (inv == 0) continue;
+      double w = 0;
+      for (int q = neighbour_offsets_[t]; q < neighbour_offsets_[t + 1]; ++q) {
+        const int s = neighbours_[static_cast<size_t>(q)];
+        const Eigen::Vector3d u = Eigen::Vector3d(&normals_[3 * static_cast<size_t>(t)]) -
+                                  Eigen::Vector3d(&normals_[3 * static_cast<size_t>(s)]);
+        w += PairWeight(*potential_, sqrt_potential, PairEpsilonSquared(sqrt_potential, t, s), u);
+      }
+      face_weight[static_cast<size_t>(t)] = prior_weight_ * w * inv * inv;
+    }
+  });
+  // The opposite edge of corner k of face t.
+  auto edge = [&](int t, int k) {
+    return Eigen::Vector3d(Position(x, faces_(t, (k + 2) % 3)) - Position(x, faces_(t, (k + 1) % 3)));
+  };
+  // Each block's trace: ‖P_t [e_k]_×‖²_F = |e_k|², e_k lying in t's plane.
+  std::vector<double> trace(static_cast<size_t>(nv), 0.0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, kGrain), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
+        const int t = corners_[static_cast<size_t>(q)] / 3, k = corners_[static_cast<size_t>(q)] % 3;
+        trace[static_cast<size_t>(i)] += face_weight[static_cast<size_t>(t)] * edge(t, k).squaredNorm();
+      }
+    }
+  });
+  std::vector<double> positive;
+  positive.reserve(trace.size());
+  for (double value : trace) {
+    if (value > 0 && std::isfinite(value)) positive.push_back(value);
+  }
+  if (positive.empty()) return;
+  const auto middle = positive.begin() + static_cast<std::ptrdiff_t>(positive.size() / 2);
+  std::nth_element(positive.begin(), middle, positive.end());
+  const double cut = relative_cut * *middle;
+  for (int i = 0; i < nv; ++i) {
+    if (!(trace[static_cast<size_t>(i)] > cut) || !std::isfinite(trace[static_cast<size_t>(i)])) continue;
+    Eigen::Matrix3d block = Eigen::Matrix3d::Zero();
+    for (int q = corner_offsets_[i]; q < corner_offsets_[i + 1]; ++q) {
+      const int t = corners_[static_cast<size_t>(q)] / 3, k = corners_[static_cast<size_t>(q)] % 3;
+      const Eigen::Vector3d n(&normals_[3 * static_cast<size_t>(t)]), e = edge(t, k);
+      Eigen::Matrix3d cross;
+      cross << 0, -e.z(), e.y(), e.z(), 0, -e.x(), -e.y(), e.x(), 0;
+      const Eigen::Matrix3d a = (Eigen::Matrix3d::Identity() - n * n.transpose()) * cross;
+      block += face_weight[static_cast<size_t>(t)] * a.transpose() * a;
+    }
+    vertices->push_back(i);
+    blocks->push_back(block);
+  }
 }
 
 double SmoothingEnergy::UniformDataInverseScale() const {

@@ -97,6 +97,15 @@ class SmoothingEnergy {
   // drop it once it has placed them).
   void RayGaussNewton(const Eigen::VectorXd& x, const std::vector<double>& rays, const RayPattern& pattern,
                       std::vector<double>* values) const;
+  // The vertices where the prior is stiff at x: the prior's stiffness at vertex i is the 3×3 block B_i = β Σ_t w_t
+  // A_tkᵀ A_tk over the active faces t at corner k of the vertex, A_tk = P_t [e_k]_× / |c_t| the Jacobian of t's
+  // unit normal in that corner and w_t = Σ_s φ'(d_ts)/d_ts over t's neighbours s (the IRLS weights, which
+  // majorise the potential's curvature: the square root's own curvature vanishes along u, where a sliver's normal
+  // turns; the pairs' cross terms are left out). Its trace goes as |e|² / |c|²: slivers make it huge. Lists the
+  // vertices whose trace exceeds relative_cut × the median vertex's (ascending), with their B_i.
+  void StiffVertices(const Eigen::VectorXd& x, double relative_cut, std::vector<int>* vertices,
+                     std::vector<Eigen::Matrix3d>* blocks) const;
+
   // W_i of vertex i (symmetric).
   Eigen::Matrix3d InformationMatrix(int i) const {
     double w[6];
@@ -138,6 +147,8 @@ class SmoothingEnergy {
   double DataPass(const double* x, double* grad) const;
   // Evaluate runs the wide square-root kernels (h_ then holds h_t, 3 per face).
   bool WideSquareRoot() const;
+  // ε² of pair (t, s) for the square root (the global one, or the mean of the two faces'); 0 for other potentials.
+  double PairEpsilonSquared(const SqrtPotential* sqrt_potential, int t, int s) const;
   void BuildCornerEdges() const;
 
   int num_vertices_ = 0;

@@ -150,6 +150,45 @@ TEST(Smooth, DegenerateInputStaysFiniteAndKeepsOrder) {
   }
 }
 
+// Real scans carry slivers: faces of 1e-9 of the mean area whose normals turn within a tiny fraction of an edge
+// (the GuidedDenoising iron scan has faces down to 1.8e-14 against a median of 9e-6). The prior's gradient there
+// is ~1e9 times the rest, so the first steps must backtrack far: the solve must still run and lower the energy,
+// not stop at its start (it did, after 20 trial steps, with "no further decrease").
+TEST(Smooth, SliverFacesDoNotStopTheSolve) {
+  const Mesh clean = testing::NoisyRoof(12, 12, 0.0, 1);
+  Mesh noisy = testing::NoisyRoof(12, 12, 0.08, 1);
+  // Face (a, b, e) of cell (row 5, column 3) becomes a sliver of 1e-9 of the mean area: b just off the segment a–e.
+  const int a = 5 * 13 + 3, b = a + 1, e = b + 13;
+  const Eigen::Vector3d ae = noisy.V.row(e) - noisy.V.row(a);
+  const Eigen::Vector3d off = ae.cross(Eigen::Vector3d::UnitZ()).normalized();
+  noisy.V.row(b) = 0.5 * (noisy.V.row(a) + noisy.V.row(e)) + 1e-9 * off.transpose();
+  // The roof is scored on the faces away from b (b's own faces are not the clean roof's any more).
+  Mesh clean_away = clean, noisy_away = noisy;
+  std::vector<int> away;
+  for (int f = 0; f < clean.num_faces(); ++f) {
+    if (clean.F(f, 0) != b && clean.F(f, 1) != b && clean.F(f, 2) != b) away.push_back(f);
+  }
+  clean_away.F = clean.F(away, Eigen::all);
+  noisy_away.F = noisy.F(away, Eigen::all);
+  GenericNoiseOptions noise;
+  noise.sigma = 0.08;
+  for (bool adaptive : {false, true}) {
+    SCOPED_TRACE(adaptive ? "adaptive epsilon" : "global epsilon");
+    SmoothOptions options;
+    options.adaptive_epsilon = adaptive;
+    SmoothSummary summary;
+    Mesh result = Smooth(MakeGenericNoisyMesh(noisy, noise), options, &summary);
+    EXPECT_EQ(summary.inactive_faces, 0);  // 1e-9 of the mean area is above the negligible-area cut
+    EXPECT_NE(summary.termination, SmoothTermination::kNoProgress);
+    ASSERT_GE(summary.energy.size(), 2u);
+    for (size_t i = 1; i < summary.energy.size(); ++i) EXPECT_LE(summary.energy[i], summary.energy[i - 1]);
+    ASSERT_TRUE(result.V.allFinite());
+    result.F = noisy_away.F;
+    // As in EnergyNeverRisesAndNoiseGoesDown: far below the input's error (the stalled solve left it at 1.0×).
+    EXPECT_LT(MeanAngleDeg(result, clean_away), 0.5 * MeanAngleDeg(noisy_away, clean_away));
+  }
+}
+
 TEST(Smooth, EmptyMeshAndBadCovariance) {
   SmoothSummary summary;
   NoisyMesh empty;
