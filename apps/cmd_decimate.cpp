@@ -9,6 +9,7 @@
 #include "apps/command.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
+#include "apps/read_input.h"
 #include "bayes/decimation/decimate.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
@@ -105,11 +106,7 @@ void Run(const DecimateArgs& a) {
   options.Check();
 
   std::vector<Mesh> poses;
-  for (const std::string& path : inputs) {
-    MeshReadSummary read;
-    poses.push_back(ReadMesh(path, &read));
-    for (const std::string& n : read.notices) Notice(a.quiet, path + ": " + n);
-  }
+  for (const std::string& path : inputs) poses.push_back(ReadInputMesh(path, a.quiet).mesh);
   DecimateSummary s;
   std::vector<DecimatedMesh> out;
   {

@@ -9,6 +9,7 @@
 #include "apps/command.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
+#include "apps/read_input.h"
 #include "core/error.h"
 #include "core/mesh_info.h"
 #include "core/mesh_io.h"
@@ -83,9 +84,7 @@ void RunConvert(const ConvertArgs& args) {
   if ((args.ascii || args.big_endian) && out_format != MeshFormat::kPly) {
     UsageError("--ascii and --big-endian apply to .ply output only");
   }
-  MeshReadSummary summary;
-  NoisyMesh noisy = ReadNoisyMesh(args.in_path, &summary);
-  for (const std::string& notice : summary.notices) Notice(args.quiet, args.in_path + ": " + notice);
+  NoisyMesh noisy = ReadInputMesh(args.in_path, args.quiet);
   MeshWriteOptions options;
   if (args.ascii) options.ply_encoding = PlyEncoding::kAscii;
   if (args.big_endian) options.ply_encoding = PlyEncoding::kBinaryBigEndian;

@@ -12,6 +12,7 @@
 #include "apps/command.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
+#include "apps/read_input.h"
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/noise_model.h"
@@ -84,9 +85,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.num_threads = args.threads;
   options.Check();
 
-  MeshReadSummary read_summary;
-  NoisyMesh noisy = ReadNoisyMesh(args.input, &read_summary);
-  for (const std::string& notice : read_summary.notices) Notice(args.quiet, args.input + ": " + notice);
+  NoisyMesh noisy = ReadInputMesh(args.input, args.quiet);
   std::printf("input:      %s (%d vertices, %d faces)\n", args.input.c_str(), noisy.mesh.num_vertices(),
               noisy.mesh.num_faces());
   GenericNoiseOptions noise;

@@ -323,4 +323,12 @@ Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, Rang
   return MakeScanFromMesh(ReadNoisyMesh(path), path);
 }
 
+NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary, RangeGridScanSummary* grid_summary,
+                              const RangeGridScanOptions& options) {
+  if (MeshFormatFromPath(path) != MeshFormat::kPly) return ReadNoisyMesh(path, summary);
+  RangeGridScan grid = ReadRangeGridScan(path, summary);
+  if (!grid.has_grid() || grid.mesh.mesh.num_faces() > 0) return std::move(grid.mesh);
+  return MakeRangeGridScan(grid, path, options, grid_summary).noisy;
+}
+
 }  // namespace rangebayes

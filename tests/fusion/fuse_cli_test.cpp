@@ -141,5 +141,36 @@ TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
   EXPECT_GT(ReadMesh(dir + "/out/fused.ply").num_faces(), 5000);
 }
 
+// The mesh commands read a range-grid scan (no faces, only the grid) as `fuse` does: triangulated, with the
+// scanner's covariances. They read it as a mesh of 0 faces before, and `smooth` wrote it back unchanged.
+TEST(MeshCommandsCli, ReadRangeGridScansAsTriangulatedScans) {
+  const std::string dir = TempDir("mesh_commands");
+  const std::string piece = kData + "bun000_piece.ply";
+  const Scan scan = ReadScan(std::string(RB_SOURCE_DIR) + "/" + piece);
+  ASSERT_GT(scan.noisy.mesh.num_faces(), 100);
+
+  const RunResult smooth = RunRangebayes("smooth " + piece + " " + dir + "/smoothed.ply");
+  ASSERT_EQ(smooth.exit_code, 0) << smooth.output;
+  EXPECT_NE(smooth.output.find("range grid triangulated: " + std::to_string(scan.noisy.mesh.num_faces()) + " faces"),
+            std::string::npos) << smooth.output;
+  EXPECT_NE(smooth.output.find("per-vertex covariances from the file"), std::string::npos) << smooth.output;
+  const Mesh smoothed = ReadMesh(dir + "/smoothed.ply");
+  EXPECT_EQ(smoothed.F, scan.noisy.mesh.F);
+  EXPECT_GT((smoothed.V - scan.noisy.mesh.V).rowwise().norm().maxCoeff(), 0.0);  // it moved
+  EXPECT_LT((smoothed.V - scan.noisy.mesh.V).rowwise().norm().maxCoeff(), 0.005);  // by less than 5 mm
+
+  const RunResult convert = RunRangebayes("convert " + piece + " " + dir + "/mesh.ply -q");
+  ASSERT_EQ(convert.exit_code, 0) << convert.output;
+  const NoisyMesh converted = ReadNoisyMesh(dir + "/mesh.ply");
+  EXPECT_EQ(converted.mesh.F, scan.noisy.mesh.F);
+  EXPECT_TRUE(converted.has_covariance());
+
+  const RunResult decimate = RunRangebayes("decimate " + piece + " " + dir + "/decimated.ply --target-faces 200 -q");
+  ASSERT_EQ(decimate.exit_code, 0) << decimate.output;
+  const Mesh decimated = ReadMesh(dir + "/decimated.ply");
+  EXPECT_GT(decimated.num_faces(), 0);
+  EXPECT_LE(decimated.num_faces(), 200);
+}
+
 }  // namespace
 }  // namespace rangebayes
