@@ -79,6 +79,20 @@ TEST(NoiseModel, CorrelatedNoiseIsNotReadAsTooSmall) {
   }
 }
 
+TEST(NoiseModel, CleanCurvedSurfaceIsNotReadAsCorrelatedNoise) {
+  // A noise-free paraboloid: the plane fit's residual grows with the ring's radius squared (rise ≈ 4), which the
+  // correlated-noise correction read as noise (k ≈ 10 on noise-free CAD meshes). Its estimate is the one-ring's.
+  Mesh bowl = testing::Grid(40, 40);
+  for (int v = 0; v < bowl.num_vertices(); ++v) {
+    const double x = bowl.V(v, 0) - 20, y = bowl.V(v, 1) - 20;
+    bowl.V(v, 2) = 0.05 * (x * x + y * y);
+  }
+  const std::vector<double> profile = NoiseResidualProfile(bowl, 2);
+  EXPECT_GT(profile[1] / profile[0], 2.5) << "curvature makes the residual rise";
+  EXPECT_DOUBLE_EQ(EstimateNoiseLevel(bowl), profile[0]);
+  EXPECT_LT(EstimateNoiseLevel(bowl), 0.1);
+}
+
 TEST(NoiseModel, ProfileChecksItsRange) {
   const Mesh plane = testing::Grid(4, 4);
   EXPECT_THROW(NoiseResidualProfile(plane, 0), Error);
