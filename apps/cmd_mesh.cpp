@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/mesh_info.h"
 #include "core/mesh_io.h"
+#include "fusion/scan.h"
 
 namespace rangebayes::apps {
 namespace {
@@ -26,7 +27,7 @@ nlohmann::json Vec(const Eigen::RowVector3d& v) { return nlohmann::json::array({
 
 void RunInfo(const InfoArgs& args) {
   MeshReadSummary summary;
-  const NoisyMesh noisy = ReadNoisyMesh(args.mesh_path, &summary);
+  const NoisyMesh noisy = ReadMeshOrRangeGrid(args.mesh_path, &summary);
   const MeshInfo info = DescribeMesh(noisy);
   if (args.json) {
     const MeshValidation& v = info.validation;

@@ -1,4 +1,4 @@
-// Reading the input mesh of the mesh commands (`smooth`, `decimate`, `convert`), one way for all of them.
+// Reading the input mesh of the mesh commands (`info`, `smooth`, `decimate`, `convert`), one way for all of them.
 #pragma once
 
 #include <string>
@@ -8,8 +8,8 @@
 namespace rangebayes::apps {
 
 // The mesh at `path` (fusion/scan.h ReadMeshOrRangeGrid: a range-grid scan without faces is triangulated, with
-// its scanner covariances); the file's notices and, for a grid, one line on what the triangulation made go to
-// stderr unless quiet. Throws Error on an unreadable file.
+// its scanner covariances); the file's notices, a grid's triangulation among them, go to stderr unless quiet.
+// Throws Error on an unreadable file.
 NoisyMesh ReadInputMesh(const std::string& path, bool quiet);
 
 }  // namespace rangebayes::apps

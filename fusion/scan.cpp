@@ -328,7 +328,16 @@ NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary,
   if (MeshFormatFromPath(path) != MeshFormat::kPly) return ReadNoisyMesh(path, summary);
   RangeGridScan grid = ReadRangeGridScan(path, summary);
   if (!grid.has_grid() || grid.mesh.mesh.num_faces() > 0) return std::move(grid.mesh);
-  return MakeRangeGridScan(grid, path, options, grid_summary).noisy;
+  RangeGridScanSummary made;
+  Scan scan = MakeRangeGridScan(grid, path, options, &made);
+  if (summary != nullptr) {
+    summary->notices.push_back(StrCat("range grid ", grid.width, "x", grid.height, " triangulated: ", made.faces,
+                                      " faces, ", made.cut_edges, made.cut_edges == 1 ? " edge" : " edges",
+                                      " cut at discontinuities; covariance along ",
+                                      "the scanner's rays (", made.ray_model, ")"));
+  }
+  if (grid_summary != nullptr) *grid_summary = made;
+  return std::move(scan.noisy);
 }
 
 }  // namespace rangebayes

@@ -81,10 +81,10 @@ Scan SmoothScan(const Scan& scan, const SmoothOptions& options = {}, SmoothSumma
 Scan ReadScan(const std::string& path, const RangeGridScanOptions& options = {},
               RangeGridScanSummary* summary = nullptr);
 
-// A mesh file as the mesh commands (`smooth`, `decimate`, `convert`) read it: a PLY with a range_grid and no faces
-// (the Stanford scans) is triangulated as MakeRangeGridScan does, with its ray-aligned covariances and its grid
-// cells as pixels, so that smoothing treats it as the organized scan it is (*grid_summary filled, faces > 0);
-// any other file reads as ReadNoisyMesh reads it (grid_summary->faces stays 0).
+// A mesh file as the mesh commands (`info`, `smooth`, `decimate`, `convert`) read it: a PLY with a range_grid and
+// no faces (the Stanford scans) is triangulated as MakeRangeGridScan does, with its ray-aligned covariances and its
+// grid cells as pixels, so that smoothing treats it as the organized scan it is (a notice says so, and
+// *grid_summary is filled: faces > 0); any other file reads as ReadNoisyMesh reads it (grid_summary->faces 0).
 NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary = nullptr,
                               RangeGridScanSummary* grid_summary = nullptr, const RangeGridScanOptions& options = {});
 

@@ -141,8 +141,9 @@ TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
   EXPECT_GT(ReadMesh(dir + "/out/fused.ply").num_faces(), 5000);
 }
 
-// The mesh commands read a range-grid scan (no faces, only the grid) as `fuse` does: triangulated, with the
-// scanner's covariances. They read it as a mesh of 0 faces before, and `smooth` wrote it back unchanged.
+// The mesh commands (info, smooth, convert, decimate) read a range-grid scan (no faces, only the grid) as `fuse`
+// does: triangulated, with the scanner's covariances. They read it as a mesh of 0 faces before, and `smooth` wrote
+// it back unchanged.
 TEST(MeshCommandsCli, ReadRangeGridScansAsTriangulatedScans) {
   const std::string dir = TempDir("mesh_commands");
   const std::string piece = kData + "bun000_piece.ply";
@@ -151,8 +152,8 @@ TEST(MeshCommandsCli, ReadRangeGridScansAsTriangulatedScans) {
 
   const RunResult smooth = RunRangebayes("smooth " + piece + " " + dir + "/smoothed.ply");
   ASSERT_EQ(smooth.exit_code, 0) << smooth.output;
-  EXPECT_NE(smooth.output.find("range grid triangulated: " + std::to_string(scan.noisy.mesh.num_faces()) + " faces"),
-            std::string::npos) << smooth.output;
+  const std::string triangulated = "triangulated: " + std::to_string(scan.noisy.mesh.num_faces()) + " faces";
+  EXPECT_NE(smooth.output.find(triangulated), std::string::npos) << smooth.output;
   EXPECT_NE(smooth.output.find("per-vertex covariances from the file"), std::string::npos) << smooth.output;
   const Mesh smoothed = ReadMesh(dir + "/smoothed.ply");
   EXPECT_EQ(smoothed.F, scan.noisy.mesh.F);
@@ -164,6 +165,11 @@ TEST(MeshCommandsCli, ReadRangeGridScansAsTriangulatedScans) {
   const NoisyMesh converted = ReadNoisyMesh(dir + "/mesh.ply");
   EXPECT_EQ(converted.mesh.F, scan.noisy.mesh.F);
   EXPECT_TRUE(converted.has_covariance());
+
+  const RunResult info = RunRangebayes("info " + piece);
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find(triangulated), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("covariance yes, pixels yes"), std::string::npos) << info.output;
 
   const RunResult decimate = RunRangebayes("decimate " + piece + " " + dir + "/decimated.ply --target-faces 200 -q");
   ASSERT_EQ(decimate.exit_code, 0) << decimate.output;
