@@ -199,21 +199,24 @@ writable views of the C++ storage (no copy); assignment copies.)")
         NoisyMesh noisy;
         {
           py::gil_scoped_release nogil;
-          noisy = ReadNoisyMesh(path);
+          noisy = ReadMeshOrRangeGrid(path);
         }
         if (noisy.has_covariance()) return py::cast(std::move(noisy));
         return py::cast(std::move(noisy.mesh));
       },
       py::arg("path"),
       R"(Reads a PLY / OBJ / OFF mesh (by extension). Returns a NoisyMesh when the file has per-vertex covariances
-(PLY cov_xx..cov_zz), else a Mesh. Raises rangebayes.Error naming the file and line on bad input.)");
+(PLY cov_xx..cov_zz), else a Mesh. A PLY range-grid scan without faces (the Stanford scans) is triangulated as the
+CLI reads it, with the scanner's covariances: a NoisyMesh. Raises rangebayes.Error naming the file and line on
+bad input.)");
   m.def(
       "read_noisy_mesh",
       [](const std::string& path) {
         py::gil_scoped_release nogil;
-        return ReadNoisyMesh(path);
+        return ReadMeshOrRangeGrid(path);
       },
-      py::arg("path"), "Reads a mesh as a NoisyMesh (covariances empty when the file has none).");
+      py::arg("path"),
+      "Reads a mesh as a NoisyMesh (covariances empty when the file has none; range grids as read_mesh reads them).");
   m.def(
       "write_mesh",
       [](const std::string& path, py::handle mesh, const std::string& ply_encoding) {

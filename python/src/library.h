@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
+#include "fusion/scan.h"
 #include "pipeline/pipeline.h"
 #include "reconstruction/triangulate.h"
 #include "stereo/depth_frame.h"

@@ -91,6 +91,18 @@ def test_files_round_trip(tmp_path, trim_star):
     np.testing.assert_array_equal(back.covariances[:, r, c], noisy.covariances[:, r, c])
 
 
+def test_range_grid_scans_read_as_the_cli_reads_them(root, cli, tmp_path):
+    piece = root / "tests" / "data" / "scans" / "bun000_piece.ply"
+    scan = rb.read_mesh(str(piece))
+    assert isinstance(scan, rb.NoisyMesh) and scan.has_covariance and scan.num_faces > 10000
+    np.testing.assert_array_equal(rb.read_noisy_mesh(str(piece)).mesh.F, scan.mesh.F)
+    import subprocess
+    subprocess.run([str(cli), "convert", str(piece), str(tmp_path / "cli.ply"), "-q"], check=True)
+    from_cli = rb.read_mesh(str(tmp_path / "cli.ply"))
+    np.testing.assert_array_equal(from_cli.mesh.F, scan.mesh.F)
+    np.testing.assert_array_equal(from_cli.mesh.V, scan.mesh.V)
+
+
 def test_errors_are_rangebayes_error_with_the_message(tmp_path):
     assert issubclass(rb.Error, RuntimeError)
     bad = tmp_path / "bad.off"
