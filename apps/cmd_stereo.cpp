@@ -149,6 +149,14 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
     WritePicture(result.sigma_disparity_px, out / "sigma_disparity.png", false);
   }
   std::printf("%s\n", result.BriefReport().c_str());
+  if (result.range_end_fraction >= kRangeEndWarning) {
+    char share[32];
+    std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * result.range_end_fraction);
+    Notice(o.quiet, StrCat("warning: ", share, " of the pixels matched best at an end of the disparities searched (",
+                           o.min_disparity_px, " to ", o.min_disparity_px + o.num_disparities - 1,
+                           " px): part of the scene may lie outside that range; widen it with --num-disparities or ",
+                           "--min-disparity"));
+  }
   if (!rectifier) {
     Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");
     return;

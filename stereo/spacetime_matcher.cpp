@@ -492,13 +492,13 @@ namespace {
 
 // The rejection counts of one match (SpaceTimeMatchSummary).
 struct MatchCounts {
-  int valid = 0, left_right = 0, flat = 0, sigma = 0, ambiguous = 0, edge = 0, doubtful = 0;
+  int valid = 0, left_right = 0, flat = 0, range_end = 0, sigma = 0, ambiguous = 0, edge = 0, doubtful = 0;
 };
 
 // What pass 1 makes of pixel x of an output row from its window costs `vol` ([D][W]) and the row's winners in
 // `b`: a disparity with its σ_d (kValid), the coarse disparity alone when a second pass refines it (kCoarse), or
 // the check that rejected it. `noise` is the pixel's image noise σ_n (grey levels).
-enum class PixelOutcome { kValid, kCoarse, kNoMatch, kFlat, kAmbiguous, kLeftRight, kSigma, kCount };
+enum class PixelOutcome { kValid, kCoarse, kNoMatch, kFlat, kRangeEnd, kAmbiguous, kLeftRight, kSigma, kCount };
 
 PixelOutcome DecidePixel(const SpaceTimeMatcherOptions& options_, const BandBuffers& b, const float* vol, int W, int D,
                          int dmin, int x, double noise, double window_samples, bool refine, float* disparity_out,
@@ -506,15 +506,16 @@ PixelOutcome DecidePixel(const SpaceTimeMatcherOptions& options_, const BandBuff
   const int di = b.arg_left[x];
   if (di < 0) return PixelOutcome::kNoMatch;
   const int d = dmin + di;
-  // The parabola needs both neighbours inside the search range and inside the right image.
-  if (di == 0 || di == D - 1 || x - (d + 1) < 0 || x - (d - 1) >= W) return PixelOutcome::kFlat;
   const float c0 = vol[static_cast<size_t>(di) * W + x];
-  if (options_.uniqueness_ratio > 0.0) {
-    // The best cost must beat every disparity at least 2 away by the margin, else the match is ambiguous
-    // (repeated texture) and its small σ from the curvature would be a lie.
-    const float limit = c0 * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f;
-    if (b.second[x] < limit) return PixelOutcome::kAmbiguous;
-  }
+  // The best cost must beat every disparity at least 2 away by the margin, else the match is ambiguous (repeated
+  // texture, or none) and its small σ from the curvature would be a lie.
+  const bool unique = !(options_.uniqueness_ratio > 0.0) ||
+                      !(b.second[x] < c0 * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f);
+  // The parabola needs both neighbours inside the search range and inside the right image. A distinct minimum at
+  // an end of the range is most likely a match beyond it.
+  if (di == 0 || di == D - 1) return unique ? PixelOutcome::kRangeEnd : PixelOutcome::kAmbiguous;
+  if (x - (d + 1) < 0 || x - (d - 1) >= W) return PixelOutcome::kFlat;
+  if (!unique) return PixelOutcome::kAmbiguous;
   const float cm = vol[static_cast<size_t>(di - 1) * W + x];
   const float cp = vol[static_cast<size_t>(di + 1) * W + x];
   const double curvature = static_cast<double>(cm) - 2.0 * c0 + cp;
@@ -626,6 +627,7 @@ void BlockMatchPass(const SpaceTimeMatcherOptions& options_, const Sequence& L, 
   counts->valid = total(PixelOutcome::kValid);
   counts->left_right = total(PixelOutcome::kLeftRight);
   counts->flat = total(PixelOutcome::kFlat);
+  counts->range_end = total(PixelOutcome::kRangeEnd);
   counts->sigma = total(PixelOutcome::kSigma);
   counts->ambiguous = total(PixelOutcome::kAmbiguous);
 }
@@ -810,11 +812,13 @@ DisparityResult SpaceTimeMatcher::Match(const std::vector<cv::Mat>& left, const 
   summary_.valid_pixels = counts.valid;
   summary_.rejected_left_right = counts.left_right;
   summary_.rejected_flat = counts.flat;
+  summary_.rejected_range_end = counts.range_end;
   summary_.rejected_sigma = counts.sigma;
   summary_.rejected_ambiguous = counts.ambiguous;
   summary_.rejected_edge = counts.edge;
   summary_.doubtful = counts.doubtful;
   result.valid_fraction = static_cast<double>(counts.valid) / (static_cast<double>(L.width) * L.height);
+  result.range_end_fraction = static_cast<double>(counts.range_end) / (static_cast<double>(L.width) * L.height);
   result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

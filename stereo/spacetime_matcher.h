@@ -106,7 +106,8 @@ struct SpaceTimeMatchSummary {
   int frames = 0;
   int valid_pixels = 0;
   int rejected_left_right = 0;
-  int rejected_flat = 0;      // no curvature (textureless) or minimum at the end of the search range
+  int rejected_flat = 0;       // no curvature (textureless), or the parabola's neighbour outside the image
+  int rejected_range_end = 0;  // minimum at an end of the search range (DisparityResult::range_end_fraction)
   int rejected_sigma = 0;
   int rejected_ambiguous = 0;  // failed the uniqueness test
   int rejected_edge = 0;       // near a depth edge or a hole (edge_reject_jump_px), or doubtful and unconfirmed

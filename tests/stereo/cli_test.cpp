@@ -52,9 +52,16 @@ TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
   RunResult r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png "
                               "--num-disparities 16 --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("matched best at an end"), std::string::npos) << r.output;
   r = RunRangebayes("eval-depth " + out + "/disparity.pfm tests/data/stereo/tsukuba");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("bad-1 "), std::string::npos) << r.output;
+  // A range that leaves out the background (5–8 px): the command says so.
+  r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png "
+                    "--min-disparity 8 --num-disparities 16 --no-mesh --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("of the pixels matched best at an end of the disparities searched (8 to 23 px)"),
+            std::string::npos) << r.output;
 }
 
 // The bundled real recording (Middlebury 2014 ArtL, quarter size; README command 1 replays it): its first

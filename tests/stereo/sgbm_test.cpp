@@ -51,6 +51,39 @@ TEST(BlockMatcher, TsukubaSingleFrameWithSigma) {
   EXPECT_LT(ev.bad_valid_only[2], 0.15);
 }
 
+// Tsukuba's disparities run from 5 to 14 px. Searched over 0–15 the ends hold few winners; a range that misses
+// part of the scene (from 8 px up for SGBM, whose range comes in steps of 16; up to 7 px for the block matcher)
+// puts them there, which `stereo` and `spacetime` then warn about.
+TEST(Matchers, RangeEndShareSaysTheSearchRangeIsShort) {
+  const MiddleburyScene s = ReadMiddleburyScene("tests/data/stereo/tsukuba");
+  for (int min_disparity : {0, 8}) {
+    SgbmMatcherOptions o;
+    o.min_disparity_px = min_disparity;
+    o.num_disparities = 16;
+    const DisparityResult r = SgbmMatcher(o).Match({s.left}, {s.right});
+    std::printf("sgbm from %d px: range end %.4f\n", min_disparity, r.range_end_fraction);
+    if (min_disparity == 0) {
+      EXPECT_LT(r.range_end_fraction, kRangeEndWarning);
+    } else {
+      EXPECT_GT(r.range_end_fraction, kRangeEndWarning);
+    }
+  }
+  for (int num : {16, 8}) {
+    SpaceTimeMatcherOptions o;
+    o.num_disparities = num;
+    o.window_px = 9;
+    SpaceTimeMatcher m(o);
+    const DisparityResult r = m.Match({s.left}, {s.right});
+    std::printf("block matcher over %d px: range end %.4f\n", num, r.range_end_fraction);
+    EXPECT_EQ(r.range_end_fraction, m.last_summary().rejected_range_end / static_cast<double>(s.left.total()));
+    if (num == 16) {
+      EXPECT_LT(r.range_end_fraction, kRangeEndWarning);
+    } else {
+      EXPECT_GT(r.range_end_fraction, kRangeEndWarning);
+    }
+  }
+}
+
 TEST(Sgbm, BadInputThrows) {
   SgbmMatcher m;
   EXPECT_THROW(m.Match({cv::Mat(10, 10, CV_8U)}, {cv::Mat(10, 11, CV_8U)}), Error);
