@@ -323,8 +323,7 @@ Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, Rang
   return MakeScanFromMesh(ReadNoisyMesh(path), path);
 }
 
-NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary, RangeGridScanSummary* grid_summary,
-                              const RangeGridScanOptions& options) {
+NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary, const RangeGridScanOptions& options) {
   if (MeshFormatFromPath(path) != MeshFormat::kPly) return ReadNoisyMesh(path, summary);
   RangeGridScan grid = ReadRangeGridScan(path, summary);
   if (!grid.has_grid() || grid.mesh.mesh.num_faces() > 0) return std::move(grid.mesh);
@@ -336,7 +335,6 @@ NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary,
                                       " cut at discontinuities; covariance along ",
                                       "the scanner's rays (", made.ray_model, ")"));
   }
-  if (grid_summary != nullptr) *grid_summary = made;
   return std::move(scan.noisy);
 }
 
