@@ -86,9 +86,10 @@ DisparityResult SgbmMatcher::Match(const std::vector<cv::Mat>& left, const std::
   result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   const cv::Mat valid = result.disparity_px == result.disparity_px;
   result.valid_fraction = static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());
-  // SGBM interpolates no sub-pixel offset at the ends of its range: a winner there is exactly the end's value.
-  const cv::Mat at_end = (disparity16 == 16 * options_.min_disparity_px) |
-                         (disparity16 == 16 * (options_.min_disparity_px + num - 1));
+  // SGBM interpolates no sub-pixel offset at the ends of its range: a winner there is exactly the end's value. The
+  // lower end counts only above 0 (nothing lies beyond disparity 0, the far end of a scene).
+  cv::Mat at_end = disparity16 == 16 * (options_.min_disparity_px + num - 1);
+  if (options_.min_disparity_px > 0) at_end |= disparity16 == 16 * options_.min_disparity_px;
   result.range_end_fraction = static_cast<double>(cv::countNonZero(at_end)) / static_cast<double>(at_end.total());
   return result;
 }

@@ -512,7 +512,8 @@ PixelOutcome DecidePixel(const SpaceTimeMatcherOptions& options_, const BandBuff
   const bool unique = !(options_.uniqueness_ratio > 0.0) ||
                       !(b.second[x] < c0 * static_cast<float>(1.0 + options_.uniqueness_ratio) + 1e-6f);
   // The parabola needs both neighbours inside the search range and inside the right image. A distinct minimum at
-  // an end of the range is most likely a match beyond it.
+  // an end of the range is most likely a match beyond it (below disparity 0 nothing lies: that end is flat).
+  if (di == 0 && dmin <= 0) return unique ? PixelOutcome::kFlat : PixelOutcome::kAmbiguous;
   if (di == 0 || di == D - 1) return unique ? PixelOutcome::kRangeEnd : PixelOutcome::kAmbiguous;
   if (x - (d + 1) < 0 || x - (d - 1) >= W) return PixelOutcome::kFlat;
   if (!unique) return PixelOutcome::kAmbiguous;

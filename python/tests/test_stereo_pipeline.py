@@ -62,7 +62,7 @@ def test_stereo_sgbm_and_spacetime_then_triangulate(recording_dir):
     np.testing.assert_allclose(cov, cov.transpose(0, 2, 1), rtol=1e-9, atol=1e-18)
     d = rb.match(f.left, f.right)  # the synthetic rig is already rectified
     assert d["disparity_px"].shape == (240, 320) and d["sigma_disparity_px"] is None
-    assert 0.0 <= d["range_end_fraction"] < 0.04  # the synthetic scene lies inside the default search range
+    assert 0.0 <= d["range_end_fraction"] < 0.03  # the synthetic scene lies inside the default search range
     back = rb.depth_from_disparity(st.disparity_px, st.sigma_disparity_px, st.intrinsics, st.baseline_m,
                                    max_depth_m=100.0)
     np.testing.assert_array_equal(back.depth_m, st.depth_m)
