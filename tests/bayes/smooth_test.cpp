@@ -35,17 +35,22 @@ double MeanAngleDeg(const Mesh& a, const Mesh& b) {
   return sum / a.num_faces();
 }
 
+// Smooth() with the default options of the 12×12 roof at its noise σ = 0.08, adaptive ε on or off.
+Mesh SmoothRoof(const Mesh& noisy, bool adaptive, SmoothSummary* summary) {
+  GenericNoiseOptions noise;
+  noise.sigma = 0.08;
+  SmoothOptions options;
+  options.adaptive_epsilon = adaptive;
+  return Smooth(MakeGenericNoisyMesh(noisy, noise), options, summary);
+}
+
 TEST(Smooth, EnergyNeverRisesAndNoiseGoesDown) {
   const Mesh clean = testing::NoisyRoof(12, 12, 0.0, 1);
   const Mesh noisy = testing::NoisyRoof(12, 12, 0.08, 1);
-  GenericNoiseOptions noise;
-  noise.sigma = 0.08;
   for (bool adaptive : {false, true}) {
     SCOPED_TRACE(adaptive ? "adaptive epsilon" : "global epsilon");
-    SmoothOptions options;
-    options.adaptive_epsilon = adaptive;
     SmoothSummary summary;
-    const Mesh result = Smooth(MakeGenericNoisyMesh(noisy, noise), options, &summary);
+    const Mesh result = SmoothRoof(noisy, adaptive, &summary);
     ASSERT_GE(summary.energy.size(), 2u);
     for (size_t i = 1; i < summary.energy.size(); ++i) EXPECT_LE(summary.energy[i], summary.energy[i - 1]);
     EXPECT_NE(summary.termination, SmoothTermination::kMaxIterations);
@@ -170,14 +175,10 @@ TEST(Smooth, SliverFacesDoNotStopTheSolve) {
   }
   clean_away.F = clean.F(away, Eigen::all);
   noisy_away.F = noisy.F(away, Eigen::all);
-  GenericNoiseOptions noise;
-  noise.sigma = 0.08;
   for (bool adaptive : {false, true}) {
     SCOPED_TRACE(adaptive ? "adaptive epsilon" : "global epsilon");
-    SmoothOptions options;
-    options.adaptive_epsilon = adaptive;
     SmoothSummary summary;
-    Mesh result = Smooth(MakeGenericNoisyMesh(noisy, noise), options, &summary);
+    Mesh result = SmoothRoof(noisy, adaptive, &summary);
     EXPECT_EQ(summary.inactive_faces, 0);  // 1e-9 of the mean area is above the negligible-area cut
     EXPECT_NE(summary.termination, SmoothTermination::kNoProgress);
     ASSERT_GE(summary.energy.size(), 2u);
