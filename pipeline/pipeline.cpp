@@ -479,6 +479,8 @@ class Stages {
       const int f = item.settings.ds;
       const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
       DisparityResult d = matcher_for(item.settings).Match(item.left_rect, item.right_rect);
+      if (d.range_end_fraction >= kRangeEndWarning) ++range_end_results;
+      range_end_max = std::max(range_end_max, d.range_end_fraction);
       if (options.noise_model) {
         const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
         options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
@@ -708,6 +710,14 @@ class Stages {
       }
       summary.notices.push_back(notice);
     }
+    if (range_end_results > 0) {
+      char share[32];
+      std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * range_end_max);
+      summary.notices.push_back(StrCat("in ", range_end_results, " of ", summary.results + summary.failed,
+                                       " results many pixels matched best at an end of the disparities searched (up ",
+                                       "to ", share, "): part of the scene may lie outside that range; widen it with ",
+                                       "--num-disparities or --min-disparity"));
+    }
     if (ds > 1) {
       summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",
                                        default_setup.intrinsics.height, ", ",
@@ -743,6 +753,9 @@ class Stages {
   std::optional<FrameResult> first;
   std::vector<std::unique_ptr<ItemQueue>> queues;
   SmoothTally smooth_tally;  // written by the smooth stage only, read after the join
+  // Stereo stage only: results whose search range looks too short (DisparityResult::range_end_fraction).
+  int range_end_results = 0;
+  double range_end_max = 0.0;
   double smooth_overrun_ms = 0.0;  // smooth stage only: mean time a budgeted solve ran past its limit
   double latency_sum_ms = 0.0;   // sink stage only
   std::int64_t frames_done = 0;  // sink stage only

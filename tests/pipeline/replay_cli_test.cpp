@@ -66,6 +66,22 @@ TEST(ReplayCli, MissingFileAndTruncatedIndexAreReportedPerFrame) {
   EXPECT_TRUE(fs::exists(dir.path() + "/out/raw/000002.ply"));
 }
 
+// The bundled synthetic recording's disparities run from 20 to 34 px: searched from 20 px up, its far plane sits at
+// the range's lower end and the summary says the range looks short; with the defaults it says nothing.
+TEST(ReplayCli, SearchRangeThatMissesTheSceneIsReported) {
+  const TempDir dir("cli_range");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  const std::string note = "many pixels matched best at an end of the disparities searched";
+  RunResult r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --min-disparity 20 --out " + dir.path() +
+                              "/short");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("in 2 of 2 results " + note), std::string::npos) << r.output;
+  r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --out " + dir.path() + "/default");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find(note), std::string::npos) << r.output;
+}
+
 TEST(ReplayCli, WrongRigAndMismatchedSizesAreClear) {
   const TempDir dir("cli_rig");
   const std::string rec = dir.path() + "/rec";
