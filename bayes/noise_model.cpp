@@ -27,11 +27,11 @@ constexpr double kWhiteNoiseRise = 1.15;
 constexpr double kCorrelationExponent = 4.75;
 // A plane fit's residual on a clean curved surface grows as the ring's radius squared: the rise that a surface's own
 // shape makes, not noise. Measured rises: 47 real-noise pairs (every split) 1.10–1.75, the real GuidedDenoising
-// scans 1.25–1.81, the synthetic noisy meshes ≤ 1.12; 14 noise-free meshes (the benchmark's ground truths and the
-// decimation meshes) 2.10–8.2, where the correction read k = 1.4–10 and smoothing a clean mesh flattened it
+// scans 1.25–1.81, the synthetic noisy meshes ≤ 1.12; 18 noise-free meshes (the benchmark's ground truths and the
+// decimation meshes) 2.10–8.2, where the correction read k = 1.3–10 and smoothing a clean mesh flattened it
 // (fandisk's ground truth: 3.2° from its own normals). Between kShapeRise and kShapeRiseEnd the correction's
 // exponent falls linearly to 0: above, the one-ring estimate stands. The band sits next to the noise-free side:
-// a real scan that needs a 6–14× correction (the Kinect scans of issue 16) rises 1.7–2.0 under this rule
+// a real scan that needs a 6–13× correction (the Kinect scans of issue 16) rises 1.68–1.92 under this rule
 // (docs/journal/real-noise.md, session 18).
 constexpr double kShapeRise = 2.0;
 constexpr double kShapeRiseEnd = 2.1;
