@@ -154,8 +154,7 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
     std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * result.range_end_fraction);
     Notice(o.quiet, StrCat("warning: ", share, " of the pixels matched best at an end of the disparities searched (",
                            o.min_disparity_px, " to ", o.min_disparity_px + o.num_disparities - 1,
-                           " px): part of the scene may lie outside that range; widen it with --num-disparities or ",
-                           "--min-disparity"));
+                           " px): ", RangeEndAdvice()));
   }
   if (!rectifier) {
     Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");

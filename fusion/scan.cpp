@@ -317,7 +317,8 @@ Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, Rang
   const bool ply = MeshFormatFromPath(path) == MeshFormat::kPly;
   if (ply) {
     RangeGridScan grid = ReadRangeGridScan(path);
-    if (grid.has_grid()) return MakeRangeGridScan(grid, path, options, summary);
+    // The file's own faces win over its grid, as in ReadMeshOrRangeGrid: the two readers agree on every file.
+    if (grid.has_grid() && grid.mesh.mesh.num_faces() == 0) return MakeRangeGridScan(grid, path, options, summary);
     return MakeScanFromMesh(grid.mesh, path);
   }
   return MakeScanFromMesh(ReadNoisyMesh(path), path);

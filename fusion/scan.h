@@ -76,7 +76,8 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name);
 // cells as pixel positions, so Smooth solves them as organized meshes.
 Scan SmoothScan(const Scan& scan, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
-// Reads a scan file: a PLY with range_grid → MakeRangeGridScan, any other mesh file → MakeScanFromMesh.
+// Reads a scan file: a PLY with a range_grid and no faces → MakeRangeGridScan; any other mesh file, a PLY that
+// lists faces beside its grid included, → MakeScanFromMesh of the mesh as ReadMeshOrRangeGrid reads it.
 // Throws Error naming the file when it is empty (no vertices or no faces after triangulation).
 Scan ReadScan(const std::string& path, const RangeGridScanOptions& options = {},
               RangeGridScanSummary* summary = nullptr);

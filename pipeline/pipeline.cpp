@@ -715,8 +715,7 @@ class Stages {
       std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * range_end_max);
       summary.notices.push_back(StrCat("in ", range_end_results, " of ", summary.results + summary.failed,
                                        " results many pixels matched best at an end of the disparities searched (up ",
-                                       "to ", share, "): part of the scene may lie outside that range; widen it with ",
-                                       "--num-disparities or --min-disparity"));
+                                       "to ", share, "): ", RangeEndAdvice()));
     }
     if (ds > 1) {
       summary.notices.push_back(StrCat("stereo matched at 1/", ds, " resolution (", default_setup.intrinsics.width, "x",

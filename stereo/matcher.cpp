@@ -11,4 +11,8 @@ std::string DisparityResult::BriefReport() const {
   return line;
 }
 
+std::string RangeEndAdvice() {
+  return "part of the scene may lie outside that range; widen it with --num-disparities or --min-disparity";
+}
+
 }  // namespace rangebayes

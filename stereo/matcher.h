@@ -34,6 +34,9 @@ struct DisparityResult {
 // (tests/stereo/sgbm_test.cpp).
 constexpr double kRangeEndWarning = 0.03;
 
+// What the commands add to a range-end warning: what it may mean and the options that widen the range.
+std::string RangeEndAdvice();
+
 class StereoMatcher {
  public:
   virtual ~StereoMatcher() = default;

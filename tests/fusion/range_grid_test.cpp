@@ -74,6 +74,20 @@ TEST(RangeGrid, StanfordPiecesReadWithFanRays) {
   EXPECT_NEAR(scan.mean_edge, 8e-4, 2e-4);  // 0.5 mm motion steps, interlaced rows, plus diagonals
 }
 
+TEST(RangeGrid, FacesInTheFileWinOverItsGridInBothReaders) {
+  // The grid alone would give three triangles; the file lists one face of its own.
+  std::string text = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
+  text.replace(text.find("end_header"), 10, "element face 1\nproperty list uchar int vertex_indices\nend_header");
+  text += "3 0 1 4\n";
+  const std::string path = WriteTemp("grid_faces.ply", text);
+  EXPECT_EQ(ReadMeshOrRangeGrid(path).mesh.num_faces(), 1);
+  EXPECT_EQ(ReadScan(path).noisy.mesh.num_faces(), 1);
+  // Without the face list both triangulate the grid.
+  const std::string grid_only = WriteTemp("grid_only.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
+  EXPECT_EQ(ReadMeshOrRangeGrid(grid_only).mesh.num_faces(), 3);
+  EXPECT_EQ(ReadScan(grid_only).noisy.mesh.num_faces(), 3);
+}
+
 TEST(RangeGrid, BadGridsNameTheFileAndCell) {
   const auto message = [](const std::string& name, const std::string& text) {
     try {
