@@ -304,6 +304,51 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
   return last;
 }
 
+// A scan is not aligned when its final residuals along the normals, over all its pairs, both spread over the
+// correspondence gate (RMS above kMisalignedGateShare of the last level's largest distance) and exceed their
+// predicted σ many times (RMS above kMisalignedSigma): its correspondences are then chance neighbours where two
+// wrongly placed surfaces cross, not one surface seen twice. Either alone is not enough: noisy meshes whose σ
+// exceeds the gate spread over it when aligned, and a σ set too small inflates the σ units of aligned scans.
+// Measured (docs/journal/fusion.md): aligned bunny scans 0.07–0.09 of the gate and 0.4–0.55 σ; scans 45° off
+// (no --poses) 0.45–0.52 and 2.7–3.2 σ (a uniform spread over the gate gives 0.58). Blind where the noise model's
+// σ exceeds the gate, as on the meshes `replay` writes (aligned 0.21–0.25 of the gate at 0.15–0.19 σ): their
+// residuals say nothing beyond what the model expects.
+constexpr double kMisalignedGateShare = 0.3;
+constexpr double kMisalignedSigma = 2.0;
+
+void CheckEveryScanAligned(const AlignmentProblem& problem, const std::vector<PairSystem>& last) {
+  const std::vector<Scan>& scans = problem.scans;
+  const int n = static_cast<int>(scans.size());
+  const double gate = problem.options.max_distance_edges.back() * problem.edge;
+  std::vector<double> distance2(n, 0.0), sigma2(n, 0.0);
+  std::vector<int> count(n, 0);
+  for (const PairSystem& sys : last) {
+    for (const int s : {sys.report.a, sys.report.b}) {
+      distance2[s] += sys.sum_distance2;
+      sigma2[s] += sys.sum_sigma2;
+      count[s] += sys.report.correspondences;
+    }
+  }
+  std::string names, worst;
+  double worst_share = 0;
+  for (int s = 0; s < n; ++s) {
+    if (count[s] == 0) continue;
+    const double share = std::sqrt(distance2[s] / count[s]) / gate;
+    const double sigma = std::sqrt(sigma2[s] / count[s]);
+    if (!(share > kMisalignedGateShare && sigma > kMisalignedSigma)) continue;
+    names += (names.empty() ? "" : ", ") + FileBaseName(scans[s].name);
+    if (share > worst_share) {
+      worst_share = share;
+      char line[64];
+      std::snprintf(line, sizeof(line), "RMS %.2f of it, %.1f σ", share, sigma);
+      worst = line;
+    }
+  }
+  RB_CHECK(names.empty(), names, ": not aligned after registration: the residuals spread over the whole ",
+           "correspondence gate (", worst, "; aligned scans give about 0.1 of it and under 1 σ), so the initial ",
+           "poses are too far off: give closer ones with --poses (bun.conf format) or leave the scan out");
+}
+
 // Reports from the last correspondences; a scan without enough overlap is an error.
 void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last, RegisterSummary* local) {
   const std::vector<Scan>& scans = problem.scans;
@@ -332,6 +377,7 @@ void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last,
              best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
              100.0 * options.min_overlap, "% needed): check its pose or leave it out");
   }
+  CheckEveryScanAligned(problem, *last);
   std::sort(local->pairs.begin(), local->pairs.end(), [](const PairReport& x, const PairReport& y) {
     return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
            std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));

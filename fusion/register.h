@@ -63,7 +63,9 @@ struct RegisterSummary {
 
 // Aligns `scans` from the initial poses (world_from_scan, one per scan) and returns the refined poses; the
 // first scan keeps its initial pose. Throws Error naming the scan when a scan overlaps no other scan (less
-// than min_overlap of its samples find a partner) or when sizes do not match.
+// than min_overlap of its samples find a partner), when a scan's final residuals show it is not aligned (they
+// spread over the last level's correspondence gate and exceed their predicted σ many times: an initial pose
+// too far off), or when sizes do not match.
 std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
                                              const std::vector<Eigen::Isometry3d>& initial_world_from_scan,
                                              const RegisterOptions& options = {},

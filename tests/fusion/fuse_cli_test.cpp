@@ -54,6 +54,19 @@ TEST(FuseCli, AlignsAndFusesTwoBunnyPiecesFromPerturbedPoses) {
   EXPECT_NE(run.output.find("bun000_piece.ply bun045_piece.ply"), std::string::npos) << run.output;
 }
 
+// Without --poses the pieces start 35° apart, too far for registration to find their overlap: the chance
+// neighbours where the misplaced surfaces cross pass the overlap check, so the residuals' spread must name them
+// instead of a fused model of two misplaced scans.
+TEST(FuseCli, ScansLeftMisalignedAreNamedNotFused) {
+  const std::string dir = TempDir("misaligned");
+  const RunResult run = RunRangebayes("fuse " + Pieces() + " --out " + dir + "/out -q");
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("bun000_piece.ply, bun045_piece.ply: not aligned after registration"), std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("--poses"), std::string::npos) << run.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/fused.ply"));
+}
+
 // --smooth smooths each scan before fusion: the model changes and each scan's smoothing is reported.
 TEST(FuseCli, SmoothChangesTheModel) {
   const std::string dir = TempDir("smooth");
