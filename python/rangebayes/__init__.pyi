@@ -154,6 +154,7 @@ class DecimateSummary:
     converged: bool
     seconds_total: float
     notices: list[str]
+    def brief_report(self) -> str: ...
 
 def decimate(mesh: Union[Mesh, NoisyMesh], *, progress: Optional[Progress] = ..., **options: Any) -> Tuple[DecimatedMesh, DecimateSummary]: ...
 def decimate_animated(

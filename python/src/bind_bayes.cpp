@@ -227,7 +227,8 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       .def_readonly("dense_face_patch", &DecimatedMesh::dense_face_patch, "per input face, its patch (-1: dropped)")
       .def_readonly("polygons", &DecimatedMesh::polygons, "one polygon (vertex indices) per patch")
       .def_readonly("num_patches", &DecimatedMesh::num_patches);
-  py::class_<DecimateSummary>(m, "DecimateSummary")
+  py::class_<DecimateSummary>(m, "DecimateSummary",
+                              "What decimate() did; brief_report() is what `rangebayes decimate` prints.")
       .def_readonly("lambda_", &DecimateSummary::lambda, "the λ used")
       .def_readonly("input_faces", &DecimateSummary::input_faces)
       .def_readonly("num_patches", &DecimateSummary::num_patches)
@@ -236,7 +237,8 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       .def_readonly("energy", &DecimateSummary::energy)
       .def_readonly("converged", &DecimateSummary::converged)
       .def_readonly("seconds_total", &DecimateSummary::seconds_total)
-      .def_readonly("notices", &DecimateSummary::notices);
+      .def_readonly("notices", &DecimateSummary::notices)
+      .def("brief_report", &DecimateSummary::BriefReport);
   m.def(
       "decimate",
       [](py::handle mesh, py::kwargs kwargs) {

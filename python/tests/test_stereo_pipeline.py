@@ -92,6 +92,8 @@ def test_decimate_static_and_animated(trim_star):
     out, summary = rb.decimate(smoothed, target_faces=500)
     assert 0 < out.mesh.num_faces <= 500 and summary.num_patches == out.num_patches
     assert len(out.face_patch) == out.mesh.num_faces
+    # The CLI's summary: sizes and the λ search.
+    assert f"output: {out.mesh.num_faces} faces" in summary.brief_report()
     poses = [smoothed, rb.Mesh(smoothed.V * 1.5, smoothed.F)]
     outs, summary = rb.decimate_animated(poses, **{"lambda": 0.5})
     assert len(outs) == 2 and outs[0].face_patch == outs[1].face_patch

@@ -44,6 +44,33 @@ TEST(DecimateCli, PolygonsAndTargetFaces) {
   EXPECT_NE(r.output.find("lambda search"), std::string::npos) << r.output;
 }
 
+// A smoothed stereo mesh (one frame of a synthetic recording through `replay`): the λ search's guide, calibrated
+// on fits whose count is the budget the chain pass filled, over-predicts there, so a search that moves one
+// resolution step per round took 20 full decimations at 200 faces; it gallops down instead and closes its bracket.
+TEST(DecimateCli, TargetFacesSearchDoesNotCreepOnASmoothedStereoMesh) {
+  const std::string dir = TempDir("smoothed_stereo");
+  RunResult r = RunRangebayes("synth --scene planes --width 160 --height 120 --frames 1 --out " + dir + "/rec -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes("replay " + dir + "/rec --out " + dir + "/out --no-decimate -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes("decimate " + dir + "/out/smoothed/000000.ply " + dir + "/d.ply --target-faces 200 -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  int steps = 0;
+  double too_many = 0, fits = 0;
+  const size_t found = r.output.find("found in ");
+  ASSERT_NE(found, std::string::npos) << r.output;
+  steps = std::stoi(r.output.substr(found + 9));
+  const size_t bracket = r.output.find("faces at lambda ");
+  ASSERT_NE(bracket, std::string::npos) << r.output;
+  too_many = std::stod(r.output.substr(bracket + 16));
+  const size_t second = r.output.find("at lambda ", bracket + 16);
+  ASSERT_NE(second, std::string::npos) << r.output;
+  fits = std::stod(r.output.substr(second + 10));
+  EXPECT_LE(steps, 12) << r.output;
+  EXPECT_GT(too_many, 0.0) << r.output;  // the bracket closed: a λ with too many faces was found
+  EXPECT_LE(fits, too_many * 1.021) << r.output;  // within lambda_resolution (0.02), printed to 6 digits
+}
+
 TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {
   const std::string dir = TempDir("animated");
   Mesh a = ReadMesh("tests/data/meshes/fandisk_gt.obj");
