@@ -1,5 +1,6 @@
 #include "calibration/middlebury.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -53,11 +54,18 @@ MiddleburyCalib ReadMiddleburyCalib(const std::string& path) {
   RB_CHECK(in.good(), path, ": cannot open");
   std::map<std::string, std::string> values;
   std::string line;
+  int number = 0;
   while (std::getline(in, line)) {
+    ++number;
     line = Trim(line);
     if (line.empty() || line[0] == '#') continue;
+    const bool text = std::all_of(line.begin(), line.end(), [](char c) {
+      const auto u = static_cast<unsigned char>(c);
+      return u == '\t' || (u >= 0x20 && u < 0x7f);
+    });
+    RB_CHECK(text, path, ": line ", number, " is not text: not a Middlebury calib.txt");
     const auto eq = line.find('=');
-    RB_CHECK(eq != std::string::npos, path, ": line '", line, "' is not key=value");
+    RB_CHECK(eq != std::string::npos, path, ": line ", number, " '", line, "' is not key=value");
     values[Trim(line.substr(0, eq))] = Trim(line.substr(eq + 1));
   }
   const auto require = [&](const char* key) -> const std::string& {

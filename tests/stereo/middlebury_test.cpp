@@ -49,6 +49,18 @@ TEST(Middlebury, CalibErrorsNameTheKey) {
     EXPECT_NE(std::string(e.what()).find("cam1"), std::string::npos) << e.what();
   }
   EXPECT_THROW(ReadMiddleburyCalib("tests/data/stereo/none/calib.txt"), Error);
+  // An image given for the calib file: one readable line, no raw bytes.
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "\x89PNG\r\n\x1a\n" << std::string("\0\0\0\rIHDR", 8);
+  }
+  try {
+    ReadMiddleburyCalib(path);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(": line 1 is not text: not a Middlebury calib.txt"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Middlebury, V2SceneReadsWithScaleAndMask) {
