@@ -55,17 +55,16 @@ TEST(DecimateCli, TargetFacesSearchDoesNotCreepOnASmoothedStereoMesh) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = RunRangebayes("decimate " + dir + "/out/smoothed/000000.ply " + dir + "/d.ply --target-faces 200 -q");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  int steps = 0;
-  double too_many = 0, fits = 0;
+  // "lambda: L (found in N full decimations)", "straightened patches need A faces at lambda L1, B at lambda L2"
   const size_t found = r.output.find("found in ");
-  ASSERT_NE(found, std::string::npos) << r.output;
-  steps = std::stoi(r.output.substr(found + 9));
   const size_t bracket = r.output.find("faces at lambda ");
+  ASSERT_NE(found, std::string::npos) << r.output;
   ASSERT_NE(bracket, std::string::npos) << r.output;
-  too_many = std::stod(r.output.substr(bracket + 16));
   const size_t second = r.output.find("at lambda ", bracket + 16);
   ASSERT_NE(second, std::string::npos) << r.output;
-  fits = std::stod(r.output.substr(second + 10));
+  const int steps = std::stoi(r.output.substr(found + 9));
+  const double too_many = std::stod(r.output.substr(bracket + 16));
+  const double fits = std::stod(r.output.substr(second + 10));
   EXPECT_LE(steps, 12) << r.output;
   EXPECT_GT(too_many, 0.0) << r.output;  // the bracket closed: a λ with too many faces was found
   EXPECT_LE(fits, too_many * 1.021) << r.output;  // within lambda_resolution (0.02), printed to 6 digits
