@@ -295,7 +295,8 @@ void WriteDisparityNoiseModel(const DisparityNoiseModel& model, const std::strin
   fs << "form" << NoiseFormName(model.form);
   fs << "sigma_px" << model.sigma_px << "floor_px" << model.floor_px << "scale" << model.scale;
   fs << "matcher" << model.matcher << "samples" << model.samples;
-  fs << "outlier_fraction" << model.outlier_fraction << "depth_slope_px_per_m" << model.depth_slope_px_per_m;
+  fs << "outlier_fraction" << model.outlier_fraction;
+  if (std::isfinite(model.depth_slope_px_per_m)) fs << "depth_slope_px_per_m" << model.depth_slope_px_per_m;
   fs << "image_noise_gray" << model.image_noise_gray;
   if (model.form == NoiseForm::kLearned || model.jump_scale > 0) fs << "jump_scale" << model.jump_scale;
   if (model.width_max_px > 0) fs << "width_min_px" << model.width_min_px << "width_max_px" << model.width_max_px;

@@ -2,6 +2,7 @@
 // OpenCV FileStorage) and its maximum-likelihood fit from residuals about a known target.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -27,7 +28,9 @@ struct DisparityNoiseModel {
   std::string matcher;                    // e.g. "sgbm", "block", "spacetime"
   int samples = 0;                        // residuals the fit used
   double outlier_fraction = 0.0;          // mixture weight of the uniform outlier component
-  double depth_slope_px_per_m = 0.0;      // slope of σ_d (constant form, per depth bin) against depth; NaN: n/a
+  // Slope of σ_d (constant form, per depth bin) against depth; NaN: not measured (ground-truth fits, a plane at
+  // one depth), and then absent from noise.yaml.
+  double depth_slope_px_per_m = std::numeric_limits<double>::quiet_NaN();
   // σ_pred scales with the image noise σ_n the matcher assumed; the fit's σ_n (0: unknown) lets a user of the
   // model with another σ_n rescale: scale' = scale · fit σ_n / own σ_n.
   double image_noise_gray = 0.0;

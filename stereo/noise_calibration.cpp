@@ -151,8 +151,12 @@ std::string NoiseCalibrationSummary::BriefReport(const DisparityNoiseModel& mode
     std::snprintf(line, sizeof(line), " %.3f m: %.4f px;", b.depth_m, b.sigma_px);
     out += line;
   }
-  std::snprintf(line, sizeof(line), " slope %.4f px/m\n", fit.depth_slope_px_per_m);
-  out += line;
+  if (std::isfinite(fit.depth_slope_px_per_m)) {
+    std::snprintf(line, sizeof(line), " slope %.4f px/m\n", fit.depth_slope_px_per_m);
+    out += line;
+  } else {
+    out += " slope n/a (the plane spans under 2% of its depth)\n";
+  }
   return out;
 }
 

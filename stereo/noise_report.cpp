@@ -117,12 +117,18 @@ void DrawSigmaByDepth(const NoiseFitSummary& fit, cv::Mat* image) {
   mz /= cnt;
   ms /= cnt;
   const double slope = fit.depth_slope_px_per_m;
-  cv::line(canvas, cv::Point(qx(zlo), qy(ms + slope * (zlo - mz))), cv::Point(qx(zhi), qy(ms + slope * (zhi - mz))),
-           cv::Scalar(220, 0, 0), 1, cv::LINE_AA);
+  if (std::isfinite(slope)) {
+    cv::line(canvas, cv::Point(qx(zlo), qy(ms + slope * (zlo - mz))), cv::Point(qx(zhi), qy(ms + slope * (zhi - mz))),
+             cv::Scalar(220, 0, 0), 1, cv::LINE_AA);
+  }
   for (const NoiseDepthBin& b : fit.depth_bins) {
     cv::circle(canvas, cv::Point(qx(b.depth_m), qy(b.sigma_px)), 4, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
   }
-  std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope %.3f px/m", zlo, zhi, slope);
+  if (std::isfinite(slope)) {
+    std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope %.3f px/m", zlo, zhi, slope);
+  } else {
+    std::snprintf(text, sizeof(text), "sigma_d per depth bin, %.2f-%.2f m; slope n/a (one depth)", zlo, zhi);
+  }
   cv::putText(canvas, text, cv::Point(w + margin, h - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);
   std::snprintf(text, sizeof(text), "max %.3f px", smax);
   cv::putText(canvas, text, cv::Point(w + margin, margin - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1);

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "stereo/pfm.h"
@@ -21,6 +23,25 @@ std::string Temp(const std::string& name) {
   fs::remove_all(p);
   fs::create_directories(p.parent_path());
   return p.string();
+}
+
+// `calibrate noise` on a plane facing the rig at one depth: the slope of σ_d over depth cannot be measured there,
+// and is reported as such, not as nan (in the summary, in noise.yaml, in the report's picture).
+TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
+  const std::string rec = Temp("plane"), out = Temp("plane_out");
+  RunResult r = RunRangebayes("synth --scene plane --frames 4 --width 160 --height 120 --out " + rec + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  fs::create_directories(out);
+  r = RunRangebayes("calibrate noise " + rec + " --rig " + rec + "/rig.yaml --target plane --out " + out +
+                    "/noise.yaml --png " + out + "/report.png");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("slope n/a"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("nan"), std::string::npos) << r.output;
+  std::ifstream yaml(out + "/noise.yaml");
+  const std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text.find("Nan"), std::string::npos) << text;
+  EXPECT_NE(text.find("sigma_px"), std::string::npos) << text;
+  EXPECT_TRUE(fs::exists(out + "/report.png"));
 }
 
 TEST(StereoCli, SynthSpaceTimeEvalDepth) {
