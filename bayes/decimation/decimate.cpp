@@ -1224,11 +1224,18 @@ std::string DecimateSummary::BriefReport() const {
                 energy, data_energy, energy - data_energy);
   out += line;
   if (target_faces > 0) {
+    // A fit's count is what the chain pass filled the budget to; only an overflow measures what the straightened
+    // patches need.
+    char too_many[96] = "fit at every lambda tried";
+    if (lambda_too_many > 0) {
+      std::snprintf(too_many, sizeof(too_many), "need %d faces at lambda %.6g", faces_too_many, lambda_too_many);
+    }
+    char fits[96] = "fit at no lambda tried";
+    if (lambda_fits > 0) std::snprintf(fits, sizeof(fits), "fit in %d at lambda %.6g", faces_fits, lambda_fits);
     std::snprintf(line, sizeof(line),
-                  "lambda search: straightened patches need %d faces at lambda %.6g, %d at lambda %.6g (budget %d of "
-                  "%d; chain vertices kept up to chain error %.3g%% of the diagonal)\n",
-                  faces_too_many, lambda_too_many, faces_fits, lambda_fits, budget_faces, target_faces,
-                  100.0 * max_chain_error_rel);
+                  "lambda search: straightened patches %s, %s (budget %d of %d; chain vertices kept up to chain error "
+                  "%.3g%% of the diagonal)\n",
+                  too_many, fits, budget_faces, target_faces, 100.0 * max_chain_error_rel);
     out += line;
   }
   std::snprintf(line, sizeof(line),

@@ -55,7 +55,7 @@ TEST(DecimateCli, TargetFacesSearchDoesNotCreepOnASmoothedStereoMesh) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = RunRangebayes("decimate " + dir + "/out/smoothed/000000.ply " + dir + "/d.ply --target-faces 200 -q");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  // "lambda: L (found in N full decimations)", "straightened patches need A faces at lambda L1, B at lambda L2"
+  // "lambda: L (found in N full decimations)", "straightened patches need A faces at lambda L1, fit in B at lambda L2"
   const size_t found = r.output.find("found in ");
   const size_t bracket = r.output.find("faces at lambda ");
   ASSERT_NE(found, std::string::npos) << r.output;
