@@ -377,11 +377,15 @@ double PolakRibiere(const CgPreconditioner& m, const Eigen::VectorXd& g_new, con
 }
 
 // After an iteration that reached energy e (already in summary->energy): records the distance estimate,
-// reports progress, and returns the termination that ends the solve now, if any.
+// reports progress, and returns the termination that ends the solve now, if any. The estimate extrapolates the
+// rate of decrease, which early in a solve can exceed all there is to gain: it is capped at e − energy_floor
+// (SmoothingEnergy::LowerBound; the energy itself for the built-in potentials).
 std::optional<SmoothTermination> StopAfter(const Preset& preset, const SmoothOptions& options, int iteration,
-                                           double e, double gradient_stop, Clock::time_point deadline,
-                                           double* first_remaining, SmoothSummary* summary) {
-  const double remaining = RemainingDecrease(summary->energy);
+                                           double e, double energy_floor, double gradient_stop,
+                                           Clock::time_point deadline, double* first_remaining,
+                                           SmoothSummary* summary) {
+  double remaining = RemainingDecrease(summary->energy);
+  if (std::isfinite(remaining)) remaining = std::min(remaining, std::max(0.0, e - energy_floor));
   summary->remaining_decrease = remaining;
   const double relative_remaining = remaining / std::max(std::abs(e), 1e-300);
   if (*first_remaining < 0 && std::isfinite(relative_remaining)) *first_remaining = relative_remaining;
@@ -432,6 +436,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     return {x, parts};
   }
   const double gradient_stop = preset.gradient * summary->initial_gradient_norm;
+  const double energy_floor = energy.LowerBound();
 
   p = -zg;
   double alpha_prev = 0, slope_prev = 0;
@@ -488,7 +493,7 @@ MinimiseResult Minimise(Problem& problem, const SmoothOptions& options, Clock::t
     summary->final_gradient_norm = std::sqrt(gg);
     ++since_restart;
 
-    if (const auto stop = StopAfter(preset, options, iteration, e, gradient_stop, deadline,
+    if (const auto stop = StopAfter(preset, options, iteration, e, energy_floor, gradient_stop, deadline,
                                     &first_remaining, summary)) {
       summary->termination = *stop;
       break;

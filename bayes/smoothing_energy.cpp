@@ -972,6 +972,17 @@ void SmoothingEnergy::StiffVertices(const Eigen::VectorXd& x_vector, double rela
   }
 }
 
+double SmoothingEnergy::LowerBound() const {
+  if (potential_ == nullptr) return 0.0;
+  double lowest = 0.0;
+  for (int k = 0; k <= 400; ++k) {
+    double value = 0, derivative = 0;
+    potential_->Evaluate(0.005 * k, &value, &derivative);
+    lowest = std::min(lowest, value);
+  }
+  return prior_weight_ * num_pairs() * lowest;
+}
+
 double SmoothingEnergy::UniformDataInverseScale() const {
   if (!uniform_isotropic_ || information_.empty() || !(information_[0] > 0)) return 0.0;
   return 0.5 / information_[0];

@@ -125,6 +125,11 @@ class SmoothingEnergy {
   // normals (a fold or flip in the result). Faces without active neighbours are not counted.
   int CountFoldedFaces(const Eigen::VectorXd& x) const;
 
+  // A lower bound of the energy over all states: the data term is never negative, and each pair's prior term is at
+  // least β · min over d in [0, 2] of φ(d) (sampled; 0 when φ is never negative, as for every built-in potential).
+  // Bounds the distance to the optimum, E − E* ≤ E − LowerBound().
+  double LowerBound() const;
+
   int num_vertices() const { return num_vertices_; }
   int num_faces() const { return static_cast<int>(faces_.rows()); }
   int num_pairs() const { return static_cast<int>(neighbours_.size() / 2); }

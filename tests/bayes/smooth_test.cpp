@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <numeric>
 #include <string>
@@ -18,6 +19,7 @@
 #include "bayes/ray_preconditioner.h"
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
+#include "core/mesh_io.h"
 #include "tests/bayes/test_meshes.h"
 
 namespace rangebayes {
@@ -399,6 +401,23 @@ TEST(Smooth, RayPreconditionerReachesTheSameMinimum) {
   EXPECT_NEAR(ea, eb, 1e-6 * eb);
   EXPECT_LT((a.V - b.V).cwiseAbs().maxCoeff(), 1e-4);
   EXPECT_LT(rays.iterations, data.iterations);
+}
+
+// The distance to the optimum extrapolates the rate of decrease; five iterations into a solve of this noisy CAD
+// block it extrapolated to 1.2 × E, more than a nonnegative energy can lose. It is capped at E − LowerBound().
+TEST(Smooth, DistanceEstimateNeverExceedsWhatTheEnergyCanLose) {
+  const Mesh noisy = ReadMesh(std::string(RB_SOURCE_DIR) + "/tests/data/meshes/block_noisy_gauss0.4.obj");
+  const NoisyMesh input = MakeGenericNoisyMesh(noisy);
+  for (const int iterations : {4, 5, 6, 8}) {
+    SmoothOptions options;
+    options.max_iterations = iterations;
+    SmoothSummary summary;
+    Smooth(input, options, &summary);
+    ASSERT_FALSE(summary.energy.empty());
+    ASSERT_TRUE(std::isfinite(summary.remaining_decrease)) << iterations;
+    EXPECT_GE(summary.remaining_decrease, 0.0) << iterations;
+    EXPECT_LE(summary.remaining_decrease, summary.energy.back()) << iterations;
+  }
 }
 
 }  // namespace
