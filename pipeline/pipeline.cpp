@@ -292,8 +292,8 @@ class Stages {
     t_smooth = &summary.stages[4];
     t_decimate = &summary.stages[5];
     t_sinks = &summary.stages[6];
-    if (!options.smooth) summary.notices.push_back("smoothing switched off: smoothed meshes are not written");
-    if (!options.decimate) summary.notices.push_back("decimation switched off: decimated meshes are not written");
+    if (!options.smooth) summary.notices.push_back("smoothing switched off: results carry no smoothed mesh");
+    if (!options.decimate) summary.notices.push_back("decimation switched off: results carry no decimated mesh");
 
     // The first frame is read before the threads start so that a rig that does not fit the recording is one
     // clear error instead of a failure per frame.
