@@ -285,6 +285,7 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
   for (int level = 0; level < levels; ++level) {
     const double max_distance = options.max_distance_edges[level] * problem.edge;
     const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
+    if (level + 1 == levels) local->finest_level_start = static_cast<int>(local->cost.size());
     for (int it = 0; it < options.iterations_per_level; ++it) {
       const std::vector<std::pair<int, int>> pairs = OverlappingPairs(problem.index, *pose, max_distance);
       std::vector<PairSystem> systems(pairs.size());
@@ -404,9 +405,11 @@ void RegisterOptions::Check() const {
 }
 
 std::string RegisterSummary::BriefReport() const {
-  return StrCat("aligned in ", iterations, " iterations over ", levels, " levels, ", time_s, " s; cost ",
-                cost.empty() ? 0.0 : cost.front(), " -> ", cost.empty() ? 0.0 : cost.back(), "; ", pairs.size(),
-                " overlapping pairs");
+  // Each level has its own gate and sample count, so only costs within one level compare: the finest level's.
+  const bool finest = finest_level_start >= 0 && finest_level_start < static_cast<int>(cost.size());
+  return StrCat("aligned in ", iterations, " iterations over ", levels, " levels, ", time_s, " s; cost on the finest ",
+                "level ", finest ? cost[static_cast<size_t>(finest_level_start)] : 0.0, " -> ",
+                cost.empty() ? 0.0 : cost.back(), "; ", pairs.size(), " overlapping pairs");
 }
 
 std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,

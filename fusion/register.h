@@ -56,6 +56,7 @@ struct RegisterSummary {
   int iterations = 0;
   int levels = 0;
   std::vector<double> cost;   // robust cost after each iteration's correspondences were built
+  int finest_level_start = 0;  // index in cost of the last level's first iteration (costs compare within a level)
   std::vector<PairReport> pairs;  // pairs with at least one correspondence, a < b first, then a > b
   double time_s = 0;
   std::string BriefReport() const;   // one line
