@@ -119,6 +119,15 @@ void RunFuse(const FuseArgs& args) {
     std::ofstream(dir + "report.txt") << report;
     std::printf("%s", report.c_str());
     std::printf("report:     %sreport.txt\n", dir.c_str());
+  } else if (scans.size() >= 2) {
+    // --no-align: the given poses are checked as registration's result is, and fused only if they pass.
+    RegisterSummary summary;
+    const std::string misaligned = CheckPoses(scans, initial, register_options, &summary);
+    const std::string report = FormatPairReport(summary, scans);
+    std::ofstream(dir + "report.txt") << report;
+    std::printf("%s", report.c_str());
+    std::printf("report:     %sreport.txt\n", dir.c_str());
+    RB_CHECK(misaligned.empty(), misaligned, "; leave out --no-align to align them first");
   }
   std::vector<ScanPose> out_poses;
   for (size_t k = 0; k < scans.size(); ++k) out_poses.push_back({FileBaseName(scans[k].name), poses[k]});
@@ -186,7 +195,9 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
                "Bayesian smoothing (bayes/smooth.h defaults) of each scan with its own ray covariance, after "
                "alignment and before fusion");
   sub->add_flag("--decimate", args->decimate, "Bayesian decimation of the (smoothed) fused mesh (defaults)");
-  sub->add_flag("--no-align", args->no_align, "fuse with the given poses as they are");
+  sub->add_flag("--no-align", args->no_align,
+                "fuse with the given poses as they are (after the test registration's result passes: scans they "
+                "leave misaligned are an error; report.txt is written either way)");
   sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)");

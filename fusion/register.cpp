@@ -317,9 +317,10 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
 constexpr double kMisalignedGateShare = 0.3;
 constexpr double kMisalignedSigma = 2.0;
 
-void CheckEveryScanAligned(const AlignmentProblem& problem, const std::vector<PairSystem>& last) {
-  const std::vector<Scan>& scans = problem.scans;
-  const int n = static_cast<int>(scans.size());
+// The scans that fail the test above, as indices; *worst gets the numbers of the worst one.
+std::vector<int> FindMisaligned(const AlignmentProblem& problem, const std::vector<PairSystem>& last,
+                                std::string* worst) {
+  const int n = static_cast<int>(problem.scans.size());
   const double gate = problem.options.max_distance_edges.back() * problem.edge;
   std::vector<double> distance2(n, 0.0), sigma2(n, 0.0);
   std::vector<int> count(n, 0);
@@ -330,31 +331,45 @@ void CheckEveryScanAligned(const AlignmentProblem& problem, const std::vector<Pa
       count[s] += sys.report.correspondences;
     }
   }
-  std::string names, worst;
+  std::vector<int> misaligned;
   double worst_share = 0;
   for (int s = 0; s < n; ++s) {
     if (count[s] == 0) continue;
     const double share = std::sqrt(distance2[s] / count[s]) / gate;
     const double sigma = std::sqrt(sigma2[s] / count[s]);
     if (!(share > kMisalignedGateShare && sigma > kMisalignedSigma)) continue;
-    names += (names.empty() ? "" : ", ") + FileBaseName(scans[s].name);
+    misaligned.push_back(s);
     if (share > worst_share) {
       worst_share = share;
       char line[64];
       std::snprintf(line, sizeof(line), "RMS %.2f of it, %.1f σ", share, sigma);
-      worst = line;
+      *worst = line;
     }
   }
-  RB_CHECK(names.empty(), names, ": not aligned after registration: the residuals spread over the whole ",
-           "correspondence gate (", worst, "; aligned scans give about 0.1 of it and under 1 σ), so the initial ",
-           "poses are too far off: give closer ones with --poses (bun.conf format) or leave the scan out");
+  return misaligned;
 }
 
-// Reports from the last correspondences; a scan without enough overlap is an error.
-void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last, RegisterSummary* local) {
-  const std::vector<Scan>& scans = problem.scans;
-  const RegisterOptions& options = problem.options;
-  const int n = static_cast<int>(scans.size());
+std::string ScanNames(const std::vector<Scan>& scans, const std::vector<int>& which) {
+  std::string names;
+  for (const int s : which) names += (names.empty() ? "" : ", ") + FileBaseName(scans[s].name);
+  return names;
+}
+
+void CheckEveryScanAligned(const AlignmentProblem& problem, const std::vector<PairSystem>& last) {
+  std::string worst;
+  const std::vector<int> misaligned = FindMisaligned(problem, last, &worst);
+  RB_CHECK(misaligned.empty(), ScanNames(problem.scans, misaligned), ": not aligned after registration: the ",
+           "residuals spread over the whole correspondence gate (", worst, "; aligned scans give about 0.1 of it ",
+           "and under 1 σ), so the initial poses are too far off: give closer ones with --poses (bun.conf format) ",
+           "or leave the scan out");
+}
+
+// The pair reports of the last correspondences, sorted by pair; returns per scan the best share of its samples
+// that found a partner, and its partner (−1: none).
+std::pair<std::vector<double>, std::vector<int>> FillPairReports(const AlignmentProblem& problem,
+                                                                 std::vector<PairSystem>* last,
+                                                                 RegisterSummary* local) {
+  const int n = static_cast<int>(problem.scans.size());
   std::vector<double> best_overlap(n, 0.0);
   std::vector<int> best_partner(n, -1);
   for (PairSystem& sys : *last) {
@@ -364,7 +379,7 @@ void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last,
     r.rms_sigma = std::sqrt(sys.sum_sigma2 / r.correspondences);
     r.rms_distance = std::sqrt(sys.sum_distance2 / r.correspondences);
     const double share = static_cast<double>(r.correspondences) /
-                         std::max<size_t>(1, std::min<size_t>(options.final_samples_per_scan,
+                         std::max<size_t>(1, std::min<size_t>(problem.options.final_samples_per_scan,
                                                               problem.index[r.a].sample_order.size()));
     if (share > best_overlap[r.a]) {
       best_overlap[r.a] = share;
@@ -372,17 +387,25 @@ void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last,
     }
     local->pairs.push_back(r);
   }
-  for (int s = 0; s < n; ++s) {
+  std::sort(local->pairs.begin(), local->pairs.end(), [](const PairReport& x, const PairReport& y) {
+    return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
+           std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));
+  });
+  return {best_overlap, best_partner};
+}
+
+// Reports from the last correspondences; a scan without enough overlap, or left misaligned, is an error.
+void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last, RegisterSummary* local) {
+  const std::vector<Scan>& scans = problem.scans;
+  const RegisterOptions& options = problem.options;
+  const auto [best_overlap, best_partner] = FillPairReports(problem, last, local);
+  for (size_t s = 0; s < scans.size(); ++s) {
     RB_CHECK(best_overlap[s] >= options.min_overlap, scans[s].name, ": overlaps no other scan after alignment (",
              100.0 * best_overlap[s], "% of its samples found a partner",
              best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
              100.0 * options.min_overlap, "% needed): check its pose or leave it out");
   }
   CheckEveryScanAligned(problem, *last);
-  std::sort(local->pairs.begin(), local->pairs.end(), [](const PairReport& x, const PairReport& y) {
-    return std::make_pair(std::min(x.a, x.b), std::make_pair(std::max(x.a, x.b), x.a)) <
-           std::make_pair(std::min(y.a, y.b), std::make_pair(std::max(y.a, y.b), y.a));
-  });
 }
 
 }  // namespace
@@ -433,6 +456,37 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
   local.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (summary) *summary = local;
   return pose;
+}
+
+std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& poses,
+                       const RegisterOptions& options, RegisterSummary* summary) {
+  options.Check();
+  const int n = static_cast<int>(scans.size());
+  RB_CHECK(static_cast<int>(poses.size()) == n, "pose check: ", poses.size(), " poses for ", n, " scans");
+  RegisterSummary local;
+  if (n < 2) {
+    if (summary) *summary = local;
+    return {};
+  }
+  const std::unique_ptr<tbb::global_control> threads = LimitThreads(options.num_threads);
+  std::vector<ScanIndex> index(n);
+  const double edge = IndexScans(scans, options, &index);
+  const AlignmentProblem problem{scans, index, options, edge, std::cos(options.max_normal_angle_deg * M_PI / 180.0),
+                                 options.robust_scale_sigma * options.robust_scale_sigma};
+  const double max_distance = options.max_distance_edges.back() * edge;
+  const std::vector<std::pair<int, int>> pairs = OverlappingPairs(index, poses, max_distance);
+  std::vector<PairSystem> systems(pairs.size());
+  tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
+    LinearizePair(problem, poses, pairs[k], max_distance, options.final_samples_per_scan, &systems[k]);
+  });
+  FillPairReports(problem, &systems, &local);
+  std::string worst;
+  const std::vector<int> misaligned = FindMisaligned(problem, systems, &worst);
+  if (summary) *summary = local;
+  if (misaligned.empty()) return {};
+  return StrCat(ScanNames(scans, misaligned), ": the given poses do not align ",
+                misaligned.size() == 1 ? "it" : "them", " with the other scans (residuals spread over the ",
+                "correspondence gate: ", worst, "; aligned scans give about 0.1 of it and under 1 σ)");
 }
 
 PoseError RelativePoseError(const Eigen::Isometry3d& estimate0, const Eigen::Isometry3d& estimate,

@@ -72,6 +72,12 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
                                              const RegisterOptions& options = {},
                                              RegisterSummary* summary = nullptr);
 
+// The pair report of the scans at the given poses, without moving them (what `fuse --no-align` writes): the
+// correspondences of the finest level. Returns "" when every scan passes RegisterScans' alignment test, else one
+// line naming the scans that fail it (no overlap is required: scans that meet no other are simply not judged).
+std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& poses,
+                       const RegisterOptions& options = {}, RegisterSummary* summary = nullptr);
+
 // Rotation angle (degrees) and translation distance of a_from_b·b_from_a⁻¹-style differences: the pose
 // error of `estimate` relative to `reference`, both expressed relative to their first scan.
 struct PoseError {

@@ -67,6 +67,23 @@ TEST(FuseCli, ScansLeftMisalignedAreNamedNotFused) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/out/fused.ply"));
 }
 
+// --no-align fuses the given poses as they are, after the same test: the pieces 35° apart are named (with the
+// pair report written for a look), at their reference poses they fuse.
+TEST(FuseCli, NoAlignChecksTheGivenPoses) {
+  const std::string dir = TempDir("no_align");
+  RunResult run = RunRangebayes("fuse " + Pieces() + " --no-align --out " + dir + "/off -q");
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("bun000_piece.ply, bun045_piece.ply: the given poses do not align them"),
+            std::string::npos)
+      << run.output;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/off/report.txt"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/off/fused.ply"));
+  run = RunRangebayes("fuse " + Pieces() + " --poses " + std::string(RB_SOURCE_DIR) + "/" + kData +
+                      "pieces.conf --no-align --out " + dir + "/on -q");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/on/fused.ply"));
+}
+
 // --smooth smooths each scan before fusion: the model changes and each scan's smoothing is reported.
 TEST(FuseCli, SmoothChangesTheModel) {
   const std::string dir = TempDir("smooth");
