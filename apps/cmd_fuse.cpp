@@ -111,22 +111,22 @@ void RunFuse(const FuseArgs& args) {
   const std::string dir = args.out_dir + "/";
 
   std::vector<Eigen::Isometry3d> poses = initial;
+  const auto write_report = [&](const RegisterSummary& summary) {
+    const std::string report = FormatPairReport(summary, scans);
+    std::ofstream(dir + "report.txt") << report;
+    std::printf("%s", report.c_str());
+    std::printf("report:     %sreport.txt\n", dir.c_str());
+  };
   if (!args.no_align && scans.size() >= 2) {
     RegisterSummary summary;
     poses = RegisterScans(scans, initial, register_options, &summary);
     std::printf("alignment:  %s\n", summary.BriefReport().c_str());
-    const std::string report = FormatPairReport(summary, scans);
-    std::ofstream(dir + "report.txt") << report;
-    std::printf("%s", report.c_str());
-    std::printf("report:     %sreport.txt\n", dir.c_str());
+    write_report(summary);
   } else if (scans.size() >= 2) {
     // --no-align: the given poses are checked as registration's result is, and fused only if they pass.
     RegisterSummary summary;
     const std::string misaligned = CheckPoses(scans, initial, register_options, &summary);
-    const std::string report = FormatPairReport(summary, scans);
-    std::ofstream(dir + "report.txt") << report;
-    std::printf("%s", report.c_str());
-    std::printf("report:     %sreport.txt\n", dir.c_str());
+    write_report(summary);
     RB_CHECK(misaligned.empty(), misaligned, "; leave out --no-align to align them first");
   }
   std::vector<ScanPose> out_poses;

@@ -131,6 +131,15 @@ double IndexScans(const std::vector<Scan>& scans, const RegisterOptions& options
   return edge;
 }
 
+// The problem of `scans` under `options`, its indices built into *index (which it refers to).
+AlignmentProblem MakeAlignmentProblem(const std::vector<Scan>& scans, const RegisterOptions& options,
+                                      std::vector<ScanIndex>* index) {
+  *index = std::vector<ScanIndex>(scans.size());
+  const double edge = IndexScans(scans, options, index);
+  return {scans, *index, options, edge, std::cos(options.max_normal_angle_deg * M_PI / 180.0),
+          options.robust_scale_sigma * options.robust_scale_sigma};
+}
+
 // Pairs whose world boxes, grown by the correspondence distance, meet.
 std::vector<std::pair<int, int>> OverlappingPairs(const std::vector<ScanIndex>& index,
                                                   const std::vector<Eigen::Isometry3d>& pose, double max_distance) {
@@ -275,6 +284,23 @@ double TakeDampedStep(double edge, NormalEquations* eq, std::vector<Eigen::Isome
   return largest;
 }
 
+// The overlapping pairs at `pose` and each one's normal equations within max_distance.
+struct PairSystems {
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<PairSystem> systems;
+};
+
+PairSystems LinearizeAll(const AlignmentProblem& problem, const std::vector<Eigen::Isometry3d>& pose,
+                         double max_distance, int samples) {
+  PairSystems out;
+  out.pairs = OverlappingPairs(problem.index, pose, max_distance);
+  out.systems.resize(out.pairs.size());
+  tbb::parallel_for(0, static_cast<int>(out.pairs.size()), [&](int k) {
+    LinearizePair(problem, pose, out.pairs[k], max_distance, samples, &out.systems[k]);
+  });
+  return out;
+}
+
 // Gauss–Newton over the levels of max_distance_edges; returns the pair systems of the last iteration.
 std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen::Isometry3d>* pose,
                               RegisterSummary* local) {
@@ -287,16 +313,12 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
     const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
     if (level + 1 == levels) local->finest_level_start = static_cast<int>(local->cost.size());
     for (int it = 0; it < options.iterations_per_level; ++it) {
-      const std::vector<std::pair<int, int>> pairs = OverlappingPairs(problem.index, *pose, max_distance);
-      std::vector<PairSystem> systems(pairs.size());
-      tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
-        LinearizePair(problem, *pose, pairs[k], max_distance, samples, &systems[k]);
-      });
+      PairSystems linear = LinearizeAll(problem, *pose, max_distance, samples);
       // Assemble the 6n system (scan 0 fixed) and take one damped Gauss–Newton step.
-      NormalEquations eq = Assemble(pairs, systems, n);
+      NormalEquations eq = Assemble(linear.pairs, linear.systems, n);
       local->cost.push_back(eq.cost);
       ++local->iterations;
-      last = std::move(systems);
+      last = std::move(linear.systems);
       CheckEveryScanOverlaps(problem.scans, eq, max_distance);
       if (TakeDampedStep(problem.edge, &eq, pose) < options.converged_step) break;
     }
@@ -445,12 +467,10 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
   RB_CHECK(static_cast<int>(initial.size()) == n, "alignment: ", initial.size(), " initial poses for ", n,
            " scans");
   const std::unique_ptr<tbb::global_control> threads = LimitThreads(options.num_threads);
-  std::vector<ScanIndex> index(n);
-  const double edge = IndexScans(scans, options, &index);
+  std::vector<ScanIndex> index;
+  const AlignmentProblem problem = MakeAlignmentProblem(scans, options, &index);
   std::vector<Eigen::Isometry3d> pose = initial;
   RegisterSummary local;
-  const AlignmentProblem problem{scans, index, options, edge, std::cos(options.max_normal_angle_deg * M_PI / 180.0),
-                                 options.robust_scale_sigma * options.robust_scale_sigma};
   std::vector<PairSystem> last = Align(problem, &pose, &local);
   ReportPairs(problem, &last, &local);
   local.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -469,19 +489,13 @@ std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::
     return {};
   }
   const std::unique_ptr<tbb::global_control> threads = LimitThreads(options.num_threads);
-  std::vector<ScanIndex> index(n);
-  const double edge = IndexScans(scans, options, &index);
-  const AlignmentProblem problem{scans, index, options, edge, std::cos(options.max_normal_angle_deg * M_PI / 180.0),
-                                 options.robust_scale_sigma * options.robust_scale_sigma};
-  const double max_distance = options.max_distance_edges.back() * edge;
-  const std::vector<std::pair<int, int>> pairs = OverlappingPairs(index, poses, max_distance);
-  std::vector<PairSystem> systems(pairs.size());
-  tbb::parallel_for(0, static_cast<int>(pairs.size()), [&](int k) {
-    LinearizePair(problem, poses, pairs[k], max_distance, options.final_samples_per_scan, &systems[k]);
-  });
-  FillPairReports(problem, &systems, &local);
+  std::vector<ScanIndex> index;
+  const AlignmentProblem problem = MakeAlignmentProblem(scans, options, &index);
+  PairSystems linear = LinearizeAll(problem, poses, options.max_distance_edges.back() * problem.edge,
+                                    options.final_samples_per_scan);
+  FillPairReports(problem, &linear.systems, &local);
   std::string worst;
-  const std::vector<int> misaligned = FindMisaligned(problem, systems, &worst);
+  const std::vector<int> misaligned = FindMisaligned(problem, linear.systems, &worst);
   if (summary) *summary = local;
   if (misaligned.empty()) return {};
   return StrCat(ScanNames(scans, misaligned), ": the given poses do not align ",

@@ -313,12 +313,17 @@ Scan SmoothScan(const Scan& scan, const SmoothOptions& options, SmoothSummary* s
   return out;
 }
 
+namespace {
+// Whether a PLY read as `grid` is triangulated from its grid: it has one and lists no faces of its own (the file's
+// faces win, so that ReadScan and ReadMeshOrRangeGrid agree on every file).
+bool TriangulatesGrid(const RangeGridScan& grid) { return grid.has_grid() && grid.mesh.mesh.num_faces() == 0; }
+}  // namespace
+
 Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, RangeGridScanSummary* summary) {
   const bool ply = MeshFormatFromPath(path) == MeshFormat::kPly;
   if (ply) {
     RangeGridScan grid = ReadRangeGridScan(path);
-    // The file's own faces win over its grid, as in ReadMeshOrRangeGrid: the two readers agree on every file.
-    if (grid.has_grid() && grid.mesh.mesh.num_faces() == 0) return MakeRangeGridScan(grid, path, options, summary);
+    if (TriangulatesGrid(grid)) return MakeRangeGridScan(grid, path, options, summary);
     return MakeScanFromMesh(grid.mesh, path);
   }
   return MakeScanFromMesh(ReadNoisyMesh(path), path);
@@ -327,7 +332,7 @@ Scan ReadScan(const std::string& path, const RangeGridScanOptions& options, Rang
 NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary, const RangeGridScanOptions& options) {
   if (MeshFormatFromPath(path) != MeshFormat::kPly) return ReadNoisyMesh(path, summary);
   RangeGridScan grid = ReadRangeGridScan(path, summary);
-  if (!grid.has_grid() || grid.mesh.mesh.num_faces() > 0) return std::move(grid.mesh);
+  if (!TriangulatesGrid(grid)) return std::move(grid.mesh);
   RangeGridScanSummary made;
   Scan scan = MakeRangeGridScan(grid, path, options, &made);
   if (summary != nullptr) {
