@@ -633,6 +633,11 @@ void NoteComponentsAndLoops(const std::vector<std::pair<int, int>>& signature, s
   if (loops > 0) notices->push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
 }
 
+// The λ the search tries: λ is the energy of one patch in units of squared normal difference × faces, so the
+// range is the same for every mesh. Below it a patch costs nothing that a face's data term could notice (the
+// partition only merges faces that are coplanar to rounding); above it every component is one patch.
+constexpr double kMinLambda = 1e-12, kMaxLambda = 1e12;
+
 // Finds a bracket [lo, hi] (hi/lo ≤ 1 + resolution, lo "too many", hi "fits") of `eval` (λ → fits?, log faces)
 // within the open interval (lo0, hi0) (0: unbounded), starting at `start`. Bracketing: the face count falls
 // roughly like a power of λ, so the next λ is extrapolated from the last two evaluations (the first step
@@ -683,7 +688,7 @@ class LambdaBracket {
   void Extrapolate(double start) {
     l_ = start;
     auto [ok, lf] = Go(l_);
-    while (evals_ < max_evals_ && (lo_ <= 0.0 || hi_ <= 0.0) && l_ > 1e-12 && l_ < 1e12) {
+    while (evals_ < max_evals_ && (lo_ <= 0.0 || hi_ <= 0.0) && l_ > kMinLambda && l_ < kMaxLambda) {
       const double next = ok ? l_ / Factor(lf) : l_ * Factor(lf);
       prev_l_ = l_;
       prev_lf_ = lf;
@@ -837,7 +842,7 @@ class LambdaSearch {
       if (stride > 1) {
         double l = hi_ / std::pow(1.0 + options_.lambda_resolution, stride);
         if (lo_ > 0.0 && !(l > lo_ * (1.0 + options_.lambda_resolution))) l = std::sqrt(lo_ * hi_);
-        if (!Inside(l)) break;
+        if (!Inside(l) || l < kMinLambda) break;
         stride = Evaluate(l) ? 2 * stride : 1;
         Recalibrate({l});
         continue;
@@ -851,12 +856,17 @@ class LambdaSearch {
       double below = b / (1.0 + options_.lambda_resolution);
       if (guide_lo > below && guide_lo < b && climbs_.count(guide_lo) > 0) below = guide_lo;
       if (Inside(below) && steps_ + static_cast<int>(ls.size()) < options_.max_bisection_steps) ls.push_back(below);
+      // The guide found no fitting λ up to the largest (a budget below one patch per component): its largest
+      // λ, fully evaluated, is the fewest faces there are.
+      if (ls.empty() && steps_ == 0 && b <= 0.0 && Inside(guide_lo)) ls.push_back(guide_lo);
       if (ls.empty()) break;
       std::vector<double> evaluated{ls[0]};
-      if (Evaluate(ls[0]) && ls.size() > 1) {
-        if (Evaluate(ls[1])) stride = 2;
+      bool all_fit = Evaluate(ls[0]);
+      if (all_fit && ls.size() > 1) {
+        all_fit = Evaluate(ls[1]);
         evaluated.push_back(ls[1]);
       }
+      if (all_fit) stride = 2;
       Recalibrate(evaluated);
     }
   }
@@ -885,7 +895,9 @@ class LambdaSearch {
       } else {
         l = std::sqrt(lo_ * hi_);
       }
-      if (l < 1e-12 || l > 1e12) break;
+      if (l < kMinLambda || l > kMaxLambda) break;
+      // One patch per component has the fewest faces; a larger λ cannot change that.
+      if (hi_ <= 0.0 && lo_ > 0.0 && too_many_.num_patches <= static_cast<int>(signature_.size())) break;
       Evaluate(l);
     }
   }

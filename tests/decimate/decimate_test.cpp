@@ -497,6 +497,50 @@ TEST(Decimate, TargetAboveInputKeepsDenseMesh) {
   EXPECT_LT(summary.bisection_steps, options.max_bisection_steps);
 }
 
+// A flat sheet is one patch at every λ, so every λ fits: the search goes down to the smallest λ it tries and
+// stops there (it galloped on to 1e-285 before, and crept to its step cap before that).
+TEST(Decimate, TargetThatEveryLambdaMeetsStopsAtTheSmallestLambda) {
+  const Mesh sheet = Grid(5);
+  DecimateOptions options;
+  options.target_faces = sheet.num_faces();
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(sheet, options, &summary);
+  ExpectValidDecimation(sheet, out);
+  EXPECT_EQ(out.mesh.num_faces(), 2);
+  EXPECT_EQ(summary.lambda_too_many, 0.0);
+  EXPECT_GE(summary.lambda_fits, 1e-14);
+  EXPECT_LT(summary.bisection_steps, options.max_bisection_steps);
+}
+
+// Four separate triangles need four faces at any λ. A target below that is reported as not reachable, with
+// the fewest faces there are; it threw an internal error before (the guide found no λ that fits, and no full
+// decimation was run).
+TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
+  std::vector<Eigen::Vector3d> V;
+  std::vector<std::array<int, 3>> faces;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d o(3.0 * i, 0.1 * i, 0.0);
+    V.push_back(o);
+    V.push_back(o + Eigen::Vector3d(1, 0, 0));
+    V.push_back(o + Eigen::Vector3d(0, 1, 0.2 * i));
+    faces.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  const Mesh four = FromLists(V, faces);
+  for (int target : {1, 2, 4}) {
+    DecimateOptions options;
+    options.target_faces = target;
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(four, options, &summary);
+    ExpectValidDecimation(four, out);
+    EXPECT_EQ(out.mesh.num_faces(), 4) << "target " << target;
+    EXPECT_EQ(summary.lambda_fits, 0.0);
+    bool noticed = false;
+    for (const auto& n : summary.notices) noticed |= n.find("not reachable") != std::string::npos;
+    EXPECT_TRUE(noticed) << "target " << target;
+    EXPECT_LE(summary.bisection_steps, 2) << "target " << target;
+  }
+}
+
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
 TEST(Decimate, ChainReserveTradesPatchesForBoundaryDetail) {
   const Mesh sphere = Sphere(4);
