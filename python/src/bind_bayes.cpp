@@ -43,9 +43,12 @@ Mesh ToMesh(py::handle mesh, const char* what) {
   return out;
 }
 
+// None: not given (NaN, the library's "estimate it"); a NaN given is an error, not a silent None.
 double OptionalNumber(py::handle value, const char* name) {
   if (value.is_none()) return std::nan("");
-  return FieldFromPython<double>(value, name);
+  const double number = FieldFromPython<double>(value, name);
+  if (std::isnan(number)) throw py::value_error(std::string(name) + ": nan is not a value (None: estimate it)");
+  return number;
 }
 
 bool IsPriorFile(const std::string& prior) {

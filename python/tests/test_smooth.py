@@ -71,6 +71,11 @@ def test_keyword_validation(trim_star):
         rb.smooth(m, prior_weight=-1.0)  # range checks are the library's own (SmoothOptions::Check)
     with pytest.raises(ValueError, match="not both"):
         rb.smooth(m, noise=0.3, sigma=0.1)
+    for name in ("noise", "sigma"):  # None estimates the noise; a NaN is not taken for None
+        with pytest.raises(ValueError, match=name + ": nan is not a value"):
+            rb.smooth(m, **{name: float("nan")})
+        with pytest.raises(ValueError, match=name + ": nan is not a value"):
+            rb.make_generic_noisy_mesh(m, **{name: np.nan})
     with pytest.raises(rb.Error):
         rb.smooth(m, prior="nonsense")
     tetra = rb.Mesh([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
