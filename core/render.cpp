@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "core/error.h"
 
@@ -57,19 +58,13 @@ void CheckFaceIndices(const Mesh& mesh) {
   }
 }
 
-// Centre and radius of the bounding box of the finite vertices; false when there is none.
-bool FiniteBoundingSphere(const Mesh& mesh, Eigen::Vector3d* centre, double* radius) {
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d hi = -lo;
-  for (int v = 0; v < mesh.num_vertices(); ++v) {
-    const Eigen::Vector3d p = mesh.V.row(v).transpose();
-    if (!p.allFinite()) continue;
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  if (!(lo.array() <= hi.array()).all()) return false;
-  *centre = 0.5 * (lo + hi);
-  *radius = std::max(0.5 * (hi - lo).norm(), 1e-300);
+// Centre and radius of the box the view is fitted to (RenderOptions::fit_box, else the bounding box of the
+// finite vertices); false when there is none.
+bool FitSphere(const Mesh& mesh, const RenderOptions& options, Eigen::Vector3d* centre, double* radius) {
+  const Eigen::AlignedBox3d box = options.fit_box.isEmpty() ? CentralBox(mesh, 1.0) : options.fit_box;
+  if (box.isEmpty()) return false;
+  *centre = box.center();
+  *radius = std::max(0.5 * box.diagonal().norm(), 1e-300);
   return true;
 }
 
@@ -225,10 +220,12 @@ bool SetUpTriangle(const FaceContext& ctx, int f, ScreenTriangle* t) {
 void FillTriangle(const FaceContext& ctx, const ScreenTriangle& t, std::vector<double>* zbuffer, RgbImage* image) {
   const int width = ctx.options.width_px, height = ctx.options.height_px;
   const Eigen::Vector2d* s = t.s;
-  const int x0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].x(), s[1].x(), s[2].x()}))));
-  const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max({s[0].x(), s[1].x(), s[2].x()}))));
-  const int y0 = std::max(0, static_cast<int>(std::floor(std::min({s[0].y(), s[1].y(), s[2].y()}))));
-  const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max({s[0].y(), s[1].y(), s[2].y()}))));
+  // Clamped to the image before the conversion to int (a vertex outside RenderOptions::fit_box may lie far off).
+  auto pixel = [](double v, int size) { return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(size))); };
+  const int x0 = std::max(0, pixel(std::floor(std::min({s[0].x(), s[1].x(), s[2].x()})), width));
+  const int x1 = std::min(width - 1, pixel(std::ceil(std::max({s[0].x(), s[1].x(), s[2].x()})), width));
+  const int y0 = std::max(0, pixel(std::floor(std::min({s[0].y(), s[1].y(), s[2].y()})), height));
+  const int y1 = std::min(height - 1, pixel(std::ceil(std::max({s[0].y(), s[1].y(), s[2].y()})), height));
   for (int y = y0; y <= y1; ++y) {
     for (int x = x0; x <= x1; ++x) {
       const Eigen::Vector2d p(x + 0.5, y + 0.5);
@@ -304,7 +301,7 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
 
   Eigen::Vector3d centre;
   double radius = 0.0;
-  if (!FiniteBoundingSphere(mesh, &centre, &radius)) return image;
+  if (!FitSphere(mesh, options, &centre, &radius)) return image;
 
   const CameraAxes axes = MakeAxes(options);
   const bool perspective = options.projection == Projection::kPerspective;
@@ -312,7 +309,19 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
   // Perspective: camera on the view axis far enough for the bounding sphere to fit the field of view.
   const double distance = perspective ? radius / std::sin(0.5 * options.field_of_view_deg * M_PI / 180.0) * 1.05
                                       : 0.0;
-  const ViewVertices vertices = ProjectVertices(mesh, axes, centre, radius, distance, perspective);
+  ViewVertices vertices = ProjectVertices(mesh, axes, centre, radius, distance, perspective);
+  if (!perspective && !options.fit_box.isEmpty()) {
+    // The extent of the box's corners, not of the vertices (perspective fits the field of view either way).
+    vertices.min_x = vertices.min_y = std::numeric_limits<double>::infinity();
+    vertices.max_x = vertices.max_y = -vertices.min_x;
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::Vector3d d = options.fit_box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)) - centre;
+      vertices.min_x = std::min(vertices.min_x, d.dot(axes.right));
+      vertices.max_x = std::max(vertices.max_x, d.dot(axes.right));
+      vertices.min_y = std::min(vertices.min_y, d.dot(axes.up));
+      vertices.max_y = std::max(vertices.max_y, d.dot(axes.up));
+    }
+  }
   if (!(vertices.min_x <= vertices.max_x)) return image;
   const PixelMap to_pixel = MakePixelMap(vertices, options, tan_half, perspective);
 
@@ -333,6 +342,29 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
     if (SetUpTriangle(ctx, f, &t)) FillTriangle(ctx, t, &zbuffer, &image);
   }
   return image;
+}
+
+Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share) {
+  RB_CHECK(share >= 0.5 && share <= 1, "CentralBox: share ", share, " is outside [0.5, 1]");
+  Eigen::AlignedBox3d box;  // empty
+  std::vector<double> values;
+  values.reserve(static_cast<size_t>(mesh.num_vertices()));
+  for (int axis = 0; axis < 3; ++axis) {
+    values.clear();
+    for (int v = 0; v < mesh.num_vertices(); ++v) {
+      if (mesh.V.row(v).allFinite()) values.push_back(mesh.V(v, axis));
+    }
+    if (values.empty()) return Eigen::AlignedBox3d();
+    // Nearest-rank quantiles (1 − share)/2 and (1 + share)/2.
+    const double last = static_cast<double>(values.size() - 1);
+    const auto lo = static_cast<std::ptrdiff_t>(std::floor(0.5 * (1.0 - share) * last));
+    const auto hi = static_cast<std::ptrdiff_t>(std::ceil(0.5 * (1.0 + share) * last));
+    std::nth_element(values.begin(), values.begin() + lo, values.end());
+    box.min()(axis) = values[static_cast<size_t>(lo)];
+    std::nth_element(values.begin(), values.begin() + hi, values.end());
+    box.max()(axis) = values[static_cast<size_t>(hi)];
+  }
+  return box;
 }
 
 RgbImage SideBySide(const std::vector<RgbImage>& images, int gap_px, const Eigen::Vector3f& background) {

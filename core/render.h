@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "core/image.h"
@@ -40,6 +41,10 @@ struct RenderOptions {
   Projection projection = Projection::kOrthographic;
   double field_of_view_deg = 30.0;  // vertical field of view for kPerspective, (0, 170)
   double margin_fraction = 0.05;    // empty border around the fitted mesh, share of the image size, [0, 0.45]
+  // The box the view is fitted to: its centre, and for orthographic views the projections of its corners.
+  // Empty (the default): the bounding box of the mesh's finite vertices. Renderings of several meshes with
+  // one fit_box share one framing; vertices outside it may fall outside the image (see CentralBox).
+  Eigen::AlignedBox3d fit_box;
   Shading shading = Shading::kFlat;
   // Optional per-face colours (#F×3 in [0, 1]); empty: every face gets base_color.
   FaceColors face_colors;
@@ -62,6 +67,11 @@ struct RenderOptions {
 // Renders `mesh` (faces with an out-of-range index throw Error; faces of zero area are skipped; NaN vertices
 // are skipped). An empty mesh gives a background-only image.
 RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options = {});
+
+// The box of the central `share` of the finite vertices in each axis, share in [0.5, 1] ((1 − share)/2 cut at
+// each end; 1: the bounding box): a framing that a few stray vertices far from the rest (a depth image's
+// mismatched pixels) do not shrink. Empty when the mesh has no finite vertex.
+Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share);
 
 // Area-weighted vertex normals (#V×3, unit; zero rows for isolated vertices or all-degenerate fans).
 Normals AreaWeightedVertexNormals(const Mesh& mesh);

@@ -111,6 +111,9 @@ void FileSink::Consume(const PipelineResult& result) {
         std::max(16, result.depth.width() > 0 ? width * result.depth.height() / result.depth.width() : width * 3 / 4);
     std::vector<RgbImage> panels;
     RenderOptions view = PreviewView(width, height);
+    // One framing for every panel, fitted to the central 99.5% of the raw mesh: a few mismatched pixels far
+    // behind the scene would otherwise shrink it into a corner, and each panel would be framed differently.
+    view.fit_box = CentralBox(result.raw_mesh.mesh, 0.995);
     panels.push_back(RenderMesh(result.raw_mesh.mesh, view));
     if (result.smoothed.has_value()) panels.push_back(RenderMesh(*result.smoothed, view));
     if (result.decimated.has_value()) {

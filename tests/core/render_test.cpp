@@ -66,6 +66,60 @@ TEST(Render, CubeCoversTheImageCentre) {
   }
 }
 
+// A 20×20 grid of vertices on the unit square (z = 0), and with `stray` a small triangle far away from it (as a
+// depth image's mismatched pixels far behind the scene).
+Mesh GridWithStray(bool stray) {
+  constexpr int n = 20;
+  Mesh mesh;
+  mesh.V.resize(n * n + (stray ? 3 : 0), 3);
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) mesh.V.row(y * n + x) << x / (n - 1.0), y / (n - 1.0), 0.0;
+  }
+  mesh.F.resize(2 * (n - 1) * (n - 1) + (stray ? 1 : 0), 3);
+  int f = 0;
+  for (int y = 0; y + 1 < n; ++y) {
+    for (int x = 0; x + 1 < n; ++x) {
+      const int a = y * n + x;
+      mesh.F.row(f++) << a, a + 1, a + n + 1;
+      mesh.F.row(f++) << a, a + n + 1, a + n;
+    }
+  }
+  if (stray) {
+    mesh.V.bottomRows(3) << 40, 30, -5, 41, 30, -5, 40, 31, -5;
+    mesh.F.row(f) << n * n, n * n + 1, n * n + 2;
+  }
+  return mesh;
+}
+
+TEST(Render, CentralBoxLeavesOutStrayVertices) {
+  const Mesh clean = GridWithStray(false), stray = GridWithStray(true);
+  const Eigen::AlignedBox3d all = CentralBox(stray, 1.0);
+  EXPECT_EQ(all.max(), Eigen::Vector3d(41, 31, 0));
+  EXPECT_EQ(all.min(), Eigen::Vector3d(0, 0, -5));
+  const Eigen::AlignedBox3d central = CentralBox(stray, 0.98);
+  EXPECT_EQ(central.min(), Eigen::Vector3d(0, 0, 0));
+  EXPECT_EQ(central.max(), Eigen::Vector3d(1, 1, 0));
+  EXPECT_TRUE(CentralBox(Mesh(), 1.0).isEmpty());
+  EXPECT_THROW(CentralBox(clean, 0.4), Error);
+}
+
+// With a fit_box the view is fitted to the box, whatever else the mesh holds: the grid with a stray triangle
+// framed by the grid's box renders exactly as the grid alone (the triangle falls outside the image), and
+// without the box the stray triangle shrinks the grid.
+TEST(Render, FitBoxFramesEveryMeshTheSame) {
+  const Mesh clean = GridWithStray(false), stray = GridWithStray(true);
+  RenderOptions options;
+  options.width_px = 64;
+  options.height_px = 48;
+  const RgbImage alone = RenderMesh(clean, options);
+  const int covered = CountNonBackground(alone);
+  EXPECT_GT(covered, 64 * 48 / 3);
+  EXPECT_LT(CountNonBackground(RenderMesh(stray, options)), covered / 10);
+  options.fit_box = CentralBox(stray, 0.98);
+  EXPECT_EQ(RenderMesh(stray, options).rgb, alone.rgb);
+  EXPECT_EQ(RenderMesh(clean, options).rgb, alone.rgb);
+}
+
 TEST(Render, NearerFaceHidesFartherFace) {
   Mesh mesh = TwoSquares();
   RenderOptions options;
