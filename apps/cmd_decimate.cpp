@@ -51,12 +51,17 @@ Eigen::Vector3f PatchColour(int k) {
   return Eigen::Vector3f(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
 }
 
-// Dense mesh | dense faces coloured by patch | decimated mesh with its patch normal fields.
-RgbImage Picture(const Mesh& dense, const DecimatedMesh& d) {
+// Dense mesh | dense faces coloured by patch | decimated mesh with its patch normal fields, in one framing
+// fitted to the dense mesh: a depth image's mesh as its camera saw it, any other from an oblique view.
+RgbImage Picture(const NoisyMesh& input, const DecimatedMesh& d) {
+  const Mesh& dense = input.mesh;
   RenderOptions options;
   options.width_px = 640;
   options.height_px = 520;
-  options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+  if (!SetCameraFrameView(input, &options)) {
+    options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+    options.fit_box = CentralBox(dense, 1.0);
+  }
   const RgbImage a = RenderMesh(dense, options);
   RenderOptions coloured = options;
   coloured.face_colors.resize(dense.num_faces(), 3);
@@ -106,7 +111,12 @@ void Run(const DecimateArgs& a) {
   options.Check();
 
   std::vector<Mesh> poses;
-  for (const std::string& path : inputs) poses.push_back(ReadInputMesh(path, a.quiet).mesh);
+  NoisyMesh first;  // the first pose's pixel coordinates, for the picture (its mesh stays in poses)
+  for (const std::string& path : inputs) {
+    NoisyMesh input = ReadInputMesh(path, a.quiet);
+    if (poses.empty()) first.pixel = std::move(input.pixel);
+    poses.push_back(std::move(input.mesh));
+  }
   DecimateSummary s;
   std::vector<DecimatedMesh> out;
   {
@@ -131,7 +141,8 @@ void Run(const DecimateArgs& a) {
     written.push_back(a.files[1]);
   }
   if (!a.png.empty()) {
-    WritePng(Picture(poses[0], out[0]), a.png);
+    first.mesh = poses[0];
+    WritePng(Picture(first, out[0]), a.png);
     written.push_back(a.png);
   }
 

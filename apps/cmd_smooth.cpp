@@ -46,7 +46,7 @@ struct SmoothArgs {
   double across_ratio = GenericNoiseOptions{}.across_ratio;
   int threads = 0;
   std::string png;
-  std::vector<double> view{0.0, 0.0, -1.0};
+  std::vector<double> view;  // empty: as the camera saw it (a depth image's mesh), else along −z
   bool ignore_covariance = false;
   bool quiet = false;
 };
@@ -60,6 +60,7 @@ bool IsPriorFile(const std::string& prior) {
 }
 
 Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
+  if (v.empty()) return Eigen::Vector3d(0, 0, -1);
   if (v.size() != 3) UsageError("--view needs three numbers x y z");
   const Eigen::Vector3d d(v[0], v[1], v[2]);
   if (!(d.norm() > 0) || !d.allFinite()) UsageError("--view must be a nonzero direction");
@@ -133,9 +134,13 @@ void RunSmooth(const SmoothArgs& args) {
   }
   if (!args.png.empty()) {
     RenderOptions render;
-    render.view_direction = view;
     render.width_px = 640;
     render.height_px = 640;
+    // Before and after in one framing, fitted to the input.
+    if (!args.view.empty() || !SetCameraFrameView(noisy, &render)) {
+      render.view_direction = view;
+      render.fit_box = CentralBox(noisy.mesh, 1.0);
+    }
     WritePng(SideBySide({RenderMesh(noisy.mesh, render), RenderMesh(result, render)}), args.png);
     std::printf("picture:    %s (before | after)\n", args.png.c_str());
   }
@@ -234,7 +239,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "generic noise model: sigma along the normal / sigma across it, [1, 100]");
   AddThreadsOption(sub, &args->threads);
   sub->add_option("--png", args->png, "write a before|after shaded picture (PNG) to this file");
-  sub->add_option("--view", args->view, "view direction x y z for --png (model coordinates)")->expected(3);
+  sub->add_option("--view", args->view,
+                  "view direction x y z for --png (model coordinates); default: a depth image's mesh as its camera "
+                  "saw it, any other along -z")
+      ->expected(3);
   sub->add_flag("--ignore-covariance", args->ignore_covariance,
                 "use the generic noise model even when the file has covariances");
   AddQuietFlag(sub, &args->quiet);

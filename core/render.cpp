@@ -367,6 +367,44 @@ Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share) {
   return box;
 }
 
+bool SetCameraFrameView(const NoisyMesh& noisy, RenderOptions* options) {
+  const Mesh& mesh = noisy.mesh;
+  if (noisy.pixel.rows() != mesh.num_vertices() || mesh.num_vertices() == 0) return false;
+  // Least squares P ≈ c + A (u, v) over the finite vertices, centred; and the share in front of the camera.
+  Eigen::Vector2d mean_uv = Eigen::Vector2d::Zero();
+  Eigen::Vector3d mean_p = Eigen::Vector3d::Zero();
+  int n = 0, in_front = 0;
+  auto usable = [&](int v) { return noisy.pixel.row(v).allFinite() && mesh.V.row(v).allFinite(); };
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (!usable(v)) continue;
+    mean_uv += noisy.pixel.row(v).transpose().cast<double>();
+    mean_p += mesh.V.row(v).transpose();
+    in_front += mesh.V(v, 2) > 0 ? 1 : 0;
+    ++n;
+  }
+  if (n < 3 || 2 * in_front <= n) return false;
+  mean_uv /= n;
+  mean_p /= n;
+  Eigen::Matrix2d uu = Eigen::Matrix2d::Zero();
+  Eigen::Matrix<double, 3, 2> pu = Eigen::Matrix<double, 3, 2>::Zero();
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (!usable(v)) continue;
+    const Eigen::Vector2d d = noisy.pixel.row(v).transpose().cast<double>() - mean_uv;
+    uu += d * d.transpose();
+    pu += (mesh.V.row(v).transpose() - mean_p) * d.transpose();
+  }
+  if (!(uu.determinant() > 1e-12 * uu.trace() * uu.trace())) return false;  // pixels on one line
+  const Eigen::Matrix<double, 3, 2> a = pu * uu.inverse();
+  // A column moves mostly along its own axis (a slanted surface adds some depth), and forward.
+  const bool camera_frame = a(0, 0) > 0 && a(1, 1) > 0 && a(0, 0) > std::abs(a(1, 0)) && a(1, 1) > std::abs(a(0, 1));
+  if (!camera_frame) return false;
+  options->view_direction = Eigen::Vector3d(0, 0, 1);
+  options->up = Eigen::Vector3d(0, -1, 0);
+  options->projection = Projection::kOrthographic;
+  options->fit_box = CentralBox(mesh, 0.99);
+  return true;
+}
+
 RgbImage SideBySide(const std::vector<RgbImage>& images, int gap_px, const Eigen::Vector3f& background) {
   RB_CHECK(gap_px >= 0, "SideBySide: gap_px ", gap_px, " is negative");
   if (images.empty()) return RgbImage();

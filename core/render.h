@@ -73,6 +73,14 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options = {});
 // mismatched pixels) do not shrink. Empty when the mesh has no finite vertex.
 Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share);
 
+// A mesh in the frame of the camera that saw it (a depth image's: x right, y down, z forward, as `stereo`,
+// `spacetime` and `replay` write them; told by its pixel coordinates: x grows with the column and y with the
+// row, and the vertices lie in front, z > 0) is drawn as that camera saw it: orthographic along +z with −y up,
+// fitted to CentralBox(mesh, 0.99) so that a few mismatched pixels far behind the scene do not shrink the
+// picture. Sets view_direction, up, projection and fit_box and returns true; false (options unchanged) for any
+// other mesh.
+bool SetCameraFrameView(const NoisyMesh& mesh, RenderOptions* options);
+
 // Area-weighted vertex normals (#V×3, unit; zero rows for isolated vertices or all-degenerate fans).
 Normals AreaWeightedVertexNormals(const Mesh& mesh);
 

@@ -36,14 +36,18 @@ void AppendLine(int fd, const std::string& line) {
   }
 }
 
-RenderOptions PreviewView(int width, int height) {
+// One view for every panel: the raw mesh as the camera saw it (it is in the rectified left camera's frame),
+// fitted to the central 99% of its vertices.
+RenderOptions PreviewView(const NoisyMesh& raw, int width, int height) {
   RenderOptions r;
   r.width_px = width;
   r.height_px = height;
-  // Meshes are in the rectified left camera frame (x right, y down, z forward): look along +z, image up −y.
-  r.view_direction = Eigen::Vector3d(0, 0, 1);
-  r.up = Eigen::Vector3d(0, -1, 0);
   r.margin_fraction = 0.02;
+  if (!SetCameraFrameView(raw, &r)) {  // (a mesh without pixel coordinates: the same view, fitted to all of it)
+    r.view_direction = Eigen::Vector3d(0, 0, 1);
+    r.up = Eigen::Vector3d(0, -1, 0);
+    r.fit_box = CentralBox(raw.mesh, 1.0);
+  }
   return r;
 }
 
@@ -110,10 +114,7 @@ void FileSink::Consume(const PipelineResult& result) {
     const int height =
         std::max(16, result.depth.width() > 0 ? width * result.depth.height() / result.depth.width() : width * 3 / 4);
     std::vector<RgbImage> panels;
-    RenderOptions view = PreviewView(width, height);
-    // One framing for every panel, fitted to the central 99.5% of the raw mesh: a few mismatched pixels far
-    // behind the scene would otherwise shrink it into a corner, and each panel would be framed differently.
-    view.fit_box = CentralBox(result.raw_mesh.mesh, 0.995);
+    RenderOptions view = PreviewView(result.raw_mesh, width, height);
     panels.push_back(RenderMesh(result.raw_mesh.mesh, view));
     if (result.smoothed.has_value()) panels.push_back(RenderMesh(*result.smoothed, view));
     if (result.decimated.has_value()) {

@@ -120,6 +120,38 @@ TEST(Render, FitBoxFramesEveryMeshTheSame) {
   EXPECT_EQ(RenderMesh(clean, options).rgb, alone.rgb);
 }
 
+// A depth image's mesh (pixel (u, v) at depth 2 + 0.01 u, in the camera frame x right, y down, z forward) is
+// drawn as its camera saw it; the same mesh upside down, behind the camera, or without pixels is not.
+TEST(Render, CameraFrameViewOnlyForMeshesInTheirCamerasFrame) {
+  NoisyMesh depth;
+  depth.mesh = GridWithStray(false);
+  depth.pixel.resize(depth.mesh.num_vertices(), 2);
+  for (int v = 0; v < depth.mesh.num_vertices(); ++v) {
+    const double u = 19 * depth.mesh.V(v, 0), w = 19 * depth.mesh.V(v, 1), z = 2 + 0.01 * u;
+    depth.pixel.row(v) << static_cast<float>(u), static_cast<float>(w);
+    depth.mesh.V.row(v) << (u - 10) * z / 500, (w - 10) * z / 500, z;
+  }
+  RenderOptions options;
+  ASSERT_TRUE(SetCameraFrameView(depth, &options));
+  EXPECT_EQ(options.view_direction, Eigen::Vector3d(0, 0, 1));
+  EXPECT_EQ(options.up, Eigen::Vector3d(0, -1, 0));
+  EXPECT_FALSE(options.fit_box.isEmpty());
+  EXPECT_GT(CountNonBackground(RenderMesh(depth.mesh, options)), options.width_px * options.height_px / 3);
+
+  NoisyMesh flipped = depth;
+  flipped.mesh.V.col(1) *= -1;
+  RenderOptions untouched;
+  EXPECT_FALSE(SetCameraFrameView(flipped, &untouched));
+  EXPECT_EQ(untouched.view_direction, RenderOptions().view_direction);
+  NoisyMesh behind = depth;
+  behind.mesh.V.col(2) *= -1;
+  EXPECT_FALSE(SetCameraFrameView(behind, &untouched));
+  NoisyMesh no_pixels;
+  no_pixels.mesh = depth.mesh;
+  EXPECT_FALSE(SetCameraFrameView(no_pixels, &untouched));
+  EXPECT_TRUE(untouched.fit_box.isEmpty());
+}
+
 TEST(Render, NearerFaceHidesFartherFace) {
   Mesh mesh = TwoSquares();
   RenderOptions options;
