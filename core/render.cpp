@@ -370,34 +370,36 @@ Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share) {
 bool SetCameraFrameView(const NoisyMesh& noisy, RenderOptions* options) {
   const Mesh& mesh = noisy.mesh;
   if (noisy.pixel.rows() != mesh.num_vertices() || mesh.num_vertices() == 0) return false;
-  // Least squares P ≈ c + A (u, v) over the finite vertices, centred; and the share in front of the camera.
-  Eigen::Vector2d mean_uv = Eigen::Vector2d::Zero();
-  Eigen::Vector3d mean_p = Eigen::Vector3d::Zero();
-  int n = 0, in_front = 0;
-  auto usable = [&](int v) { return noisy.pixel.row(v).allFinite() && mesh.V.row(v).allFinite(); };
+  // A pinhole at the origin looking along +z: x/z = a·u + b and y/z = c·v + d with a, c > 0, to within rounding
+  // and a few mismatched pixels (R² ≥ 0.99 each). Sums of the two least-squares fits over the vertices in front.
+  struct Fit {
+    double n = 0, s = 0, t = 0, ss = 0, st = 0, tt = 0;
+    void Add(double pixel, double ratio) {
+      n += 1;
+      s += pixel;
+      t += ratio;
+      ss += pixel * pixel;
+      st += pixel * ratio;
+      tt += ratio * ratio;
+    }
+    // Slope > 0 and R² ≥ 0.99.
+    bool Holds() const {
+      const double var_s = ss - s * s / n, var_t = tt - t * t / n, cov = st - s * t / n;
+      return n >= 3 && var_s > 0 && var_t > 0 && cov > 0 && cov * cov >= 0.99 * var_s * var_t;
+    }
+  } column, row;
+  int behind = 0;
   for (int v = 0; v < mesh.num_vertices(); ++v) {
-    if (!usable(v)) continue;
-    mean_uv += noisy.pixel.row(v).transpose().cast<double>();
-    mean_p += mesh.V.row(v).transpose();
-    in_front += mesh.V(v, 2) > 0 ? 1 : 0;
-    ++n;
+    if (!noisy.pixel.row(v).allFinite() || !mesh.V.row(v).allFinite()) continue;
+    const double z = mesh.V(v, 2);
+    if (!(z > 0)) {
+      ++behind;
+      continue;
+    }
+    column.Add(noisy.pixel(v, 0), mesh.V(v, 0) / z);
+    row.Add(noisy.pixel(v, 1), mesh.V(v, 1) / z);
   }
-  if (n < 3 || 2 * in_front <= n) return false;
-  mean_uv /= n;
-  mean_p /= n;
-  Eigen::Matrix2d uu = Eigen::Matrix2d::Zero();
-  Eigen::Matrix<double, 3, 2> pu = Eigen::Matrix<double, 3, 2>::Zero();
-  for (int v = 0; v < mesh.num_vertices(); ++v) {
-    if (!usable(v)) continue;
-    const Eigen::Vector2d d = noisy.pixel.row(v).transpose().cast<double>() - mean_uv;
-    uu += d * d.transpose();
-    pu += (mesh.V.row(v).transpose() - mean_p) * d.transpose();
-  }
-  if (!(uu.determinant() > 1e-12 * uu.trace() * uu.trace())) return false;  // pixels on one line
-  const Eigen::Matrix<double, 3, 2> a = pu * uu.inverse();
-  // A column moves mostly along its own axis (a slanted surface adds some depth), and forward.
-  const bool camera_frame = a(0, 0) > 0 && a(1, 1) > 0 && a(0, 0) > std::abs(a(1, 0)) && a(1, 1) > std::abs(a(0, 1));
-  if (!camera_frame) return false;
+  if (!(column.n > 2 * behind) || !column.Holds() || !row.Holds()) return false;
   options->view_direction = Eigen::Vector3d(0, 0, 1);
   options->up = Eigen::Vector3d(0, -1, 0);
   options->projection = Projection::kOrthographic;

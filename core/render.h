@@ -74,8 +74,9 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options = {});
 Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share);
 
 // A mesh in the frame of the camera that saw it (a depth image's: x right, y down, z forward, as `stereo`,
-// `spacetime` and `replay` write them; told by its pixel coordinates: x grows with the column and y with the
-// row, and the vertices lie in front, z > 0) is drawn as that camera saw it: orthographic along +z with −y up,
+// `spacetime` and `replay` write them; told by its pixel coordinates: the vertices lie in front, z > 0, on the
+// rays of a pinhole at the origin, x/z and y/z linear in the column and the row, R² ≥ 0.99; a range scanner's
+// grid is not) is drawn as that camera saw it: orthographic along +z with −y up,
 // fitted to CentralBox(mesh, 0.99) so that a few mismatched pixels far behind the scene do not shrink the
 // picture. Sets view_direction, up, projection and fit_box and returns true; false (options unchanged) for any
 // other mesh.
