@@ -215,7 +215,7 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   }
   WritePipelineSummaryJson(summary, (fs::path(out_dir) / "summary.json").string());
   PrintSummary(summary, out_dir, cli.quiet);
-  if (console) {
+  if (console && !StopFlag().load()) {  // (a run stopped by a signal ends here, console and all)
     Notice(cli.quiet, StrCat("run finished; the console stays up at ", console->url(), " until Ctrl-C"));
     while (!StopFlag().load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
