@@ -347,6 +347,12 @@ RgbImage RenderMesh(const Mesh& mesh, const RenderOptions& options) {
 Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share) {
   RB_CHECK(share >= 0.5 && share <= 1, "CentralBox: share ", share, " is outside [0.5, 1]");
   Eigen::AlignedBox3d box;  // empty
+  if (share == 1.0) {
+    for (int v = 0; v < mesh.num_vertices(); ++v) {
+      if (mesh.V.row(v).allFinite()) box.extend(mesh.V.row(v).transpose());
+    }
+    return box;
+  }
   std::vector<double> values;
   values.reserve(static_cast<size_t>(mesh.num_vertices()));
   for (int axis = 0; axis < 3; ++axis) {
