@@ -127,10 +127,12 @@ void RunSmooth(const SmoothArgs& args) {
   WriteMesh(result, args.output);
   std::printf("result:     %s\n", args.output.c_str());
   std::fputs(summary.BriefReport().c_str(), stdout);
-  if (summary.flipped_faces > 0) {
+  // Noise folds some faces and smoothing unfolds most; the warning is for a result with more folds than its input.
+  if (summary.flipped_faces > summary.input_flipped_faces) {
     Notice(false, "warning: " + std::to_string(summary.flipped_faces) +
                       " faces flipped in the result (folded against their neighbours; the input had " +
-                      std::to_string(summary.input_flipped_faces) + "); try a lower --noise or --prior-weight");
+                      std::to_string(summary.input_flipped_faces) + "); try a lower " +
+                      (choice.from_file ? "--prior-weight" : "--noise or --prior-weight"));
   }
   if (!args.png.empty()) {
     RenderOptions render;
