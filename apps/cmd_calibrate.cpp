@@ -116,7 +116,7 @@ void AddRig(CLI::App* calibrate) {
   sub->add_option("--board", a->board,
                   "board size COLSxROWS: inner corners for a chessboard, squares for a ChArUco board");
   sub->add_option("--square", a->square_m, "board square side in metres (sets the unit of the baseline)")
-      ->check(CLI::PositiveNumber);
+      ->check(PositiveReal());
   sub->add_flag("--charuco", a->charuco, "the board is a ChArUco board (needs OpenCV's aruco module)");
   sub->add_option("--marker", a->marker_m, "ChArUco marker side in metres; 0 = 0.75 x square");
   sub->add_option("--dictionary", a->dictionary, "ChArUco dictionary (OpenCV name)");

@@ -341,7 +341,7 @@ void AddRecord(CLI::App& app) {
   AddCameraOptions(sub, &o->camera);
   sub->add_option("--out,-o", o->out, "Recording folder to create")->required();
   sub->add_option("--frames", o->max_frames, "Stop after this many frames (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
-  sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until Ctrl-C)")->check(NonNegativeReal());
   AddQuietFlag(sub, &o->quiet);
   sub->callback([o] {
     const std::optional<StereoRig> rig = ReadOptionalRig(o->camera.rig);

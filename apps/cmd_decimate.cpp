@@ -166,7 +166,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
   auto* lambda = sub->add_option("--lambda", a->lambda,
                                  "energy cost of one patch (normal difference squared x faces, area weights "
                                  "normalised to mean 1): larger gives fewer patches")
-                     ->check(CLI::PositiveNumber);
+                     ->check(PositiveReal());
   sub->add_option("--target-faces", a->target_faces,
                   "find lambda by a search for this many output triangles (normally the output has N or N-1; more "
                   "when N is below what one patch per component needs, with a notice)")
@@ -175,7 +175,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
   sub->add_option("--chain-tolerance", a->chain_tolerance,
                   "patch-boundary chains are straightened while removed vertices stay within this share of the "
                   "bounding-box diagonal (with --target-faces the budget decides instead)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegativeReal());
   sub->add_option("--chain-reserve", a->chain_reserve,
                   "with --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
       ->check(CLI::Range(0.0, 0.99));

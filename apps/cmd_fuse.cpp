@@ -199,7 +199,7 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
                 "fuse with the given poses as they are (after the test registration's result passes: scans they "
                 "leave misaligned are an error; report.txt is written either way)");
   sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegativeReal());
   sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)");
   sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray (> 0)");
   AddThreadsOption(sub, &args->threads);

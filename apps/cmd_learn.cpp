@@ -223,7 +223,9 @@ void AddCommands(CLI::App& app) {
         ->check(CLI::Range(0.0, 1e6));
     sub->add_option("--noise", args->noise_k,
                     "Noise sigma / l_e of the noisy meshes without covariances (default: the pairs list's "
-                    "'# noise:' line, else estimated per mesh)");
+                    "'# noise:' line, else estimated per mesh)")
+        ->check(NotNaN())
+        ->default_str("");
     sub->add_option("--prior-weight", args->prior_weight, "Prior weight beta of the smoother, (0, 1e6]")
         ->check(CLI::Range(1e-12, 1e6));
     sub->add_option("--iterations", args->iterations, "Interleaved: outer iterations (0: 400), [0, 1e6]")

@@ -192,8 +192,12 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("OUT", args->output, "smoothed mesh (.ply/.obj/.off)")->required();
   sub->add_option("--noise", args->noise,
                   "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
-                  "else estimated from the mesh");
-  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise");
+                  "else estimated from the mesh")
+      ->check(NotNaN())
+      ->default_str("");
+  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")
+      ->check(NotNaN())
+      ->default_str("");
   sub->add_option("--prior", args->prior,
                   "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
                   "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")

@@ -1,5 +1,8 @@
 #include "apps/flags.h"
 
+#include <cmath>
+#include <functional>
+
 namespace rangebayes::apps {
 
 void AddQuietFlag(CLI::App* sub, bool* quiet) {
@@ -26,6 +29,39 @@ void AddThreadsOption(CLI::App* sub, int* threads) {
 void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px) {
   sub->add_option("--window", *window_px, "Matching window side (px, odd, 1-31; " + default_note + ")")
       ->check(CLI::Range(min_px, 31));
+}
+
+namespace {
+
+// A check of one double value: empty string when it passes, else the message.
+CLI::Validator RealCheck(const std::string& description, const std::function<std::string(double)>& check) {
+  return CLI::Validator(
+      [check](std::string& text) -> std::string {
+        double value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not a number";
+        return check(value);
+      },
+      description);
+}
+
+}  // namespace
+
+CLI::Validator PositiveReal() {
+  return RealCheck("POSITIVE", [](double v) {
+    return std::isfinite(v) && v > 0 ? std::string() : "must be a finite number > 0, got " + CLI::detail::to_string(v);
+  });
+}
+
+CLI::Validator NonNegativeReal() {
+  return RealCheck("NONNEGATIVE", [](double v) {
+    return std::isfinite(v) && v >= 0 ? std::string() : "must be a finite number >= 0, got " + CLI::detail::to_string(v);
+  });
+}
+
+CLI::Validator NotNaN() {
+  return RealCheck("", [](double v) {
+    return std::isnan(v) ? std::string("nan is not a value (leave the option out for the default)") : std::string();
+  });
 }
 
 }  // namespace rangebayes::apps

@@ -24,4 +24,12 @@ void AddThreadsOption(CLI::App* sub, int* threads);
 // default_note says what the default is for this subcommand.
 void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px);
 
+// Checks of real-valued options with plain messages (CLI11's PositiveNumber and NonNegativeNumber print the
+// largest double as the end of their range, and let NaN through).
+CLI::Validator PositiveReal();     // a finite number > 0
+CLI::Validator NonNegativeReal();  // a finite number ≥ 0
+// Any number but NaN: for options whose absence the library marks with NaN ("estimate it"), so that a NaN given
+// is not silently taken for the option left out.
+CLI::Validator NotNaN();
+
 }  // namespace rangebayes::apps

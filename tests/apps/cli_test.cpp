@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdio>
 #include <string>
+#include <utility>
 
 #include "tests/apps/run_binary.h"
 
@@ -27,6 +28,27 @@ TEST(Cli, UnknownSubcommandIsOneLineExitTwo) {
 TEST(Cli, NoSubcommandIsUsageError) {
   const RunResult r = RunRangebayes("");
   EXPECT_EQ(r.exit_code, 2);
+}
+
+// Real-valued options: one plain line and exit 2 for a value out of range or NaN (CLI11's own checks printed the
+// largest double as the range's end, and let NaN through), and a NaN is never taken for an option left out.
+TEST(Cli, BadRealValuesAreOnePlainLine) {
+  const std::string mesh = "tests/data/meshes/fandisk_noisy_gauss0.3.obj";
+  const std::pair<std::string, std::string> cases[] = {
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --lambda nan", "--lambda: must be a finite number > 0, got nan"},
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --lambda -2", "--lambda: must be a finite number > 0, got -2"},
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --chain-tolerance x", "--chain-tolerance: 'x' is not a number"},
+      {"calibrate rig --left a --right b --board 9x6 --square 0 --out /tmp/rb_cli_never.yaml",
+       "--square: must be a finite number > 0, got 0"},
+      {"smooth " + mesh + " /tmp/rb_cli_never.ply --noise nan", "--noise: nan is not a value"},
+      {"smooth " + mesh + " /tmp/rb_cli_never.ply --sigma NaN", "--sigma: nan is not a value"},
+  };
+  for (const auto& [args, message] : cases) {
+    const RunResult r = RunRangebayes(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  }
 }
 
 }  // namespace
