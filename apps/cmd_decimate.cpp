@@ -58,10 +58,8 @@ RgbImage Picture(const NoisyMesh& input, const DecimatedMesh& d) {
   RenderOptions options;
   options.width_px = 640;
   options.height_px = 520;
-  if (!SetCameraFrameView(input, &options)) {
-    options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
-    options.fit_box = CentralBox(dense, 1.0);
-  }
+  options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+  FitView(input, &options);
   const RgbImage a = RenderMesh(dense, options);
   RenderOptions coloured = options;
   coloured.face_colors.resize(dense.num_faces(), 3);

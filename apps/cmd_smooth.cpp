@@ -138,9 +138,11 @@ void RunSmooth(const SmoothArgs& args) {
     RenderOptions render;
     render.width_px = 640;
     render.height_px = 640;
-    // Before and after in one framing, fitted to the input.
-    if (!args.view.empty() || !SetCameraFrameView(noisy, &render)) {
-      render.view_direction = view;
+    // Before and after in one framing, fitted to the input; a --view given is kept as it is.
+    render.view_direction = view;
+    if (args.view.empty()) {
+      FitView(noisy, &render);
+    } else {
       render.fit_box = CentralBox(noisy.mesh, 1.0);
     }
     WritePng(SideBySide({RenderMesh(noisy.mesh, render), RenderMesh(result, render)}), args.png);

@@ -413,6 +413,10 @@ bool SetCameraFrameView(const NoisyMesh& noisy, RenderOptions* options) {
   return true;
 }
 
+void FitView(const NoisyMesh& mesh, RenderOptions* options) {
+  if (!SetCameraFrameView(mesh, options)) options->fit_box = CentralBox(mesh.mesh, 1.0);
+}
+
 RgbImage SideBySide(const std::vector<RgbImage>& images, int gap_px, const Eigen::Vector3f& background) {
   RB_CHECK(gap_px >= 0, "SideBySide: gap_px ", gap_px, " is negative");
   if (images.empty()) return RgbImage();

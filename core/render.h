@@ -82,6 +82,10 @@ Eigen::AlignedBox3d CentralBox(const Mesh& mesh, double share);
 // other mesh.
 bool SetCameraFrameView(const NoisyMesh& mesh, RenderOptions* options);
 
+// The framing of a picture of `mesh` and of the meshes made from it (smoothed, decimated), shared by all of them:
+// SetCameraFrameView where it applies, else options' own view_direction and up, fitted to the bounding box.
+void FitView(const NoisyMesh& mesh, RenderOptions* options);
+
 // Area-weighted vertex normals (#V×3, unit; zero rows for isolated vertices or all-degenerate fans).
 Normals AreaWeightedVertexNormals(const Mesh& mesh);
 

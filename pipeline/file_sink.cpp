@@ -43,11 +43,10 @@ RenderOptions PreviewView(const NoisyMesh& raw, int width, int height) {
   r.width_px = width;
   r.height_px = height;
   r.margin_fraction = 0.02;
-  if (!SetCameraFrameView(raw, &r)) {  // (a mesh without pixel coordinates: the same view, fitted to all of it)
-    r.view_direction = Eigen::Vector3d(0, 0, 1);
-    r.up = Eigen::Vector3d(0, -1, 0);
-    r.fit_box = CentralBox(raw.mesh, 1.0);
-  }
+  // (A mesh without pixel coordinates: the same view, fitted to all of it.)
+  r.view_direction = Eigen::Vector3d(0, 0, 1);
+  r.up = Eigen::Vector3d(0, -1, 0);
+  FitView(raw, &r);
   return r;
 }
 
