@@ -29,8 +29,8 @@ namespace {
 struct SmoothArgs {
   std::string input;
   std::string output;
-  double noise = std::nan("");
-  double sigma = std::nan("");
+  std::optional<double> noise;  // empty: the file's covariances, else estimated
+  std::optional<double> sigma;
   std::string prior = "sqrt";
   std::string tolerance = "default";
   std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
@@ -68,7 +68,7 @@ Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
 }
 
 void RunSmooth(const SmoothArgs& args) {
-  if (!std::isnan(args.noise) && !std::isnan(args.sigma)) UsageError("give --noise or --sigma, not both");
+  if (args.noise && args.sigma) UsageError("give --noise or --sigma, not both");
   const Eigen::Vector3d view = ViewDirection(args.view);
   SmoothOptions options;
   std::unique_ptr<SplinePotential> learned;
@@ -195,11 +195,8 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--noise", args->noise,
                   "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
                   "else estimated from the mesh")
-      ->check(NotNaN())
-      ->default_str("");
-  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")
-      ->check(NotNaN())
-      ->default_str("");
+      ->check(NotNaN());
+  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")->check(NotNaN());
   sub->add_option("--prior", args->prior,
                   "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
                   "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")

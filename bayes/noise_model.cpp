@@ -54,9 +54,10 @@ Normals VertexNormals(const Mesh& mesh) {
 }  // namespace
 
 void GenericNoiseOptions::Check() const {
-  RB_CHECK(std::isnan(noise_edge_multiple) || (noise_edge_multiple > 0 && noise_edge_multiple <= 10),
-           "noise: noise_edge_multiple ", noise_edge_multiple, " is outside (0, 10]");
-  RB_CHECK(std::isnan(sigma) || (sigma > 0 && std::isfinite(sigma)), "noise: sigma ", sigma, " must be positive");
+  RB_CHECK(!noise_edge_multiple || (*noise_edge_multiple > 0 && *noise_edge_multiple <= 10),
+           "noise: noise_edge_multiple ", noise_edge_multiple.value_or(0), " is outside (0, 10]");
+  RB_CHECK(!sigma || (*sigma > 0 && std::isfinite(*sigma)), "noise: sigma ", sigma.value_or(0),
+           " must be positive and finite");
   RB_CHECK(across_ratio >= 1 && across_ratio <= 100, "noise: across_ratio ", across_ratio, " is outside [1, 100]");
 }
 
@@ -152,12 +153,12 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
   GenericNoiseSummary s;
   s.across_ratio = options.across_ratio;
   s.mean_edge_length = MeanEdgeLength(mesh);
-  if (!std::isnan(options.sigma)) {
-    s.sigma = options.sigma;
+  if (options.sigma) {
+    s.sigma = *options.sigma;
     s.noise_edge_multiple = s.mean_edge_length > 0 ? s.sigma / s.mean_edge_length : 0;
   } else {
-    if (!std::isnan(options.noise_edge_multiple)) {
-      s.noise_edge_multiple = options.noise_edge_multiple;
+    if (options.noise_edge_multiple) {
+      s.noise_edge_multiple = *options.noise_edge_multiple;
     } else {
       s.noise_edge_multiple = EstimateNoiseLevel(mesh);
       s.estimated = true;
@@ -205,7 +206,7 @@ NoisyMesh ChooseNoiseModel(const NoisyMesh& input, const GenericNoiseOptions& op
                            NoiseModelChoice* choice) {
   options.Check();
   NoiseModelChoice c;
-  const bool given = !std::isnan(options.noise_edge_multiple) || !std::isnan(options.sigma);
+  const bool given = options.noise_edge_multiple || options.sigma;
   NoisyMesh out;
   if (input.has_covariance() && !given && source == CovarianceSource::kAuto) {
     c.from_file = true;

@@ -3,7 +3,7 @@
 // it, σ = k · l_e (l_e the mean edge length) given as k, as σ in model units, or estimated from the mesh.
 #pragma once
 
-#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,10 +12,10 @@
 namespace rangebayes {
 
 struct GenericNoiseOptions {
-  // k: σ as a multiple of the mean edge length, (0, 10]. NaN: use sigma, or estimate k from the mesh.
-  double noise_edge_multiple = std::numeric_limits<double>::quiet_NaN();
-  // σ in model units, > 0; NaN: not given. Takes precedence over noise_edge_multiple.
-  double sigma = std::numeric_limits<double>::quiet_NaN();
+  // k: σ as a multiple of the mean edge length, (0, 10]. Not given: use sigma, or estimate k from the mesh.
+  std::optional<double> noise_edge_multiple = std::nullopt;
+  // σ in model units, > 0. Takes precedence over noise_edge_multiple.
+  std::optional<double> sigma = std::nullopt;
   // σ_normal / σ_tangent, [1, 100]. Scanner noise is mostly along the surface normal, but the normal of a
   // noisy mesh is itself uncertain: measured on the benchmark meshes (noise along the true normals), ratio 2
   // was worse than 1 everywhere (fandisk 0.3: 2.38 vs 2.30°, block 0.4: 4.36 vs 4.10°), so the default is

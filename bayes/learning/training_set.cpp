@@ -32,7 +32,7 @@ TrainingSet ReadTrainingSet(const std::string& pairs_list_path, const TrainingSe
              i + 1, ": '", list.noisy[i], "' and '", list.truth[i], "' differ in vertices or faces");
     if (!pair.noisy.has_covariance()) {
       GenericNoiseOptions noise;
-      noise.noise_edge_multiple = k;  // NaN: estimated from the mesh
+      if (!std::isnan(k)) noise.noise_edge_multiple = k;  // else estimated from the mesh
       GenericNoiseSummary noise_summary;
       pair.noisy = MakeGenericNoisyMesh(pair.noisy.mesh, noise, &noise_summary);
       k_used_sum += noise_summary.noise_edge_multiple;

@@ -43,9 +43,9 @@ Mesh ToMesh(py::handle mesh, const char* what) {
   return out;
 }
 
-// None: not given (NaN, the library's "estimate it"); a NaN given is an error, not a silent None.
-double OptionalNumber(py::handle value, const char* name) {
-  if (value.is_none()) return std::nan("");
+// None: not given (an empty optional: the library estimates it); a NaN given is an error, not a silent None.
+std::optional<double> OptionalNumber(py::handle value, const char* name) {
+  if (value.is_none()) return std::nullopt;
   const double number = FieldFromPython<double>(value, name);
   if (std::isnan(number)) throw py::value_error(std::string(name) + ": nan is not a value (None: estimate it)");
   return number;
@@ -95,7 +95,7 @@ py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::hand
   GenericNoiseOptions noise_options;
   noise_options.noise_edge_multiple = OptionalNumber(noise, "noise");
   noise_options.sigma = OptionalNumber(sigma, "sigma");
-  if (!std::isnan(noise_options.noise_edge_multiple) && !std::isnan(noise_options.sigma)) {
+  if (noise_options.noise_edge_multiple && noise_options.sigma) {
     throw py::value_error("smooth(): give noise or sigma, not both");
   }
   py::object across = PopKeyword(kw, "across_ratio");

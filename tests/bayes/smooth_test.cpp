@@ -231,6 +231,19 @@ TEST(NoiseModel, CovarianceIsAlongTheNormal) {
   EXPECT_NEAR(c(0, 2), 0.0, 1e-12);
 }
 
+// "Not given" is an empty optional; a NaN level is an error, never a request to estimate it.
+TEST(NoiseModel, NaNLevelIsAnErrorNotAnEstimate) {
+  const Mesh plane = testing::Grid(3, 3);
+  EXPECT_THROW(MakeGenericNoisyMesh(plane, GenericNoiseOptions{.noise_edge_multiple = std::nan("")}), Error);
+  EXPECT_THROW(MakeGenericNoisyMesh(plane, GenericNoiseOptions{.sigma = std::nan("")}), Error);
+  NoisyMesh input;
+  input.mesh = plane;
+  EXPECT_THROW(ChooseNoiseModel(input, GenericNoiseOptions{.sigma = HUGE_VAL}), Error);
+  GenericNoiseSummary summary;
+  MakeGenericNoisyMesh(plane, GenericNoiseOptions{}, &summary);
+  EXPECT_TRUE(summary.estimated);
+}
+
 TEST(NoiseModel, EstimateFollowsTheTrueLevel) {
   // A plane with Gaussian noise along z, k = σ / l_e known. The estimate must track it within 25%, which is
   // looser than on the benchmark meshes (BENCHMARKS.md) because this grid is small and flat.
