@@ -510,11 +510,23 @@ std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<in
   return polygons;
 }
 
-// Refits the per-corner shading normals (one per output vertex and patch) to the dense face normals: each dense
-// face's centroid is placed on the nearest output face of its patch around the output vertices its corners
-// collapsed onto, and the corner normals minimise Σ_f w_f ‖Σ_i b_i n_i − u_f‖² (b the barycentric coordinates
-// there, so a piecewise-linear field over the patch's triangles instead of one linear field per patch) plus
-// a ridge of `ridge` times each normal's own weight towards its value from the patch field; then normalised.
+// Refits the per-corner shading normals (one per output vertex and patch) to the dense face normals, so that
+// each dense face's normal is reproduced where the output surface stands in for it.
+//
+// Where: each dense face's centroid is projected onto the output faces around the output vertices its corners
+// collapsed onto: the nearest face of its own patch, unless a face of another patch there is nearer and faces
+// the dense normal at least as squarely (near a patch border on a smooth surface the neighbour's triangle is what
+// covers the dense face; across a crease the orientation test keeps it on its own side).
+//
+// How: the corner normals minimise Σ_f w_f ρ(‖Σ_i b_i n_i − u_f‖) (b the barycentric coordinates of the
+// projection, so a piecewise-linear field over each patch's triangles) plus a ridge of `ridge` times each
+// normal's own weight towards its value from the patch field; then normalised. ρ is the distance itself (≈ the
+// angle, the measure of shading error) rather than its square: iteratively reweighted least squares, each round
+// weighting a face by 1 / max(its residual of the last round, kCornerResidualFloor), after a first round of plain
+// least squares. Measured on the decimation benchmark meshes and eight others: a lower shading-normal error and
+// rendering difference at 2% and 10% on every one (docs/journal/decimation.md, round 6).
+constexpr int kCornerNormalRounds = 4;           // one least-squares round and three reweighted ones
+constexpr double kCornerResidualFloor = 0.01;    // ≈ 0.6°: below it a face counts as fitted
 void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std::vector<int>& dense_patch,
                         const std::vector<double>& weight, const std::vector<int>& output_of_dense,
                         const Mesh& coarse, const std::vector<int>& coarse_patch, double ridge,
@@ -525,9 +537,12 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
   for (int f = 0; f < nc; ++f) {
     for (int c = 0; c < 3; ++c) faces_of[coarse.F(f, c)].push_back(f);
   }
-  std::vector<Eigen::Triplet<double>> triplets;
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nn, 3);
-  std::vector<double> diagonal(nn, 0.0);
+  auto face_normal = [&](int g) {
+    const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose();
+    return Eigen::Vector3d((coarse.V.row(coarse.F(g, 1)).transpose() - x0)
+                               .cross(coarse.V.row(coarse.F(g, 2)).transpose() - x0)
+                               .normalized());
+  };
   // Each dense face's projection in parallel (reads only), the system summed in face order afterwards.
   const int nd = static_cast<int>(dense_F.rows());
   std::vector<int> face_of(nd, -1);
@@ -540,14 +555,15 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
                             c = dense_V.row(dense_F(f, 2)).transpose();
       const Eigen::Vector3d u = (b - a).cross(c - a).normalized();
       const Eigen::Vector3d p = (a + b + c) / 3.0;
-      double best = std::numeric_limits<double>::infinity();
-      int best_face = -1;
-      Eigen::Vector3d best_bary = Eigen::Vector3d::Zero();
+      // [0]: the nearest face of the own patch, [1]: of another patch.
+      double best[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+      int best_face[2] = {-1, -1};
+      Eigen::Vector3d best_bary[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
       for (int k = 0; k < 3; ++k) {
         const int o = output_of_dense[dense_F(f, k)];
         if (o < 0) continue;
         for (int g : faces_of[o]) {
-          if (coarse_patch[g] != dense_patch[f]) continue;
+          const int which = coarse_patch[g] == dense_patch[f] ? 0 : 1;
           const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose(),
                                 x1 = coarse.V.row(coarse.F(g, 1)).transpose(),
                                 x2 = coarse.V.row(coarse.F(g, 2)).transpose();
@@ -560,58 +576,80 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
           bary = bary.cwiseMax(0.0);
           bary /= bary.sum();
           const double dist = (bary(0) * x0 + bary(1) * x1 + bary(2) * x2 - p).squaredNorm();
-          if (dist < best) {
-            best = dist;
-            best_face = g;
-            best_bary = bary;
+          if (dist < best[which]) {
+            best[which] = dist;
+            best_face[which] = g;
+            best_bary[which] = bary;
           }
         }
       }
-      face_of[f] = best_face;
-      bary_of[f] = best_bary;
+      const bool other = best_face[1] >= 0 &&
+                         (best_face[0] < 0 || (best[1] < best[0] && u.dot(face_normal(best_face[1])) >=
+                                                                        u.dot(face_normal(best_face[0]))));
+      face_of[f] = best_face[other ? 1 : 0];
+      bary_of[f] = best_bary[other ? 1 : 0];
       normal_of[f] = u;
     }
   });
-  // The normal equations gathered per output face (a 3×3 block over its corner normals), then once per block.
-  std::vector<Eigen::Matrix3d> block(nc, Eigen::Matrix3d::Zero());
-  for (int f = 0; f < nd; ++f) {
-    const int best_face = face_of[f];
-    if (best_face < 0) continue;
-    const double w = weight[f];
-    const Eigen::Vector3d& best_bary = bary_of[f];
-    const Eigen::Vector3d& u = normal_of[f];
-    block[best_face] += w * best_bary * best_bary.transpose();
-    for (int i = 0; i < 3; ++i) {
-      const int ni = corner->normal_index(best_face, i);
-      rhs.row(ni) += w * best_bary(i) * u.transpose();
-      diagonal[ni] += w * best_bary(i);
+  const Eigen::MatrixXd field = corner->normals;  // the patch fields' normals, the ridge's target
+  std::vector<double> robust(nd, 1.0);
+  for (int round = 0; round < kCornerNormalRounds; ++round) {
+    if (round > 0) {
+      tbb::parallel_for(tbb::blocked_range<int>(0, nd, 8192), [&](const tbb::blocked_range<int>& range) {
+        for (int f = range.begin(); f < range.end(); ++f) {
+          const int g = face_of[f];
+          if (g < 0) continue;
+          Eigen::Vector3d n = Eigen::Vector3d::Zero();
+          for (int i = 0; i < 3; ++i) n += bary_of[f](i) * corner->normals.row(corner->normal_index(g, i)).transpose();
+          const double length = n.norm();
+          const double residual = length > 1e-12 ? (n / length - normal_of[f]).norm() : 2.0;
+          robust[f] = 1.0 / std::max(residual, kCornerResidualFloor);
+        }
+      });
     }
-  }
-  triplets.reserve(static_cast<size_t>(9 * nc + nn));
-  for (int g = 0; g < nc; ++g) {
-    if (block[g].isZero(0.0)) continue;
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) {
-        triplets.emplace_back(corner->normal_index(g, i), corner->normal_index(g, j), block[g](i, j));
+    // The normal equations gathered per output face (a 3×3 block over its corner normals), then once per block.
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nn, 3);
+    std::vector<double> diagonal(nn, 0.0);
+    std::vector<Eigen::Matrix3d> block(nc, Eigen::Matrix3d::Zero());
+    for (int f = 0; f < nd; ++f) {
+      const int g = face_of[f];
+      if (g < 0) continue;
+      const double w = weight[f] * robust[f];
+      const Eigen::Vector3d& b = bary_of[f];
+      block[g] += w * b * b.transpose();
+      for (int i = 0; i < 3; ++i) {
+        const int ni = corner->normal_index(g, i);
+        rhs.row(ni) += w * b(i) * normal_of[f].transpose();
+        diagonal[ni] += w * b(i);
       }
     }
-  }
-  double mean_diagonal = 0.0;
-  for (double x : diagonal) mean_diagonal += x / std::max(1, nn);
-  for (int i = 0; i < nn; ++i) {
-    const double mu = ridge * diagonal[i] + 1e-6 * mean_diagonal + 1e-300;
-    triplets.emplace_back(i, i, mu);
-    rhs.row(i) += mu * corner->normals.row(i);
-  }
-  Eigen::SparseMatrix<double> A(nn, nn);
-  A.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
-  if (solver.info() != Eigen::Success) return;
-  const Eigen::MatrixXd solved = solver.solve(rhs);
-  if (solver.info() != Eigen::Success || !solved.allFinite()) return;
-  for (int i = 0; i < nn; ++i) {
-    const double len = solved.row(i).norm();
-    if (len > 1e-9) corner->normals.row(i) = solved.row(i) / len;
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(static_cast<size_t>(9 * nc + nn));
+    for (int g = 0; g < nc; ++g) {
+      if (block[g].isZero(0.0)) continue;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          triplets.emplace_back(corner->normal_index(g, i), corner->normal_index(g, j), block[g](i, j));
+        }
+      }
+    }
+    double mean_diagonal = 0.0;
+    for (double x : diagonal) mean_diagonal += x / std::max(1, nn);
+    for (int i = 0; i < nn; ++i) {
+      const double mu = ridge * diagonal[i] + 1e-6 * mean_diagonal + 1e-300;
+      triplets.emplace_back(i, i, mu);
+      rhs.row(i) += mu * field.row(i);
+    }
+    Eigen::SparseMatrix<double> A(nn, nn);
+    A.setFromTriplets(triplets.begin(), triplets.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+    if (solver.info() != Eigen::Success) return;
+    const Eigen::MatrixXd solved = solver.solve(rhs);
+    if (solver.info() != Eigen::Success || !solved.allFinite()) return;
+    for (int i = 0; i < nn; ++i) {
+      const double length = solved.row(i).norm();
+      if (length > 1e-9) corner->normals.row(i) = solved.row(i) / length;
+    }
   }
 }
 

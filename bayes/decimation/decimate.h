@@ -68,8 +68,9 @@ struct DecimateOptions {
   double chain_tolerance_rel = 0.005;
   double shading_regularisation = 0.01;   // ridge on the normal-field gradient, share of the patch spread, ≥ 0
   // > 0: the corner normals are then refitted to the dense face normals as a piecewise-linear field over each
-  // patch's triangles, with this ridge (share of each normal's data weight) towards the patch field; 0 keeps
-  // the patch fields' values. ≥ 0.
+  // patch's triangles (each dense face fitted where the output covers it, for the angle: RefitCornerNormals in
+  // decimate.cpp), with this ridge (share of each normal's data weight) towards the patch field; 0 keeps the
+  // patch fields' values. ≥ 0.
   double corner_normal_ridge = 0.01;
   // After the patch structure and triangulation are fixed, move the kept vertices to their regularised
   // quadric-optimal positions under the flip guard (bayes/decimation/decimate_refit.h); false keeps the

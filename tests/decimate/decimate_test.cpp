@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <functional>
 #include <set>
@@ -758,6 +759,68 @@ TEST(DecimateRefit, CornerNormalsFollowTheDenseNormals) {
   EXPECT_LT(mean_error_deg(refitted), 0.8 * mean_error_deg(fields));
   options.corner_normal_ridge = -1.0;
   EXPECT_THROW(options.Check(), std::exception);
+}
+
+// The shading-normal error as the decimation benchmark measures it: per dense face, the angle between its normal and
+// the output's interpolated corner normal at the point of the output nearest to its centroid, area-weighted
+// (degrees). Brute force over the output faces.
+double ShadingErrorDeg(const Mesh& dense, const DecimatedMesh& out) {
+  double sum = 0.0, area_sum = 0.0;
+  for (int f = 0; f < dense.num_faces(); ++f) {
+    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)), c = dense.V.row(dense.F(f, 2));
+    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    const Eigen::Vector3d p = (a + b + c) / 3.0;
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d shading = Eigen::Vector3d::Zero();
+    for (int g = 0; g < out.mesh.num_faces(); ++g) {
+      const Eigen::Vector3d x0 = out.mesh.V.row(out.mesh.F(g, 0)), x1 = out.mesh.V.row(out.mesh.F(g, 1)),
+                            x2 = out.mesh.V.row(out.mesh.F(g, 2));
+      // The nearest point of the triangle: the clamped projection, or the nearest point of an edge.
+      auto on_segment = [&](const Eigen::Vector3d& s0, const Eigen::Vector3d& s1) -> Eigen::Vector3d {
+        const double t = std::clamp((p - s0).dot(s1 - s0) / (s1 - s0).squaredNorm(), 0.0, 1.0);
+        return s0 + t * (s1 - s0);
+      };
+      const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0, d = p - x0;
+      const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+      const double l1 = (d22 * e1.dot(d) - d12 * e2.dot(d)) / det, l2 = (d11 * e2.dot(d) - d12 * e1.dot(d)) / det;
+      Eigen::Vector3d q = x0 + l1 * e1 + l2 * e2;
+      if (l1 < 0 || l2 < 0 || l1 + l2 > 1) {
+        q = on_segment(x0, x1);
+        const Eigen::Vector3d q12 = on_segment(x1, x2), q20 = on_segment(x2, x0);
+        if ((q12 - p).squaredNorm() < (q - p).squaredNorm()) q = q12;
+        if ((q20 - p).squaredNorm() < (q - p).squaredNorm()) q = q20;
+      }
+      const double dist = (q - p).squaredNorm();
+      if (dist >= best) continue;
+      best = dist;
+      // Barycentric coordinates of q.
+      const Eigen::Vector3d dq = q - x0;
+      const double m1 = (d22 * e1.dot(dq) - d12 * e2.dot(dq)) / det, m2 = (d11 * e2.dot(dq) - d12 * e1.dot(dq)) / det;
+      const Eigen::Vector3d bary(1.0 - m1 - m2, m1, m2);
+      shading.setZero();
+      for (int i = 0; i < 3; ++i) {
+        shading += bary(i) * out.corner_normals.normals.row(out.corner_normals.normal_index(g, i)).transpose();
+      }
+    }
+    const double area = cross.norm();
+    sum += area * std::acos(std::clamp(shading.normalized().dot(cross.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+    area_sum += area;
+  }
+  return sum / area_sum;
+}
+
+// The corner normals are fitted where each dense face is covered (its nearest output triangle, of a neighbouring
+// patch where that one is nearer and faces it as squarely) and for the angle rather than its square: on a sphere
+// at 100 and 300 faces the benchmark's shading error is 0.744° and 0.660° (0.989° and 0.780° when each dense face
+// was fitted on its own patch by least squares); the bounds lie halfway.
+TEST(DecimateRefit, CornerNormalsFitWhereTheDenseFacesAreCovered) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  for (const auto& [faces, bound] : {std::pair{100, 0.87}, std::pair{300, 0.72}}) {
+    options.target_faces = faces;
+    const DecimatedMesh out = Decimate(sphere, options);
+    EXPECT_LT(ShadingErrorDeg(sphere, out), bound) << faces << " faces";
+  }
 }
 
 TEST(DecimateRefit, FlatInputAndFixedVerticesStay) {
