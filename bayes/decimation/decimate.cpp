@@ -525,8 +525,8 @@ std::vector<std::vector<int>> PatchPolygons(const Faces& F, const std::vector<in
 // weighting a face by 1 / max(its residual of the last round, kCornerResidualFloor), after a first round of plain
 // least squares. Measured on the decimation benchmark meshes and eight others: a lower shading-normal error and
 // rendering difference at 2% and 10% on every one (docs/journal/decimation.md, round 6).
-constexpr int kCornerNormalRounds = 4;           // one least-squares round and three reweighted ones
-constexpr double kCornerResidualFloor = 0.01;    // ≈ 0.6°: below it a face counts as fitted
+constexpr int kCornerNormalRounds = 4;         // one least-squares round and three reweighted ones
+constexpr double kCornerResidualFloor = 0.01;  // ≈ 0.6°: below it a face counts as fitted
 void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std::vector<int>& dense_patch,
                         const std::vector<double>& weight, const std::vector<int>& output_of_dense,
                         const Mesh& coarse, const std::vector<int>& coarse_patch, double ridge,
@@ -584,8 +584,8 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
         }
       }
       const bool other = best_face[1] >= 0 &&
-                         (best_face[0] < 0 || (best[1] < best[0] && u.dot(face_normal(best_face[1])) >=
-                                                                        u.dot(face_normal(best_face[0]))));
+                         (best_face[0] < 0 ||
+                          (best[1] < best[0] && u.dot(face_normal(best_face[1])) >= u.dot(face_normal(best_face[0]))));
       face_of[f] = best_face[other ? 1 : 0];
       bary_of[f] = best_bary[other ? 1 : 0];
       normal_of[f] = u;

@@ -191,7 +191,8 @@ void ExpectNoFlips(const Mesh& dense, const DecimatedMesh& out) {
   std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
   for (int f = 0; f < dense.num_faces(); ++f) {
     if (out.dense_face_patch[f] < 0) continue;
-    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)), c = dense.V.row(dense.F(f, 2));
+    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)),
+                          c = dense.V.row(dense.F(f, 2));
     patch_normal[out.dense_face_patch[f]] += (b - a).cross(c - a);
   }
   for (int f = 0; f < out.mesh.num_faces(); ++f) {
@@ -767,7 +768,8 @@ TEST(DecimateRefit, CornerNormalsFollowTheDenseNormals) {
 double ShadingErrorDeg(const Mesh& dense, const DecimatedMesh& out) {
   double sum = 0.0, area_sum = 0.0;
   for (int f = 0; f < dense.num_faces(); ++f) {
-    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)), c = dense.V.row(dense.F(f, 2));
+    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)),
+                          c = dense.V.row(dense.F(f, 2));
     const Eigen::Vector3d cross = (b - a).cross(c - a);
     const Eigen::Vector3d p = (a + b + c) / 3.0;
     double best = std::numeric_limits<double>::infinity();
