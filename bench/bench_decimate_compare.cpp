@@ -7,8 +7,9 @@
 // --reserve sets DecimateOptions::chain_reserve_share (default: the library's); --bayes-only skips CGAL;
 // --no-vsa skips VSA only; --no-refit turns the vertex refit off; --both prints ours without the refit
 // ("bayes-sub", vertices a subset of the input's) before ours with it; --refit-reg X sets
-// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds, --flip-sweeps N its flip_sweeps (0: no
-// edge flips), --corner-ridge X DecimateOptions::corner_normal_ridge (0: the patch fields' normals at the corners).
+// VertexRefitOptions::regularisation, --fit-rounds N its fit_rounds, --coverage X its coverage_weight,
+// --flip-sweeps N its flip_sweeps (0: no edge flips), --corner-ridge X DecimateOptions::corner_normal_ridge (0: the
+// patch fields' normals at the corners); --write DIR writes each output as DIR/METHOD_SHARE.obj (an existing folder).
 //
 // Per method and share it prints: output triangles, symmetric Hausdorff and RMS surface distance (relative to
 // the bounding-box diagonal, from area-uniform samples on both surfaces), the area-weighted angle between each
@@ -361,8 +362,10 @@ int RunBench(int argc, char** argv) {
   bool bayes_only = false, no_vsa = false, refit = true, both = false;
   double refit_reg = VertexRefitOptions{}.regularisation;
   int fit_rounds = VertexRefitOptions{}.fit_rounds;
+  double coverage = VertexRefitOptions{}.coverage_weight;
   int flip_sweeps = VertexRefitOptions{}.flip_sweeps;
   double corner_ridge = DecimateOptions{}.corner_normal_ridge;
+  std::string write_dir;
   for (int i = 2; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--reserve" && i + 1 < argc) {
@@ -371,12 +374,16 @@ int RunBench(int argc, char** argv) {
       bayes_only = true;
     } else if (arg == "--fit-rounds" && i + 1 < argc) {
       fit_rounds = std::atoi(argv[++i]);
+    } else if (arg == "--coverage" && i + 1 < argc) {
+      coverage = std::atof(argv[++i]);
     } else if (arg == "--flip-sweeps" && i + 1 < argc) {
       flip_sweeps = std::atoi(argv[++i]);
     } else if (arg == "--refit-reg" && i + 1 < argc) {
       refit_reg = std::atof(argv[++i]);
     } else if (arg == "--corner-ridge" && i + 1 < argc) {
       corner_ridge = std::atof(argv[++i]);
+    } else if (arg == "--write" && i + 1 < argc) {
+      write_dir = argv[++i];
     } else if (arg == "--no-vsa") {
       no_vsa = true;
     } else if (arg == "--no-refit") {
@@ -388,6 +395,12 @@ int RunBench(int argc, char** argv) {
     }
   }
   if (shares.empty()) shares = {0.02, 0.10};
+  auto write = [&](const char* method, double share, const Mesh& mesh) {
+    if (write_dir.empty()) return;
+    char name[64];
+    std::snprintf(name, sizeof(name), "/%s_%g.obj", method, share);
+    WriteMesh(mesh, write_dir + name);
+  };
   Reference ref;
   ref.dense = ReadMesh(argv[1]);
   ref.diag = Diagonal(ref.dense);
@@ -411,6 +424,7 @@ int RunBench(int argc, char** argv) {
       options.refit_vertices = pass == 1 && refit;
       options.refit.regularisation = refit_reg;
       options.refit.fit_rounds = fit_rounds;
+      options.refit.coverage_weight = coverage;
       options.refit.flip_sweeps = flip_sweeps;
       options.corner_normal_ridge = corner_ridge;
       DecimateSummary summary;
@@ -421,11 +435,12 @@ int RunBench(int argc, char** argv) {
         for (int k = 0; k < 3; ++k) corner.row(3 * f + k) = ours.corner_normals.normals.row(ours.corner_normals.normal_index(f, k));
       }
       Print(options.refit_vertices ? "bayes" : "bayes-sub", share, Evaluate(ref, {{ours.mesh, corner}}), t_ours);
+      write(options.refit_vertices ? "bayes" : "bayes-sub", share, ours.mesh);
       std::printf("           (%d patches, lambda %.4g, chain reserve %.2f, chain error up to %.3g%% of the diagonal, "
-                  "refit: %d flips, %d moved, %d blocked, fit rms %.3g -> %.3g)\n",
+                  "refit: %d flips, %d moved, %d blocked, fit rms %.3g -> %.3g, refit and shading %.2f s)\n",
                   summary.num_patches, summary.lambda, reserve, 100.0 * summary.max_chain_error_rel, summary.refit_flips,
-                  summary.refit_moved,
-                  summary.refit_blocked, summary.refit_rms_before, summary.refit_rms_after);
+                  summary.refit_moved, summary.refit_blocked, summary.refit_rms_before, summary.refit_rms_after,
+                  summary.seconds_refit_and_shading);
     }
     if (bayes_only) continue;
     const int n = ours.mesh.num_faces();
@@ -433,11 +448,13 @@ int RunBench(int argc, char** argv) {
     const Mesh gh = GarlandHeckbert(ref.dense, n);
     const double t_gh = Now() - t0;
     Print("qslim", share, Evaluate(ref, {{gh, SmoothCorners(gh)}, {gh, FlatCorners(gh)}}), t_gh);
+    write("qslim", share, gh);
     if (no_vsa) continue;
     t0 = Now();
     const Mesh vsa = VsaAt(ref.dense, n);
     const double t_vsa = Now() - t0;
     Print("vsa", share, Evaluate(ref, {{vsa, SmoothCorners(vsa)}, {vsa, FlatCorners(vsa)}}), t_vsa);
+    write("vsa", share, vsa);
   }
   return 0;
 }

@@ -224,6 +224,112 @@ struct DenseSamples {
   std::vector<std::vector<int>> face_samples;
 };
 
+// The points of a coarse triangle held on the dense surface, in barycentric coordinates: its centroid and the
+// points halfway from there to its corners.
+constexpr int kCoveragePoints = 4;
+const Eigen::Vector3d kCoverageBary[kCoveragePoints] = {
+    {1.0 / 3, 1.0 / 3, 1.0 / 3}, {2.0 / 3, 1.0 / 6, 1.0 / 6}, {1.0 / 6, 2.0 / 3, 1.0 / 6}, {1.0 / 6, 1.0 / 6, 2.0 / 3}};
+
+// Per coarse face and point, the plane of the dense face nearest to the point (unit normal, offset nᵀp) and the
+// point's weight (0: no dense face found).
+struct CoveragePlane {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  double offset = 0.0;
+  double weight = 0.0;
+};
+
+// Per kept vertex, the dense faces with a corner in its cluster (compressed rows); per dense face a bounding
+// sphere (its centroid, the distance to its farthest corner), to skip faces that cannot be nearer.
+struct ClusterFaces {
+  std::vector<int> begin;  // size nv + 1
+  std::vector<int> faces;
+  std::vector<Eigen::Vector3d> centre;
+  std::vector<double> radius;
+};
+
+ClusterFaces BuildClusterFaces(const Vertices& V, const Faces& F, const std::vector<int>& rep) {
+  const int nv = static_cast<int>(V.rows());
+  ClusterFaces out;
+  out.begin.assign(nv + 1, 0);
+  const int nf = static_cast<int>(F.rows());
+  out.centre.resize(nf);
+  out.radius.resize(nf);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
+    out.centre[f] = (a + b + c) / 3.0;
+    out.radius[f] = std::sqrt(std::max({(a - out.centre[f]).squaredNorm(), (b - out.centre[f]).squaredNorm(),
+                                        (c - out.centre[f]).squaredNorm()}));
+  }
+  auto for_each_cluster = [&](int f, auto&& visit) {
+    const int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
+    for (int j = 0; j < 3; ++j) {
+      if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
+      visit(r[j]);
+    }
+  };
+  for (int f = 0; f < nf; ++f) for_each_cluster(f, [&](int r) { ++out.begin[r + 1]; });
+  for (int v = 0; v < nv; ++v) out.begin[v + 1] += out.begin[v];
+  out.faces.resize(out.begin[nv]);
+  std::vector<int> fill(out.begin.begin(), out.begin.end() - 1);
+  for (int f = 0; f < nf; ++f) for_each_cluster(f, [&](int r) { out.faces[fill[r]++] = f; });
+  return out;
+}
+
+// For every coarse face, each of its points' nearest dense face among those of its patch in its corners'
+// clusters, with weight coverage_weight × a quarter of its area (at the current positions).
+void AssignCoverage(const RefitInput& in, const ClusterFaces& clusters, const CoarseState& st,
+                    std::vector<CoveragePlane>* planes) {
+  const Vertices& V = *in.dense_V;
+  const Faces& F = *in.dense_F;
+  const Faces& C = st.C;
+  const double weight = st.options.coverage_weight;
+  planes->assign(static_cast<size_t>(C.rows()) * kCoveragePoints, CoveragePlane{});
+  tbb::parallel_for(0, static_cast<int>(C.rows()), [&](int f) {
+    const int patch = st.coarse_face_patch[f];
+    const Eigen::Vector3d x[3] = {Row(st.X, C(f, 0)), Row(st.X, C(f, 1)), Row(st.X, C(f, 2))};
+    const double area = 0.5 * (x[1] - x[0]).cross(x[2] - x[0]).norm();
+    if (!(area > 0.0)) return;
+    Eigen::Vector3d q[kCoveragePoints];
+    double best[kCoveragePoints];
+    int nearest[kCoveragePoints];
+    for (int i = 0; i < kCoveragePoints; ++i) {
+      q[i] = kCoverageBary[i](0) * x[0] + kCoverageBary[i](1) * x[1] + kCoverageBary[i](2) * x[2];
+      best[i] = std::numeric_limits<double>::infinity();
+      nearest[i] = -1;
+    }
+    Eigen::Vector3d bary;
+    for (int k = 0; k < 3; ++k) {
+      const int v = C(f, k);
+      for (int e = clusters.begin[v]; e < clusters.begin[v + 1]; ++e) {
+        const int g = clusters.faces[e];
+        if ((*in.dense_face_patch)[g] != patch) continue;
+        const Eigen::Vector3d a = Row(V, F(g, 0)), b = Row(V, F(g, 1)), c = Row(V, F(g, 2));
+        for (int i = 0; i < kCoveragePoints; ++i) {
+          const double lower = (q[i] - clusters.centre[g]).norm() - clusters.radius[g];
+          if (lower > 0.0 && lower * lower >= best[i]) continue;
+          const double d2 = ClosestPointOnTriangle(q[i], a, b, c, &bary);
+          if (d2 < best[i]) {
+            best[i] = d2;
+            nearest[i] = g;
+          }
+        }
+      }
+    }
+    for (int i = 0; i < kCoveragePoints; ++i) {
+      if (nearest[i] < 0) continue;
+      const int g = nearest[i];
+      const Eigen::Vector3d a = Row(V, F(g, 0));
+      const Eigen::Vector3d cr = (Row(V, F(g, 1)) - a).cross(Row(V, F(g, 2)) - a);
+      const double len = cr.norm();
+      if (len <= st.area_eps) continue;
+      CoveragePlane& plane = (*planes)[static_cast<size_t>(f) * kCoveragePoints + i];
+      plane.n = cr / len;
+      plane.offset = plane.n.dot(a);
+      plane.weight = weight * area / kCoveragePoints;
+    }
+  });
+}
+
 // One third of the area of each dense face on each of its corners.
 std::vector<double> VertexAreas(const Vertices& V, const Faces& F) {
   const int nv = static_cast<int>(V.rows());
@@ -318,19 +424,33 @@ void AssignSamples(const Vertices& V, const std::vector<int>& rep, const std::ve
 // Moves v to the regularised minimiser of its boundary quadric plus its samples' squared point-to-plane
 // distances (Σ w b_v² (nᵀx − …)², b_v the sample's barycentric weight of v) through the guard.
 void FitVertexToSamples(const Vertices& V, const std::vector<double>& vertex_area, const Quadric& boundary,
-                        const DenseSamples& ds, int v, CoarseState* st) {
+                        const DenseSamples& ds, const std::vector<CoveragePlane>& coverage, int v,
+                        CoarseState* st) {
   const Faces& C = st->C;
   const Vertices& X = st->X;
   Eigen::Matrix3d A = boundary.A;
   Eigen::Vector3d rhs = boundary.b;
   for (int f : st->star[v]) {
+    int corner = 0;
+    while (C(f, corner) != v) ++corner;
+    // The face's own points held on the dense surface.
+    for (int i = 0; i < kCoveragePoints && !coverage.empty(); ++i) {
+      const CoveragePlane& plane = coverage[static_cast<size_t>(f) * kCoveragePoints + i];
+      if (plane.weight <= 0.0) continue;
+      const Eigen::Vector3d& b = kCoverageBary[i];
+      double rest = plane.offset;
+      for (int k = 0; k < 3; ++k) {
+        if (k != corner) rest -= b[k] * plane.n.dot(Row(X, C(f, k)));
+      }
+      const double bv = b[corner];
+      A += plane.weight * bv * bv * plane.n * plane.n.transpose();
+      rhs += plane.weight * bv * rest * plane.n;
+    }
     if (ds.face_samples[f].empty()) continue;
     Eigen::Vector3d n = st->CrossOf(f);
     const double len = n.norm();
     if (len <= st->area_eps) continue;
     n /= len;
-    int corner = 0;
-    while (C(f, corner) != v) ++corner;
     for (int j : ds.face_samples[f]) {
       const Eigen::Vector3d& b = ds.sample[j].bary;
       Eigen::Vector3d rest = Row(V, j);
@@ -352,7 +472,8 @@ void FitVertexToSamples(const Vertices& V, const std::vector<double>& vertex_are
 // Phase 2: fit to the dense vertices (point-to-plane, as in Hoppe et al. 1993's mesh optimisation). Each
 // dense vertex is projected onto the nearest coarse face around the vertex it collapsed onto; then every
 // kept vertex moves, one at a time, to the regularised minimiser of its samples' squared distances along
-// their faces' normals, for fit_rounds rounds; the fit RMS before and after into s.
+// their faces' normals and of its faces' points' squared distances to their nearest dense faces (coverage,
+// found again at the start of each round), for fit_rounds rounds; the fit RMS before and after into s.
 void FitToDenseVertices(const RefitInput& in, const std::vector<Quadric>& Qb, const std::vector<char>& movable,
                         CoarseState* st, VertexRefitSummary* s) {
   const Vertices& V = *in.dense_V;
@@ -366,10 +487,14 @@ void FitToDenseVertices(const RefitInput& in, const std::vector<Quadric>& Qb, co
   double d2 = 0.0, w = 0.0;
   AssignSamples(V, rep, vertex_area, *st, &ds, &d2, &w);
   s->fit_rms_before = w > 0.0 ? std::sqrt(d2 / w) : 0.0;
+  const bool coverage = st->options.coverage_weight > 0.0;
+  const ClusterFaces clusters = coverage ? BuildClusterFaces(V, *in.dense_F, rep) : ClusterFaces{};
+  std::vector<CoveragePlane> planes;
   for (int round = 0; round < st->options.fit_rounds; ++round) {
+    if (coverage) AssignCoverage(in, clusters, *st, &planes);
     for (int v = 0; v < nv; ++v) {
       if (!movable[v]) continue;
-      FitVertexToSamples(V, vertex_area, Qb[v], ds, v, st);
+      FitVertexToSamples(V, vertex_area, Qb[v], ds, planes, v, st);
     }
     AssignSamples(V, rep, vertex_area, *st, &ds, &d2, &w);
   }
@@ -385,6 +510,8 @@ void VertexRefitOptions::Check() const {
   RB_CHECK(min_cos_to_patch_normal >= 0.0 && min_cos_to_patch_normal < 1.0,
            "decimate: refit min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(fit_rounds >= 0, "decimate: refit fit_rounds must be ≥ 0, got ", fit_rounds);
+  RB_CHECK(coverage_weight >= 0.0 && std::isfinite(coverage_weight),
+           "decimate: refit coverage_weight must be ≥ 0, got ", coverage_weight);
   RB_CHECK(max_halvings >= 0, "decimate: refit max_halvings must be ≥ 0, got ", max_halvings);
   RB_CHECK(flip_sweeps >= 0, "decimate: refit flip_sweeps must be ≥ 0, got ", flip_sweeps);
 }

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -15,6 +16,7 @@
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/topology.h"
+#include "pipeline/mesh_metrics.h"
 
 namespace rangebayes {
 namespace {
@@ -823,6 +825,89 @@ TEST(DecimateRefit, CornerNormalsFitWhereTheDenseFacesAreCovered) {
     const DecimatedMesh out = Decimate(sphere, options);
     EXPECT_LT(ShadingErrorDeg(sphere, out), bound) << faces << " faces";
   }
+}
+
+// Symmetric RMS distance between a dense mesh and its decimation, relative to the dense bounding-box diagonal:
+// the dense vertices (weighted by their areas) against the output surface, and a grid of 15 points on each
+// output triangle (weighted by its area) against the dense surface, both directions weighing alike.
+double SymmetricRmsRelative(const Mesh& dense, const Mesh& out) {
+  auto one_way = [](const Vertices& points, const std::vector<double>& weight, const Mesh& surface) {
+    const Eigen::VectorXd d = DistanceToSurface(points, surface);
+    double sum = 0.0, total = 0.0;
+    for (Eigen::Index i = 0; i < d.size(); ++i) {
+      sum += weight[i] * d[i] * d[i];
+      total += weight[i];
+    }
+    return sum / total;
+  };
+  std::vector<double> dense_area(dense.num_vertices(), 0.0);
+  for (int f = 0; f < dense.num_faces(); ++f) {
+    const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)),
+                          c = dense.V.row(dense.F(f, 2));
+    for (int k = 0; k < 3; ++k) dense_area[dense.F(f, k)] += (b - a).cross(c - a).norm() / 6.0;
+  }
+  constexpr int kSteps = 4;  // barycentric grid (i, j, k) / 4: 15 points
+  Vertices points(out.num_faces() * 15, 3);
+  std::vector<double> out_weight;
+  int row = 0;
+  for (int f = 0; f < out.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.V.row(out.F(f, 0)), b = out.V.row(out.F(f, 1)), c = out.V.row(out.F(f, 2));
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    for (int i = 0; i <= kSteps; ++i) {
+      for (int j = 0; i + j <= kSteps; ++j) {
+        points.row(row++) = ((i * a + j * b + (kSteps - i - j) * c) / kSteps).transpose();
+        out_weight.push_back(area / 15.0);
+      }
+    }
+  }
+  const double diag = (dense.V.colwise().maxCoeff() - dense.V.colwise().minCoeff()).norm();
+  return std::sqrt(0.5 * (one_way(dense.V, dense_area, out) + one_way(points, out_weight, dense))) / diag;
+}
+
+// The fit holds the coarse surface on the dense one as well as the dense vertices on the coarse one
+// (VertexRefitOptions::coverage_weight): on a real scan (the angel, 48k faces) at 2% and 10% of the faces the
+// symmetric RMS distance is 0.00199 and 0.00061 of the diagonal, against 0.00242 and 0.00091 with the one-sided
+// fit (coverage_weight 0); the bounds lie halfway. The scan has non-manifold vertices (kept, welded, in the
+// output) and, at 2%, a few dense faces kept as output faces that face away from their patch's mean normal
+// already in the input (the guards keep such a face from turning over, not from staying as it was); every
+// other output face faces along it.
+TEST(DecimateRefit, CoarseSurfaceIsHeldOnTheDenseOne) {
+  const Mesh angel = ReadMesh("tests/data/meshes/real_angel_scan.obj");
+  std::set<std::array<int, 3>> dense_faces;
+  for (int f = 0; f < angel.num_faces(); ++f) {
+    std::array<int, 3> t = {angel.F(f, 0), angel.F(f, 1), angel.F(f, 2)};
+    std::sort(t.begin(), t.end());
+    dense_faces.insert(t);
+  }
+  for (const auto& [share, bound] : {std::pair{0.02, 0.0022}, std::pair{0.10, 0.00076}}) {
+    DecimateOptions options;
+    options.target_faces = static_cast<int>(share * angel.num_faces());
+    const DecimatedMesh out = Decimate(angel, options);
+    SCOPED_TRACE(share);
+    ExpectPatchesContiguous(angel, out.dense_face_patch);
+    std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
+    for (int f = 0; f < angel.num_faces(); ++f) {
+      const Eigen::Vector3d a = angel.V.row(angel.F(f, 0)), b = angel.V.row(angel.F(f, 1)),
+                            c = angel.V.row(angel.F(f, 2));
+      patch_normal[out.dense_face_patch[f]] += (b - a).cross(c - a);
+    }
+    for (int f = 0; f < out.mesh.num_faces(); ++f) {
+      const Eigen::Vector3d a = out.mesh.V.row(out.mesh.F(f, 0)), b = out.mesh.V.row(out.mesh.F(f, 1)),
+                            c = out.mesh.V.row(out.mesh.F(f, 2));
+      if ((b - a).cross(c - a).dot(patch_normal[out.face_patch[f]]) > 0.0) continue;
+      // A dense face that faced away in the input.
+      std::array<int, 3> t;
+      for (int k = 0; k < 3; ++k) t[k] = out.vertex_source[out.mesh.F(f, k)];
+      const Eigen::Vector3d da = angel.V.row(t[0]), db = angel.V.row(t[1]), dc = angel.V.row(t[2]);
+      EXPECT_LE((db - da).cross(dc - da).dot(patch_normal[out.face_patch[f]]), 0.0) << "face " << f;
+      std::sort(t.begin(), t.end());
+      EXPECT_TRUE(dense_faces.count(t)) << "face " << f << " flipped against its patch";
+    }
+    EXPECT_LT(SymmetricRmsRelative(angel, out.mesh), bound);
+  }
+  DecimateOptions options;
+  options.refit.coverage_weight = -1.0;
+  EXPECT_THROW(options.Check(), std::exception);
 }
 
 TEST(DecimateRefit, FlatInputAndFixedVerticesStay) {
