@@ -537,12 +537,14 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
   for (int f = 0; f < nc; ++f) {
     for (int c = 0; c < 3; ++c) faces_of[coarse.F(f, c)].push_back(f);
   }
-  auto face_normal = [&](int g) {
+  // Unit normal of each output face, for the orientation test below.
+  std::vector<Eigen::Vector3d> face_normal(nc);
+  for (int g = 0; g < nc; ++g) {
     const Eigen::Vector3d x0 = coarse.V.row(coarse.F(g, 0)).transpose();
-    return Eigen::Vector3d((coarse.V.row(coarse.F(g, 1)).transpose() - x0)
-                               .cross(coarse.V.row(coarse.F(g, 2)).transpose() - x0)
-                               .normalized());
-  };
+    face_normal[g] = (coarse.V.row(coarse.F(g, 1)).transpose() - x0)
+                         .cross(coarse.V.row(coarse.F(g, 2)).transpose() - x0)
+                         .normalized();
+  }
   // Each dense face's projection in parallel (reads only), the system summed in face order afterwards.
   const int nd = static_cast<int>(dense_F.rows());
   std::vector<int> face_of(nd, -1);
@@ -585,7 +587,7 @@ void RefitCornerNormals(const Vertices& dense_V, const Faces& dense_F, const std
       }
       const bool other = best_face[1] >= 0 &&
                          (best_face[0] < 0 ||
-                          (best[1] < best[0] && u.dot(face_normal(best_face[1])) >= u.dot(face_normal(best_face[0]))));
+                          (best[1] < best[0] && u.dot(face_normal[best_face[1]]) >= u.dot(face_normal[best_face[0]])));
       face_of[f] = best_face[other ? 1 : 0];
       bary_of[f] = best_bary[other ? 1 : 0];
       normal_of[f] = u;

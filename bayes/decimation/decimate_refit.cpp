@@ -71,6 +71,16 @@ double ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a
   return result(1 - v - w, v, w);
 }
 
+// Calls visit(r) once for each distinct kept vertex r among the representatives of dense face f's corners.
+template <class Visit>
+void ForEachCluster(const Faces& F, const std::vector<int>& rep, int f, const Visit& visit) {
+  const int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
+  for (int j = 0; j < 3; ++j) {
+    if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
+    visit(r[j]);
+  }
+}
+
 // Adds each dense face's plane, weighted by its area, to the quadric of every distinct cluster among its
 // corners (as in Garland–Heckbert), and sums each patch's face cross products into its unit normal.
 void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>* Q_out,
@@ -91,11 +101,7 @@ void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>
     const Eigen::Vector3d n = cr / len;
     const double area = 0.5 * len;
     const double offset = n.dot(a);
-    int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
-    for (int j = 0; j < 3; ++j) {
-      if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
-      Q[r[j]].AddPlane(n, offset, area);
-    }
+    ForEachCluster(F, rep, f, [&](int r) { Q[r].AddPlane(n, offset, area); });
   }
   for (auto& n : patch_normal) {
     const double len = n.norm();
@@ -260,18 +266,11 @@ ClusterFaces BuildClusterFaces(const Vertices& V, const Faces& F, const std::vec
     out.radius[f] = std::sqrt(std::max({(a - out.centre[f]).squaredNorm(), (b - out.centre[f]).squaredNorm(),
                                         (c - out.centre[f]).squaredNorm()}));
   }
-  auto for_each_cluster = [&](int f, auto&& visit) {
-    const int r[3] = {rep[F(f, 0)], rep[F(f, 1)], rep[F(f, 2)]};
-    for (int j = 0; j < 3; ++j) {
-      if (r[j] < 0 || (j > 0 && r[j] == r[0]) || (j == 2 && r[2] == r[1])) continue;
-      visit(r[j]);
-    }
-  };
-  for (int f = 0; f < nf; ++f) for_each_cluster(f, [&](int r) { ++out.begin[r + 1]; });
+  for (int f = 0; f < nf; ++f) ForEachCluster(F, rep, f, [&](int r) { ++out.begin[r + 1]; });
   for (int v = 0; v < nv; ++v) out.begin[v + 1] += out.begin[v];
   out.faces.resize(out.begin[nv]);
   std::vector<int> fill(out.begin.begin(), out.begin.end() - 1);
-  for (int f = 0; f < nf; ++f) for_each_cluster(f, [&](int r) { out.faces[fill[r]++] = f; });
+  for (int f = 0; f < nf; ++f) ForEachCluster(F, rep, f, [&](int r) { out.faces[fill[r]++] = f; });
   return out;
 }
 

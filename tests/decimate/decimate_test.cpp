@@ -195,9 +195,11 @@ void ExpectNoFlips(const Mesh& dense, const DecimatedMesh& out, bool input_faces
   std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
   std::set<std::array<int, 3>> dense_faces;
   for (int f = 0; f < dense.num_faces(); ++f) {
-    std::array<int, 3> t = {dense.F(f, 0), dense.F(f, 1), dense.F(f, 2)};
-    std::sort(t.begin(), t.end());
-    dense_faces.insert(t);
+    if (input_faces_may_face_away) {
+      std::array<int, 3> t = {dense.F(f, 0), dense.F(f, 1), dense.F(f, 2)};
+      std::sort(t.begin(), t.end());
+      dense_faces.insert(t);
+    }
     if (out.dense_face_patch[f] < 0) continue;
     const Eigen::Vector3d a = dense.V.row(dense.F(f, 0)), b = dense.V.row(dense.F(f, 1)),
                           c = dense.V.row(dense.F(f, 2));
