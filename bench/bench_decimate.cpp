@@ -195,9 +195,7 @@ int Animated(const std::string& path, int count, double share, bool joints) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int Run(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   if (mode == "speed" && argc >= 4) return Speed(argv[2], std::atoi(argv[3]), argc > 4 ? std::atof(argv[4]) : 2.0);
   if (mode == "target" && argc >= 4) return Target(std::atof(argv[2]), std::vector<std::string>(argv + 3, argv + argc));
@@ -206,9 +204,19 @@ int main(int argc, char** argv) {
                     argc > 5 ? std::string(argv[5]) != "smooth" : true);
   }
   std::fprintf(stderr,
-               
                "usage: %s speed MESH LEVELS [LAMBDA]\n       %s target SHARE MESH [MESH ...]\n"
                "       %s animated MESH [POSES] [SHARE] [joints|smooth]\n",
                argv[0], argv[0], argv[0]);
   return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_decimate: %s\n", e.what());
+    return 1;
+  }
 }
