@@ -23,6 +23,10 @@ node_state() { sinfo --noheader --nodes=node1 --format=%T 2>/dev/null | head -n 
 node_is() { [ "$(node_state)" = "$1" ]; }
 node_down() { [[ $(node_state) == down* ]]; }
 node_responding() { [[ -n $(node_state) && $(node_state) != *'*' ]]; }
+# The controller's agent has no RPC waiting for a retry and no agent thread sending one.
+agents_idle() {
+  sdiag 2>/dev/null | awk '/^Agent queue size:/ { q = $4 } /^Agent count:/ { c = $3 } END { exit !(q == "0" && c == "0") }'
+}
 state_of() { grep -so '"state": "[a-z]*"' "$1"/status/"$2".json | cut -d'"' -f4; }
 # Task I of batch DIR runs and has written at least one smoothed frame into its temporary folder.
 writing() {
@@ -148,6 +152,12 @@ phase "A resubmitted as job $job_a2 ($array)"
 # B: its job is still queued, so resubmit refuses; Slurm's requeue runs the task (released from its hold now).
 if err=$("$rb" batch resubmit "$b" 2>&1); then fail "resubmit of B succeeded while its job $job_b is queued"; fi
 expect_in "$err" "Slurm job $job_b of this batch is still queued or running" "resubmit of B while requeued"
+# When the controller marked the node down it sent the node a terminate for the dead instance of B's job, which
+# failed and waits in its retry list; delivered once slurmd is back, it cancels whatever runs under that job id
+# then ("CANCELLED ... DUE TO NODE FAILURE"), and B's requeued instance would die at its start. So B is released
+# only after the controller has no outgoing message left (sdiag: retry list and agent threads empty).
+wait_for 120 "the controller's retried messages to node1 to be delivered (sdiag: agent queue and threads)" agents_idle
+phase "the controller's messages delivered; B released"
 scontrol update JobId="${job_b}_0" StartTime=now
 
 wait_for 240 "A's job $job_a2 to leave the queue" job_gone "$job_a2"
