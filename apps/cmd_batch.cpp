@@ -40,12 +40,12 @@ void PrintTaskEnd(const BatchTaskStatus& s) {
   std::fflush(stdout);
 }
 
-// After a local run: the counts and failures; exit 3 when a task failed (partial success).
+// After a local run: the counts and failures; exit 3 when a task did not succeed (partial success).
 void FinishLocal(const BatchSubmitSummary& summary) {
   std::printf("%s\n", summary.BriefReport().c_str());
   const BatchReport report = CollectBatchReport(summary.dir);
   std::printf("%s", report.BriefReport().c_str());
-  if (report.failed > 0 || report.missing > 0) SetExitCode(3);
+  if (report.failed > 0 || report.missing > 0 || report.interrupted > 0) SetExitCode(3);
 }
 
 void Submitted(const BatchSubmitSummary& summary) {
@@ -114,7 +114,8 @@ void AddBatch(CLI::App& app) {
     };
     auto a = std::make_shared<Args>();
     CLI::App* sub = batch->add_subcommand(
-        "status", "Counts of succeeded, failed, running and missing tasks of DIR, and each failure's error line");
+        "status",
+        "Counts of succeeded, failed, running, interrupted and missing tasks of DIR, and each failure's error line");
     sub->add_option("DIR", a->dir, "batch folder")->required();
     sub->add_flag("--json", a->json, "print JSON (every task with its status file)");
     sub->callback([a] {

@@ -183,19 +183,13 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
                id, ") or cancel it (scancel ", id, ") before batch resubmit");
     }
   }
+  // Missing, failed and interrupted (a run-task process on this host gone before it recorded an end).
   std::vector<int> indices = report.UnfinishedIndices();
   if (queue_listed) {
-    // No job of the batch is left in the queue, so a task still marked running was killed before it could
-    // write its final status (SIGKILL, a lost node): it is unfinished too.
+    // No job of the batch is left in the queue, so a task still marked running (on another node, where
+    // its process cannot be checked) was killed before it could write its final status: unfinished too.
     for (size_t i = 0; i < report.states.size(); ++i) {
       if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
-    }
-  } else {
-    // A local batch: a task marked running whose run-task process on this host is gone was killed.
-    for (size_t i = 0; i < report.states.size(); ++i) {
-      if (report.states[i] == "running" && report.statuses[i] && RunTaskIsGone(*report.statuses[i])) {
-        indices.push_back(static_cast<int>(i));
-      }
     }
   }
   std::sort(indices.begin(), indices.end());

@@ -38,11 +38,11 @@ struct BatchSubmitSummary {
 BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
                                const BatchSubmitOptions& options);
 
-// Submits exactly the missing and failed tasks of DIR again (a new array, or local workers); when the batch
-// has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running
-// (killed before they could record their end); for a local batch, the tasks marked running whose run-task
-// process on this host is gone (RunTaskIsGone). Throws when none is left, or when squeue lists a job of this
-// batch still queued or running.
+// Submits exactly the missing, failed and interrupted tasks of DIR again (a new array, or local workers;
+// interrupted: marked running, but their run-task process on this host is gone, RunTaskIsGone); when the batch
+// has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running (killed
+// on another node before they could record their end). Throws when none is left, or when squeue lists a job of
+// this batch still queued or running.
 BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options);
 
 // Runs the given tasks of DIR with `workers` processes of `binary batch run-task DIR I` and returns when all

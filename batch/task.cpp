@@ -430,6 +430,8 @@ BatchReport CollectBatchReport(const std::string& dir) {
     if (status) {
       if (status->state == "succeeded") {
         state = fs::is_directory(layout.task_dir(task.index)) ? "succeeded" : "missing";
+      } else if (RunTaskIsGone(*status)) {
+        state = "interrupted";
       } else {
         state = status->state;
       }
@@ -437,6 +439,7 @@ BatchReport CollectBatchReport(const std::string& dir) {
     if (state == "succeeded") ++report.succeeded;
     if (state == "failed") ++report.failed;
     if (state == "running") ++report.running;
+    if (state == "interrupted") ++report.interrupted;
     if (state == "missing") ++report.missing;
     report.states.push_back(state);
     report.statuses.push_back(std::move(status));
@@ -447,7 +450,9 @@ BatchReport CollectBatchReport(const std::string& dir) {
 std::vector<int> BatchReport::UnfinishedIndices() const {
   std::vector<int> indices;
   for (size_t i = 0; i < states.size(); ++i) {
-    if (states[i] == "missing" || states[i] == "failed") indices.push_back(static_cast<int>(i));
+    if (states[i] == "missing" || states[i] == "failed" || states[i] == "interrupted") {
+      indices.push_back(static_cast<int>(i));
+    }
   }
   return indices;
 }
@@ -455,8 +460,17 @@ std::vector<int> BatchReport::UnfinishedIndices() const {
 std::string BatchReport::BriefReport() const {
   std::ostringstream out;
   out << dir << ": " << tasks.size() << " tasks: " << succeeded << " succeeded, " << failed << " failed, "
-      << running << " running, " << missing << " missing\n";
+      << running << " running, ";
+  if (interrupted > 0) out << interrupted << " interrupted, ";
+  out << missing << " missing\n";
   for (size_t i = 0; i < tasks.size(); ++i) {
+    if (states[i] == "interrupted") {
+      const BatchTaskStatus& s = *statuses[i];
+      out << "interrupted: task " << i << " (manifest line " << tasks[i].line_number << ", attempt " << s.attempt
+          << ", started " << s.start_utc << "): its run-task process " << s.pid << " on this host is gone (killed, "
+          << "or the machine restarted) before it recorded an end; unless Slurm requeues its job, 'rangebayes batch "
+          << "resubmit " << dir << "' runs it again\n";
+    }
     if (states[i] != "failed") continue;
     const BatchTaskStatus& s = *statuses[i];
     out << "failed: task " << i << " (manifest line " << tasks[i].line_number << ", exit " << s.exit_code
@@ -473,6 +487,7 @@ std::string BatchReport::Json() const {
   j["succeeded"] = succeeded;
   j["failed"] = failed;
   j["running"] = running;
+  j["interrupted"] = interrupted;
   j["missing"] = missing;
   j["task"] = json::array();
   for (size_t i = 0; i < tasks.size(); ++i) {

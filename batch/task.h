@@ -105,16 +105,18 @@ bool RunTaskIsGone(const BatchTaskStatus& status);
 struct BatchReport {
   std::string dir;
   std::vector<ManifestTask> tasks;
-  // Per task: "succeeded" (status says so and tasks/<index>/ exists), "failed", "running", or "missing"
-  // (never started, or its result folder is gone).
+  // Per task: "succeeded" (status says so and tasks/<index>/ exists), "failed", "running", "interrupted"
+  // (status says running, but it was written by a run-task process on this host that is gone: RunTaskIsGone;
+  // one on another host cannot be checked from here and stays "running"), or "missing" (never started, or
+  // its result folder is gone).
   std::vector<std::string> states;
   std::vector<std::optional<BatchTaskStatus>> statuses;
-  int succeeded = 0, failed = 0, running = 0, missing = 0;
+  int succeeded = 0, failed = 0, running = 0, interrupted = 0, missing = 0;
 
-  // Counts, then one line per failed task with its error line.
+  // Counts, then one line per failed or interrupted task.
   std::string BriefReport() const;
   std::string Json() const;
-  // Indices whose state is missing or failed, ascending.
+  // Indices whose state is missing, failed or interrupted, ascending.
   std::vector<int> UnfinishedIndices() const;
 };
 

@@ -2,6 +2,7 @@
 // runner, and the sbatch command line (with stand-in sbatch/squeue scripts; the real cluster is tested by
 // slurm_cluster_test.sh).
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <signal.h>
 #include <sys/mount.h>
 #include <sys/wait.h>
@@ -269,9 +270,17 @@ TEST(RunTask, KilledMidTaskLeavesNoResultAndAResubmitCompletes) {
 
   EXPECT_FALSE(fs::exists(out + "/tasks/0"));  // nothing half-done is published
   EXPECT_EQ(Entries(out + "/tasks", ".tmp-0-").size(), 1u);
+  // Its status still says running, but the run-task process that wrote it, on this host, is gone.
   const BatchReport killed = CollectBatchReport(out);
-  EXPECT_EQ(killed.states.at(0), "running");
+  EXPECT_EQ(killed.states.at(0), "interrupted");
   EXPECT_EQ(killed.succeeded, 0);
+  EXPECT_EQ(killed.interrupted, 1);
+  EXPECT_EQ(killed.running, 0);
+  EXPECT_NE(killed.BriefReport().find("1 tasks: 0 succeeded, 0 failed, 0 running, 1 interrupted, 0 missing"),
+            std::string::npos)
+      << killed.BriefReport();
+  EXPECT_NE(killed.BriefReport().find("interrupted: task 0 (manifest line 1"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(killed.Json())["interrupted"], 1);
 
   EXPECT_THROW(ResubmitBatch(out, options), Error);  // the job is still listed by squeue
   options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
@@ -311,6 +320,11 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   alive.host = "another-host";
   alive.pid = static_cast<int>(gone);
   EXPECT_FALSE(RunTaskIsGone(alive));  // another machine's process cannot be checked from here
+  EXPECT_EQ(CollectBatchReport(out).states, (std::vector<std::string>{"succeeded", "interrupted"}));
+  WriteBatchTaskStatus(BatchLayout(out), alive);
+  EXPECT_EQ(CollectBatchReport(out).states, (std::vector<std::string>{"succeeded", "running"}));
+  EXPECT_THROW(ResubmitBatch(out, options), Error);  // nothing to resubmit: task 1 may still run elsewhere
+  WriteBatchTaskStatus(BatchLayout(out), killed);
 
   EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
   EXPECT_TRUE(fs::exists(out + "/tasks/1/b.ply"));

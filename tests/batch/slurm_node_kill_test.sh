@@ -116,7 +116,13 @@ for pid in "${rb_cluster_pids[@]}"; do [ "$pid" = "$slurmd_pid" ] || alive+=("$p
 rb_cluster_pids=("${alive[@]}")
 phase "killed slurmd, ${#groups[@]} slurmstepd and their task trees: ${victims[*]}"
 
-"$rb" batch status "$a"
+# The status files still say running; `batch status` finds the run-task processes (on this host) gone.
+status=$("$rb" batch status "$a")
+echo "$status"
+expect_in "$status" "3 tasks: 2 succeeded, 0 failed, 0 running, 1 interrupted, 0 missing" "A after the kill"
+expect_in "$status" "interrupted: task 1 (manifest line 3" "A's interrupted task"
+expect_in "$("$rb" batch status "$b")" "1 tasks: 0 succeeded, 0 failed, 0 running, 1 interrupted, 0 missing" \
+  "B after the kill"
 check_killed "$a" 1
 check_killed "$b" 0
 for i in 0 2; do [ -d "$a"/tasks/$i ] || fail "A's finished task $i lost its result"; done
