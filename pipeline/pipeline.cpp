@@ -702,7 +702,10 @@ class Stages {
                     summary.smooth_iterations_mean);
       std::string notice = line;
       if (std::isfinite(summary.smooth_distance_mean)) {
-        std::snprintf(line, sizeof(line), "distance to the optimum %.2g × E on average (estimated)",
+        // The rate estimate under-reads solves that a budget cut short (2.5–20× on live frames, docs/design.md).
+        std::snprintf(line, sizeof(line),
+                      "distance to the optimum %.2g × E on average (estimated from the rate of decrease; an "
+                      "underestimate where the budget stopped the solve)",
                       summary.smooth_distance_mean);
         notice += line;
       } else {
