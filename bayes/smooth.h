@@ -137,8 +137,11 @@ struct SmoothSummary {
   int iterations = 0;
   int evaluations = 0;             // energy + gradient evaluations
   std::vector<double> energy;      // energy[0] at the start, then after each iteration
-  // E − E* at the end, estimated from the rate at which the energy fell over the last 20 iterations (a linear
-  // rate extrapolated; over all iterations when fewer ran); infinity before 4 iterations. A budget or iteration cap that stops early shows here.
+  // E − E* at the end, estimated from the rate at which the energy fell: the decrease over the last 10
+  // iterations against the 10 before, a linear rate extrapolated (windows of half the iterations when fewer
+  // than 20 ran, and then at least the decrease over the last window); infinity before 4 iterations. A budget or
+  // iteration cap that stops early shows here, as an estimate that can read several times too low
+  // (docs/design.md, "Stopping").
   double remaining_decrease = std::numeric_limits<double>::infinity();
   double data_energy = 0;          // final parts
   double prior_energy = 0;

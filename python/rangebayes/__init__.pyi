@@ -82,6 +82,7 @@ class SmoothSummary:
     prior_energy: float
     initial_gradient_norm: float
     final_gradient_norm: float
+    remaining_decrease: float
     termination: str
     time_s: float
     flipped_faces: int

@@ -156,6 +156,8 @@ void BindBayes(py::module_& m) {
       .def_readonly("prior_energy", &SmoothSummary::prior_energy)
       .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
       .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
+      .def_readonly("remaining_decrease", &SmoothSummary::remaining_decrease,
+                    "E − E* at the end, estimated from the rate of decrease (inf: fewer than 4 iterations)")
       .def_property_readonly("termination", [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
       .def_readonly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
       .def_readonly("flipped_faces", &SmoothSummary::flipped_faces)

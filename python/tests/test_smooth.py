@@ -1,5 +1,6 @@
 """smooth(): the CLI's result byte for byte, keyword validation, errors, progress, the GIL."""
 
+import math
 import subprocess
 
 import numpy as np
@@ -32,6 +33,9 @@ def test_same_bytes_as_the_cli(tmp_path, cli, trim_star, flags, kwargs):
     assert py_out.read_bytes() == cli_out.read_bytes()
     assert summary.iterations > 0
     assert "iterations" in summary.brief_report()
+    # The distance estimate the CLI prints ("distance: E - E* estimated ...").
+    assert summary.remaining_decrease >= 0 and math.isfinite(summary.remaining_decrease)
+    assert f"estimated {summary.remaining_decrease:.3g} " in summary.brief_report()
 
 
 def test_file_covariances_are_used_like_the_cli(tmp_path, cli, trim_star):
