@@ -231,9 +231,8 @@ RB_AVX512_KERNEL void NormalsAvx512(const double* x, const int* faces, const cha
 }
 
 // Pass 3's gather for vertices [begin, end): per corner the contribution h_t × e_k formed from the face's h_t
-// (3 doubles, where the portable pass stores the three products: 9) and two positions, its three components
-// in one ymm register, added in corner order; the data term as the portable loop computes it. Returns `sum`
-// plus the vertices' data terms added one after another.
+// and two positions, its three components in one ymm register, added in corner order; the data term as the
+// portable loop computes it. Returns `sum` plus the vertices' data terms added one after another.
 RB_AVX512_KERNEL double GatherAvx512(const double* x, const double* z, const double* information, bool isotropic,
                                      const int* corner_offsets, const int* corners, const int* corner_edges,
                                      const double* h_t, int begin, int end, double* grad, double sum, double nu) {
@@ -380,9 +379,8 @@ SmoothingEnergy::SmoothingEnergy(const Mesh& measured, const std::vector<Eigen::
   BuildFaceNeighbours();
   normals_.assign(3 * static_cast<size_t>(nf), 0.0);
   inverse_length_.assign(static_cast<size_t>(nf), 0.0);
-  // 3 per face for the wide square-root path; Evaluate grows it to 9 when it runs the portable one.
-  h_.assign((WideSquareRoot() ? 3 : 9) * static_cast<size_t>(nf), 0.0);
-  if (WideSquareRoot()) BuildCornerEdges();
+  h_.assign((ThreePerFace() ? 3 : 9) * static_cast<size_t>(nf), 0.0);
+  if (ThreePerFace()) BuildCornerEdges();
 }
 
 void SmoothingEnergy::SetFaceEpsilonSquared(const std::vector<double>& face_epsilon_squared) {
@@ -546,9 +544,8 @@ void SmoothingEnergy::BuildCornerEdges() const {
   });
 }
 
-bool SmoothingEnergy::WideSquareRoot() const {
-  return ActiveIsa() != Isa::kPortable &&
-         (!face_epsilon_squared_.empty() || dynamic_cast<const SqrtPotential*>(potential_) != nullptr);
+bool SmoothingEnergy::ThreePerFace() const {
+  return !face_epsilon_squared_.empty() || dynamic_cast<const SqrtPotential*>(potential_) != nullptr;
 }
 
 Eigen::VectorXd SmoothingEnergy::Measurements() const { return z_; }
@@ -617,15 +614,13 @@ EnergyParts SmoothingEnergy::Evaluate(const Eigen::VectorXd& x_vector, Eigen::Ve
 }
 
 // Pass 2: per face t, half of each pair's potential (both faces of a pair count it), then, for the gradient,
-// h_t = β P_t g_t / |c_t| with g_t = Σ_s w_ts (n_t − n_s), and the face's three corner contributions
-// h_t × e_k (e_k the edge opposite corner k) into h_[9t + 3k ..], or h_t alone on the wide path.
+// h_t = β P_t g_t / |c_t| with g_t = Σ_s w_ts (n_t − n_s): h_t alone into h_[3t ..] for the square root
+// (ThreePerFace), else the face's three corner contributions h_t × e_k (e_k the edge opposite corner k) into
+// h_[9t + 3k ..].
 double SmoothingEnergy::PriorPass(const double* x, bool want_gradient) const {
-  const int nf = num_faces();
-  // The wide path keeps 3 doubles per face in h_ (h_t), the portable one 9 (the three products).
-  const bool wide = WideSquareRoot();
-  if (want_gradient && !wide && h_.size() < 9 * static_cast<size_t>(nf)) h_.resize(9 * static_cast<size_t>(nf));
 #if RB_SMOOTHING_AVX512
-  if (wide) {
+  if (ThreePerFace() && ActiveIsa() == Isa::kAvx512) {
+    const int nf = num_faces();
     const auto* sqrt_potential = dynamic_cast<const SqrtPotential*>(potential_);
     const SqrtFacePassInput input{x,
                                   faces_.data(),
@@ -654,14 +649,27 @@ double SmoothingEnergy::PortablePriorPass(const double* x, bool want_gradient) c
   const double beta = prior_weight_;
   const FaceNeighbours graph{neighbour_offsets_.data(), neighbours_.data(), normals_.data()};
   // The pair kernel is a template argument so the square root (the default) is inlined; other potentials go
-  // through the virtual call.
+  // through the virtual call. The square root keeps h_t alone (the gather forms the corner products: a third of
+  // the memory traffic), other potentials the three products.
+  const bool h_only = ThreePerFace();
   auto face_pass = [&](auto neighbour_sum) {
     return DeterministicSum(nf, [&](int t) {
       const double* nt = &normals_[3 * static_cast<size_t>(t)];
       double sums[4] = {0, 0, 0, 0};
       neighbour_sum(t, nt, sums);
       const double energy = sums[0], gx = sums[1], gy = sums[2], gz = sums[3];
-      if (want_gradient) {
+      if (want_gradient && h_only) {
+        double* out = &h_[3 * static_cast<size_t>(t)];
+        const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
+        if (inv == 0) {
+          out[0] = out[1] = out[2] = 0;
+        } else {
+          const double ng = nt[0] * gx + nt[1] * gy + nt[2] * gz;
+          out[0] = (gx - nt[0] * ng) * inv;
+          out[1] = (gy - nt[1] * ng) * inv;
+          out[2] = (gz - nt[2] * ng) * inv;
+        }
+      } else if (want_gradient) {
         double* out = &h_[9 * static_cast<size_t>(t)];
         const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
         if (inv == 0) {
@@ -707,8 +715,7 @@ double SmoothingEnergy::DataPass(const double* x, double* grad) const {
   const int nv = num_vertices_;
   const double* contributions = h_.data();
 #if RB_SMOOTHING_AVX512
-  if (WideSquareRoot()) {
-    if (corner_edges_.size() != 2 * corners_.size()) BuildCornerEdges();  // the kernel switched after construction
+  if (ThreePerFace() && ActiveIsa() == Isa::kAvx512) {
     return tbb::parallel_deterministic_reduce(
         tbb::blocked_range<int>(0, nv, kGrain), 0.0,
         [&](const tbb::blocked_range<int>& r, double sum) {
@@ -719,6 +726,7 @@ double SmoothingEnergy::DataPass(const double* x, double* grad) const {
   }
 #endif
   const double nu = data_nu_;
+  const bool h_only = ThreePerFace();
   return DeterministicSum(nv, [&](int i) {
     double w[6];
     Information(i, w);
@@ -731,11 +739,24 @@ double SmoothingEnergy::DataPass(const double* x, double* grad) const {
     if (grad != nullptr) {
       double sx = nu > 0 ? 2 * wx * f : 2 * wx, sy = nu > 0 ? 2 * wy * f : 2 * wy, sz = nu > 0 ? 2 * wz * f : 2 * wz;
       const int end = corner_offsets_[i + 1];
-      for (int q = corner_offsets_[i]; q < end; ++q) {
-        const double* c = contributions + 3 * static_cast<size_t>(corners_[static_cast<size_t>(q)]);
-        sx += c[0];
-        sy += c[1];
-        sz += c[2];
+      if (h_only) {
+        // Corner k of face t: h_t × (p_(k+2) − p_(k+1)), the operations of the 9-per-face products below.
+        for (int q = corner_offsets_[i]; q < end; ++q) {
+          const double* h = contributions + 3 * static_cast<size_t>(corners_[static_cast<size_t>(q)] / 3);
+          const double* p1 = x + 3 * static_cast<size_t>(corner_edges_[2 * static_cast<size_t>(q)]);
+          const double* p2 = x + 3 * static_cast<size_t>(corner_edges_[2 * static_cast<size_t>(q) + 1]);
+          const double ex = p2[0] - p1[0], ey = p2[1] - p1[1], ez = p2[2] - p1[2];
+          sx += h[1] * ez - h[2] * ey;
+          sy += h[2] * ex - h[0] * ez;
+          sz += h[0] * ey - h[1] * ex;
+        }
+      } else {
+        for (int q = corner_offsets_[i]; q < end; ++q) {
+          const double* c = contributions + 3 * static_cast<size_t>(corners_[static_cast<size_t>(q)]);
+          sx += c[0];
+          sy += c[1];
+          sz += c[2];
+        }
       }
       grad[3 * i] = sx;
       grad[3 * i + 1] = sy;

@@ -150,8 +150,9 @@ class SmoothingEnergy {
   double PriorPass(const double* x, bool want_gradient) const;
   double PortablePriorPass(const double* x, bool want_gradient) const;
   double DataPass(const double* x, double* grad) const;
-  // Evaluate runs the wide square-root kernels (h_ then holds h_t, 3 per face).
-  bool WideSquareRoot() const;
+  // h_ holds h_t alone (3 per face) and the vertex gather forms the corner products: the square-root potential
+  // (global or per-face ε²), on either kernel. Other potentials keep the three products (9 per face).
+  bool ThreePerFace() const;
   // ε² of pair (t, s) for the square root (the global one, or the mean of the two faces'); 0 for other potentials.
   double PairEpsilonSquared(const SqrtPotential* sqrt_potential, int t, int s) const;
   void BuildCornerEdges() const;
