@@ -46,6 +46,7 @@ struct PipelineCli {
   int stereo_downsample = 0;  // 0: 1, or 2 with --live-path
   bool no_smooth = false;
   double smooth_budget_ms = -1.0;  // < 0: none, or kLiveSmoothBudgetMs with --live-path
+  bool no_warm_start = false;
   std::string tolerance = "default";
   std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
   std::string prior_file;  // a learned prior (rangebayes learn-prior); empty: the square root
@@ -96,6 +97,9 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): a deadline; the summary says how far from converged it stopped "
                   "(-1: no budget, or 80 with --live-path)");
+  sub->add_flag("--no-warm-start", o->no_warm_start,
+                "Under a smoothing budget, solve every frame from its measurements instead of starting where the "
+                "previous result agrees with them");
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
@@ -136,6 +140,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.triangulate.downsample = o.downsample;
   p.stereo_downsample = o.stereo_downsample > 0 ? o.stereo_downsample : 1;
   p.smooth_budget_ms = std::max(0.0, o.smooth_budget_ms);
+  p.smooth_warm_start = !o.no_warm_start;
   p.smooth = !o.no_smooth;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
   std::optional<LearnedPrior> prior;

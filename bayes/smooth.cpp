@@ -6,6 +6,7 @@
 #include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
@@ -17,6 +18,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <unordered_map>
 
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/grid_hierarchy.h"
@@ -984,5 +986,49 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
 }
 
 }  // namespace
+
+}  // namespace rangebayes
+
+namespace rangebayes {
+
+int StartFromEarlierResult(const NoisyMesh& noisy,
+                           const Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor>& previous_pixel,
+                           const Vertices& previous_positions, double max_sigmas, Vertices* start) {
+  RB_CHECK(previous_pixel.rows() == previous_positions.rows(), "warm start: ", previous_pixel.rows(),
+           " earlier pixels for ", previous_positions.rows(), " earlier positions");
+  RB_CHECK(max_sigmas > 0.0 && std::isfinite(max_sigmas), "warm start: max_sigmas ", max_sigmas, " must be > 0");
+  *start = noisy.mesh.V;
+  const int nv = noisy.mesh.num_vertices();
+  if (noisy.pixel.rows() != nv || !noisy.has_covariance() || previous_pixel.rows() == 0) return 0;
+  auto key = [](float x, float y) {
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::lround(x))) << 32) |
+           static_cast<std::uint32_t>(std::lround(y));
+  };
+  auto usable = [](float x, float y) {
+    return std::isfinite(x) && std::isfinite(y) && x >= 0 && y >= 0 && x < 4e9f && y < 4e9f;
+  };
+  std::unordered_map<std::uint64_t, int> earlier;
+  earlier.reserve(static_cast<size_t>(previous_pixel.rows()));
+  for (int j = 0; j < previous_pixel.rows(); ++j) {
+    const float x = previous_pixel(j, 0), y = previous_pixel(j, 1);
+    if (usable(x, y)) earlier.emplace(key(x, y), j);
+  }
+  const double gate = max_sigmas * max_sigmas;
+  int taken = 0;
+  for (int i = 0; i < nv; ++i) {
+    if (!usable(noisy.pixel(i, 0), noisy.pixel(i, 1))) continue;
+    const auto found = earlier.find(key(noisy.pixel(i, 0), noisy.pixel(i, 1)));
+    if (found == earlier.end()) continue;
+    const Eigen::Vector3d p = previous_positions.row(found->second).transpose();
+    const Eigen::Vector3d r = p - noisy.mesh.V.row(i).transpose();
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(noisy.covariance[static_cast<size_t>(i)]);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) continue;
+    const double q = r.dot(ldlt.solve(r));
+    if (!(q <= gate)) continue;  // also skips NaN
+    start->row(i) = p.transpose();
+    ++taken;
+  }
+  return taken;
+}
 
 }  // namespace rangebayes

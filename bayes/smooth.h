@@ -182,3 +182,16 @@ bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
 
 }  // namespace rangebayes
+
+namespace rangebayes {
+
+// A start for the smoother on an organized mesh from an earlier result at the same pixels (successive frames of
+// a live run): each vertex of `noisy` whose pixel the earlier mesh also has starts at the earlier position when
+// that lies within max_sigmas of its measurement under its covariance (Mahalanobis distance); the others start at
+// their measurements. Fills *start (#V×3) and returns how many vertices took the earlier position (0 when
+// `noisy` has no pixels or covariances). previous_pixel and previous_positions: one row per earlier vertex.
+int StartFromEarlierResult(const NoisyMesh& noisy,
+                           const Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor>& previous_pixel,
+                           const Vertices& previous_positions, double max_sigmas, Vertices* start);
+
+}  // namespace rangebayes

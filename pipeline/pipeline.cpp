@@ -185,6 +185,10 @@ cv::Mat Shrink(const cv::Mat& image, int factor) {
   return out;
 }
 
+// The gate of a warm start (PipelineOptions::smooth_warm_start): the previous result counts at a vertex within
+// this many standard deviations of its new measurement (Mahalanobis distance under its covariance).
+constexpr double kWarmStartSigmas = 3.0;
+
 // What the smoothing stage did, for the summary (written by the smooth stage only, read after the join).
 struct SmoothTally {
   int smoothed = 0;
@@ -192,6 +196,7 @@ struct SmoothTally {
   double ms_per_iteration_sum = 0.0;
   int timed = 0;
   int time_limited = 0;
+  int warm_started = 0;
   double distance_sum = 0.0;  // relative E − E* estimates, over results with a finite one
   int distances = 0;
 };
@@ -577,20 +582,38 @@ class Stages {
       if (options.smooth_budget_ms > 0) smoothing.precondition_rays = false;
       // The budget is a deadline for the whole solve (stages and levels included): it buys the most converged
       // result it can, and the summary says how far from converged it stopped.
-      // What the solve spends beyond its limit (setup, the iteration running at the deadline) is learned from
-      // the frames before (a running mean) and taken off the next limit, so the stage keeps to the budget; the
-      // limit never drops below a quarter of the budget.
+      // What the stage spends beyond the solve's limit (the warm start below, the solve's setup, the iteration
+      // running at the deadline) is learned from the frames before (a running mean) and taken off the next limit,
+      // so the stage keeps to the budget; the limit never drops below a quarter of the budget.
+      const Clock::time_point stage_start = Clock::now();
       const double budget_ms = item.settings.smooth_budget_ms;
       double limit_ms = 0;
       if (budget_ms > 0.0) {
         limit_ms = std::max(0.25 * budget_ms, budget_ms - smooth_overrun_ms);
         smoothing.time_limit_s = 1e-3 * limit_ms;
       }
-      SmoothSummary ss;
-      item.result.smoothed = Smooth(item.result.raw_mesh, smoothing, &ss);
-      if (budget_ms > 0.0) {
-        smooth_overrun_ms = 0.7 * smooth_overrun_ms + 0.3 * std::max(0.0, 1000.0 * ss.time_s - limit_ms);
+      // A static scene's previous result is nearly this frame's: start there where it agrees with the new
+      // measurements (options.smooth_warm_start).
+      Vertices start;
+      const NoisyMesh& raw = item.result.raw_mesh;
+      if (budget_ms > 0.0 && options.smooth_warm_start && earlier_positions.rows() > 0) {
+        const int taken = StartFromEarlierResult(raw, earlier_pixel, earlier_positions, kWarmStartSigmas, &start);
+        if (2 * taken >= raw.mesh.num_vertices()) {
+          smoothing.initial_positions = &start;
+          item.result.smooth_warm_vertices = taken;
+        }
       }
+      SmoothSummary ss;
+      item.result.smoothed = Smooth(raw, smoothing, &ss);
+      if (budget_ms > 0.0) {
+        const double stage_ms = std::chrono::duration<double, std::milli>(Clock::now() - stage_start).count();
+        smooth_overrun_ms = 0.7 * smooth_overrun_ms + 0.3 * std::max(0.0, stage_ms - limit_ms);
+        if (options.smooth_warm_start) {
+          earlier_pixel = raw.pixel;
+          earlier_positions = item.result.smoothed->V;
+        }
+      }
+      smooth_tally.warm_started += item.result.smooth_warm_vertices > 0 ? 1 : 0;
       item.result.smooth_iterations = ss.iterations;
       item.result.smooth_time_limited = ss.termination == SmoothTermination::kTimeLimit;
       item.result.smooth_distance =
@@ -687,6 +710,7 @@ class Stages {
     if (smooth_tally.smoothed > 0) {
       summary.smooth_iterations_mean = smooth_tally.iterations_sum / smooth_tally.smoothed;
       summary.smooth_time_limited = smooth_tally.time_limited;
+      summary.smooth_warm_started = smooth_tally.warm_started;
     }
     if (smooth_tally.timed > 0) {
       summary.smooth_ms_per_iteration_mean = smooth_tally.ms_per_iteration_sum / smooth_tally.timed;
@@ -697,9 +721,9 @@ class Stages {
       char line[300];
       std::snprintf(line, sizeof(line),
                     "smoothing budget %.0f ms per frame: %d of %d results stopped by it, %.1f iterations of the final "
-                    "solve per result, ",
+                    "solve per result, %d started from the previous result, ",
                     options.smooth_budget_ms, smooth_tally.time_limited, smooth_tally.smoothed,
-                    summary.smooth_iterations_mean);
+                    summary.smooth_iterations_mean, smooth_tally.warm_started);
       std::string notice = line;
       if (std::isfinite(summary.smooth_distance_mean)) {
         // The rate estimate under-reads solves that a budget cut short (2.5–20× on live frames, docs/design.md).
@@ -759,6 +783,9 @@ class Stages {
   int range_end_results = 0;
   double range_end_max = 0.0;
   double smooth_overrun_ms = 0.0;  // smooth stage only: mean time a budgeted solve ran past its limit
+  // Smooth stage only: the last budgeted result (pixels and smoothed positions), where the next frame starts.
+  Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> earlier_pixel;
+  Vertices earlier_positions;
   double latency_sum_ms = 0.0;   // sink stage only
   std::int64_t frames_done = 0;  // sink stage only
 };
@@ -832,6 +859,7 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["smooth_iterations_mean"] = summary.smooth_iterations_mean;
   j["smooth_ms_per_iteration_mean"] = summary.smooth_ms_per_iteration_mean;
   j["smooth_time_limited"] = summary.smooth_time_limited;
+  j["smooth_warm_started"] = summary.smooth_warm_started;
   if (std::isfinite(summary.smooth_distance_mean)) j["smooth_distance_mean"] = summary.smooth_distance_mean;
   j["source_stats"] = {{"frames_delivered", summary.source_stats.frames_delivered},
                        {"frames_skipped", summary.source_stats.frames_skipped},

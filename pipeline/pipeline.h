@@ -62,6 +62,7 @@ struct PipelineResult {
   int smooth_iterations = 0;
   bool smooth_time_limited = false;
   double smooth_distance = 0.0;
+  int smooth_warm_vertices = 0;  // vertices that started from the previous result (0: solved from the measurements)
 };
 
 // Receives finished results in frame order (from the sink thread; one call at a time).
@@ -100,6 +101,11 @@ struct PipelineOptions {
   // there with the most converged result it reached and says how far from converged (PipelineResult). Results
   // then depend on timing.
   double smooth_budget_ms = 0.0;
+  // Under a budget, each frame's solve starts where the previous result lies at the same pixel, wherever that is
+  // within 3σ of the new measurement (StartFromEarlierResult), if that holds for at least half the vertices; else
+  // from the measurements, with the ε continuation. A static scene's results then keep converging from frame to
+  // frame (BENCHMARKS.md "Smoothing on real stereo", target 3). Without a budget every frame is solved cold.
+  bool smooth_warm_start = true;
   bool decimate = true;              // run Bayesian decimation (bayes/decimation/decimate.h) on the smoothed mesh
   DecimateOptions decimation;
   int max_consecutive_timeouts = 50; // ≥ 1: a live source that stalls this long ends the run
@@ -164,6 +170,7 @@ struct PipelineSummary {
   double smooth_ms_per_iteration_mean = 0.0;  // smoothing time (setup excluded) per iteration of the final solve
                                               // (continuation stages included in the time), mean over results
   int smooth_time_limited = 0;       // results the budget stopped
+  int smooth_warm_started = 0;       // results whose solve started from the previous result
   double smooth_distance_mean = 0.0; // mean estimated distance to the optimum, relative to E (NaN: unknown)
 
   // The source, the counts, a table of the stages, then notices, errors and a stop request, one per line.

@@ -273,6 +273,7 @@ class PipelineResult:
     smooth_iterations: int
     smooth_time_limited: bool
     smooth_distance: float
+    smooth_warm_vertices: int
 
 class StageTiming:
     name: str
@@ -298,6 +299,7 @@ class PipelineSummary:
     latency_mean_ms: float
     smooth_iterations_mean: float
     smooth_time_limited: int
+    smooth_warm_started: int
     smooth_distance_mean: float
 
 PIPELINE_OPTIONS: dict[str, Any]

@@ -157,7 +157,9 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       .def_readonly("smooth_iterations", &PipelineResult::smooth_iterations, "iterations of the final solve")
       .def_readonly("smooth_time_limited", &PipelineResult::smooth_time_limited, "the smoothing budget stopped it")
       .def_readonly("smooth_distance", &PipelineResult::smooth_distance,
-                    "estimated distance to the optimum, relative to E (inf: unknown)");
+                    "estimated distance to the optimum, relative to E (inf: unknown)")
+      .def_readonly("smooth_warm_vertices", &PipelineResult::smooth_warm_vertices,
+                    "vertices that started from the previous result (0: solved from the measurements)");
 
   py::class_<StageTiming>(m, "StageTiming")
       .def_readonly("name", &StageTiming::name)
@@ -182,6 +184,8 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       .def_readonly("latency_mean_ms", &PipelineSummary::latency_mean_ms, "capture-to-result time per result, ms")
       .def_readonly("smooth_iterations_mean", &PipelineSummary::smooth_iterations_mean)
       .def_readonly("smooth_time_limited", &PipelineSummary::smooth_time_limited, "results the budget stopped")
+      .def_readonly("smooth_warm_started", &PipelineSummary::smooth_warm_started,
+                    "results whose solve started from the previous result")
       .def_readonly("smooth_distance_mean", &PipelineSummary::smooth_distance_mean,
                     "mean estimated distance to the optimum, relative to E (NaN: unknown)");
 

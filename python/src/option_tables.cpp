@@ -158,6 +158,7 @@ const FieldTable<PipelineOptions>& PipelineOptionFields() {
       RB_PY_FIELD(PipelineOptions, stereo_downsample),
       RB_PY_FIELD(PipelineOptions, smooth),
       RB_PY_FIELD(PipelineOptions, smooth_budget_ms),
+      RB_PY_FIELD(PipelineOptions, smooth_warm_start),
       RB_PY_FIELD(PipelineOptions, decimate),
   };
   return table;

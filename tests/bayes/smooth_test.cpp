@@ -459,5 +459,50 @@ TEST(Smooth, DistanceEstimateNeverExceedsWhatTheEnergyCanLose) {
   }
 }
 
+// A warm start for the next frame of a live run: the earlier result counts at a pixel both meshes have, and only
+// where it lies within the gate of the new measurement under its covariance.
+TEST(Smooth, StartFromEarlierResultTakesAgreeingPixelsOnly) {
+  const int width = 6, height = 5;
+  const double sigma_ray = 0.01, sigma_lat = 0.001;
+  const NoisyMesh now = testing::RangeGrid(width, height, sigma_ray, sigma_lat, 3);
+  const int nv = now.mesh.num_vertices();
+  // The earlier mesh in another vertex order: its vertex j stands at now's pixel of vertex j − 1 (so now's last
+  // column has no earlier vertex, and the earlier vertex 0 stands at pixel (−1, 0), which none has). Its
+  // positions lie 2σ along the ray from now's measurements, except at now's vertex 8 (4σ along the ray) and 9 (2
+  // ray σ across the ray, 20 lateral σ).
+  Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> pixel(nv, 2);
+  Vertices earlier(nv, 3);
+  pixel.row(0) << -1.0f, 0.0f;
+  earlier.row(0) = now.mesh.V.row(0);
+  for (int j = 1; j < nv; ++j) {
+    const int i = j - 1;
+    pixel.row(j) = now.pixel.row(i);
+    const Eigen::Vector3d p = now.mesh.V.row(i).transpose();
+    const Eigen::Vector3d r = p.normalized();
+    Eigen::Vector3d moved = p + 2 * sigma_ray * r;
+    if (i == 8) moved = p + 4 * sigma_ray * r;
+    if (i == 9) moved = p + 2 * sigma_ray * r.unitOrthogonal();
+    earlier.row(j) = moved.transpose();
+  }
+  Vertices start;
+  const int taken = StartFromEarlierResult(now, pixel, earlier, 3.0, &start);
+  for (int i = 0; i < nv; ++i) {
+    const bool takes = i != nv - 1 && i != 8 && i != 9;
+    const Eigen::RowVector3d want =
+        takes ? Eigen::RowVector3d(earlier.row(i + 1)) : Eigen::RowVector3d(now.mesh.V.row(i));
+    EXPECT_EQ(start.row(i), want) << "vertex " << i;
+  }
+  EXPECT_EQ(taken, nv - 3);
+  // A gate of 5σ takes vertex 8 too; no pixels, nothing taken; mismatched inputs and a bad gate are errors.
+  EXPECT_EQ(StartFromEarlierResult(now, pixel, earlier, 5.0, &start), nv - 2);
+  NoisyMesh no_pixels = now;
+  no_pixels.pixel.resize(0, 2);
+  EXPECT_EQ(StartFromEarlierResult(no_pixels, pixel, earlier, 3.0, &start), 0);
+  EXPECT_EQ(start, no_pixels.mesh.V);
+  const Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> three = pixel.topRows(3);
+  EXPECT_THROW(StartFromEarlierResult(now, three, earlier, 3.0, &start), Error);
+  EXPECT_THROW(StartFromEarlierResult(now, pixel, earlier, 0.0, &start), Error);
+}
+
 }  // namespace
 }  // namespace rangebayes
