@@ -987,10 +987,6 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
 
 }  // namespace
 
-}  // namespace rangebayes
-
-namespace rangebayes {
-
 int StartFromEarlierResult(const NoisyMesh& noisy,
                            const Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor>& previous_pixel,
                            const Vertices& previous_positions, double max_sigmas, Vertices* start) {

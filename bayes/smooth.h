@@ -181,10 +181,6 @@ bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3
 // The same; throws Error when Σ is not finite and positive definite.
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
 
-}  // namespace rangebayes
-
-namespace rangebayes {
-
 // A start for the smoother on an organized mesh from an earlier result at the same pixels (successive frames of
 // a live run): each vertex of `noisy` whose pixel the earlier mesh also has starts at the earlier position when
 // that lies within max_sigmas of its measurement under its covariance (Mahalanobis distance); the others start at
