@@ -468,8 +468,8 @@ TEST(Smooth, StartFromEarlierResultTakesAgreeingPixelsOnly) {
   const int nv = now.mesh.num_vertices();
   // The earlier mesh in another vertex order: its vertex j stands at now's pixel of vertex j − 1 (so now's last
   // column has no earlier vertex, and the earlier vertex 0 stands at pixel (−1, 0), which none has). Its
-  // positions lie 2σ along the ray from now's measurements, except at now's vertex 8 (4σ along the ray) and 9 (2
-  // ray σ across the ray, 20 lateral σ).
+  // positions lie 2σ_ray along the ray from now's measurements, except at now's vertex 8 (4σ_ray along the ray)
+  // and 9 (2σ_ray across the ray: 20σ_lat).
   Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> pixel(nv, 2);
   Vertices earlier(nv, 3);
   pixel.row(0) << -1.0f, 0.0f;
