@@ -195,7 +195,7 @@ int Animated(const std::string& path, int count, double share, bool joints) {
   return 0;
 }
 
-int Run(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   if (mode == "speed" && argc >= 4) return Speed(argv[2], std::atoi(argv[3]), argc > 4 ? std::atof(argv[4]) : 2.0);
   if (mode == "target" && argc >= 4) return Target(std::atof(argv[2]), std::vector<std::string>(argv + 3, argv + argc));
@@ -212,11 +212,12 @@ int Run(int argc, char** argv) {
 
 }  // namespace
 
+// Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
 int main(int argc, char** argv) {
   try {
-    return Run(argc, argv);
+    return RunBench(argc, argv);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_decimate: %s\n", e.what());
+    std::fprintf(stderr, "bench_decimate: error: %s\n", e.what());
     return 1;
   }
 }

@@ -265,15 +265,7 @@ namespace rangebayes {
 namespace {
 
 double EnergyOf(const NoisyMesh& noisy, const Mesh& result, const SmoothOptions& options) {
-  // Evaluate E at `result` by a zero-iteration solve started there.
-  SmoothOptions probe = options;
-  probe.adaptive_epsilon = false;
-  probe.multilevel = false;
-  probe.max_iterations = 1;
-  probe.initial_positions = &result.V;
-  SmoothSummary summary;
-  Smooth(noisy, probe, &summary);
-  return summary.energy.front();
+  return testing::EnergyOf(noisy, result.V, options);
 }
 
 // A range image with ray-aligned covariances (σ_ray / σ_lat = 30, as stereo meshes bring): the default ends within

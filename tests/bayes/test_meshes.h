@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "bayes/smooth.h"
 #include "core/mesh.h"
 
 namespace rangebayes::testing {
@@ -80,6 +81,19 @@ inline NoisyMesh RangeGrid(int width, int height, double sigma_ray_m, double sig
     }
   }
   return out;
+}
+
+// E at positions x under the energy that `options` define for `noisy`, read from a one-iteration solve started
+// there (its first recorded energy; no adaptive-ε pre-pass, one grid level).
+inline double EnergyOf(const NoisyMesh& noisy, const Vertices& x, const SmoothOptions& options) {
+  SmoothOptions probe = options;
+  probe.adaptive_epsilon = false;
+  probe.multilevel = false;
+  probe.max_iterations = 1;
+  probe.initial_positions = &x;
+  SmoothSummary summary;
+  Smooth(noisy, probe, &summary);
+  return summary.energy.front();
 }
 
 }  // namespace rangebayes::testing

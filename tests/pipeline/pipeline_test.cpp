@@ -15,6 +15,7 @@
 #include "core/error.h"
 #include "pipeline/file_sink.h"
 #include "stereo/synth.h"
+#include "tests/bayes/test_meshes.h"
 #include "tests/capture/test_util.h"
 #include "tests/pipeline/pipeline_test_util.h"
 
@@ -299,7 +300,8 @@ TEST(Pipeline, SmoothBudgetStopsTheSolve) {
 // Under a budget, a static scene's frames start where the previous result agrees with them, so the results keep
 // converging from frame to frame. The budget here never binds: a cap of 5 iterations per frame stands in for it,
 // so the run is deterministic, and both runs solve each frame in one stage (no ε continuation, one grid level),
-// so they spend the same iterations per frame. Compared by each result's energy under its own frame's data.
+// so they spend the same iterations per frame. Compared by each result's energy under its own frame's data (the
+// pipeline's: no adaptive ε, as EnergyOf reads it; the ray preconditioner changes the path, not the energy).
 TEST(Pipeline, WarmStartKeepsAStaticSceneConverging) {
   const TempDir dir("pipe_warm");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 8));
@@ -309,18 +311,6 @@ TEST(Pipeline, WarmStartKeepsAStaticSceneConverging) {
   options.smoothing.max_iterations = 5;
   options.smoothing.epsilon_continuation_stages = 0;
   options.smoothing.multilevel = false;
-  // E at x under frame r's energy (the pipeline's: no adaptive ε, no ray preconditioner under a budget), from a
-  // one-iteration solve started there.
-  auto energy_at = [&](const PipelineResult& r, const Vertices& x) {
-    SmoothOptions probe = options.smoothing;
-    probe.adaptive_epsilon = false;
-    probe.precondition_rays = false;
-    probe.max_iterations = 1;
-    probe.initial_positions = &x;
-    SmoothSummary summary;
-    Smooth(r.raw_mesh, probe, &summary);
-    return summary.energy.front();
-  };
   std::vector<std::vector<double>> energy(2);  // per run (warm, cold), per frame
   for (const bool warm : {true, false}) {
     PlaybackSource source(rec);
@@ -336,7 +326,7 @@ TEST(Pipeline, WarmStartKeepsAStaticSceneConverging) {
       } else {
         EXPECT_EQ(r.smooth_warm_vertices, 0) << k;
       }
-      energy[warm ? 0 : 1].push_back(energy_at(r, r.smoothed->V));
+      energy[warm ? 0 : 1].push_back(testing::EnergyOf(r.raw_mesh, r.smoothed->V, options.smoothing));
     }
     EXPECT_EQ(s.smooth_warm_started, warm ? 7 : 0);
   }
