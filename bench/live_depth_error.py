@@ -28,8 +28,14 @@ def read_pfm(path):
 def main():
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    truth = read_pfm(os.path.join(sys.argv[1], 'ground_truth', 'depth_left_m.pfm'))
+    truth_path = os.path.join(sys.argv[1], 'ground_truth', 'depth_left_m.pfm')
+    try:
+        truth = read_pfm(truth_path)
+    except (OSError, ValueError) as e:
+        sys.exit(f'live_depth_error: error: {truth_path}: {e}')
     for out in sys.argv[2:]:
+        if not os.path.isdir(os.path.join(out, 'smoothed')):
+            sys.exit(f'live_depth_error: error: {out}/smoothed is not a folder (an output of rangebayes replay?)')
         rows = []
         for name in sorted(os.listdir(os.path.join(out, 'smoothed'))):
             raw = rb.read_noisy_mesh(os.path.join(out, 'raw', name))
