@@ -23,5 +23,9 @@ check bench_noise_covariance 4 no-such-scene
 check bench_console_soak 0
 check bench_fuse score /nonexistent /nonexistent/poses.conf
 check bench_stereo_smooth eval /nonexistent /nonexistent/mesh.ply
-echo "$((8 - failures)) passed, $failures failed"
+check bench_smooth speed /nonexistent/mesh.ply
+check bench_decimate target 0.02 /nonexistent/mesh.ply
+check bench_stereo --quality=2014 --data=/nonexistent
+check make_middlebury_recording /nonexistent /nonexistent/out
+echo "$((12 - failures)) passed, $failures failed"
 [ "$failures" -eq 0 ]

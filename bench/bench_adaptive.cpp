@@ -41,6 +41,7 @@
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
+#include "bench/bench_main.h"
 #include "core/mesh_io.h"
 #include "core/normal_error.h"
 #include "core/render.h"
@@ -299,9 +300,7 @@ int Gates(std::map<std::string, std::string>& flags) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   if (argc < 2 || (std::string(argv[1]) != "quality" && std::string(argv[1]) != "gates")) {
     std::fprintf(stderr, "usage: bench_adaptive quality [--reference gt|prepass|none] [options]\n");
     return 2;
@@ -319,10 +318,9 @@ int main(int argc, char** argv) {
       flags.insert_or_assign(a, std::string(1, '1'));
     }
   }
-  try {
-    return std::string(argv[1]) == "gates" ? Gates(flags) : Quality(flags);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_adaptive: %s\n", e.what());
-    return 1;
-  }
+  return std::string(argv[1]) == "gates" ? Gates(flags) : Quality(flags);
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_adaptive", RunBench, argc, argv); }

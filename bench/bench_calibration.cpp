@@ -4,18 +4,20 @@
 // levels) that stand in for cameras we have no chessboard images of. BENCHMARKS.md has the command.
 //
 //   bench_calibration NAME:LEFT_GLOB:RIGHT_GLOB:COLSxROWS ...
+#include <unistd.h>
+
 #include <cstdio>
 #include <exception>
-#include <stdexcept>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <regex>
-#include <unistd.h>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "bench/bench_main.h"
 #include "calibration/stereo_calibration.h"
 
 namespace rb = rangebayes;
@@ -109,11 +111,4 @@ int RunBench(int argc, char** argv) {
 }
 
 // Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
-int main(int argc, char** argv) {
-  try {
-    return RunBench(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_calibration: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_calibration", RunBench, argc, argv); }

@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "bench/bench_main.h"
 #include "capture/playback_source.h"
 #include "capture/recording.h"
 #include "console/console.h"
@@ -62,11 +63,4 @@ int RunBench(int argc, char** argv) {
 }
 
 // Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
-int main(int argc, char** argv) {
-  try {
-    return RunBench(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_console_soak: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_console_soak", RunBench, argc, argv); }

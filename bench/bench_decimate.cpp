@@ -17,14 +17,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "bayes/decimation/decimate.h"
+#include "bench/bench_main.h"
 #include "core/mesh_io.h"
 
 namespace {
@@ -213,11 +214,4 @@ int RunBench(int argc, char** argv) {
 }  // namespace
 
 // Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
-int main(int argc, char** argv) {
-  try {
-    return RunBench(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_decimate: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_decimate", RunBench, argc, argv); }

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "bayes/decimation/decimate.h"
+#include "bench/bench_main.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 
@@ -460,11 +461,4 @@ int RunBench(int argc, char** argv) {
 }
 
 // Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
-int main(int argc, char** argv) {
-  try {
-    return RunBench(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_decimate_compare: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_decimate_compare", RunBench, argc, argv); }

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "bayes/smooth.h"
+#include "bench/bench_main.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/scan_poses.h"
@@ -528,42 +529,39 @@ int RunSequential(const std::string& dir, const std::string& start_conf, const s
   return 0;
 }
 
+int RunBench(int argc, char** argv) {
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.size() >= 3 && args[0] == "bunny") {
+    std::vector<int> seeds = {1, 2, 3};
+    bool smooth = false;
+    for (size_t i = 3; i < args.size(); ++i) {
+      if (args[i] == "--seeds" && i + 1 < args.size()) {
+        seeds.clear();
+        std::stringstream list(args[++i]);
+        std::string item;
+        while (std::getline(list, item, ',')) seeds.push_back(std::stoi(item));
+      } else if (args[i] == "--smooth") {
+        smooth = true;
+      }
+    }
+    return RunBunny(args[1], args[2], seeds, smooth);
+  }
+  if (args.size() >= 3 && args[0] == "score") return RunScore(args[1], args[2], args.size() > 3 ? args[3] : "");
+  if (args.size() == 4 && args[0] == "sequential") return RunSequential(args[1], args[2], args[3]);
+  if (args.size() >= 4 && args[0] == "align") {
+    return RunAlign(args[1], args[2], args[3], std::vector<std::string>(args.begin() + 4, args.end()));
+  }
+  if (args.size() >= 3 && args[0] == "residuals") {
+    return RunResiduals(args[1], std::vector<std::string>(args.begin() + 2, args.end()));
+  }
+  if (args.size() == 2 && args[0] == "synthetic") return RunSynthetic(args[1]);
+  std::fprintf(stderr,
+               "usage: bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth] | score DIR POSES.conf [MESH.ply] | "
+               "synthetic OUT | align DIR START.conf OUT.conf [key=value...] | sequential DIR START.conf OUT.conf | "
+               "residuals DIR A.conf [B.conf...]\n");
+  return 2;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    const std::vector<std::string> args(argv + 1, argv + argc);
-    if (args.size() >= 3 && args[0] == "bunny") {
-      std::vector<int> seeds = {1, 2, 3};
-      bool smooth = false;
-      for (size_t i = 3; i < args.size(); ++i) {
-        if (args[i] == "--seeds" && i + 1 < args.size()) {
-          seeds.clear();
-          std::stringstream list(args[++i]);
-          std::string item;
-          while (std::getline(list, item, ',')) seeds.push_back(std::stoi(item));
-        } else if (args[i] == "--smooth") {
-          smooth = true;
-        }
-      }
-      return RunBunny(args[1], args[2], seeds, smooth);
-    }
-    if (args.size() >= 3 && args[0] == "score") return RunScore(args[1], args[2], args.size() > 3 ? args[3] : "");
-    if (args.size() == 4 && args[0] == "sequential") return RunSequential(args[1], args[2], args[3]);
-    if (args.size() >= 4 && args[0] == "align") {
-      return RunAlign(args[1], args[2], args[3], std::vector<std::string>(args.begin() + 4, args.end()));
-    }
-    if (args.size() >= 3 && args[0] == "residuals") {
-      return RunResiduals(args[1], std::vector<std::string>(args.begin() + 2, args.end()));
-    }
-    if (args.size() == 2 && args[0] == "synthetic") return RunSynthetic(args[1]);
-    std::fprintf(stderr,
-                 "usage: bench_fuse bunny DIR OUT [--seeds 1,2,3] [--smooth] | score DIR POSES.conf [MESH.ply] | "
-                 "synthetic OUT | align DIR START.conf OUT.conf [key=value...] | sequential DIR START.conf OUT.conf | "
-                 "residuals DIR A.conf [B.conf...]\n");
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_fuse: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_fuse", RunBench, argc, argv); }

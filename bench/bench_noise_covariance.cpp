@@ -9,6 +9,7 @@
 #include <string>
 
 #include "bayes/smooth.h"
+#include "bench/bench_main.h"
 #include "calibration/disparity_noise_model.h"
 #include "calibration/plane_target.h"
 #include "reconstruction/triangulate.h"
@@ -106,11 +107,4 @@ int RunBench(int argc, char** argv) {
 }
 
 // Bad input (a missing file, a wrong option or value) ends with one error line and exit code 1, not an abort.
-int main(int argc, char** argv) {
-  try {
-    return RunBench(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_noise_covariance: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_noise_covariance", RunBench, argc, argv); }

@@ -29,6 +29,7 @@
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
 #include "bayes/smoothing_energy.h"
+#include "bench/bench_main.h"
 #include "core/mesh_io.h"
 #include "core/normal_error.h"
 #include "core/topology.h"
@@ -79,7 +80,7 @@ std::map<std::string, std::string> ParseFlags(int argc, char** argv, int first, 
       if (i + 1 < argc && !(argv[i + 1][0] == '-' && argv[i + 1][1] == '-')) {
         flags[a] = argv[++i];
       } else {
-        flags[a] = "1";
+        flags[a] = std::string(1, '1');  // not "1": GCC 12 -Wrestrict false positive once inlined
       }
     } else {
       positional->push_back(a);
@@ -269,9 +270,7 @@ int Profile(std::map<std::string, std::string>& flags, const std::vector<std::st
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_smooth quality|speed|estimate ...\n");
     return 2;
@@ -279,15 +278,14 @@ int main(int argc, char** argv) {
   std::vector<std::string> positional;
   auto flags = ParseFlags(argc, argv, 2, &positional);
   const std::string mode = argv[1];
-  try {
-    if (mode == "quality") return Quality(flags);
-    if (mode == "estimate") return Estimate(flags);
-    if (mode == "speed") return Speed(flags, positional);
-    if (mode == "profile") return Profile(flags, positional);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_smooth: %s\n", e.what());
-    return 1;
-  }
-  std::fprintf(stderr, "unknown mode %s\n", mode.c_str());
+  if (mode == "quality") return Quality(flags);
+  if (mode == "estimate") return Estimate(flags);
+  if (mode == "speed") return Speed(flags, positional);
+  if (mode == "profile") return Profile(flags, positional);
+  std::fprintf(stderr, "bench_smooth: unknown mode %s\n", mode.c_str());
   return 2;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_smooth", RunBench, argc, argv); }

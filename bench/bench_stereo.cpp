@@ -10,6 +10,7 @@
 //   bench_stereo --quality=coverage                 space-time coverage: bad-1.0 with holes vs brute-force SSD
 // DIR defaults to ../shared/data/stereo (relative to the repository root).
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -25,9 +26,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
-#include <tbb/global_control.h>
 #include <vector>
 
+#include "bench/bench_main.h"
 #include "reconstruction/triangulate.h"
 #include "stereo/depth_frame.h"
 #include "stereo/disparity_io.h"
@@ -697,9 +698,7 @@ void QualitySigmaFit() {
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int RunBench(int argc, char** argv) {
   std::string quality, data = "../shared/data/stereo";
   std::vector<char*> rest;
   for (int i = 0; i < argc; ++i) {
@@ -732,17 +731,12 @@ int main(int argc, char** argv) {
       rest.push_back(argv[i]);
     }
   }
-  try {
-    if (quality == "v2") QualityV2(data);
-    if (quality == "2014") Quality2014(data);
-    if (quality == "graycode") QualityGrayCode(data);
-    if (quality == "synth") QualitySynth();
-    if (quality == "sigmafit") QualitySigmaFit();
-    if (quality == "coverage") QualityCoverage();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_stereo: error: %s\n", e.what());
-    return 1;
-  }
+  if (quality == "v2") QualityV2(data);
+  if (quality == "2014") Quality2014(data);
+  if (quality == "graycode") QualityGrayCode(data);
+  if (quality == "synth") QualitySynth();
+  if (quality == "sigmafit") QualitySigmaFit();
+  if (quality == "coverage") QualityCoverage();
   if (!quality.empty()) return 0;
   int n = static_cast<int>(rest.size());
   benchmark::Initialize(&n, rest.data());
@@ -750,3 +744,7 @@ int main(int argc, char** argv) {
   benchmark::Shutdown();
   return 0;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_stereo", RunBench, argc, argv); }

@@ -26,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
+#include "bench/bench_main.h"
 #include "calibration/middlebury.h"
 #include "calibration/stereo_rig.h"
 #include "core/error.h"
@@ -194,58 +195,54 @@ int WritePair(const rb::MiddleburyScene& scene, const rb::StereoRig& rig, const 
   return 0;
 }
 
+int RunBench(int argc, char** argv) {
+  const std::string mode = argc > 1 ? argv[1] : "";
+  if (mode == "eval" && argc == 4) {
+    const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
+    Print(argv[2], argv[3], Evaluate(scene, rb::ReadMesh(argv[3])));
+    return 0;
+  }
+  if (mode == "bilateral" && (argc == 5 || argc == 6)) {
+    const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
+    const std::string dir = argv[3];
+    const cv::Mat disparity = rb::ReadPfm(dir + "/disparity.pfm");
+    cv::Mat valid = disparity == disparity;  // not NaN
+    cv::Mat filled = disparity.clone();
+    filled.setTo(0, ~valid);
+    cv::Mat filtered;
+    cv::bilateralFilter(filled, filtered, 9, 2.0, 4.5);
+    filtered.setTo(std::nanf(""), ~valid);
+    const rb::StereoRig& rig = *scene.rig;
+    const rb::DepthFrame frame =
+        rb::DepthFromDisparity(filtered, cv::Mat(), rig.RectifiedLeft(), rig.baseline_m(), rig.doffs_px);
+    rb::TriangulateOptions triangulate;
+    triangulate.downsample = argc == 6 ? std::stoi(argv[5]) : 1;
+    const rb::NoisyMesh mesh = rb::TriangulateDepth(frame, triangulate);
+    rb::WriteMesh(mesh.mesh, argv[4]);
+    Print(argv[2], argv[4], Evaluate(scene, mesh.mesh));
+    return 0;
+  }
+  if (mode == "rig" && argc == 4) {
+    const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
+    rb::WriteStereoRig(SceneRig(scene), argv[3]);
+    std::printf("%d\n", (scene.num_disparities + 15) / 16 * 16);
+    return 0;
+  }
+  if (mode == "pair" && argc == 6) {
+    return WritePair(rb::ReadMiddleburyScene(argv[2]), rb::ReadStereoRig(argv[3]), rb::ReadNoisyMesh(argv[4]), argv[5]);
+  }
+  if (mode == "compare" && argc == 4) {
+    const Score s = CompareSameConnectivity(rb::ReadMesh(argv[2]), rb::ReadMesh(argv[3]));
+    std::printf("{\"mesh\": \"%s\", \"normal_deg\": %.3f, \"depth_mae_mm\": %.3f, \"faces\": %d}\n", argv[2],
+                s.normal_deg, s.depth_mae_mm, s.faces);
+    return 0;
+  }
+  std::fprintf(stderr,
+               "usage: bench_stereo_smooth eval SCENE MESH | bilateral SCENE STEREO_DIR OUT.ply [DOWNSAMPLE] | rig "
+               "SCENE OUT_RIG | pair SCENE RIG MESH OUT_DIR | compare RESULT GT\n");
+  return 2;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    const std::string mode = argc > 1 ? argv[1] : "";
-    if (mode == "eval" && argc == 4) {
-      const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
-      Print(argv[2], argv[3], Evaluate(scene, rb::ReadMesh(argv[3])));
-      return 0;
-    }
-    if (mode == "bilateral" && (argc == 5 || argc == 6)) {
-      const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
-      const std::string dir = argv[3];
-      const cv::Mat disparity = rb::ReadPfm(dir + "/disparity.pfm");
-      cv::Mat valid = disparity == disparity;  // not NaN
-      cv::Mat filled = disparity.clone();
-      filled.setTo(0, ~valid);
-      cv::Mat filtered;
-      cv::bilateralFilter(filled, filtered, 9, 2.0, 4.5);
-      filtered.setTo(std::nanf(""), ~valid);
-      const rb::StereoRig& rig = *scene.rig;
-      const rb::DepthFrame frame =
-          rb::DepthFromDisparity(filtered, cv::Mat(), rig.RectifiedLeft(), rig.baseline_m(), rig.doffs_px);
-      rb::TriangulateOptions triangulate;
-      triangulate.downsample = argc == 6 ? std::stoi(argv[5]) : 1;
-      const rb::NoisyMesh mesh = rb::TriangulateDepth(frame, triangulate);
-      rb::WriteMesh(mesh.mesh, argv[4]);
-      Print(argv[2], argv[4], Evaluate(scene, mesh.mesh));
-      return 0;
-    }
-    if (mode == "rig" && argc == 4) {
-      const rb::MiddleburyScene scene = rb::ReadMiddleburyScene(argv[2]);
-      rb::WriteStereoRig(SceneRig(scene), argv[3]);
-      std::printf("%d\n", (scene.num_disparities + 15) / 16 * 16);
-      return 0;
-    }
-    if (mode == "pair" && argc == 6) {
-      return WritePair(rb::ReadMiddleburyScene(argv[2]), rb::ReadStereoRig(argv[3]), rb::ReadNoisyMesh(argv[4]),
-                       argv[5]);
-    }
-    if (mode == "compare" && argc == 4) {
-      const Score s = CompareSameConnectivity(rb::ReadMesh(argv[2]), rb::ReadMesh(argv[3]));
-      std::printf("{\"mesh\": \"%s\", \"normal_deg\": %.3f, \"depth_mae_mm\": %.3f, \"faces\": %d}\n", argv[2],
-                  s.normal_deg, s.depth_mae_mm, s.faces);
-      return 0;
-    }
-    std::fprintf(stderr,
-                 "usage: bench_stereo_smooth eval SCENE MESH | bilateral SCENE STEREO_DIR OUT.ply [DOWNSAMPLE] | rig "
-                 "SCENE OUT_RIG | pair SCENE RIG MESH OUT_DIR | compare RESULT GT\n");
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_stereo_smooth: error: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return rangebayes::bench::Main("bench_stereo_smooth", RunBench, argc, argv); }
