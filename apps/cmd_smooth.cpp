@@ -37,6 +37,7 @@ struct SmoothArgs {
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;
   bool adaptive_epsilon = true;
   bool multilevel = SmoothOptions{}.multilevel;
+  bool prior_weight_per_stride = SmoothOptions{}.prior_weight_per_stride;
   bool precondition_rays = SmoothOptions{}.precondition_rays;
   double gap_tolerance = SmoothOptions{}.gap_tolerance;
   double robust_data_nu = SmoothOptions{}.robust_data_nu;
@@ -115,6 +116,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.progress = progress.callback();
   options.adaptive_epsilon = args.adaptive_epsilon;
   options.multilevel = args.multilevel;
+  options.prior_weight_per_stride = args.prior_weight_per_stride;
   options.precondition_rays = args.precondition_rays;
   options.epsilon_continuation_stages = args.continuation;
   options.gap_tolerance = args.gap_tolerance;
@@ -213,6 +215,10 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                 "(scans), the global --eps2 on piecewise-flat ones (CAD); costs a pre-pass of 40-80 fast "
                 "iterations, from which a curved mesh's final solve starts (BENCHMARKS.md 'Adaptive eps'). "
                 "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
+  sub->add_flag("--stride-weight,!--no-stride-weight", args->prior_weight_per_stride,
+                "on by default; meshes with pixel positions and covariances (stereo): the prior weight beta divided "
+                "by the pixel grid's step (1 at every pixel, 4 at --downsample 4; at most 4). --no-stride-weight: "
+                "beta at every stride");
   sub->add_flag("--multilevel,!--no-multilevel", args->multilevel,
                 "on by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
                 "over the pixel grid. --no-multilevel: one level");

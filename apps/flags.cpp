@@ -11,8 +11,9 @@ void AddQuietFlag(CLI::App* sub, bool* quiet) {
 
 void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight) {
   sub->add_option("--prior-weight", *prior_weight,
-                  "Smoothing prior weight beta (unitless, [0, 1e6]); default: a learned prior's own beta, else the "
-                  "library's measured default")
+                  "Smoothing prior weight beta (unitless, [0, 1e6]) at every pixel; meshes with pixel positions "
+                  "and covariances (stereo) use beta / their pixel stride (at most 4); default: a learned prior's "
+                  "own beta, else the library's measured default")
       ->check(CLI::Range(0.0, 1e6));
 }
 

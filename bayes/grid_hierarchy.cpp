@@ -27,8 +27,8 @@ struct Grid {
   }
 };
 
-// The grid of `mesh` (its pixels on a lattice of one step), or false.
-bool MakeGrid(const NoisyMesh& mesh, Grid* grid) {
+// The grid of `mesh` (its pixels on a lattice of one step), or false; *step_px (when not null): the step.
+bool MakeGrid(const NoisyMesh& mesh, Grid* grid, double* step_px = nullptr) {
   const int nv = mesh.mesh.num_vertices();
   if (mesh.pixel.rows() != nv || nv == 0 || mesh.mesh.num_faces() == 0) return false;
   if (!mesh.pixel.allFinite()) return false;
@@ -69,6 +69,7 @@ bool MakeGrid(const NoisyMesh& mesh, Grid* grid) {
     if (slot >= 0) return false;  // two vertices on one pixel: not an organized grid
     slot = v;
   }
+  if (step_px != nullptr) *step_px = step;
   return true;
 }
 
@@ -276,6 +277,12 @@ void GridHierarchyOptions::Check() const {
   RB_CHECK(min_vertices >= 3 && min_vertices <= 1000000000, "grid hierarchy: min_vertices ", min_vertices,
            " is outside [3, 1e9]");
   RB_CHECK(max_levels >= 0 && max_levels <= 20, "grid hierarchy: max_levels ", max_levels, " is outside [0, 20]");
+}
+
+double PixelGridStep(const NoisyMesh& mesh) {
+  Grid grid;
+  double step = 0;
+  return MakeGrid(mesh, &grid, &step) ? step : 0.0;
 }
 
 std::vector<GridLevel> BuildGridHierarchy(const NoisyMesh& fine, const GridHierarchyOptions& options) {

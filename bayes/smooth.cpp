@@ -791,6 +791,11 @@ std::string SmoothSummary::BriefReport() const {
     }
     out += line;
   }
+  if (pixel_stride > 1) {
+    std::snprintf(line, sizeof(line), "stride:     pixel grid step %g: prior weight beta %.4g (the given beta / %g)\n",
+                  pixel_stride, prior_weight, std::min(pixel_stride, kMaxStrideForPriorWeight));
+    out += line;
+  }
   if (levels > 1) {
     std::snprintf(line, sizeof(line), "levels:     %d grid levels, coarse levels %.1f input evaluations\n", levels,
                   coarse_work);
@@ -860,6 +865,7 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
                  Clock::time_point deadline, SmoothSummary* summary_out) {
   const auto start = Clock::now();
   SmoothSummary summary;
+  summary.prior_weight = options.prior_weight;
   tbb::task_arena arena(options.num_threads > 0 ? options.num_threads : tbb::task_arena::automatic);
   summary.num_threads = arena.max_concurrency();
   Mesh result;
@@ -966,6 +972,8 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
   if (organized && options.tolerance == SmoothTolerance::kDefault && options.gap_tolerance == 0) {
     options.gap_tolerance = kOrganizedGapTolerance;  // organized meshes stop closer to the optimum by default
   }
+  const double stride = organized && options.prior_weight_per_stride ? PixelGridStep(noisy) : 0.0;
+  if (stride > 0) options.prior_weight /= std::clamp(stride, 1.0, kMaxStrideForPriorWeight);
   const int continuation_stages = options.epsilon_continuation_stages >= 0
                                       ? options.epsilon_continuation_stages
                                       : (organized && options.initial_positions == nullptr ? 3 : 0);
@@ -978,11 +986,14 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
     Mesh result = SmoothAdaptiveEpsilon(noisy, plain, AutoAdaptiveEpsilonOptions{}, &adaptive, &summary);
     summary.adaptive_epsilon_used = true;
     summary.adaptive = adaptive;
+    summary.prior_weight = options.prior_weight;
     return Finish(std::move(result), std::move(summary), start, 0, summary_out);
   }
   const bool continuation = continuation_stages > 0 && options.prior == PriorKind::kSqrt &&
                             options.potential == nullptr && options.face_epsilon_squared.empty();
-  return SolveStages(noisy, options, organized, continuation ? continuation_stages : 0, deadline, summary_out);
+  Mesh result = SolveStages(noisy, options, organized, continuation ? continuation_stages : 0, deadline, summary_out);
+  if (summary_out != nullptr) summary_out->pixel_stride = stride;
+  return result;
 }
 
 }  // namespace

@@ -30,6 +30,9 @@ namespace rangebayes {
 // or a gradient norm of 1e-2 of the start. Iteration caps 300 / 2000 / 20000.
 enum class SmoothTolerance { kFast, kDefault, kTight };
 
+// The largest pixel stride that SmoothOptions::prior_weight_per_stride divides β by (the strides measured: 1, 2, 4).
+inline constexpr double kMaxStrideForPriorWeight = 4;
+
 SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
 std::string SmoothToleranceName(SmoothTolerance tolerance);
 
@@ -44,6 +47,12 @@ struct SmoothOptions {
   // A potential to use instead of `prior` (e.g. a learned spline); not owned, must outlive the call.
   const Potential* potential = nullptr;
   double prior_weight = 2.4;  // β, multiplies the prior sum; [0, 1e6]; 2.4 is the measured default rule
+  // Organized meshes (pixel positions and covariances, as from `stereo`, `replay` and `live`): the prior sum is
+  // multiplied by β / s instead, s the pixel grid's step (PixelGridStep, bayes/grid_hierarchy.h: 1 when every pixel
+  // is a vertex, 4 at `--downsample 4`) clamped to [1, kMaxStrideForPriorWeight], so prior_weight is the weight at
+  // every pixel. On the real stereo pairs of the train and validation scenes the best β falls with the stride
+  // (BENCHMARKS.md "Real sensor noise"). false: β at every stride.
+  bool prior_weight_per_stride = true;
   SmoothTolerance tolerance = SmoothTolerance::kDefault;
   // Stop when the relative energy decrease per iteration (mean over 5) falls below this; 0: the preset's
   // (fast 1e-4, default 3e-5, tight 1e-9). [0, 1)
@@ -145,6 +154,8 @@ struct SmoothSummary {
   double remaining_decrease = std::numeric_limits<double>::infinity();
   double data_energy = 0;          // final parts
   double prior_energy = 0;
+  double prior_weight = 0;         // β the energy used (after SmoothOptions::prior_weight_per_stride)
+  double pixel_stride = 0;         // organized meshes: the pixel grid's step that β was divided by; 0: none
   double initial_gradient_norm = 0;
   double final_gradient_norm = 0;
   SmoothTermination termination = SmoothTermination::kNothingToDo;

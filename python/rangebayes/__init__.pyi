@@ -80,6 +80,8 @@ class SmoothSummary:
     energy: list[float]
     data_energy: float
     prior_energy: float
+    prior_weight: float
+    pixel_stride: float
     initial_gradient_norm: float
     final_gradient_norm: float
     remaining_decrease: float

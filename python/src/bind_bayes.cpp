@@ -154,6 +154,9 @@ void BindBayes(py::module_& m) {
       .def_readonly("energy", &SmoothSummary::energy, "energy at the start, then after each iteration")
       .def_readonly("data_energy", &SmoothSummary::data_energy)
       .def_readonly("prior_energy", &SmoothSummary::prior_energy)
+      .def_readonly("prior_weight", &SmoothSummary::prior_weight, "β the energy used (after prior_weight_per_stride)")
+      .def_readonly("pixel_stride", &SmoothSummary::pixel_stride,
+                    "organized meshes: the pixel grid's step that β was divided by; 0: none")
       .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
       .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
       .def_readonly("remaining_decrease", &SmoothSummary::remaining_decrease,

@@ -14,6 +14,7 @@ const FieldTable<SmoothOptions>& SmoothOptionFields() {
       RB_PY_FIELD(SmoothOptions, face_epsilon_squared),
       RB_PY_FIELD(SmoothOptions, cauchy_scale),
       RB_PY_FIELD(SmoothOptions, prior_weight),
+      RB_PY_FIELD(SmoothOptions, prior_weight_per_stride),
       RB_PY_FIELD(SmoothOptions, tolerance),
       RB_PY_FIELD(SmoothOptions, energy_tolerance),
       RB_PY_FIELD(SmoothOptions, gap_tolerance),

@@ -58,6 +58,12 @@ def test_stereo_sgbm_and_spacetime_then_triangulate(recording_dir):
     mesh = rb.triangulate(st)
     assert isinstance(mesh, rb.NoisyMesh) and mesh.has_covariance and mesh.num_faces > 1000
     assert mesh.pixel.shape == (mesh.num_vertices, 2)
+    # On every 4th pixel the smoother's β is the given one over the pixel stride (prior_weight_per_stride).
+    coarse = rb.triangulate(st, downsample=4)
+    _, s = rb.smooth(coarse, tolerance="fast", max_iterations=2)
+    assert s.pixel_stride == 4 and s.prior_weight == rb.SMOOTH_OPTIONS["prior_weight"] / 4
+    _, s = rb.smooth(coarse, tolerance="fast", max_iterations=2, prior_weight_per_stride=False)
+    assert s.pixel_stride == 0 and s.prior_weight == rb.SMOOTH_OPTIONS["prior_weight"]
     cov = mesh.covariances
     np.testing.assert_allclose(cov, cov.transpose(0, 2, 1), rtol=1e-9, atol=1e-18)
     d = rb.match(f.left, f.right)  # the synthetic rig is already rectified

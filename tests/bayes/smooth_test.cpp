@@ -496,5 +496,35 @@ TEST(Smooth, StartFromEarlierResultTakesAgreeingPixelsOnly) {
   EXPECT_THROW(StartFromEarlierResult(now, pixel, earlier, 0.0, &start), Error);
 }
 
+// β is the weight at every pixel: an organized mesh on every 4th pixel is smoothed with β / 4, the very solve of
+// β / 4 given with the rule off; a stride of 8 is clamped to 4; a mesh without pixels keeps β.
+TEST(Smooth, PriorWeightFallsWithThePixelStride) {
+  const NoisyMesh every_pixel = testing::RangeGrid(12, 10, 0.01, 0.001, 4);
+  NoisyMesh every_4th = every_pixel, every_8th = every_pixel, no_pixels = every_pixel;
+  every_4th.pixel *= 4.0f;
+  every_8th.pixel *= 8.0f;
+  no_pixels.pixel.resize(0, 2);
+  EXPECT_EQ(PixelGridStep(every_pixel), 1.0);
+  EXPECT_EQ(PixelGridStep(every_4th), 4.0);
+  EXPECT_EQ(PixelGridStep(no_pixels), 0.0);
+  const SmoothOptions options;
+  SmoothOptions by_hand = options;
+  by_hand.prior_weight = options.prior_weight / 4;
+  by_hand.prior_weight_per_stride = false;
+  SmoothSummary rule, hand, eighth, plain;
+  const Mesh a = Smooth(every_4th, options, &rule);
+  const Mesh b = Smooth(every_4th, by_hand, &hand);
+  EXPECT_EQ(a.V, b.V);
+  EXPECT_EQ(rule.prior_weight, by_hand.prior_weight);
+  EXPECT_EQ(rule.pixel_stride, 4.0);
+  EXPECT_EQ(hand.pixel_stride, 0.0);
+  Smooth(every_8th, options, &eighth);
+  EXPECT_EQ(eighth.prior_weight, by_hand.prior_weight);
+  EXPECT_EQ(eighth.pixel_stride, 8.0);
+  Smooth(no_pixels, options, &plain);
+  EXPECT_EQ(plain.prior_weight, options.prior_weight);
+  EXPECT_EQ(plain.pixel_stride, 0.0);
+}
+
 }  // namespace
 }  // namespace rangebayes
