@@ -13,7 +13,9 @@
 //                                                 vertices have a ground-truth disparity at their pixel, written as
 //                                                 OUT/noisy_cov.ply (covariances kept), OUT/noisy.ply (plain) and
 //                                                 OUT/gt.ply (each vertex moved along its pixel ray to the ground-truth
-//                                                 depth); one JSON line with the raw scores
+//                                                 depth; a ground truth stored in whole steps has them fitted out
+//                                                 first, RemoveQuantisationSteps); one JSON line with the raw scores
+//                                                 and the step found (gt_step_px, 0: continuous)
 //   bench_stereo_smooth compare RESULT GT         one JSON line: face-normal error (deg, same connectivity) and depth
 //                                                 MAE (mm, per vertex) of RESULT against GT
 //
@@ -36,6 +38,7 @@
 #include "reconstruction/triangulate.h"
 #include "stereo/depth_frame.h"
 #include "stereo/disparity_io.h"
+#include "stereo/evaluate.h"
 #include "stereo/pfm.h"
 
 namespace rb = rangebayes;
@@ -131,7 +134,10 @@ int WritePair(const rb::MiddleburyScene& scene, const rb::StereoRig& rig, const 
   RB_CHECK(input.mesh.num_faces() > 0, scene.folder, ": the stereo mesh has no face");
   const rb::CameraIntrinsics k = rig.RectifiedLeft();
   const double fb = k.fx_px * rig.baseline_m();
-  const cv::Mat& d = scene.gt_disparity_px;
+  // Ground truth stored in whole steps is a staircase on slanted surfaces (stereo/evaluate.h); the pair's
+  // ground-truth mesh takes it with the steps fitted out.
+  const double step = rb::QuantisationStep(scene.gt_disparity_px);
+  const cv::Mat d = step > 0 ? rb::RemoveQuantisationSteps(scene.gt_disparity_px, step) : scene.gt_disparity_px;
   const int nv = input.mesh.num_vertices();
   std::vector<double> gt_depth(static_cast<size_t>(nv), std::nan(""));
   for (int v = 0; v < nv; ++v) {
@@ -189,9 +195,9 @@ int WritePair(const rb::MiddleburyScene& scene, const rb::StereoRig& rig, const 
   const double rms_k = std::sqrt(displacement2 / std::max(count, 1)) / rb::MeanEdgeLength(noisy.mesh);
   std::printf(
       "{\"scene\": \"%s\", \"vertices\": %d, \"faces\": %d, \"faces_dropped\": %d, \"raw_normal_deg\": %.3f, "
-      "\"raw_depth_mae_mm\": %.3f, \"rms_displacement_edge_multiple\": %.4f}\n",
+      "\"raw_depth_mae_mm\": %.3f, \"rms_displacement_edge_multiple\": %.4f, \"gt_step_px\": %.4f}\n",
       scene.folder.c_str(), count, static_cast<int>(faces.size()),
-      input.mesh.num_faces() - static_cast<int>(faces.size()), s.normal_deg, s.depth_mae_mm, rms_k);
+      input.mesh.num_faces() - static_cast<int>(faces.size()), s.normal_deg, s.depth_mae_mm, rms_k, step);
   return 0;
 }
 

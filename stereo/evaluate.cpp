@@ -1,7 +1,10 @@
 #include "stereo/evaluate.h"
 
+#include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 
 #include "core/error.h"
 
@@ -78,6 +81,69 @@ std::string DisparityEvaluation::BriefReport() const {
     std::snprintf(line, sizeof(line), "%-10s %17.2f%% %17.2f%%\n", name, 100.0 * bad_with_holes[i],
                   100.0 * bad_valid_only[i]);
     out += line;
+  }
+  return out;
+}
+
+double QuantisationStep(const cv::Mat& disparity) {
+  RB_CHECK(disparity.type() == CV_32F, "QuantisationStep: the disparity must be CV_32F");
+  constexpr int kDivisions[] = {1, 2, 3, 4, 8, 16};
+  long finite = 0;
+  long whole[std::size(kDivisions)] = {};
+  for (int r = 0; r < disparity.rows; ++r) {
+    const float* row = disparity.ptr<float>(r);
+    for (int c = 0; c < disparity.cols; ++c) {
+      if (!std::isfinite(row[c])) continue;
+      ++finite;
+      for (size_t k = 0; k < std::size(kDivisions); ++k) {
+        const double scaled = static_cast<double>(row[c]) * kDivisions[k];
+        whole[k] += std::abs(scaled - std::round(scaled)) < 1e-3;
+      }
+    }
+  }
+  if (finite == 0) return 0.0;
+  for (size_t k = 0; k < std::size(kDivisions); ++k) {
+    if (static_cast<double>(whole[k]) >= 0.99 * static_cast<double>(finite)) return 1.0 / kDivisions[k];
+  }
+  return 0.0;
+}
+
+cv::Mat RemoveQuantisationSteps(const cv::Mat& disparity, double step_px, int half_window) {
+  RB_CHECK(disparity.type() == CV_32F, "RemoveQuantisationSteps: the disparity must be CV_32F");
+  RB_CHECK(step_px > 0 && std::isfinite(step_px), "RemoveQuantisationSteps: step_px ", step_px, " must be > 0");
+  RB_CHECK(half_window >= 1 && half_window <= 10, "RemoveQuantisationSteps: half_window ", half_window,
+           " is outside [1, 10]");
+  cv::Mat out = disparity.clone();
+  const double reach = 1.5 * step_px;
+  for (int r = 0; r < disparity.rows; ++r) {
+    for (int c = 0; c < disparity.cols; ++c) {
+      const float centre = disparity.at<float>(r, c);
+      if (!std::isfinite(centre)) continue;
+      // Normal equations of d = a + b·x + e·y in window coordinates centred on (r, c): the centre value is a.
+      Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      int used = 0;
+      for (int dy = -half_window; dy <= half_window; ++dy) {
+        const int y = r + dy;
+        if (y < 0 || y >= disparity.rows) continue;
+        for (int dx = -half_window; dx <= half_window; ++dx) {
+          const int x = c + dx;
+          if (x < 0 || x >= disparity.cols) continue;
+          const float value = disparity.at<float>(y, x);
+          if (!std::isfinite(value) || std::abs(static_cast<double>(value) - centre) > reach) continue;
+          const Eigen::Vector3d basis(1.0, dx, dy);
+          normal += basis * basis.transpose();
+          rhs += basis * static_cast<double>(value);
+          ++used;
+        }
+      }
+      if (used < 6) continue;
+      const Eigen::LDLT<Eigen::Matrix3d> solver(normal);
+      if (solver.info() != Eigen::Success || !(solver.rcond() > 1e-9)) continue;
+      const double fitted = solver.solve(rhs)[0];
+      if (!std::isfinite(fitted)) continue;
+      out.at<float>(r, c) = static_cast<float>(std::clamp(fitted, centre - step_px, centre + step_px));
+    }
   }
   return out;
 }

@@ -95,5 +95,42 @@ TEST(Evaluate, CountsHolesBothWays) {
   EXPECT_THROW(EvaluateDisparity(est, cv::Mat(2, 4, CV_32F), {}), Error);
 }
 
+// A slanted plane stored in steps of 1/3 px (as Middlebury's third-size maps are) beside another plane 6 px nearer:
+// the step is found, the fit brings the values nearer the planes (RMS under half the stored one) without taking a
+// neighbour from across the jump, and moves none by more than a step; a continuous map has no step.
+TEST(Evaluate, RemovesQuantisationStepsOfAStoredGroundTruth) {
+  const int rows = 40, cols = 60;
+  const double step = 1.0 / 3.0;
+  cv::Mat truth(rows, cols, CV_32F), stored(rows, cols, CV_32F);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const double d = c < 30 ? 20.0 + 0.037 * c + 0.021 * r : 26.0 + 0.05 * c - 0.013 * r;
+      truth.at<float>(r, c) = static_cast<float>(d);
+      stored.at<float>(r, c) = static_cast<float>(std::round(d / step) * step);
+    }
+  }
+  truth.at<float>(5, 5) = stored.at<float>(5, 5) = NAN;
+  EXPECT_DOUBLE_EQ(QuantisationStep(stored), step);
+  EXPECT_EQ(QuantisationStep(truth), 0.0);
+  const cv::Mat fitted = RemoveQuantisationSteps(stored, step);
+  EXPECT_TRUE(std::isnan(fitted.at<float>(5, 5)));
+  double stored_squares = 0, fitted_squares = 0, beside_jump = 0;
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const float t = truth.at<float>(r, c), s = stored.at<float>(r, c), f = fitted.at<float>(r, c);
+      if (!std::isfinite(t)) continue;
+      stored_squares += (s - t) * (s - t);
+      fitted_squares += (f - t) * (f - t);
+      EXPECT_LE(std::abs(f - s), step + 1e-5);
+      if (c == 29 || c == 30) beside_jump = std::max(beside_jump, static_cast<double>(std::abs(f - t)));
+    }
+  }
+  EXPECT_LT(fitted_squares, 0.25 * stored_squares);
+  EXPECT_LT(beside_jump, 0.5 * step);
+  EXPECT_THROW(RemoveQuantisationSteps(stored, 0.0), Error);
+  EXPECT_THROW(RemoveQuantisationSteps(stored, step, 0), Error);
+  EXPECT_THROW(QuantisationStep(cv::Mat(2, 2, CV_64F)), Error);
+}
+
 }  // namespace
 }  // namespace rangebayes
