@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "stereo/disparity_features.h"
+#include "stereo/evaluate.h"
 #include "stereo/matcher.h"
 #include "stereo/rectify.h"
 #include "stereo/sgbm_matcher.h"
@@ -190,11 +191,15 @@ std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, c
   fo.window_px = options.window_px;
   fo.image_noise_gray = options.image_noise_gray;
   const DisparityFeatures f = ComputeDisparityFeatures({scene.left}, {scene.right}, match.disparity_px, fo);
+  // A ground truth stored in whole steps (stereo/evaluate.h) has them fitted out first: residuals against the
+  // stored values would carry its rounding, up to half a step.
+  const double step = QuantisationStep(scene.gt_disparity_px);
+  const cv::Mat truth = step > 0 ? RemoveQuantisationSteps(scene.gt_disparity_px, step) : scene.gt_disparity_px;
   std::vector<NoiseSample> samples;
   int gt_valid = 0;
   for (int y = 0; y < match.disparity_px.rows; y += options.stride_px) {
     for (int x = 0; x < match.disparity_px.cols; x += options.stride_px) {
-      const float gt = scene.gt_disparity_px.at<float>(y, x);
+      const float gt = truth.at<float>(y, x);
       if (!std::isfinite(gt) || gt <= 0) continue;
       if (!scene.mask_nonocc.empty() && scene.mask_nonocc.at<unsigned char>(y, x) != 255) continue;
       ++gt_valid;

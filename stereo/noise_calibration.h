@@ -70,8 +70,10 @@ struct GroundTruthNoiseOptions {
   void Check() const;
 };
 
-// The residual samples of one scene (residual, σ_pred, jump; depth NaN). Throws Error naming the folder when the
-// scene has no ground truth or no pixel where both the ground truth and the matcher give a disparity.
+// The residual samples of one scene (residual, σ_pred, jump; depth NaN), against the ground truth with its
+// quantisation steps fitted out where it is stored in whole steps (RemoveQuantisationSteps, stereo/evaluate.h).
+// Throws Error naming the folder when the scene has no ground truth or no pixel where both the ground truth and the
+// matcher give a disparity.
 std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, const GroundTruthNoiseOptions& options);
 
 struct GroundTruthNoiseSummary {
