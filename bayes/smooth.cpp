@@ -986,7 +986,6 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
     Mesh result = SmoothAdaptiveEpsilon(noisy, plain, AutoAdaptiveEpsilonOptions{}, &adaptive, &summary);
     summary.adaptive_epsilon_used = true;
     summary.adaptive = adaptive;
-    summary.prior_weight = options.prior_weight;
     return Finish(std::move(result), std::move(summary), start, 0, summary_out);
   }
   const bool continuation = continuation_stages > 0 && options.prior == PriorKind::kSqrt &&

@@ -658,25 +658,25 @@ double SmoothingEnergy::PortablePriorPass(const double* x, bool want_gradient) c
       double sums[4] = {0, 0, 0, 0};
       neighbour_sum(t, nt, sums);
       const double energy = sums[0], gx = sums[1], gy = sums[2], gz = sums[3];
-      if (want_gradient && h_only) {
-        double* out = &h_[3 * static_cast<size_t>(t)];
+      if (want_gradient) {
+        // h_t: the gradient projected off n_t and scaled by β / |c_t| (zero on a degenerate face).
         const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
-        if (inv == 0) {
-          out[0] = out[1] = out[2] = 0;
-        } else {
+        double hx = 0, hy = 0, hz = 0;
+        if (inv != 0) {
           const double ng = nt[0] * gx + nt[1] * gy + nt[2] * gz;
-          out[0] = (gx - nt[0] * ng) * inv;
-          out[1] = (gy - nt[1] * ng) * inv;
-          out[2] = (gz - nt[2] * ng) * inv;
+          hx = (gx - nt[0] * ng) * inv;
+          hy = (gy - nt[1] * ng) * inv;
+          hz = (gz - nt[2] * ng) * inv;
         }
-      } else if (want_gradient) {
-        double* out = &h_[9 * static_cast<size_t>(t)];
-        const double inv = inverse_length_[static_cast<size_t>(t)] * beta;
-        if (inv == 0) {
-          for (int k = 0; k < 9; ++k) out[k] = 0;
+        if (h_only) {
+          double* out = &h_[3 * static_cast<size_t>(t)];
+          out[0] = hx;
+          out[1] = hy;
+          out[2] = hz;
+        } else if (inv == 0) {
+          for (int k = 0; k < 9; ++k) h_[9 * static_cast<size_t>(t) + k] = 0;
         } else {
-          const double ng = nt[0] * gx + nt[1] * gy + nt[2] * gz;
-          const double hx = (gx - nt[0] * ng) * inv, hy = (gy - nt[1] * ng) * inv, hz = (gz - nt[2] * ng) * inv;
+          double* out = &h_[9 * static_cast<size_t>(t)];
           const double* p[3] = {x + 3 * faces_(t, 0), x + 3 * faces_(t, 1), x + 3 * faces_(t, 2)};
           for (int k = 0; k < 3; ++k) {
             const double* p1 = p[k == 2 ? 0 : k + 1];
