@@ -37,8 +37,9 @@ struct GenericNoiseSummary {
 // of its two-ring; a robust scale (median absolute value) of those distances, times a constant calibrated on
 // two meshes with known Gaussian noise (see BENCHMARKS.md). When the same residual at ring size 2 rises by more
 // than white noise gives (spatially correlated noise, as real scanners have), the estimate is raised by a power
-// of that rise (NoiseResidualProfile; rule and constants: BENCHMARKS.md "Real sensor noise, part 2"). In
-// [0, 10]; 0 for a mesh without vertices of valence ≥ 3.
+// of that rise (NoiseResidualProfile). When the residuals are heavy-tailed, as a real sensor's are
+// (NoiseResidualTailRatio above 4.5, Gaussian noise gives 3.8), the estimate is at least 0.4. Rule and constants:
+// BENCHMARKS.md "Real sensor noise". In [0, 10]; 0 for a mesh without vertices of valence ≥ 3.
 double EstimateNoiseLevel(const Mesh& mesh);
 
 // The same robust residual scale (÷ l_e, with the same constants) for ring sizes r = 1 … max_ring: the distance
@@ -46,6 +47,11 @@ double EstimateNoiseLevel(const Mesh& mesh);
 // least-squares normal of its (r+1)-disc. Element r−1 is ring r; element 0 is the one-ring estimate above.
 // White noise gives a flat profile, spatially correlated noise (and curvature) a rising one. max_ring in [1, 16].
 std::vector<double> NoiseResidualProfile(const Mesh& mesh, int max_ring);
+
+// The one-ring residuals' 99th percentile over their median: about 3.8 for Gaussian noise, more for heavy-tailed
+// noise (a real sensor's mismatches) and for a noise-free surface's curvature. 0 with fewer than 1000 residuals
+// or a zero median.
+double NoiseResidualTailRatio(const Mesh& mesh);
 
 // The mesh with the generic covariance per vertex (isolated vertices get the isotropic σ²·I).
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options = {},

@@ -1,6 +1,6 @@
 // Bayesian smoothing benchmarks (BENCHMARKS.md "Bayesian smoothing").
 //
-//   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight] 
+//   bench_smooth quality [--data DIR] [--estimate] [--tolerance fast|default|tight]
 //                        [--beta B] [--ratio R] [--eps2 E] [--prior sqrt|quadratic|cauchy] [--cases a,b,...]
 //       runs every denoising case of DIR (default ../shared/data/meshes) and prints a Markdown table of the
 //       mean angular error (degrees) beside the reference points of docs/journal/benchmarks-sessions-1-4.md.
@@ -10,8 +10,9 @@
 //       times one smoothing run (setup, iterations, per-iteration and per-face times, CPU time, peak RSS, final
 //       energy; MAE against GT when given). --file-covariance uses the PLY's covariances (stereo meshes).
 //   bench_smooth estimate [--data DIR]     noise-level estimate against the known level of every noisy file.
-//   bench_smooth profile [--rings R] MESH...  one JSON line per mesh: EstimateNoiseLevel and the residual profile
-//                                           (NoiseResidualProfile, rings 1 … R, default 8)
+//   bench_smooth profile [--rings R] MESH...  one JSON line per mesh: EstimateNoiseLevel, the residual profile
+//                                           (NoiseResidualProfile, rings 1 … R, default 8) and the tail ratio
+//                                           (NoiseResidualTailRatio)
 #include <sys/resource.h>
 
 #include <Eigen/Geometry>
@@ -264,7 +265,7 @@ int Profile(std::map<std::string, std::string>& flags, const std::vector<std::st
     std::printf("{\"mesh\": \"%s\", \"estimate\": %.4f, \"profile\": [", path.c_str(), EstimateNoiseLevel(mesh));
     const std::vector<double> profile = NoiseResidualProfile(mesh, rings);
     for (size_t r = 0; r < profile.size(); ++r) std::printf("%s%.4f", r ? ", " : "", profile[r]);
-    std::printf("]}\n");
+    std::printf("], \"tail\": %.3f}\n", NoiseResidualTailRatio(mesh));
     std::fflush(stdout);
   }
   return 0;
