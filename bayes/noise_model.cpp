@@ -154,8 +154,7 @@ std::vector<double> Profile(ResidualDistances& residuals) {
   for (size_t r = 0; r < profile.size(); ++r) {
     const size_t n = residuals.by_ring[r].size();
     if (n == 0) continue;
-    // The upper median (index n / 2), as the quantile of 0.5 with n odd.
-    std::vector<double>& d = residuals.by_ring[r];
+    std::vector<double>& d = residuals.by_ring[r];  // element n / 2: the median, the upper one for even n
     std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(n / 2), d.end());
     profile[r] = d[n / 2] * kMedianToSigma * kCalibration / residuals.edge;
   }
