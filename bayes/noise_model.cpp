@@ -40,10 +40,10 @@ constexpr double kMaxEstimate = 10.0;  // the largest k GenericNoiseOptions acce
 // Real sensor noise is heavy-tailed (mismatches, speckle); Gaussian noise is not. The tail ratio (99th over 50th
 // percentile of the one-ring residuals) of |N(0, 1)| is 2.576 / 0.6745 = 3.82; measured 3.76–4.10 on every synthetic
 // benchmark mesh, 5.35–29.3 on the 47 real-noise pairs, 4.56–7.53 on the real GuidedDenoising scans. Above
-// kHeavyTail the estimate is at least kRealNoiseFloor: every real pair's hindsight curve is steep below k ≈ 0.4 (up
-// to 2× the best error at 0.05) and within about 10% of its best above, and the one-ring median reads 0.02–0.19 on
-// them. The floor fades out with the correction (a noise-free mesh's tail is heavy too: its residual is curvature).
-// Chosen on the train and validation pairs (docs/journal/real-noise.md, session 28).
+// kHeavyTail the estimate is at least kRealNoiseFloor: most real pairs' hindsight curves are steep below k ≈ 0.4 (up
+// to 2× the best error at 0.05), every one is within 15% of its best above it, and the one-ring median reads
+// 0.02–0.19 on them. The floor fades out with the correction (a noise-free mesh's tail is heavy too: its residual is
+// curvature). Chosen on the train and validation pairs (docs/journal/real-noise.md, session 28).
 constexpr double kHeavyTail = 4.5;
 constexpr double kRealNoiseFloor = 0.4;
 constexpr size_t kTailMinSamples = 1000;  // the 99th percentile from at least 10 residuals above it
