@@ -187,18 +187,26 @@ double NoiseResidualTailRatio(const Mesh& mesh) {
   return TailRatio(std::move(residuals.by_ring[0]));
 }
 
-double EstimateNoiseLevel(const Mesh& mesh) {
+double EstimateNoiseLevel(const Mesh& mesh, NoiseEstimateDetails* details) {
   ResidualDistances residuals = ComputeResidualDistances(mesh, 2);
-  const double tail = TailRatio(residuals.by_ring[0]);
+  NoiseEstimateDetails d;
+  d.tail = TailRatio(residuals.by_ring[0]);
   const std::vector<double> profile = Profile(residuals);
-  const double one_ring = profile[0];
-  if (!(one_ring > 0)) return 0;
-  const double rise = profile[1] / one_ring;
-  const double shape = std::clamp((kShapeRiseEnd - rise) / (kShapeRiseEnd - kShapeRise), 0.0, 1.0);
-  double k =
-      rise > kWhiteNoiseRise ? one_ring * std::pow(rise / kWhiteNoiseRise, kCorrelationExponent * shape) : one_ring;
-  if (tail > kHeavyTail) k = std::max(k, kRealNoiseFloor * shape);
-  return std::min(k, kMaxEstimate);
+  d.one_ring = profile[0];
+  double k = 0;
+  if (d.one_ring > 0) {
+    d.growth = profile[1] / d.one_ring;
+    const double shape = std::clamp((kShapeRiseEnd - d.growth) / (kShapeRiseEnd - kShapeRise), 0.0, 1.0);
+    k = d.growth > kWhiteNoiseRise ? d.one_ring * std::pow(d.growth / kWhiteNoiseRise, kCorrelationExponent * shape)
+                                   : d.one_ring;
+    if (d.tail > kHeavyTail && kRealNoiseFloor * shape > k) {
+      k = kRealNoiseFloor * shape;
+      d.raised_to_floor = true;
+    }
+    k = std::min(k, kMaxEstimate);
+  }
+  if (details != nullptr) *details = d;
+  return k;
 }
 
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options, GenericNoiseSummary* summary) {
@@ -213,7 +221,7 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
     if (options.noise_edge_multiple) {
       s.noise_edge_multiple = *options.noise_edge_multiple;
     } else {
-      s.noise_edge_multiple = EstimateNoiseLevel(mesh);
+      s.noise_edge_multiple = EstimateNoiseLevel(mesh, &s.estimate);
       s.estimated = true;
     }
     s.sigma = s.noise_edge_multiple * s.mean_edge_length;
@@ -248,10 +256,15 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
 
 std::string NoiseModelChoice::BriefReport() const {
   if (from_file) return "per-vertex covariances from the file";
-  char line[256];
+  char how[192] = "given";
+  if (generic.estimated) {
+    const NoiseEstimateDetails& e = generic.estimate;
+    std::snprintf(how, sizeof(how), "estimated from the mesh: one-ring residual %.3g, growth %.3g, tail %.3g%s",
+                  e.one_ring, e.growth, e.tail, e.raised_to_floor ? ", heavy-tailed: the real-sensor floor" : "");
+  }
+  char line[384];
   std::snprintf(line, sizeof(line), "k = %.4g x mean edge %.6g = sigma %.6g model units (%s), across ratio %.3g",
-                generic.noise_edge_multiple, generic.mean_edge_length, generic.sigma,
-                generic.estimated ? "estimated from the mesh" : "given", generic.across_ratio);
+                generic.noise_edge_multiple, generic.mean_edge_length, generic.sigma, how, generic.across_ratio);
   return line;
 }
 

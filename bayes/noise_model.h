@@ -24,11 +24,20 @@ struct GenericNoiseOptions {
   void Check() const;
 };
 
+// What EstimateNoiseLevel read from the mesh.
+struct NoiseEstimateDetails {
+  double one_ring = 0;           // the one-ring residual scale (÷ l_e): the estimate for white Gaussian noise
+  double growth = 0;             // the two-ring residual over the one-ring's (0: no one-ring residual)
+  double tail = 0;               // NoiseResidualTailRatio
+  bool raised_to_floor = false;  // heavy-tailed residuals: the real-sensor floor set the estimate
+};
+
 struct GenericNoiseSummary {
   double mean_edge_length = 0;       // l_e, model units
   double noise_edge_multiple = 0;    // k used
   double sigma = 0;                  // σ along the normal, model units
   bool estimated = false;            // k came from EstimateNoiseLevel
+  NoiseEstimateDetails estimate;     // when estimated
   double across_ratio = 1.0;         // the options' across_ratio (σ across the normal is σ / across_ratio)
 };
 
@@ -39,8 +48,9 @@ struct GenericNoiseSummary {
 // than white noise gives (spatially correlated noise, as real scanners have), the estimate is raised by a power
 // of that rise (NoiseResidualProfile). When the residuals are heavy-tailed, as a real sensor's are
 // (NoiseResidualTailRatio above 4.5, Gaussian noise gives 3.8), the estimate is at least 0.4. Rule and constants:
-// BENCHMARKS.md "Real sensor noise". In [0, 10]; 0 for a mesh without vertices of valence ≥ 3.
-double EstimateNoiseLevel(const Mesh& mesh);
+// BENCHMARKS.md "Real sensor noise". In [0, 10]; 0 for a mesh without vertices of valence ≥ 3. `details`, when
+// given, receives what the estimate was made from.
+double EstimateNoiseLevel(const Mesh& mesh, NoiseEstimateDetails* details = nullptr);
 
 // The same robust residual scale (÷ l_e, with the same constants) for ring sizes r = 1 … max_ring: the distance
 // of each vertex from the plane through its r-disc's centroid (vertices 1 … r edges away) whose normal is the

@@ -61,11 +61,18 @@ class AdaptiveEpsilonSummary:
     prepass_iterations: int
     time_s: float
 
+class NoiseEstimateDetails:
+    one_ring: float
+    growth: float
+    tail: float
+    raised_to_floor: bool
+
 class GenericNoiseSummary:
     mean_edge_length: float
     noise_edge_multiple: float
     sigma: float
     estimated: bool
+    estimate: NoiseEstimateDetails
     across_ratio: float
 
 class NoiseModelChoice:

@@ -172,11 +172,18 @@ void BindBayes(py::module_& m) {
       .def_readonly("adaptive", &SmoothSummary::adaptive)
       .def("brief_report", &SmoothSummary::BriefReport);
 
+  py::class_<NoiseEstimateDetails>(m, "NoiseEstimateDetails", "What the noise estimate read from the mesh.")
+      .def_readonly("one_ring", &NoiseEstimateDetails::one_ring, "one-ring residual scale / l_e")
+      .def_readonly("growth", &NoiseEstimateDetails::growth, "two-ring residual over the one-ring's")
+      .def_readonly("tail", &NoiseEstimateDetails::tail, "99th percentile over the median of the one-ring residuals")
+      .def_readonly("raised_to_floor", &NoiseEstimateDetails::raised_to_floor,
+                    "heavy-tailed residuals: the real-sensor floor set the estimate");
   py::class_<GenericNoiseSummary>(m, "GenericNoiseSummary")
       .def_readonly("mean_edge_length", &GenericNoiseSummary::mean_edge_length, "l_e, model units")
       .def_readonly("noise_edge_multiple", &GenericNoiseSummary::noise_edge_multiple, "k used")
       .def_readonly("sigma", &GenericNoiseSummary::sigma, "σ along the normal, model units")
       .def_readonly("estimated", &GenericNoiseSummary::estimated)
+      .def_readonly("estimate", &GenericNoiseSummary::estimate, "what the estimate read (when estimated)")
       .def_readonly("across_ratio", &GenericNoiseSummary::across_ratio, "σ across the normal is σ / across_ratio");
   py::class_<NoiseModelChoice>(m, "NoiseModelChoice",
                                "brief_report() is the noise line that `rangebayes smooth` prints.")

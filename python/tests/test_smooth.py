@@ -61,6 +61,17 @@ def test_result_arrays_and_defaults(trim_star):
     assert rb.SMOOTH_OPTIONS["tolerance"] == "default"
 
 
+def test_estimated_noise_level_says_what_it_read(trim_star):
+    # Gaussian noise (trim-star n3): a light tail (about 3.8), growth below 1.15, so k is the one-ring residual.
+    _, summary = rb.make_generic_noisy_mesh(rb.read_mesh(str(trim_star)))
+    assert summary.estimated
+    e = summary.estimate
+    assert 3.5 < e.tail < 4.5 and not e.raised_to_floor
+    assert 1.0 < e.growth < 1.15
+    assert summary.noise_edge_multiple == e.one_ring
+    assert f"tail {e.tail:.3g}" in rb.smooth(rb.read_mesh(str(trim_star)), tolerance="fast")[1].noise_model.brief_report()
+
+
 def test_keyword_validation(trim_star):
     m = rb.read_mesh(str(trim_star))
     with pytest.raises(TypeError, match=r"unexpected keyword argument 'max_iter'.*max_iterations"):

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/error.h"
@@ -104,7 +105,10 @@ TEST(NoiseModel, GaussianNoiseHasALightTail) {
     const Mesh noisy = NoisyPlane(60, 0, k * edge, 3);
     const double tail = NoiseResidualTailRatio(noisy);
     EXPECT_NEAR(tail, 3.82, 0.4);
-    EXPECT_DOUBLE_EQ(EstimateNoiseLevel(noisy), NoiseResidualProfile(noisy, 1)[0]);
+    NoiseEstimateDetails details;
+    EXPECT_DOUBLE_EQ(EstimateNoiseLevel(noisy, &details), NoiseResidualProfile(noisy, 1)[0]);
+    EXPECT_DOUBLE_EQ(details.tail, tail);
+    EXPECT_FALSE(details.raised_to_floor);
   }
 }
 
@@ -129,7 +133,20 @@ TEST(NoiseModel, HeavyTailedNoiseGetsTheRealSensorFloor) {
   const std::vector<double> profile = NoiseResidualProfile(noisy, 2);
   EXPECT_LT(profile[0], 0.15) << "the median still reads about the Gaussian core";
   EXPECT_LT(profile[1] / profile[0], 1.15) << "white: no correlation correction";
-  EXPECT_DOUBLE_EQ(EstimateNoiseLevel(noisy), 0.4);
+  NoiseEstimateDetails details;
+  EXPECT_DOUBLE_EQ(EstimateNoiseLevel(noisy, &details), 0.4);
+  EXPECT_TRUE(details.raised_to_floor);
+  EXPECT_DOUBLE_EQ(details.one_ring, profile[0]);
+  EXPECT_DOUBLE_EQ(details.growth, profile[1] / profile[0]);
+  // The smooth command's noise line says why k is what it is.
+  NoiseModelChoice choice;
+  NoisyMesh input;
+  input.mesh = noisy;
+  ChooseNoiseModel(input, GenericNoiseOptions{}, CovarianceSource::kAuto, &choice);
+  EXPECT_TRUE(choice.generic.estimated);
+  EXPECT_TRUE(choice.generic.estimate.raised_to_floor);
+  EXPECT_NE(choice.BriefReport().find("heavy-tailed: the real-sensor floor"), std::string::npos)
+      << choice.BriefReport();
 }
 
 TEST(NoiseModel, NoiseFreeMeshWithFeaturesIsNotReadAsRealNoise) {
