@@ -36,8 +36,8 @@ def rotation(x, y, z, w):
 
 
 def read_poses(conf):
-    """bun.conf: `bmesh FILE tx ty tz qx qy qz qw`; a scan point p lies at R(q)ᵀ p + t (checked: the scans then
-    overlap to 0.3 mm median)."""
+    """bun.conf: `bmesh FILE tx ty tz qx qy qz qw`; a scan point p lies at R(q)ᵀ p + t, the convention of fusion's
+    ReadScanPoses (the scans then overlap to 0.3 mm median)."""
     poses = {}
     for line in open(conf):
         f = line.split()
