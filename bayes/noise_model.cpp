@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <utility>
 #include <vector>
 
 #include "core/error.h"
@@ -140,10 +139,9 @@ ResidualDistances ComputeResidualDistances(const Mesh& mesh, int max_ring) {
   return result;
 }
 
-// The distances' q-quantile (they are reordered); 0 for none.
-double Quantile(std::vector<double>& d, double q) {
-  if (d.empty()) return 0;
-  const size_t i = static_cast<size_t>(q * static_cast<double>(d.size() - 1));
+// The value at index i of the sorted distances (non-empty; they are reordered, which no later order statistic
+// minds).
+double NthSmallest(std::vector<double>& d, size_t i) {
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(i), d.end());
   return d[i];
 }
@@ -152,19 +150,20 @@ std::vector<double> Profile(ResidualDistances& residuals) {
   std::vector<double> profile(residuals.by_ring.size(), 0.0);
   if (!(residuals.edge > 0)) return profile;
   for (size_t r = 0; r < profile.size(); ++r) {
-    const size_t n = residuals.by_ring[r].size();
-    if (n == 0) continue;
-    std::vector<double>& d = residuals.by_ring[r];  // element n / 2: the median, the upper one for even n
-    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(n / 2), d.end());
-    profile[r] = d[n / 2] * kMedianToSigma * kCalibration / residuals.edge;
+    std::vector<double>& d = residuals.by_ring[r];
+    if (d.empty()) continue;
+    // Element n / 2: the median, the upper one for even n.
+    profile[r] = NthSmallest(d, d.size() / 2) * kMedianToSigma * kCalibration / residuals.edge;
   }
   return profile;
 }
 
-double TailRatio(std::vector<double> one_ring) {
+// The 99th percentile over the median (lower one for even n) of the one-ring distances.
+double TailRatio(std::vector<double>& one_ring) {
   if (one_ring.size() < kTailMinSamples) return 0;
-  const double median = Quantile(one_ring, 0.5);
-  return median > 0 ? Quantile(one_ring, 0.99) / median : 0;
+  const double last = static_cast<double>(one_ring.size() - 1);
+  const double median = NthSmallest(one_ring, static_cast<size_t>(0.5 * last));
+  return median > 0 ? NthSmallest(one_ring, static_cast<size_t>(0.99 * last)) / median : 0;
 }
 
 }  // namespace
@@ -184,14 +183,14 @@ std::vector<double> NoiseResidualProfile(const Mesh& mesh, int max_ring) {
 
 double NoiseResidualTailRatio(const Mesh& mesh) {
   ResidualDistances residuals = ComputeResidualDistances(mesh, 1);
-  return TailRatio(std::move(residuals.by_ring[0]));
+  return TailRatio(residuals.by_ring[0]);
 }
 
 double EstimateNoiseLevel(const Mesh& mesh, NoiseEstimateDetails* details) {
   ResidualDistances residuals = ComputeResidualDistances(mesh, 2);
   NoiseEstimateDetails d;
-  d.tail = TailRatio(residuals.by_ring[0]);
   const std::vector<double> profile = Profile(residuals);
+  d.tail = TailRatio(residuals.by_ring[0]);
   d.one_ring = profile[0];
   double k = 0;
   if (d.one_ring > 0) {

@@ -262,10 +262,12 @@ int Profile(std::map<std::string, std::string>& flags, const std::vector<std::st
   const int rings = flags.count("--rings") ? std::stoi(flags["--rings"]) : 8;
   for (const std::string& path : meshes) {
     const Mesh mesh = ReadMesh(path);
-    std::printf("{\"mesh\": \"%s\", \"estimate\": %.4f, \"profile\": [", path.c_str(), EstimateNoiseLevel(mesh));
+    NoiseEstimateDetails details;
+    const double estimate = EstimateNoiseLevel(mesh, &details);
+    std::printf("{\"mesh\": \"%s\", \"estimate\": %.4f, \"profile\": [", path.c_str(), estimate);
     const std::vector<double> profile = NoiseResidualProfile(mesh, rings);
     for (size_t r = 0; r < profile.size(); ++r) std::printf("%s%.4f", r ? ", " : "", profile[r]);
-    std::printf("], \"tail\": %.3f}\n", NoiseResidualTailRatio(mesh));
+    std::printf("], \"tail\": %.3f}\n", details.tail);
     std::fflush(stdout);
   }
   return 0;

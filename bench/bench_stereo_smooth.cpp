@@ -136,8 +136,8 @@ int WritePair(const rb::MiddleburyScene& scene, const rb::StereoRig& rig, const 
   const double fb = k.fx_px * rig.baseline_m();
   // Ground truth stored in whole steps is a staircase on slanted surfaces (stereo/evaluate.h); the pair's
   // ground-truth mesh takes it with the steps fitted out.
-  const double step = rb::QuantisationStep(scene.gt_disparity_px);
-  const cv::Mat d = step > 0 ? rb::RemoveQuantisationSteps(scene.gt_disparity_px, step) : scene.gt_disparity_px;
+  double step = 0;
+  const cv::Mat d = rb::GroundTruthWithoutSteps(scene.gt_disparity_px, &step);
   const int nv = input.mesh.num_vertices();
   std::vector<double> gt_depth(static_cast<size_t>(nv), std::nan(""));
   for (int v = 0; v < nv; ++v) {

@@ -126,8 +126,9 @@ def main():
         faces = np.asarray(mesh.F)
 
         def cosines(vertices, mask=None):
-            n, area = face_normals(world[name](np.asarray(vertices)), faces)
-            d, i = ref_tree.query(world[name](np.asarray(vertices))[faces].mean(1))
+            posed = world[name](np.asarray(vertices))
+            n, area = face_normals(posed, faces)
+            d, i = ref_tree.query(posed[faces].mean(1))
             if mask is None:
                 mask = (d < ref_edge) & (area > 0)
             return mask, np.sum(n[mask] * ref_n[i[mask]], 1)

@@ -148,4 +148,10 @@ cv::Mat RemoveQuantisationSteps(const cv::Mat& disparity, double step_px, int ha
   return out;
 }
 
+cv::Mat GroundTruthWithoutSteps(const cv::Mat& disparity, double* step_px) {
+  const double step = QuantisationStep(disparity);
+  if (step_px != nullptr) *step_px = step;
+  return step > 0 ? RemoveQuantisationSteps(disparity, step) : disparity;
+}
+
 }  // namespace rangebayes

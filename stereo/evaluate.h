@@ -51,4 +51,8 @@ double QuantisationStep(const cv::Mat& disparity);
 // (docs/journal/real-noise.md, session 27). step_px > 0, half_window in [1, 10]; NaN stays NaN.
 cv::Mat RemoveQuantisationSteps(const cv::Mat& disparity, double step_px, int half_window = 3);
 
+// A ground-truth map as scoring and noise fitting take it: with its steps removed when QuantisationStep finds one,
+// else as stored. *step_px (when given): the step found, 0 for a continuous map.
+cv::Mat GroundTruthWithoutSteps(const cv::Mat& disparity, double* step_px = nullptr);
+
 }  // namespace rangebayes

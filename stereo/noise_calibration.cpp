@@ -193,8 +193,7 @@ std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, c
   const DisparityFeatures f = ComputeDisparityFeatures({scene.left}, {scene.right}, match.disparity_px, fo);
   // A ground truth stored in whole steps (stereo/evaluate.h) has them fitted out first: residuals against the
   // stored values would carry its rounding, up to half a step.
-  const double step = QuantisationStep(scene.gt_disparity_px);
-  const cv::Mat truth = step > 0 ? RemoveQuantisationSteps(scene.gt_disparity_px, step) : scene.gt_disparity_px;
+  const cv::Mat truth = GroundTruthWithoutSteps(scene.gt_disparity_px);
   std::vector<NoiseSample> samples;
   int gt_valid = 0;
   for (int y = 0; y < match.disparity_px.rows; y += options.stride_px) {
