@@ -21,6 +21,7 @@ packages=(
   slurmctld slurmd slurm-client munge  # batch/: the test's and bench's throw-away loopback Slurm cluster
   pybind11-dev python3-dev python3-numpy   # the Python module (python/)
   python3-pytest python3-matplotlib python3-open3d   # its tests, examples and Open3D interop
+  python3-scipy          # bench/real_scan_pairs.py: nearest neighbours for scoring against the reference scan
   python3-venv python3-pip python3-setuptools python3-wheel   # pip install --no-build-isolation .
   libboost-dev           # console: HTTP/WebSocket server (Boost.Beast, header-only)
   libjs-three            # console: the page's 3D view (served by the process, no CDN)
