@@ -14,6 +14,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include "bayes/decimation/decimate_geometry.h"
 #include "bayes/decimation/decimate_partition.h"
@@ -798,19 +799,26 @@ class LambdaSearch {
   // partition costs a fraction of a climb from single faces). A λ climbed before is reused.
   const Attempt& Climb(double l) {
     auto it = climbs_.find(l);
-    if (it == climbs_.end()) {
-      const bool warm = base_lambda_ > 0.0 && l > base_lambda_;
-      Attempt a = PartitionOnce(problem_, l, options_, nullptr, warm ? &climbs_.at(base_lambda_).face_patch : nullptr);
-      if (!warm) {
-        // A new, smaller base: the climbs from the old one are dropped, so that every cached climb above
-        // the base starts from it.
-        climbs_.clear();
-        base_lambda_ = l;
-      }
-      s_.seconds_search_partition += a.seconds_partition;
-      it = climbs_.emplace(l, std::move(a)).first;
-    }
+    if (it == climbs_.end()) it = Remember(l, ClimbUncached(l));
     return it->second;
+  }
+
+  // The climb at l from the current base (not looked up, not cached).
+  Attempt ClimbUncached(double l) const {
+    const bool warm = base_lambda_ > 0.0 && l > base_lambda_;
+    return PartitionOnce(problem_, l, options_, nullptr, warm ? &climbs_.at(base_lambda_).face_patch : nullptr);
+  }
+
+  // Caches a climb made by ClimbUncached from the current base.
+  std::map<double, Attempt>::iterator Remember(double l, Attempt a) {
+    if (!(base_lambda_ > 0.0 && l > base_lambda_)) {
+      // A new, smaller base: the climbs from the old one are dropped, so that every cached climb above
+      // the base starts from it.
+      climbs_.clear();
+      base_lambda_ = l;
+    }
+    s_.seconds_search_partition += a.seconds_partition;
+    return climbs_.emplace(l, std::move(a)).first;
   }
 
   // A full evaluation: hill climbing and triangulation with the budget, the triangulation at the target
@@ -818,6 +826,31 @@ class LambdaSearch {
   bool Evaluate(double l) {
     Attempt attempt = Climb(l);
     GeometryOnce(prep_, options_, budget_, signature_, &attempt, target_);
+    return Apply(l, std::move(attempt));
+  }
+
+  // Evaluate(b), then Evaluate(below) only when b fits; the second runs beside the first on another core
+  // (climb and triangulation), and is thrown away when b has too many, so the search takes the same steps and
+  // ends with the same result as one after the other. What it costs: when b has too many, one evaluation of
+  // CPU that the serial order would not spend (docs/journal/decimation.md, session 29).
+  std::vector<double> EvaluatePair(double b, double below) {
+    Attempt at_b = Climb(b);
+    const bool below_cached = climbs_.count(below) > 0;
+    Attempt at_below, below_climb;
+    tbb::parallel_invoke([&] { GeometryOnce(prep_, options_, budget_, signature_, &at_b, target_); },
+                         [&] {
+                           below_climb = below_cached ? climbs_.at(below) : ClimbUncached(below);
+                           at_below = below_climb;
+                           GeometryOnce(prep_, options_, budget_, signature_, &at_below, target_);
+                         });
+    if (!Apply(b, std::move(at_b))) return {b};
+    if (!below_cached) Remember(below, std::move(below_climb));
+    Apply(below, std::move(at_below));
+    return {b, below};
+  }
+
+  // Records an evaluated attempt at l in the bracket. True when it fits.
+  bool Apply(double l, Attempt attempt) {
     ++steps_;
     s_.seconds_search_geometry += attempt.seconds_geometry;
     const bool ok = FacesOf(attempt) <= budget_;
@@ -901,11 +934,12 @@ class LambdaSearch {
       if (ls.empty() && steps_ == 0 && b <= 0.0 && Inside(guide_lo)) ls.push_back(guide_lo);
       if (ls.empty()) break;
       std::vector<double> evaluated{ls[0]};
-      bool all_fit = Evaluate(ls[0]);
-      if (all_fit && ls.size() > 1) {
-        all_fit = Evaluate(ls[1]);
-        evaluated.push_back(ls[1]);
+      if (ls.size() > 1) {
+        evaluated = EvaluatePair(ls[0], ls[1]);
+      } else {
+        Evaluate(ls[0]);
       }
+      const bool all_fit = evaluated.size() == ls.size() && hi_ == evaluated.back();
       if (all_fit) stride = 2;
       Recalibrate(evaluated);
     }
