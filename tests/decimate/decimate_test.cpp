@@ -1,18 +1,19 @@
 #include "bayes/decimation/decimate.h"
-#include "bayes/decimation/decimate_geometry.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
-#include <functional>
 #include <set>
 #include <tuple>
 
+#include "bayes/decimation/decimate_geometry.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "core/topology.h"
@@ -475,6 +476,32 @@ TEST(Decimate, TargetFacesFindsLambda) {
   // The guided steps between full decimations do most of the narrowing, so the full ones need not grow.
   EXPECT_GE(fine.bisection_steps, summary.bisection_steps);
   EXPECT_LT(fine.lambda_fits / fine.lambda_too_many, summary.lambda_fits / summary.lambda_too_many + 1e-12);
+}
+
+// A guided round of the λ search runs its two full decimations side by side (the second thrown away when the
+// first has too many): the search and its result are the same on one thread as on two.
+TEST(Decimate, TargetFacesSearchIsTheSameOnOneThreadAsOnTwo) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.target_faces = 200;
+  auto run = [&](int threads, DecimateSummary* summary) {
+    tbb::task_arena arena(threads);
+    DecimatedMesh out;
+    arena.execute([&] { out = Decimate(sphere, options, summary); });
+    return out;
+  };
+  DecimateSummary one, two;
+  const DecimatedMesh a = run(1, &one);
+  const DecimatedMesh b = run(2, &two);
+  ASSERT_GT(one.bisection_steps, 2);
+  EXPECT_EQ(one.bisection_steps, two.bisection_steps);
+  EXPECT_EQ(one.lambda, two.lambda);
+  EXPECT_EQ(one.lambda_too_many, two.lambda_too_many);
+  ASSERT_EQ(a.mesh.num_faces(), b.mesh.num_faces());
+  ASSERT_EQ(a.mesh.num_vertices(), b.mesh.num_vertices());
+  EXPECT_TRUE((a.mesh.F.array() == b.mesh.F.array()).all());
+  EXPECT_TRUE((a.mesh.V.array() == b.mesh.V.array()).all());
+  EXPECT_EQ(a.face_patch, b.face_patch);
 }
 
 // The budgeted chain pass run down to a budget records on its way the triangulation a run with a larger
