@@ -5,9 +5,9 @@
 //
 // u_i the unit normal of dense face i, n_k the weighted mean of its patch's normals (eq. 34, not
 // renormalised), g a map from faces to edge-connected patches found by hill climbing (fuse, split, swap;
-// bayes/decimation/decimate_partition.h). The output keeps the dense vertices the patch structure needs and triangulates
-// each patch on its own (bayes/decimation/decimate_geometry.h), with per-corner normals from a linear normal field fitted
-// per patch (the smooth shading of the paper's figures).
+// bayes/decimation/decimate_partition.h). The output keeps the dense vertices the patch structure needs and
+// triangulates each patch on its own (bayes/decimation/decimate_geometry.h), with per-corner normals from a linear
+// normal field fitted per patch (the smooth shading of the paper's figures).
 //
 // Face weights: area weighting is the default. The paper weights every face equally, which is the same thing
 // on the regular grids its scans come from; on meshes whose triangle sizes vary (CAD models such as fandisk,
@@ -27,10 +27,11 @@
 // decimations (hill climbing + triangulation) decide the bracket; the search is guided by the hill climbing
 // alone, predicting the count from the vertices where ≥ 3 patch sides meet (times the faces per such vertex
 // measured on the last full runs, 2 before any), with power-law extrapolation and safeguarded interpolation.
-// Each round runs a full decimation at the guide's smallest fitting λ and, when that fits, another one
-// resolution step below it. The hill climbings of the search start from the partition at the smallest λ climbed (warm
-// starts: coarsening it costs a fraction of a climb from single faces, and each λ's result depends on λ
-// alone), and the output at the full budget is recorded on the way of the fitting run's chain pass.
+// Each round runs a full decimation at the guide's smallest fitting λ and, beside it on a second core, another
+// one resolution step below it, which counts only when the first fits. The hill climbings of the search start from the
+// partition at the smallest λ climbed (warm starts: coarsening it costs a fraction of a climb from single faces, and
+// each λ's result depends on λ alone), and the output at the full budget is recorded on the way of the fitting run's
+// chain pass.
 #pragma once
 
 #include <string>
