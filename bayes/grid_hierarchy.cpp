@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 
 #include "bayes/smooth.h"
 #include "core/error.h"
@@ -27,11 +28,18 @@ struct Grid {
   }
 };
 
-// The grid of `mesh` (its pixels on a lattice of one step), or false; *step_px (when not null): the step.
-bool MakeGrid(const NoisyMesh& mesh, Grid* grid, double* step_px = nullptr) {
+// The grid of `mesh` (its pixels on a lattice of one step), or false and (when not null) *why_not says why;
+// *step_px (when not null): the step.
+bool MakeGrid(const NoisyMesh& mesh, Grid* grid, double* step_px = nullptr, std::string* why_not = nullptr) {
+  auto no = [why_not](auto&&... parts) {
+    if (why_not != nullptr) *why_not = StrCat(parts...);
+    return false;
+  };
   const int nv = mesh.mesh.num_vertices();
-  if (mesh.pixel.rows() != nv || nv == 0 || mesh.mesh.num_faces() == 0) return false;
-  if (!mesh.pixel.allFinite()) return false;
+  if (mesh.pixel.rows() != nv || nv == 0 || mesh.mesh.num_faces() == 0) return no("no pixel positions or no faces");
+  for (int v = 0; v < nv; ++v) {
+    if (!mesh.pixel.row(v).allFinite()) return no("vertex ", v, " has a non-finite pixel position");
+  }
   double step = std::numeric_limits<double>::infinity();
   const Faces& F = mesh.mesh.F;
   for (int f = 0; f < F.rows(); ++f) {
@@ -43,16 +51,19 @@ bool MakeGrid(const NoisyMesh& mesh, Grid* grid, double* step_px = nullptr) {
       }
     }
   }
-  if (!std::isfinite(step)) return false;
+  if (!std::isfinite(step)) return no("every edge joins two vertices on one pixel");
   const float u0 = mesh.pixel.col(0).minCoeff(), v0 = mesh.pixel.col(1).minCoeff();
   grid->i.resize(static_cast<size_t>(nv));
   grid->j.resize(static_cast<size_t>(nv));
   int max_i = 0, max_j = 0;
   for (int v = 0; v < nv; ++v) {
     const double fi = (mesh.pixel(v, 0) - u0) / step, fj = (mesh.pixel(v, 1) - v0) / step;
+    if (fi > 1 << 20 || fj > 1 << 20) return no("vertex ", v, " lies more than 2^20 grid steps from the others");
     const long ri = std::lround(fi), rj = std::lround(fj);
-    if (std::abs(fi - static_cast<double>(ri)) > 1e-2 || std::abs(fj - static_cast<double>(rj)) > 1e-2) return false;
-    if (ri > 1 << 20 || rj > 1 << 20) return false;
+    if (std::abs(fi - static_cast<double>(ri)) > 1e-2 || std::abs(fj - static_cast<double>(rj)) > 1e-2) {
+      return no("vertex ", v, " at pixel (", mesh.pixel(v, 0), ", ", mesh.pixel(v, 1), ") is off the lattice of step ",
+                step, " px");
+    }
     grid->i[static_cast<size_t>(v)] = static_cast<int>(ri);
     grid->j[static_cast<size_t>(v)] = static_cast<int>(rj);
     max_i = std::max(max_i, static_cast<int>(ri));
@@ -61,12 +72,17 @@ bool MakeGrid(const NoisyMesh& mesh, Grid* grid, double* step_px = nullptr) {
   grid->width = max_i + 1;
   grid->height = max_j + 1;
   // A sparse scatter of pixels is no organized grid (and would make the index image large).
-  if (static_cast<double>(grid->width) * grid->height > 64.0 * nv + 4096) return false;
+  if (static_cast<double>(grid->width) * grid->height > 64.0 * nv + 4096) {
+    return no("the pixels are a sparse scatter (", grid->width, " x ", grid->height, " grid steps for ", nv,
+              " vertices)");
+  }
   grid->at.assign(static_cast<size_t>(grid->width) * static_cast<size_t>(grid->height), -1);
   for (int v = 0; v < nv; ++v) {
     int& slot = grid->at[static_cast<size_t>(grid->j[static_cast<size_t>(v)]) * static_cast<size_t>(grid->width) +
                          static_cast<size_t>(grid->i[static_cast<size_t>(v)])];
-    if (slot >= 0) return false;  // two vertices on one pixel: not an organized grid
+    if (slot >= 0) {
+      return no("vertices ", slot, " and ", v, " lie on one pixel (", mesh.pixel(v, 0), ", ", mesh.pixel(v, 1), ")");
+    }
     slot = v;
   }
   if (step_px != nullptr) *step_px = step;
@@ -201,7 +217,7 @@ void RestrictVertices(const NoisyMesh& fine, const Grid& grid, const std::vector
   std::vector<Eigen::Matrix3d> information(static_cast<size_t>(nv));
   for (int v = 0; v < nv; ++v) {
     RB_CHECK(InformationFromCovariance(fine.covariance[static_cast<size_t>(v)], &information[static_cast<size_t>(v)]),
-             "grid hierarchy: the covariance of vertex ", v, " is not finite and positive definite");
+             "grid hierarchy: the covariance of vertex ", v, " is not finite and positive semi-definite");
   }
   level.mesh.mesh.V.resize(nc, 3);
   level.mesh.covariance.resize(static_cast<size_t>(nc));
@@ -279,10 +295,10 @@ void GridHierarchyOptions::Check() const {
   RB_CHECK(max_levels >= 0 && max_levels <= 20, "grid hierarchy: max_levels ", max_levels, " is outside [0, 20]");
 }
 
-double PixelGridStep(const NoisyMesh& mesh) {
+double PixelGridStep(const NoisyMesh& mesh, std::string* why_not) {
   Grid grid;
   double step = 0;
-  return MakeGrid(mesh, &grid, &step) ? step : 0.0;
+  return MakeGrid(mesh, &grid, &step, why_not) ? step : 0.0;
 }
 
 std::vector<GridLevel> BuildGridHierarchy(const NoisyMesh& fine, const GridHierarchyOptions& options) {

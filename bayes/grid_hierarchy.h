@@ -18,6 +18,7 @@
 #pragma once
 
 #include <Eigen/SparseCore>
+#include <string>
 #include <vector>
 
 #include "core/mesh.h"
@@ -41,8 +42,9 @@ struct GridHierarchyOptions {
 
 // The step of an organized mesh's pixel grid (the smallest pixel distance along an edge, in pixels: 1 when every
 // pixel of the depth image is a vertex, 4 for `--downsample 4`), when its pixels lie on such a lattice, one vertex
-// per node; 0 otherwise (no pixels, a scatter, two vertices on one pixel).
-double PixelGridStep(const NoisyMesh& mesh);
+// per node; 0 otherwise (no pixels, a scatter, two vertices on one pixel), and then *why_not (when not null) says
+// which vertex broke the lattice.
+double PixelGridStep(const NoisyMesh& mesh, std::string* why_not = nullptr);
 
 // levels[0] is one step coarser than `fine`, levels[1] one step coarser than levels[0], and so on. Empty when
 // `fine` has no pixel positions (or they are not on a regular grid), has no covariances, or is too small.

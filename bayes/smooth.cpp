@@ -648,7 +648,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   });
   for (size_t i = 0; i < information.size(); ++i) {
     RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
-             " is not finite and positive definite");
+             " is not finite and positive semi-definite");
   }
   // The solver works on a reordered copy (SolverOrder); results go back to the input's order.
   std::vector<int> face_order;
@@ -818,6 +818,7 @@ std::string SmoothSummary::BriefReport() const {
     std::snprintf(line, sizeof(line), "degenerate: %d zero-area faces left out of the prior\n", inactive_faces);
     out += line;
   }
+  for (const std::string& notice : notices) out += "notice:     " + notice + "\n";
   return out;
 }
 
@@ -831,6 +832,7 @@ bool InformationFromCovariance(const Eigen::Matrix3d& c, Eigen::Matrix3d* inform
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (c + c.transpose()));
   const Eigen::Vector3d values = solver.eigenvalues();
   if (solver.info() != Eigen::Success || !(values.maxCoeff() > 0)) return false;
+  if (values.minCoeff() < -1e-6 * values.maxCoeff()) return false;  // indefinite: no covariance
   *information = solver.eigenvectors() * (0.5 * values.cwiseMax(1e-6 * values.maxCoeff()).cwiseInverse()).asDiagonal() *
                  solver.eigenvectors().transpose();
   return true;
@@ -838,7 +840,7 @@ bool InformationFromCovariance(const Eigen::Matrix3d& c, Eigen::Matrix3d* inform
 
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
   Eigen::Matrix3d information;
-  RB_CHECK(InformationFromCovariance(covariance, &information), "covariance is not finite and positive definite");
+  RB_CHECK(InformationFromCovariance(covariance, &information), "covariance is not finite and positive semi-definite");
   return information;
 }
 
@@ -972,7 +974,9 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
   if (organized && options.tolerance == SmoothTolerance::kDefault && options.gap_tolerance == 0) {
     options.gap_tolerance = kOrganizedGapTolerance;  // organized meshes stop closer to the optimum by default
   }
-  const double stride = organized && options.prior_weight_per_stride ? PixelGridStep(noisy) : 0.0;
+  std::string not_a_grid;
+  const double grid_step = organized ? PixelGridStep(noisy, &not_a_grid) : 0.0;
+  const double stride = options.prior_weight_per_stride ? grid_step : 0.0;
   if (stride > 0) options.prior_weight /= std::clamp(stride, 1.0, kMaxStrideForPriorWeight);
   const int continuation_stages = options.epsilon_continuation_stages >= 0
                                       ? options.epsilon_continuation_stages
@@ -991,7 +995,13 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
   const bool continuation = continuation_stages > 0 && options.prior == PriorKind::kSqrt &&
                             options.potential == nullptr && options.face_epsilon_squared.empty();
   Mesh result = SolveStages(noisy, options, organized, continuation ? continuation_stages : 0, deadline, summary_out);
-  if (summary_out != nullptr) summary_out->pixel_stride = stride;
+  if (summary_out != nullptr) {
+    summary_out->pixel_stride = stride;
+    if (organized && grid_step == 0) {
+      summary_out->notices.push_back(StrCat("the pixel positions are not one grid (", not_a_grid,
+                                            "): smoothed without the pixel-stride prior weight and the grid levels"));
+    }
+  }
   return result;
 }
 

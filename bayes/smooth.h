@@ -156,6 +156,9 @@ struct SmoothSummary {
   double prior_energy = 0;
   double prior_weight = 0;         // β the energy used (after SmoothOptions::prior_weight_per_stride)
   double pixel_stride = 0;         // organized meshes: the pixel grid's step that β was divided by; 0: none
+  // What the call repaired or could not use, one line each; e.g. pixel positions that are not one grid (the
+  // mesh is then smoothed without the stride weight and the grid levels, as a mesh without pixels).
+  std::vector<std::string> notices;
   double initial_gradient_norm = 0;
   double final_gradient_norm = 0;
   SmoothTermination termination = SmoothTermination::kNothingToDo;
@@ -186,8 +189,9 @@ struct SmoothSummary {
 Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSummary* summary = nullptr);
 
 // The information matrix W = ½ Σ⁻¹ that the smoother uses for a covariance Σ: symmetrised, eigenvalues below 1e-6
-// of the largest raised to it; σ² I gives (0.5 / σ²) I exactly (which the energy stores compactly). False when Σ
-// is not finite and positive definite.
+// of the largest raised to it (rounding, or a singular Σ); σ² I gives (0.5 / σ²) I exactly (which the energy stores
+// compactly). False when Σ is not finite and positive semi-definite (an eigenvalue below −1e-6 of the largest is
+// not rounding).
 bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* information);
 // The same; throws Error when Σ is not finite and positive definite.
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);

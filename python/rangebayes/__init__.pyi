@@ -89,6 +89,7 @@ class SmoothSummary:
     prior_energy: float
     prior_weight: float
     pixel_stride: float
+    notices: list[str]
     initial_gradient_norm: float
     final_gradient_norm: float
     remaining_decrease: float

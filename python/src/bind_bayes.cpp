@@ -157,6 +157,9 @@ void BindBayes(py::module_& m) {
       .def_readonly("prior_weight", &SmoothSummary::prior_weight, "β the energy used (after prior_weight_per_stride)")
       .def_readonly("pixel_stride", &SmoothSummary::pixel_stride,
                     "organized meshes: the pixel grid's step that β was divided by; 0: none")
+      .def_readonly("notices", &SmoothSummary::notices,
+                    "what the call repaired or could not use, one line each (e.g. pixel positions that are not "
+                    "one grid)")
       .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
       .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
       .def_readonly("remaining_decrease", &SmoothSummary::remaining_decrease,

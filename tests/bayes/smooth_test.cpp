@@ -7,11 +7,12 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
+#include <random>
 #include <string>
 #include <string_view>
 #include <vector>
-#include <random>
 
 #include "bayes/grid_hierarchy.h"
 #include "bayes/noise_model.h"
@@ -524,6 +525,56 @@ TEST(Smooth, PriorWeightFallsWithThePixelStride) {
   Smooth(no_pixels, options, &plain);
   EXPECT_EQ(plain.prior_weight, options.prior_weight);
   EXPECT_EQ(plain.pixel_stride, 0.0);
+}
+
+// Pixel positions that are not one grid (here two vertices on one pixel, or a non-finite one) are smoothed like
+// a mesh without pixels, with full β and no grid levels, and the summary says so and which vertex broke the grid.
+TEST(Smooth, PixelsThatAreNotOneGridAreSaidSo) {
+  NoisyMesh every_4th = testing::RangeGrid(12, 10, 0.01, 0.001, 4);
+  every_4th.pixel *= 4.0f;
+  NoisyMesh shared_pixel = every_4th, lost_pixel = every_4th, no_pixels = every_4th;
+  shared_pixel.pixel.row(7) = shared_pixel.pixel.row(8);
+  lost_pixel.pixel(7, 0) = std::numeric_limits<float>::quiet_NaN();
+  no_pixels.pixel.resize(0, 2);
+  std::string why;
+  EXPECT_EQ(PixelGridStep(shared_pixel, &why), 0.0);
+  EXPECT_NE(why.find("vertices 7 and 8 lie on one pixel"), std::string::npos) << why;
+  EXPECT_EQ(PixelGridStep(lost_pixel, &why), 0.0);
+  EXPECT_NE(why.find("vertex 7 has a non-finite pixel position"), std::string::npos) << why;
+  SmoothSummary grid, shared, lost, plain;
+  Smooth(every_4th, {}, &grid);
+  EXPECT_TRUE(grid.notices.empty());
+  EXPECT_EQ(grid.pixel_stride, 4.0);
+  Smooth(no_pixels, {}, &plain);
+  for (SmoothSummary* s : {&shared, &lost}) {
+    Smooth(s == &shared ? shared_pixel : lost_pixel, {}, s);
+    EXPECT_EQ(s->pixel_stride, 0.0);
+    EXPECT_EQ(s->prior_weight, plain.prior_weight);
+    ASSERT_EQ(s->notices.size(), 1u);
+    EXPECT_NE(s->notices[0].find("not one grid"), std::string::npos) << s->notices[0];
+    EXPECT_NE(s->BriefReport().find("notice:     the pixel positions are not one grid"), std::string::npos);
+  }
+}
+
+// A covariance with an eigenvalue below zero by more than rounding is no covariance: refused (by Smooth with the
+// vertex named), where a singular one or one negative by rounding gets the floor of 1e-6 of the largest.
+TEST(Smooth, IndefiniteCovarianceIsRefused) {
+  Eigen::Matrix3d information;
+  EXPECT_TRUE(InformationFromCovariance(Eigen::Vector3d(1.0, 1.0, 0.0).asDiagonal(), &information));
+  EXPECT_NEAR(information(2, 2), 0.5e6, 1e-6);
+  EXPECT_TRUE(InformationFromCovariance(Eigen::Vector3d(1.0, 1.0, -1e-12).asDiagonal(), &information));
+  Eigen::Matrix3d indefinite;
+  indefinite << 1, 10, 0, 10, 1, 0, 0, 0, 1;  // eigenvalues 11, 1, −9
+  EXPECT_FALSE(InformationFromCovariance(indefinite, &information));
+  EXPECT_THROW(InformationFromCovariance(indefinite), Error);
+  NoisyMesh input = testing::RangeGrid(12, 10, 0.01, 0.001, 4);
+  input.covariance[5] = indefinite;
+  try {
+    Smooth(input);
+    ADD_FAILURE() << "an indefinite covariance was smoothed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 5"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
