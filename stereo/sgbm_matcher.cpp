@@ -1,5 +1,6 @@
 #include "stereo/sgbm_matcher.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -71,6 +72,13 @@ DisparityResult SgbmMatcher::Match(const std::vector<cv::Mat>& left, const std::
   const int cn = l.channels();
   const int bs = options_.block_size_px;
   const int num = (options_.num_disparities + 15) / 16 * 16;
+  // SGBM matches only columns whose whole search range lies inside the image; OpenCV 4.6 aborts the process (an
+  // exception from a destructor) on an image with no such column instead of throwing.
+  const int need_px = std::max(options_.min_disparity_px + num, 0) - std::min(options_.min_disparity_px, 0);
+  RB_CHECK(l.cols > need_px, "the image is ", l.cols,
+           " px wide, which leaves no column to match: SGBM needs more than ", need_px, " px (min disparity ",
+           options_.min_disparity_px, ", ", num,
+           " disparities searched); search fewer disparities or use wider images");
   const int p1 = options_.p1 > 0 ? options_.p1 : 8 * cn * bs * bs;
   const int p2 = options_.p2 > 0 ? options_.p2 : 32 * cn * bs * bs;
   auto sgbm = cv::StereoSGBM::create(options_.min_disparity_px, num, bs, p1, std::max(p2, p1 + 1),

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "core/error.h"
 #include "stereo/disparity_io.h"
@@ -90,6 +91,29 @@ TEST(Sgbm, BadInputThrows) {
   SgbmMatcherOptions o;
   o.block_size_px = 4;
   EXPECT_THROW(SgbmMatcher{o}, Error);
+}
+
+// An image no wider than the search range has no column to match: a clear error, where OpenCV aborts the process.
+TEST(Sgbm, ImageNarrowerThanTheSearchRangeThrows) {
+  cv::Mat narrow(50, 64, CV_8U), wide(50, 65, CV_8U);
+  cv::randu(narrow, 0, 255);
+  cv::randu(wide, 0, 255);
+  SgbmMatcherOptions o;
+  o.num_disparities = 64;
+  EXPECT_THROW(SgbmMatcher(o).Match({narrow}, {narrow}), Error);
+  EXPECT_NO_THROW(SgbmMatcher(o).Match({wide}, {wide}));
+  o.num_disparities = 16;
+  o.min_disparity_px = 60;  // searches 60..75
+  EXPECT_THROW(SgbmMatcher(o).Match({wide}, {wide}), Error);
+  o.min_disparity_px = -16;  // searches -16..-1: the columns lose 16 on the right instead
+  EXPECT_NO_THROW(SgbmMatcher(o).Match({narrow}, {narrow}));
+  const cv::Mat tiny(2, 2, CV_8U, cv::Scalar(7));
+  try {
+    SgbmMatcher{}.Match({tiny}, {tiny});
+    ADD_FAILURE() << "a 2 px wide image was matched";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("2 px wide"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
