@@ -73,8 +73,11 @@ void AddBatch(CLI::App& app) {
     sub->add_option("MANIFEST", a->manifest, "manifest file")->required()->check(CLI::ExistingFile);
     sub->add_option("--out", a->out, "batch folder DIR (created; must not hold a batch yet)")->required();
     AddSchedulingOptions(sub, a.get());
-    sub->callback([a] {
+    sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
+      for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {
+        if (command->get_name() != "batch") a->options.subcommands.push_back(command->get_name());
+      }
       Submitted(SubmitBatch(a->manifest, a->out, a->options));
     });
   }

@@ -150,6 +150,16 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
                                const BatchSubmitOptions& options) {
   options.Check();
   const std::vector<ManifestTask> tasks = ReadManifest(manifest_path);
+  if (!options.subcommands.empty()) {
+    for (const ManifestTask& t : tasks) {
+      const std::string& name = t.arguments[0];
+      if (std::find(options.subcommands.begin(), options.subcommands.end(), name) != options.subcommands.end())
+        continue;
+      std::string known;
+      for (const std::string& s : options.subcommands) known += (known.empty() ? "" : ", ") + s;
+      RB_FAIL(manifest_path, ":", t.line_number, ": '", name, "' is not a rangebayes subcommand (", known, ")");
+    }
+  }
   const BatchLayout layout(dir);
   // A folder whose earlier submit was refused (no submission recorded) may be used again.
   RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,

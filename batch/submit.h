@@ -17,6 +17,9 @@ struct BatchSubmitOptions {
   std::string binary;                   // rangebayes binary the tasks run (absolute); empty: this executable
   std::string sbatch = "sbatch";        // sbatch program (a name on PATH or a path)
   std::string squeue = "squeue";        // squeue program, for resubmit's check that nothing is still queued
+  // When not empty: the subcommands a task line may start with (the binary's own), checked for every line before
+  // anything is written or submitted.
+  std::vector<std::string> subcommands;
   // Called (in the submitting process) when a local task has ended.
   std::function<void(const BatchTaskStatus&)> on_task_end;
   void Check() const;

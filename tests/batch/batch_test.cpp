@@ -175,6 +175,26 @@ TEST(Status, JsonRoundTripAndAtomicReplace) {
   EXPECT_THROW(ParseBatchTaskStatus("{\"index\":1,\"state\":\"odd\",\"exit_code\":0}", "s.json"), Error);
 }
 
+// A line that names no subcommand of the binary is refused at submit, with its line, before anything is written.
+TEST(SubmitBatch, UnknownSubcommandIsRefusedBeforeAnythingRuns) {
+  const TempDir dir("unknown");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj tet.ply\nnotacommand foo\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  options.subcommands = {"convert", "smooth"};
+  const std::string out = dir.path() + "/out";
+  try {
+    SubmitBatch(manifest, out, options);
+    ADD_FAILURE() << "a manifest with an unknown subcommand was submitted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(":2: 'notacommand' is not a rangebayes subcommand (convert, smooth)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(RunTask, PublishesOnlyOnSuccessAndReplacesAnOlderResult) {
   const TempDir dir("runtask");
   const std::string manifest =
