@@ -137,6 +137,9 @@ BoardModel MakeBoard(const BoardSpec& spec) {
 Detection DetectChessboard(const cv::Mat& gray, const BoardSpec& spec) {
   Detection d;
   const cv::Size pattern(spec.cols, spec.rows);
+  // No board fits in an image with squares under 4 px (and OpenCV's classic detector asserts on images under
+  // about 15 px, its adaptive threshold's window shrinking to 1 px).
+  if (gray.cols < std::max(16, 4 * (spec.cols + 1)) || gray.rows < std::max(16, 4 * (spec.rows + 1))) return d;
   // The sector-based detector is the more accurate; the classic one with cornerSubPix catches boards the
   // former misses (strong blur, small boards).
   if (spec.detector == ChessboardDetector::kSectorBased) {

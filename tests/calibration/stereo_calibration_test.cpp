@@ -184,6 +184,30 @@ TEST(CalibrateStereoRig, SkipsPairsWithoutBoardAndNeedsMinimum) {
   EXPECT_EQ(s.views[4].skip_reason, "board not found in the left image");
 }
 
+// Images too small to hold the board are pairs without it (OpenCV's classic detector asserted on them).
+TEST(CalibrateStereoRig, TinyImagesShowNoBoard) {
+  TempDir dir;
+  cv::Mat tiny(12, 12, CV_8U);
+  cv::randu(tiny, 0, 255);
+  for (const char* n : {"01", "02", "03", "04", "05"}) {
+    cv::imwrite((dir.path() / (std::string("left") + n + ".png")).string(), tiny);
+    cv::imwrite((dir.path() / (std::string("right") + n + ".png")).string(), tiny);
+  }
+  const auto pairs =
+      PairCalibrationImages({(dir.path() / "left*.png").string()}, {(dir.path() / "right*.png").string()});
+  ASSERT_EQ(pairs.size(), 5u);
+  for (ChessboardDetector detector : {ChessboardDetector::kClassic, ChessboardDetector::kSectorBased}) {
+    StereoCalibrationOptions o = SampleOptions();
+    o.board.detector = detector;
+    try {
+      CalibrateStereoRig(pairs, o);
+      ADD_FAILURE() << "a rig was calibrated from 12 px images";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("only 0 of 5 image pairs show the board"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(BoardSpec, CharucoAvailabilityIsReportedCleanly) {
   StereoCalibrationOptions o = SampleOptions();
   o.board.type = BoardType::kCharuco;
