@@ -193,7 +193,7 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSum
 // compactly). False when Σ is not finite and positive semi-definite (an eigenvalue below −1e-6 of the largest is
 // not rounding).
 bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* information);
-// The same; throws Error when Σ is not finite and positive definite.
+// The same; throws Error when Σ is not finite and positive semi-definite.
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
 
 // A start for the smoother on an organized mesh from an earlier result at the same pixels (successive frames of

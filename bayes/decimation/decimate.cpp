@@ -832,7 +832,7 @@ class LambdaSearch {
   // Evaluate(b), then Evaluate(below) only when b fits; the second runs beside the first on another core
   // (climb and triangulation), and is thrown away when b has too many, so the search takes the same steps and
   // ends with the same result as one after the other. What it costs: when b has too many, one evaluation of
-  // CPU that the serial order would not spend (docs/journal/decimation.md, session 29).
+  // CPU that the serial order would not spend (docs/journal/decimation.md, round 9).
   std::vector<double> EvaluatePair(double b, double below) {
     Attempt at_b = Climb(b);
     const bool below_cached = climbs_.count(below) > 0;
