@@ -157,7 +157,7 @@ struct SmoothSummary {
   double prior_weight = 0;         // β the energy used (after SmoothOptions::prior_weight_per_stride)
   double pixel_stride = 0;         // organized meshes: the pixel grid's step that β was divided by; 0: none
   // What the call repaired or could not use, one line each; e.g. pixel positions that are not one grid (the
-  // mesh is then smoothed without the stride weight and the grid levels, as a mesh without pixels).
+  // mesh is then smoothed with the full β and without the grid levels).
   std::vector<std::string> notices;
   double initial_gradient_norm = 0;
   double final_gradient_norm = 0;

@@ -527,8 +527,8 @@ TEST(Smooth, PriorWeightFallsWithThePixelStride) {
   EXPECT_EQ(plain.pixel_stride, 0.0);
 }
 
-// Pixel positions that are not one grid (here two vertices on one pixel, or a non-finite one) are smoothed like
-// a mesh without pixels, with full β and no grid levels, and the summary says so and which vertex broke the grid.
+// Pixel positions that are not one grid (here two vertices on one pixel, or a non-finite one) leave the mesh its
+// full β and no grid levels, and the summary says so and which vertex broke the grid.
 TEST(Smooth, PixelsThatAreNotOneGridAreSaidSo) {
   NoisyMesh every_4th = testing::RangeGrid(12, 10, 0.01, 0.001, 4);
   every_4th.pixel *= 4.0f;
