@@ -52,6 +52,8 @@ DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_
         sz[x] = nan;
         continue;
       }
+      RB_CHECK(!(s[x] < 0.0f) && s[x] != std::numeric_limits<float>::infinity(), "sigma_disparity at (", x, ", ", y,
+               ") is ", s[x], " px: it must be finite and >= 0 (NaN: unknown)");
       z[x] = static_cast<float>(depth);
       // dZ/dd = f·B/(d + doffs)² = Z²/(f·B).
       sz[x] = static_cast<float>(depth * depth / fb * s[x]);

@@ -1,12 +1,14 @@
 // Organized triangulation: grid topology, discontinuities, downsampling, covariance shape and calibration.
+#include "reconstruction/triangulate.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "core/error.h"
-#include "reconstruction/triangulate.h"
 #include "stereo/spacetime_matcher.h"
 #include "stereo/synth.h"
 
@@ -103,6 +105,31 @@ TEST(Triangulate, BadInputThrows) {
   TriangulateOptions o;
   o.downsample = 0;
   EXPECT_THROW(TriangulateDepth(PlaneFrame(5, 5, 1.0), o), Error);
+}
+
+// A disparity σ below zero or infinite is no σ: refused with its pixel, where a negative one came out as a negative
+// depth σ; NaN (unknown) stays allowed.
+TEST(DepthFromDisparity, NegativeOrInfiniteSigmaIsRefused) {
+  CameraIntrinsics k;
+  k.fx_px = k.fy_px = 100.0;
+  k.cx_px = 10.0;
+  k.cy_px = 5.0;
+  k.width = 20;
+  k.height = 10;
+  const cv::Mat disparity(10, 20, CV_32F, cv::Scalar(5.0f));
+  cv::Mat sigma(10, 20, CV_32F, cv::Scalar(0.5f));
+  EXPECT_NO_THROW(DepthFromDisparity(disparity, sigma, k, 0.1, 0.0));
+  sigma.at<float>(3, 7) = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_NO_THROW(DepthFromDisparity(disparity, sigma, k, 0.1, 0.0));
+  for (const float bad : {-1.0f, std::numeric_limits<float>::infinity()}) {
+    sigma.at<float>(3, 7) = bad;
+    try {
+      DepthFromDisparity(disparity, sigma, k, 0.1, 0.0);
+      ADD_FAILURE() << "sigma " << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("sigma_disparity at (7, 3)"), std::string::npos) << e.what();
+    }
+  }
 }
 
 struct ResidualStats {
