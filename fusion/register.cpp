@@ -71,6 +71,9 @@ void BuildIndex(const Scan& scan, std::uint64_t seed, int rings, ScanIndex* inde
     if (!index->boundary[i]) index->sample_order.push_back(i);
   }
   RB_CHECK(!index->tree_vertex.empty(), scan.name, ": empty scan (no vertex on a triangle)");
+  // Correspondences start from and end at interior vertices only: a scan without one overlaps nothing.
+  RB_CHECK(!index->sample_order.empty(), scan.name, ": no vertex lies more than ", rings,
+           " ring(s) inside the scan's boundary (", nv, " vertices): too small to align");
   index->tree.setInputCloud(index->cloud);
   std::mt19937_64 rng(seed);
   std::shuffle(index->sample_order.begin(), index->sample_order.end(), rng);

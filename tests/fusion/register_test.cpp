@@ -1,9 +1,11 @@
+#include "fusion/register.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
 
 #include "core/error.h"
-#include "fusion/register.h"
 #include "synthetic.h"
 
 namespace rangebayes {
@@ -59,6 +61,26 @@ TEST(Register, NonOverlappingScanIsNamed) {
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("view1: overlaps no other scan"), std::string::npos) << e.what();
+  }
+}
+
+// A scan whose every vertex lies on or beside its boundary has nothing to align with: named as too small, not as
+// a scan that overlaps nothing (what it was told before, with advice about its pose).
+TEST(Register, ScanWithoutInteriorVerticesIsTooSmall) {
+  const Mesh truth = testing::MakeBlob();
+  const std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0), testing::ViewPose(60)};
+  std::vector<Scan> scans = testing::RenderViews(truth, poses, 5e-5);
+  NoisyMesh triangle;
+  triangle.mesh.V = scans[1].noisy.mesh.V.topRows(3);
+  triangle.mesh.F.resize(1, 3);
+  triangle.mesh.F << 0, 1, 2;
+  scans[1] = MakeScanFromMesh(triangle, "view1");
+  try {
+    RegisterScans(scans, poses);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("view1: no vertex lies more than"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("too small to align"), std::string::npos) << e.what();
   }
 }
 
