@@ -176,5 +176,24 @@ TEST(NoiseModel, ProfileChecksItsRange) {
   EXPECT_EQ(EstimateNoiseLevel(plane), 0.0) << "a noise-free plane";
 }
 
+// A mesh with a non-finite vertex has no noise level: refused with the vertex, where the estimate read 0 (and the
+// generic model's σ came out NaN).
+TEST(NoiseModel, NonFiniteVertexIsRefused) {
+  Mesh mesh = testing::Grid(6, 6);
+  mesh.V(7, 2) = std::nan("");
+  for (int which = 0; which < 2; ++which) {
+    try {
+      if (which == 0) {
+        EstimateNoiseLevel(mesh);
+      } else {
+        MakeGenericNoisyMesh(mesh, GenericNoiseOptions{});
+      }
+      ADD_FAILURE() << "a mesh with a NaN vertex got a noise model";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("vertex 7 has non-finite coordinates"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace rangebayes
