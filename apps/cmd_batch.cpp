@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "apps/command.h"
+#include "apps/flags.h"
 #include "batch/submit.h"
 #include "batch/task.h"
 
@@ -103,7 +104,7 @@ void AddBatch(CLI::App& app) {
         "Run task I of DIR (what each array task runs): in a temporary folder renamed to DIR/tasks/I/ only on "
         "success; writes DIR/status/I.json; exits with the task's exit code");
     sub->add_option("DIR", a->dir, "batch folder")->required();
-    sub->add_option("I", a->index, "task index (0-based, manifest order)")->required()->check(CLI::NonNegativeNumber);
+    sub->add_option("I", a->index, "task index (0-based, manifest order)")->required()->check(NonNegativeInteger());
     sub->callback([a] {
       const BatchTaskStatus s = RunBatchTask(a->dir, a->index);
       PrintTaskEnd(s);

@@ -239,8 +239,8 @@ void AddNoise(CLI::App* calibrate) {
                   "model form: auto (plane: floor-plus-scale when the matcher predicts sigma_d; ground-truth: learned), "
                   "constant, floor-plus-scale, learned")
       ->check(CLI::IsMember({"auto", "constant", "floor-plus-scale", "learned"}));
-  sub->add_option("--frame", a->frame, "first frame used (index into frames.csv)")->check(CLI::NonNegativeNumber);
-  sub->add_option("--frames", a->frames, "spacetime: frames used from --frame (0: all)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--frame", a->frame, "first frame used (index into frames.csv)")->check(NonNegativeInteger());
+  sub->add_option("--frames", a->frames, "spacetime: frames used from --frame (0: all)")->check(NonNegativeInteger());
   sub->add_option("--min-disparity", a->min_disparity_px, "smallest disparity searched (px)");
   sub->add_option("--num-disparities", a->num_disparities, "disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));

@@ -91,9 +91,8 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--prior", o->prior_file,
                   "Learned smoothing prior FILE.yaml from 'rangebayes learn-prior' (its beta unless --prior-weight "
                   "is given; default: the square root)");
-  sub->add_option("--max-iterations", o->max_iterations,
-                  "Smoothing iteration cap (0: the tolerance preset's)")
-      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--max-iterations", o->max_iterations, "Smoothing iteration cap (0: the tolerance preset's)")
+      ->check(NonNegativeInteger());
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): a deadline; the summary says how far from converged it stopped "
                   "(-1: no budget, or 80 with --live-path)");
@@ -253,11 +252,11 @@ void AddCameraOptions(CLI::App* sub, CameraCli* o) {
   sub->add_flag("--libcamera", o->libcamera, "Use libcamera cameras instead of V4L2 devices");
   sub->add_option("--width", o->width, "Requested image width (px; the closest offered is used)");
   sub->add_option("--height", o->height, "Requested image height (px)");
-  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s)")->check(CLI::Range(0.1, 1000.0));
+  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s)")->check(RealRange(0.1, 1000.0));
   sub->add_option("--format", o->format, "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg")
       ->check(CLI::IsMember({"auto", "grey", "yuyv", "mjpeg"}));
   sub->add_option("--pair-tolerance", o->tolerance_ms, "Largest left/right timestamp difference of a pair (ms)")
-      ->check(CLI::Range(0.001, 1000.0));
+      ->check(RealRange(0.001, 1000.0));
   sub->add_option("--timeout", o->timeout_ms, "Camera timeout (ms) before a frame counts as late")
       ->check(CLI::Range(1, 60000));
   sub->add_option("--rig", o->rig, "Calibrated rig (rig.yaml, see rangebayes calibrate)");
@@ -345,7 +344,8 @@ void AddRecord(CLI::App& app) {
   auto* sub = app.add_subcommand("record", "Record stereo frames from two cameras into a recording folder (Ctrl-C stops)");
   AddCameraOptions(sub, &o->camera);
   sub->add_option("--out,-o", o->out, "Recording folder to create")->required();
-  sub->add_option("--frames", o->max_frames, "Stop after this many frames (0: until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--frames", o->max_frames, "Stop after this many frames (0: until Ctrl-C)")
+      ->check(NonNegativeInteger());
   sub->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until Ctrl-C)")->check(NonNegativeReal());
   AddQuietFlag(sub, &o->quiet);
   sub->callback([o] {
@@ -417,8 +417,9 @@ void AddReplay(CLI::App& app) {
   sub->add_option("--speed", o->speed, "fastest, recorded (at the recorded frame times) or step (Enter per frame)")
       ->check(CLI::IsMember({"fastest", "recorded", "step"}));
   sub->add_option("--speed-factor", o->speed_factor, "With --speed recorded: play this many times faster")
-      ->check(CLI::Range(0.001, 1000.0));
-  sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")->check(CLI::NonNegativeNumber);
+      ->check(RealRange(0.001, 1000.0));
+  sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")
+      ->check(NonNegativeInteger());
   sub->add_option("--count", o->count, "Entries to play (-1: all)");
   sub->add_option("--repeat", o->repeats,
                   "Play the entries this many times (frame indices keep increasing; for live-path timing)")

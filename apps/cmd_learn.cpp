@@ -176,11 +176,11 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--out", args->out, "Output folder (train/, test/, train_pairs.txt, test_pairs.txt)")->required();
     sub->add_option("--seed", args->seed, "Random seed: the same seed writes the same meshes");
     sub->add_option("--noise", args->k, "Noise sigma in units of the mean edge length l_e (k), [0, 5]")
-        ->check(CLI::Range(0.0, 5.0));
+        ->check(RealRange(0.0, 5.0));
     sub->add_option("--noise-max", args->k_max,
                     "A mixture of noise levels: copies spread evenly over k in [--noise, --noise-max] (each noisy "
                     "PLY then holds its own covariance); 0: one level, [0, 5]")
-        ->check(CLI::Range(0.0, 5.0));
+        ->check(RealRange(0.0, 5.0));
     sub->add_flag("--scanner-noise", args->scanner,
                   "Ray-aligned scanner noise (sigma along the ray from a virtual camera, sigma/10 across; the PLY "
                   "holds the covariance) instead of Gaussian noise along the vertex normals");
@@ -220,20 +220,20 @@ void AddCommands(CLI::App& app) {
                     "finite differences beside the CG iterations (its reference; add --bump-sweeps 0 for it alone)")
         ->check(CLI::IsMember({"none", "interleaved"}));
     sub->add_option("--w", args->w, "Weight w of the curvature regulariser on the knots (paper eq. 19), [0, 1e6]")
-        ->check(CLI::Range(0.0, 1e6));
+        ->check(RealRange(0.0, 1e6));
     sub->add_option("--noise", args->noise_k,
                     "Noise sigma / l_e of the noisy meshes without covariances (default: the pairs list's "
                     "'# noise:' line, else estimated per mesh)")
         ->check(NotNaN())
         ->default_str("");
     sub->add_option("--prior-weight", args->prior_weight, "Prior weight beta of the smoother, (0, 1e6]")
-        ->check(CLI::Range(1e-12, 1e6));
+        ->check(RealRange(1e-12, 1e6));
     sub->add_option("--iterations", args->iterations, "Interleaved: outer iterations (0: 400), [0, 1e6]")
         ->check(CLI::Range(0, 1000000));
     sub->add_option("--time-limit", args->time_limit_s, "Stop learning after this many seconds (0: no limit)")
-        ->check(CLI::Range(0.0, 1e9));
+        ->check(RealRange(0.0, 1e9));
     sub->add_option("--step", args->step, "Interleaved: fixed step alpha (paper eq. 22), (0, 1e6]")
-        ->check(CLI::Range(1e-12, 1e6));
+        ->check(RealRange(1e-12, 1e6));
     sub->add_option("--bump-sweeps", args->bump_sweeps,
                     "After the --method: sweeps of implicit filtering on the cold-smoothing loss along smooth "
                     "Gaussian bumps of the knot values (sigma --bump-width) centred at --bump-centres "
@@ -242,14 +242,14 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--bump-step", args->bump_step,
                     "Bump search: initial stencil size in knot-value units (halved after a stencil failure; the "
                     "search ends below 0.005), (0, 1]")
-        ->check(CLI::Range(1e-9, 1.0));
+        ->check(RealRange(1e-9, 1.0));
     sub->add_option("--bump-width", args->bump_width, "Bump search: sigma of the bumps in d, (0, 1]")
-        ->check(CLI::Range(1e-9, 1.0));
+        ->check(RealRange(1e-9, 1.0));
     sub->add_option("--bump-centres", args->bump_centres,
                     "Bump search: the bump centres in d, comma-separated, each in (0, 2) (default: the knots 7-14 "
                     "of 16)")
         ->delimiter(',')
-        ->check(CLI::Range(1e-9, 2.0 - 1e-9));
+        ->check(RealRange(1e-9, 2.0 - 1e-9));
     AddThreadsOption(sub, &args->threads);
     AddQuietFlag(sub, &args->quiet);
     sub->callback([args] { RunLearn(*args); });

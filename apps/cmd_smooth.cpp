@@ -233,15 +233,15 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--time-limit", args->time_limit_s,
                   "seconds for the whole solve, continuation stages and grid levels included; the summary's distance "
                   "says how far from converged it stopped; 0: no limit")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(RealRange(0.0, 1e6));
   sub->add_option("--gap-tolerance", args->gap_tolerance,
                   "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
                   "0: the --tolerance preset's")
-      ->check(CLI::Range(0.0, 0.999999));
+      ->check(RealRange(0.0, 0.999999));
   sub->add_option("--robust-data", args->robust_data_nu,
                   "heavy-tailed data term: Student-t with this many degrees of freedom nu on the Mahalanobis distance "
                   "(gross mismatches stop pulling), (0, 1e6]; 0: Gaussian (the default)")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(RealRange(0.0, 1e6));
   sub->add_option("--continuation", args->continuation,
                   "sqrt prior: epsilon continuation stages before the final solve (eps2 x 10^s, s = N..1), [-1, 6]; "
                   "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")

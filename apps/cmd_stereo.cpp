@@ -249,9 +249,10 @@ void AddSpaceTime(CLI::App& app) {
       "spacetime", "Space-time stereo of a recording of a static scene: disparity, depth, sigma, pictures and mesh");
   sub->add_option("RECORDING", o->recording, "Recording folder (frames.csv, rig.yaml, left/, right/)")->required();
   sub->add_option("--out", o->out, "Output folder")->required();
-  sub->add_option("--frames", o->frames, "Temporal window T (frames; 0: all from --first)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--frames", o->frames, "Temporal window T (frames; 0: all from --first)")
+      ->check(NonNegativeInteger());
   sub->add_option("--first", o->first, "First frame of the window (index into frames.csv)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegativeInteger());
   AddMatchOptions(sub, &o->m, true);
   sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc over time for T >= 3, else ssd), ssd, zncc or zncc-space");
   sub->callback([o] {
@@ -297,7 +298,8 @@ void AddSynth(CLI::App& app) {
       ->check(CLI::IsMember({"plane", "planes", "box", "sphere", "cylinder", "stairs"}));
   sub->add_option("--pattern", o->pattern, "random or graycode")->check(CLI::IsMember({"random", "graycode"}));
   sub->add_option("--frames", o->s.frames, "Number of stereo pairs T (1-256)")->check(CLI::Range(1, 256));
-  sub->add_option("--noise", o->s.image_noise_gray, "Image noise sigma (8-bit grey levels)")->check(CLI::Range(0.0, 100.0));
+  sub->add_option("--noise", o->s.image_noise_gray, "Image noise sigma (8-bit grey levels)")
+      ->check(RealRange(0.0, 100.0));
   sub->add_option("--seed", o->s.seed, "Random seed (patterns and noise)");
   sub->add_option("--width", o->s.width, "Image width (px)")->check(CLI::Range(16, 4096));
   sub->add_option("--height", o->s.height, "Image height (px)")->check(CLI::Range(16, 4096));
@@ -308,10 +310,10 @@ void AddSynth(CLI::App& app) {
   sub->add_option("--pixel-jitter", o->s.pixel_jitter_px,
                   "Pixel localisation error sigma (px, 0-2; 0: off): each left pixel's ray is offset by a smooth "
                   "N(0, sigma^2) field common to both cameras; ground_truth/points_left_m.pfm holds the true points")
-      ->check(CLI::Range(0.0, 2.0));
+      ->check(RealRange(0.0, 2.0));
   sub->add_option("--pixel-jitter-cell", o->s.pixel_jitter_cell_px,
                   "Correlation length of the pixel jitter field (px, 1-256)")
-      ->check(CLI::Range(1.0, 256.0));
+      ->check(RealRange(1.0, 256.0));
   sub->add_option("--out", o->out, "Output recording folder")->required();
   sub->add_flag("--overwrite", o->overwrite, "Replace a recording already in the folder");
   AddQuietFlag(sub, &o->quiet);

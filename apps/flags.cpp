@@ -14,7 +14,7 @@ void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight) {
                   "Smoothing prior weight beta (unitless, [0, 1e6]) at every pixel; meshes with pixel positions "
                   "and covariances (stereo) use beta / their pixel stride (at most 4); default: a learned prior's "
                   "own beta, else the library's measured default")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(RealRange(0.0, 1e6));
 }
 
 void AddToleranceOption(CLI::App* sub, std::string* tolerance) {
@@ -45,6 +45,17 @@ CLI::Validator RealCheck(const std::string& description, const std::function<std
       description);
 }
 
+// The same for an integer value.
+CLI::Validator IntegerCheck(const std::string& description, const std::function<std::string(long long)>& check) {
+  return CLI::Validator(
+      [check](std::string& text) -> std::string {
+        long long value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not an integer";
+        return check(value);
+      },
+      description);
+}
+
 }  // namespace
 
 CLI::Validator PositiveReal() {
@@ -56,6 +67,25 @@ CLI::Validator PositiveReal() {
 CLI::Validator NonNegativeReal() {
   return RealCheck("NONNEGATIVE", [](double v) {
     return std::isfinite(v) && v >= 0 ? std::string() : "must be a finite number >= 0, got " + CLI::detail::to_string(v);
+  });
+}
+
+CLI::Validator RealRange(double lo, double hi) {
+  const std::string range = "[" + CLI::detail::to_string(lo) + ", " + CLI::detail::to_string(hi) + "]";
+  return RealCheck("REAL in " + range, [lo, hi, range](double v) {
+    return v >= lo && v <= hi ? std::string() : "must be a number in " + range + ", got " + CLI::detail::to_string(v);
+  });
+}
+
+CLI::Validator PositiveInteger() {
+  return IntegerCheck("POSITIVE", [](long long v) {
+    return v > 0 ? std::string() : "must be an integer > 0, got " + std::to_string(v);
+  });
+}
+
+CLI::Validator NonNegativeInteger() {
+  return IntegerCheck("NONNEGATIVE", [](long long v) {
+    return v >= 0 ? std::string() : "must be an integer >= 0, got " + std::to_string(v);
   });
 }
 

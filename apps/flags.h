@@ -28,6 +28,10 @@ void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_n
 // largest double as the end of their range, and let NaN through).
 CLI::Validator PositiveReal();     // a finite number > 0
 CLI::Validator NonNegativeReal();  // a finite number ≥ 0
+CLI::Validator RealRange(double lo, double hi);  // a number in [lo, hi] (NaN refused)
+// Counts and indices: CLI11's checks for these print the largest double as the range's end.
+CLI::Validator PositiveInteger();     // an integer > 0
+CLI::Validator NonNegativeInteger();  // an integer ≥ 0
 // Any number but NaN: for options whose absence the library marks with NaN ("estimate it"), so that a NaN given
 // is not silently taken for the option left out.
 CLI::Validator NotNaN();

@@ -30,9 +30,9 @@ TEST(Cli, NoSubcommandIsUsageError) {
   EXPECT_EQ(r.exit_code, 2);
 }
 
-// Real-valued options: one plain line and exit 2 for a value out of range or NaN (CLI11's own checks printed the
+// Numeric options: one plain line and exit 2 for a value out of range or NaN (CLI11's own checks printed the
 // largest double as the range's end, and let NaN through), and a NaN is never taken for an option left out.
-TEST(Cli, BadRealValuesAreOnePlainLine) {
+TEST(Cli, BadNumericValuesAreOnePlainLine) {
   const std::string mesh = "tests/data/meshes/fandisk_noisy_gauss0.3.obj";
   const std::pair<std::string, std::string> cases[] = {
       {"decimate " + mesh + " /tmp/rb_cli_never.ply --lambda nan", "--lambda: must be a finite number > 0, got nan"},
@@ -42,6 +42,12 @@ TEST(Cli, BadRealValuesAreOnePlainLine) {
        "--square: must be a finite number > 0, got 0"},
       {"smooth " + mesh + " /tmp/rb_cli_never.ply --noise nan", "--noise: nan is not a value"},
       {"smooth " + mesh + " /tmp/rb_cli_never.ply --sigma NaN", "--sigma: nan is not a value"},
+      {"smooth " + mesh + " /tmp/rb_cli_never.ply --prior-weight nan",
+       "--prior-weight: must be a number in [0, 1e+06], got nan"},
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --chain-reserve 2",
+       "--chain-reserve: must be a number in [0, 0.99], got 2"},
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 0", "--target-faces: must be an integer > 0, got 0"},
+      {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 2.5", "--target-faces: '2.5' is not an integer"},
   };
   for (const auto& [args, message] : cases) {
     const RunResult r = RunRangebayes(args);
