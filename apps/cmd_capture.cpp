@@ -95,7 +95,8 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
       ->check(NonNegativeInteger());
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
                   "Smoothing time per frame (ms): a deadline; the summary says how far from converged it stopped "
-                  "(-1: no budget, or 80 with --live-path)");
+                  "(-1: no budget, or 80 with --live-path)")
+      ->check(RealRange(-1.0, 1e3 * kMaxSmoothTimeLimitS));
   sub->add_flag("--no-warm-start", o->no_warm_start,
                 "Under a smoothing budget, solve every frame from its measurements instead of starting where the "
                 "previous result agrees with them");

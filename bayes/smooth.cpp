@@ -766,7 +766,8 @@ void SmoothOptions::Check() const {
   RB_CHECK(face_epsilon_squared.empty() || (prior == PriorKind::kSqrt && potential == nullptr),
            "smooth: face_epsilon_squared needs the built-in square-root prior");
   RB_CHECK(num_threads >= 0 && num_threads <= 1024, "smooth: num_threads ", num_threads, " is outside [0, 1024]");
-  RB_CHECK(time_limit_s >= 0 && time_limit_s <= 1e6, "smooth: time_limit_s ", time_limit_s, " is outside [0, 1e6]");
+  RB_CHECK(time_limit_s >= 0 && time_limit_s <= kMaxSmoothTimeLimitS, "smooth: time_limit_s ", time_limit_s,
+           " is outside [0, ", kMaxSmoothTimeLimitS, "]");
 }
 
 std::string SmoothSummary::BriefReport() const {

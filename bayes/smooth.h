@@ -36,6 +36,9 @@ inline constexpr double kMaxStrideForPriorWeight = 4;
 SmoothTolerance ParseSmoothTolerance(const std::string& name);  // "fast", "default", "tight"; Error otherwise
 std::string SmoothToleranceName(SmoothTolerance tolerance);
 
+// The largest time limit a smoothing call takes (s): about 11.6 days, far beyond any solve.
+inline constexpr double kMaxSmoothTimeLimitS = 1e6;
+
 struct SmoothOptions {
   PriorKind prior = PriorKind::kSqrt;  // used when `potential` is null
   double sqrt_epsilon_squared = 1e-4;  // ε² of the square-root potential (the paper's value), (0, 4]
@@ -102,9 +105,9 @@ struct SmoothOptions {
   int epsilon_continuation_stages = -1;
   // Seconds for the whole call, continuation stages and coarse levels included (0: no limit). Checked after each
   // iteration; stage k of S continuation stages ends by k/(S+1) of what the setup (done once per call) left, so
-  // the final solve at the true ε keeps at least 1/(S+1) of it, and always gets one iteration; stages not started when it ran out are
-  // skipped (on the adaptive-ε path of generic meshes, each of its solves gets the limit). The result then
-  // depends on the machine's speed. [0, 1e6]
+  // the final solve at the true ε keeps at least 1/(S+1) of it, and always gets one iteration; stages not started when
+  // it ran out are skipped (on the adaptive-ε path of generic meshes, each of its solves gets the limit). The result
+  // then depends on the machine's speed. [0, kMaxSmoothTimeLimitS]
   double time_limit_s = 0;
   // ν of the heavy-tailed data term (SmoothingEnergy::SetRobustData): 0 = the Gaussian of the paper (the default,
   // BENCHMARKS.md "Learned disparity-noise model"); else (0, 1e6].

@@ -228,8 +228,8 @@ void PipelineOptions::Check() const {
   RB_CHECK(max_consecutive_timeouts >= 1, "max_consecutive_timeouts must be >= 1");
   RB_CHECK(stereo_downsample == 1 || stereo_downsample == 2 || stereo_downsample == 4 || stereo_downsample == 8,
            "stereo downsample must be 1, 2, 4 or 8, got ", stereo_downsample);
-  RB_CHECK(smooth_budget_ms >= 0.0 && std::isfinite(smooth_budget_ms),
-           "smoothing budget must be >= 0 ms, got ", smooth_budget_ms);
+  RB_CHECK(smooth_budget_ms >= 0.0 && smooth_budget_ms <= 1e3 * kMaxSmoothTimeLimitS,
+           "smoothing budget must be in [0, ", 1e3 * kMaxSmoothTimeLimitS, "] ms, got ", smooth_budget_ms);
   RB_CHECK(full_quality_triangulate_downsample >= 1 && full_quality_triangulate_downsample <= 64,
            "full-quality triangulation downsample must be in 1..64, got ", full_quality_triangulate_downsample);
   rectify.Check();

@@ -48,6 +48,8 @@ TEST(Cli, BadNumericValuesAreOnePlainLine) {
        "--chain-reserve: must be a number in [0, 0.99], got 2"},
       {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 0", "--target-faces: must be an integer > 0, got 0"},
       {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 2.5", "--target-faces: '2.5' is not an integer"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --smooth-budget 1e300",
+       "--smooth-budget: must be a number in [-1, 1e+09], got 1e+300"},
   };
   for (const auto& [args, message] : cases) {
     const RunResult r = RunRangebayes(args);

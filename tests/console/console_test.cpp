@@ -192,6 +192,13 @@ TEST_F(ConsoleTest, ControlNeedsTheTokenAndWellFormedCommands) {
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":42})", token)), 400);
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"format_disk"})", token)), 400);
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","stereo_downsample":3})", token)), 400);
+  // Integers beyond int must not wrap (4294967298 read as 2), and a budget beyond the smoother's limit would fail
+  // every frame after it.
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","stereo_downsample":4294967298})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","matcher":"spacetime","window_frames":4294967300})", token)), 400);
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","smooth_budget_ms":1e308})", token)), 400);
+  EXPECT_EQ(control_.settings().stereo_downsample, 1);
+  EXPECT_EQ(control_.settings().window_frames, 1);
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"set","matcher":"magic"})", token)), 400);
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"record_start","name":"../escape"})", token)), 400);
   EXPECT_FALSE(std::filesystem::exists(dir_.path() + "/escape"));
