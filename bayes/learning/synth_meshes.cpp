@@ -259,6 +259,8 @@ void SynthMeshSetOptions::Check() const {
   RB_CHECK(num_validation >= 0 && num_validation <= 10000, "synth meshes: num_validation must be in [0, 10000], got ",
            num_validation);
   RB_CHECK(copies >= 1 && copies <= 100, "synth meshes: copies must be in [1, 100], got ", copies);
+  RB_CHECK(num_train + num_test + num_validation > 0,
+           "synth meshes: nothing to make: num_train, num_test and num_validation are all 0");
   noise.Check();
   object.Check();
   RB_CHECK(noise_k_max >= 0 && noise_k_max <= 5, "synth meshes: noise_k_max must be in [0, 5], got ", noise_k_max);

@@ -47,7 +47,7 @@ NoisyMesh AddSynthNoise(const Mesh& clean, const SynthNoiseOptions& options, std
 struct SynthMeshSetOptions {
   std::uint64_t seed = 1;
   int num_train = 8;  // training objects; [0, 10000]
-  int num_test = 4;   // held-out objects (never among the training objects); [0, 10000]
+  int num_test = 4;   // held-out objects (never among the training objects); [0, 10000]; not all three counts 0
   // Validation objects, for choosing hyper-parameters: drawn after the training and held-out objects (so those
   // stay the same draws whatever this is) and equal to none of them. [0, 10000]
   int num_validation = 0;

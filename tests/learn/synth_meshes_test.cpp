@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "core/error.h"
 #include "core/topology.h"
 
 namespace rangebayes {
@@ -152,5 +153,17 @@ TEST(SynthMeshes, NoiseMixtureSpreadsLevelsAndCarriesCovariances) {
   for (const SynthPair& pair : MakeSynthMeshSet(options).train) EXPECT_EQ(pair.k, 0.2);
 }
 
+// A set of no objects at all is refused (the command wrote empty pair lists and then told the user to train on
+// them).
+TEST(SynthMeshes, EmptySetIsRefused) {
+  SynthMeshSetOptions options;
+  options.num_train = 0;
+  options.num_test = 0;
+  EXPECT_THROW(MakeSynthMeshSet(options), Error);
+  options.num_test = 1;
+  EXPECT_EQ(MakeSynthMeshSet(options).test.size(), 1u);
+}
+
 }  // namespace
 }  // namespace rangebayes
+
