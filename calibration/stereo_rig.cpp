@@ -1,5 +1,6 @@
 #include "calibration/stereo_rig.h"
 
+#include <Eigen/LU>
 #include <exception>
 #include <filesystem>
 #include <opencv2/core.hpp>
@@ -124,6 +125,12 @@ StereoRig ReadStereoRig(const std::string& path) {
   RB_CHECK(rig.K_left(0, 0) > 0 && rig.K_left(1, 1) > 0, path, ": K_left has a non-positive focal length");
   RB_CHECK(rig.K_right(0, 0) > 0 && rig.K_right(1, 1) > 0, path, ": K_right has a non-positive focal length");
   RB_CHECK(rig.baseline_m() > 0, path, ": T (baseline) is zero");
+  // R turns left-camera coordinates into right-camera ones: a rotation (rounded entries of a hand-written file
+  // pass; a scaled, sheared or mirrored matrix would bend every depth).
+  const Eigen::Matrix3d& R = rig.R_right_from_left;
+  RB_CHECK((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-3 && R.determinant() > 0, path,
+           ": R is not a rotation (RᵀR differs from I by ",
+           (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), ", det ", R.determinant(), ")");
   return rig;
 }
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -243,6 +244,32 @@ TEST(StereoRigYaml, RoundTripWithoutDistortion) {
   EXPECT_TRUE(back.is_rectified);
   EXPECT_DOUBLE_EQ(back.K_left(0, 0), 400.0);
   EXPECT_DOUBLE_EQ(back.baseline_m(), 0.1);
+  std::filesystem::remove(path);
+}
+
+// R must be a rotation: a scaled or mirrored matrix (a hand-edited file) bent every depth without a word.
+TEST(StereoRigYaml, NonRotationIsRefused) {
+  StereoRig rig;
+  rig.width = 320;
+  rig.height = 240;
+  rig.K_left << 400, 0, 160, 0, 400, 120, 0, 0, 1;
+  rig.K_right = rig.K_left;
+  rig.t_right_from_left_m << -0.1, 0, 0;
+  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_not_a_rotation.yaml").string();
+  rig.R_right_from_left = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  WriteStereoRig(rig, path);
+  EXPECT_NO_THROW(ReadStereoRig(path));
+  for (const Eigen::Matrix3d& bad : {Eigen::Matrix3d(Eigen::Vector3d(1, 1, 0).asDiagonal()),
+                                     Eigen::Matrix3d(Eigen::Vector3d(1, 1, -1).asDiagonal())}) {
+    rig.R_right_from_left = bad;
+    WriteStereoRig(rig, path);
+    try {
+      ReadStereoRig(path);
+      ADD_FAILURE() << "no error for\n" << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("R is not a rotation"), std::string::npos) << e.what();
+    }
+  }
   std::filesystem::remove(path);
 }
 
