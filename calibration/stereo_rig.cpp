@@ -1,6 +1,7 @@
 #include "calibration/stereo_rig.h"
 
 #include <Eigen/LU>
+#include <cmath>
 #include <exception>
 #include <filesystem>
 #include <opencv2/core.hpp>
@@ -76,6 +77,23 @@ CameraIntrinsics StereoRig::RectifiedLeft() const {
 
 double StereoRig::baseline_m() const { return t_right_from_left_m.norm(); }
 
+void StereoRig::Check() const {
+  RB_CHECK(width > 0 && height > 0, "image size ", width, "x", height, " is not positive");
+  RB_CHECK(K_left.allFinite() && K_right.allFinite() && distortion_left.allFinite() && distortion_right.allFinite() &&
+               R_right_from_left.allFinite() && t_right_from_left_m.allFinite() && R1.allFinite() && R2.allFinite() &&
+               P1.allFinite() && P2.allFinite() && Q.allFinite() && std::isfinite(doffs_px),
+           "the rig has non-finite entries");
+  RB_CHECK(K_left(0, 0) > 0 && K_left(1, 1) > 0, "K_left has a non-positive focal length");
+  RB_CHECK(K_right(0, 0) > 0 && K_right(1, 1) > 0, "K_right has a non-positive focal length");
+  RB_CHECK(baseline_m() > 0, "T (baseline) is zero");
+  // R turns left-camera coordinates into right-camera ones; a scaled, sheared or mirrored matrix would bend every
+  // depth.
+  const Eigen::Matrix3d& R = R_right_from_left;
+  const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  RB_CHECK(off <= 1e-3 && R.determinant() > 0, "R is not a rotation (RᵀR differs from I by ", off, ", det ",
+           R.determinant(), ")");
+}
+
 StereoRig ReadStereoRig(const std::string& path) {
   RB_CHECK(std::filesystem::is_regular_file(path), path, ": rig file not found");
   CheckOpenCvYamlSubset(path, "rig file");
@@ -122,19 +140,20 @@ StereoRig ReadStereoRig(const std::string& path) {
   } catch (const std::exception& e) {
     RB_FAIL(path, ": malformed rig file (", e.what(), ")");
   }
-  RB_CHECK(rig.K_left(0, 0) > 0 && rig.K_left(1, 1) > 0, path, ": K_left has a non-positive focal length");
-  RB_CHECK(rig.K_right(0, 0) > 0 && rig.K_right(1, 1) > 0, path, ": K_right has a non-positive focal length");
-  RB_CHECK(rig.baseline_m() > 0, path, ": T (baseline) is zero");
-  // R turns left-camera coordinates into right-camera ones: a rotation (rounded entries of a hand-written file
-  // pass; a scaled, sheared or mirrored matrix would bend every depth).
-  const Eigen::Matrix3d& R = rig.R_right_from_left;
-  RB_CHECK((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-3 && R.determinant() > 0, path,
-           ": R is not a rotation (RᵀR differs from I by ",
-           (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), ", det ", R.determinant(), ")");
+  try {
+    rig.Check();
+  } catch (const Error& e) {
+    RB_FAIL(path, ": ", e.what());
+  }
   return rig;
 }
 
 void WriteStereoRig(const StereoRig& rig, const std::string& path) {
+  try {
+    rig.Check();
+  } catch (const Error& e) {
+    RB_FAIL(path, ": not written: ", e.what());
+  }
   cv::FileStorage fs(path, cv::FileStorage::WRITE);
   RB_CHECK(fs.isOpened(), path, ": cannot open for writing");
   fs << "image_width" << rig.width << "image_height" << rig.height;

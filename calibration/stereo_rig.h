@@ -44,10 +44,16 @@ struct StereoRig {
   // The rectified left camera (from P1) and the baseline |t| in metres.
   CameraIntrinsics RectifiedLeft() const;
   double baseline_m() const;
+  // Throws Error unless the rig can be used: a positive image size, finite entries, positive focal lengths, a
+  // baseline |t| > 0 and R a rotation (rounded entries of a hand-written file pass: |RᵀR − I| ≤ 1e-3, det > 0).
+  // ReadStereoRig and the Rectifier check it, so a rig built in code (Python) is held to what a file is.
+  void Check() const;
 };
 
-// Throws Error naming the file and the field on a missing file or a malformed/missing field.
+// Throws Error naming the file and the field on a missing file or a malformed/missing field, or a rig that fails
+// StereoRig::Check.
 StereoRig ReadStereoRig(const std::string& path);
+// Throws Error (and writes nothing) for a rig that fails StereoRig::Check.
 void WriteStereoRig(const StereoRig& rig, const std::string& path);
 
 }  // namespace rangebayes

@@ -25,8 +25,11 @@ cv::Mat ToMat(const Eigen::MatrixXd& m) {
 Rectifier::Rectifier(const StereoRig& rig, const RectifierOptions& options) : rig_(rig) {
   options.Check();
   interpolation_ = options.interpolation;
-  RB_CHECK(rig.width > 0 && rig.height > 0, "rig has no image size");
-  RB_CHECK(rig.K_left(0, 0) > 0 && rig.K_right(0, 0) > 0, "rig has a non-positive focal length");
+  try {
+    rig.Check();
+  } catch (const Error& e) {
+    RB_FAIL("rig: ", e.what());
+  }
   const cv::Size size(rig.width, rig.height);
   if (rig.is_rectified) {
     passthrough_ = true;

@@ -19,7 +19,7 @@ struct RectifierOptions {
 // (CALIB_ZERO_DISPARITY) and stored in rectified_rig().
 class Rectifier {
  public:
-  // Throws Error when the rig has no image size or a non-positive focal length.
+  // Throws Error when the rig fails StereoRig::Check.
   explicit Rectifier(const StereoRig& rig, const RectifierOptions& options = {});
 
   // Rectifies one pair (any type remap supports). Throws Error naming the size when an image is not the

@@ -31,6 +31,17 @@ def test_rig_and_noise_model_yaml(tmp_path, recording_dir):
     assert back.apply(0.1) == pytest.approx(model.apply(0.1))
     with pytest.raises(rb.Error):
         rb.read_rig(str(tmp_path / "missing.yaml"))
+    # A rig built in code is held to what a file is: one clear error, not depths from a zero baseline or a
+    # mirrored R.
+    left = (np.random.default_rng(1).random((240, 320)) * 255).astype(np.uint8)
+    for field, value in [("t_right_from_left_m", np.zeros(3)), ("R_right_from_left", np.diag([1.0, 1.0, -1.0]))]:
+        bad = rb.read_rig(str(recording_dir / "rig.yaml"))
+        setattr(bad, field, value)
+        with pytest.raises(rb.Error, match="baseline|rotation"):
+            rb.stereo(bad, left, left)
+        with pytest.raises(rb.Error, match="not written"):
+            rb.write_rig(str(tmp_path / "bad.yaml"), bad)
+        assert not (tmp_path / "bad.yaml").exists()
 
 
 def test_recording_frames_are_numpy(recording_dir):

@@ -247,7 +247,8 @@ TEST(StereoRigYaml, RoundTripWithoutDistortion) {
   std::filesystem::remove(path);
 }
 
-// R must be a rotation: a scaled or mirrored matrix (a hand-edited file) bent every depth without a word.
+// R must be a rotation: a scaled or mirrored matrix bent every depth without a word. Refused when a rig is
+// checked (the Rectifier, Python's stereo), written and read (a hand-edited file).
 TEST(StereoRigYaml, NonRotationIsRefused) {
   StereoRig rig;
   rig.width = 320;
@@ -255,20 +256,34 @@ TEST(StereoRigYaml, NonRotationIsRefused) {
   rig.K_left << 400, 0, 160, 0, 400, 120, 0, 0, 1;
   rig.K_right = rig.K_left;
   rig.t_right_from_left_m << -0.1, 0, 0;
-  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_not_a_rotation.yaml").string();
   rig.R_right_from_left = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  WriteStereoRig(rig, path);
-  EXPECT_NO_THROW(ReadStereoRig(path));
+  EXPECT_NO_THROW(rig.Check());
+  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_not_a_rotation.yaml").string();
+  std::filesystem::remove(path);
   for (const Eigen::Matrix3d& bad : {Eigen::Matrix3d(Eigen::Vector3d(1, 1, 0).asDiagonal()),
                                      Eigen::Matrix3d(Eigen::Vector3d(1, 1, -1).asDiagonal())}) {
-    rig.R_right_from_left = bad;
-    WriteStereoRig(rig, path);
-    try {
-      ReadStereoRig(path);
-      ADD_FAILURE() << "no error for\n" << bad;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find("R is not a rotation"), std::string::npos) << e.what();
-    }
+    StereoRig wrong = rig;
+    wrong.R_right_from_left = bad;
+    EXPECT_THROW(wrong.Check(), Error);
+    EXPECT_THROW(WriteStereoRig(wrong, path), Error);
+    EXPECT_FALSE(std::filesystem::exists(path));
+  }
+  // A file whose R was edited by hand into a mirror.
+  rig.R_right_from_left.setIdentity();
+  WriteStereoRig(rig, path);
+  std::ifstream in(path);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  const std::string identity = "data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]";
+  const size_t at = text.find(identity, text.find("\nR:"));
+  ASSERT_NE(at, std::string::npos) << text;
+  text.replace(at, identity.size(), "data: [ 1., 0., 0., 0., 1., 0., 0., 0., -1. ]");
+  std::ofstream(path, std::ios::trunc) << text;
+  try {
+    ReadStereoRig(path);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("R is not a rotation"), std::string::npos) << e.what();
   }
   std::filesystem::remove(path);
 }
