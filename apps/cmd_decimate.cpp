@@ -98,6 +98,27 @@ void Run(const DecimateArgs& a) {
   if (animated && a.files.empty()) UsageError("--out DIR needs at least one pose");
   std::vector<std::string> inputs = a.files;
   if (!animated) inputs.resize(1);
+  // Animated: one OBJ per pose, named after it. Two poses with one name (a/pose.ply and b/pose.obj) would write
+  // one file twice, and a pose in the output folder would be overwritten by its own result: refused before any
+  // work.
+  std::vector<std::string> outputs;
+  if (animated) {
+    namespace fs = std::filesystem;
+    for (size_t m = 0; m < inputs.size(); ++m) {
+      const fs::path out = fs::path(a.out_dir) / (fs::path(inputs[m]).stem().string() + ".obj");
+      for (size_t k = 0; k < m; ++k) {
+        if (outputs[k] == out.string()) {
+          UsageError("poses " + inputs[k] + " and " + inputs[m] + " would both be written to " + out.string() +
+                     " (one file per pose name)");
+        }
+      }
+      std::error_code error;
+      if (fs::equivalent(out, inputs[m], error)) {
+        UsageError(inputs[m] + " would be overwritten by its own result: choose another --out folder");
+      }
+      outputs.push_back(out.string());
+    }
+  }
 
   DecimateOptions options;
   options.lambda = a.lambda;
@@ -129,10 +150,8 @@ void Run(const DecimateArgs& a) {
   if (animated) {
     std::filesystem::create_directories(a.out_dir);
     for (size_t m = 0; m < out.size(); ++m) {
-      const std::string path =
-          (std::filesystem::path(a.out_dir) / (std::filesystem::path(inputs[m]).stem().string() + ".obj")).string();
-      WriteOne(out[m], path, a.polygons);
-      written.push_back(path);
+      WriteOne(out[m], outputs[m], a.polygons);
+      written.push_back(outputs[m]);
     }
   } else {
     WriteOne(out[0], a.files[1], a.polygons);

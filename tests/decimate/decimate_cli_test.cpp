@@ -83,6 +83,23 @@ TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {
   const Mesh o1 = ReadMesh(dir + "/out/pose1.obj"), o2 = ReadMesh(dir + "/out/pose2.obj");
   EXPECT_EQ(o1.F, o2.F);
   EXPECT_GT(o1.num_faces(), 12);
+
+  // Two poses of one name would be written to one file (the first result lost), and a pose in the output folder
+  // would be overwritten by its result: both refused before any work, the pose left as it was.
+  std::filesystem::create_directories(dir + "/other");
+  WriteMesh(b, dir + "/other/pose1.ply");
+  const RunResult same = RunRangebayes("decimate " + dir + "/pose1.obj " + dir + "/other/pose1.ply --out " + dir +
+                                       "/out2 --lambda 5 --quiet");
+  EXPECT_EQ(same.exit_code, 2) << same.output;
+  EXPECT_NE(same.output.find("would both be written to"), std::string::npos) << same.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out2"));
+  const auto before = std::filesystem::last_write_time(dir + "/pose1.obj");
+  const RunResult onto =
+      RunRangebayes("decimate " + dir + "/pose1.obj " + dir + "/pose2.obj --out " + dir + " --lambda 5 --quiet");
+  EXPECT_EQ(onto.exit_code, 2) << onto.output;
+  EXPECT_NE(onto.output.find("would be overwritten by its own result"), std::string::npos) << onto.output;
+  EXPECT_EQ(std::filesystem::last_write_time(dir + "/pose1.obj"), before);
+  EXPECT_EQ(ReadMesh(dir + "/pose1.obj").F, a.F);
 }
 
 TEST(DecimateCli, UsageAndInputErrors) {
