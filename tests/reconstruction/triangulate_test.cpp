@@ -132,6 +132,27 @@ TEST(DepthFromDisparity, NegativeOrInfiniteSigmaIsRefused) {
   }
 }
 
+// Non-finite geometry is refused: a NaN doffs made every depth NaN, an infinite baseline every depth infinite.
+TEST(DepthFromDisparity, NonFiniteGeometryIsRefused) {
+  CameraIntrinsics k;
+  k.fx_px = k.fy_px = 100.0;
+  k.cx_px = 10.0;
+  k.cy_px = 5.0;
+  k.width = 20;
+  k.height = 10;
+  const cv::Mat disparity(10, 20, CV_32F, cv::Scalar(5.0f));
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  EXPECT_NO_THROW(DepthFromDisparity(disparity, cv::Mat(), k, 0.1, 2.0));
+  EXPECT_THROW(DepthFromDisparity(disparity, cv::Mat(), k, 0.1, nan), Error);
+  EXPECT_THROW(DepthFromDisparity(disparity, cv::Mat(), k, inf, 0.0), Error);
+  for (double CameraIntrinsics::*field :
+       {&CameraIntrinsics::fx_px, &CameraIntrinsics::fy_px, &CameraIntrinsics::cx_px, &CameraIntrinsics::cy_px}) {
+    CameraIntrinsics bad = k;
+    bad.*field = nan;
+    EXPECT_THROW(DepthFromDisparity(disparity, cv::Mat(), bad, 0.1, 0.0), Error);
+  }
+}
+
 struct ResidualStats {
   double mean = 0, along = 0, lateral = 0, outlier_fraction = 0;
   int n = 0;
