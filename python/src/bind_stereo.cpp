@@ -119,8 +119,15 @@ arrays (copies on read; assign a whole array to change one). Translations in met
       .def_readwrite("width_min_px", &DisparityNoiseModel::width_min_px)
       .def_readwrite("width_max_px", &DisparityNoiseModel::width_max_px)
       .def_readwrite("window_px", &DisparityNoiseModel::window_px)
-      .def("apply", &DisparityNoiseModel::Apply, py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
-           "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px)");
+      .def(
+          "apply",
+          [](const DisparityNoiseModel& model, double sigma_pred_px, double jump_px) {
+            model.Check();  // fields set from Python: a NaN sigma_px gave NaN here without a word
+            return model.Apply(sigma_pred_px, jump_px);
+          },
+          py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
+          "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px); raises Error for a "
+          "model with fields out of range");
   m.def("read_noise_model", &ReadDisparityNoiseModel, py::arg("path"));
   m.def("write_noise_model",
         [](const std::string& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path); },

@@ -29,6 +29,10 @@ def test_rig_and_noise_model_yaml(tmp_path, recording_dir):
     back = rb.read_noise_model(path)
     assert back.form == "floor-plus-scale" and back.matcher == "spacetime"
     assert back.apply(0.1) == pytest.approx(model.apply(0.1))
+    model.sigma_px = float("nan")  # the constant form's field, set out of range: an error, not a NaN σ_d
+    model.form = "constant"
+    with pytest.raises(rb.Error, match="sigma_px"):
+        model.apply(0.1)
     with pytest.raises(rb.Error):
         rb.read_rig(str(tmp_path / "missing.yaml"))
     # A rig built in code is held to what a file is: one clear error, not depths from a zero baseline or a
