@@ -1,4 +1,5 @@
 # Type stub of the rangebayes module (for editors; the docstrings at run time hold units and contracts).
+import os
 from typing import Any, Callable, Iterator, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -318,7 +319,7 @@ class PipelineSummary:
 
 PIPELINE_OPTIONS: dict[str, Any]
 def replay(
-    recording: Union[str, Recording], rig: Optional[StereoRig] = ..., *, live_path: bool = ...,
+    recording: Union[str, os.PathLike[str], Recording], rig: Optional[StereoRig] = ..., *, live_path: bool = ...,
     progress: Optional[Progress] = ...,
     sgbm: dict[str, Any] = ..., spacetime: dict[str, Any] = ..., depth: dict[str, Any] = ...,
     triangulate: dict[str, Any] = ..., smoothing: dict[str, Any] = ...,  # SmoothOptions fields and "prior"

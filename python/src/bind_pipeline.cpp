@@ -193,8 +193,20 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
       "replay",
       [](py::handle recording, py::handle rig, py::kwargs kwargs) {
         py::dict kw = py::dict(kwargs);
-        Recording rec = py::isinstance<py::str>(recording) ? OpenRecording(recording.cast<std::string>())
-                                                           : recording.cast<Recording>();
+        // A folder (str or os.PathLike) or a Recording; anything else is a TypeError that says so (pybind11's cast
+        // said "Unable to cast Python instance to C++ type").
+        const bool is_path =
+            py::isinstance<py::str>(recording) || py::isinstance(recording, py::module_::import("os").attr("PathLike"));
+        if (!is_path && !py::isinstance<Recording>(recording)) {
+          throw py::type_error("replay: recording must be a folder (str or os.PathLike) or a Recording, not " +
+                               py::str(py::type::of(recording).attr("__name__")).cast<std::string>());
+        }
+        if (!rig.is_none() && !py::isinstance<StereoRig>(rig)) {
+          throw py::type_error("replay: rig must be a StereoRig or None, not " +
+                               py::str(py::type::of(rig).attr("__name__")).cast<std::string>());
+        }
+        Recording rec = is_path ? OpenRecording(py::module_::import("os").attr("fspath")(recording).cast<std::string>())
+                                : recording.cast<Recording>();
         if (!rig.is_none()) rec.rig = rig.cast<StereoRig>();
         RB_CHECK(rec.rig.has_value(), rec.folder, ": has no rig.yaml (uncalibrated); give one with rig=");
         RB_CHECK(rec.num_frames() > 0, rec.folder, ": frames.csv lists no frame");
@@ -232,7 +244,7 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         return std::make_pair(sink.Take(), std::move(summary));
       },
       py::arg("recording"), py::arg("rig") = py::none(),
-      R"(Replays a recording (a Recording or a folder) through the pipeline (rectify, stereo, triangulate, smooth,
+      R"(Replays a recording (a Recording, or a folder as str or os.PathLike) through the pipeline (rectify, stereo, triangulate, smooth,
 decimate) as `rangebayes replay` does, without dropping frames: (list of PipelineResult, PipelineSummary).
 The defaults are the library's (PipelineOptions{}), which are the CLI's: replay(rec, **kw) gives the meshes
 `rangebayes replay REC --out DIR` writes for the same options (python/tests compare the bytes).

@@ -202,6 +202,12 @@ def test_replay_releases_the_gil(recording_dir, ticks_during):
 def test_replay_bad_input_is_a_clear_error(tmp_path, recording_dir):
     with pytest.raises(rb.Error, match="missing"):
         rb.replay(str(tmp_path / "missing"))
+    with pytest.raises(rb.Error, match="missing"):
+        rb.replay(tmp_path / "missing")  # a pathlib.Path is a folder too
+    with pytest.raises(TypeError, match="recording must be a folder"):
+        rb.replay(42)
+    with pytest.raises(TypeError, match="rig must be a StereoRig or None, not str"):
+        rb.replay(str(recording_dir), "rig.yaml")
     with pytest.raises(TypeError, match="smoothing must be a dict"):
         rb.replay(str(recording_dir), smoothing="fast")
     with pytest.raises(TypeError, match=r"replay\(smoothing=...\)\(\) got an unexpected keyword argument 'tol'"):
