@@ -311,9 +311,10 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       .def_readwrite("method", &LearnedPrior::method)
       .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
       .def_readwrite("date", &LearnedPrior::date);
-  m.def("read_learned_prior", &ReadLearnedPrior, py::arg("path"));
   m.def(
-      "write_learned_prior", [](const std::string& path, const LearnedPrior& p) { WriteLearnedPrior(p, path); },
+      "read_learned_prior", [](const PathArg& path) { return ReadLearnedPrior(path.string()); }, py::arg("path"));
+  m.def(
+      "write_learned_prior", [](const PathArg& path, const LearnedPrior& p) { WriteLearnedPrior(p, path.string()); },
       py::arg("path"), py::arg("prior"));
   m.def(
       "learn_prior",

@@ -195,11 +195,11 @@ writable views of the C++ storage (no copy); assignment copies.)")
 
   m.def(
       "read_mesh",
-      [](const std::string& path) -> py::object {
+      [](const PathArg& path) -> py::object {
         NoisyMesh noisy;
         {
           py::gil_scoped_release nogil;
-          noisy = ReadMeshOrRangeGrid(path);
+          noisy = ReadMeshOrRangeGrid(path.string());
         }
         if (noisy.has_covariance()) return py::cast(std::move(noisy));
         return py::cast(std::move(noisy.mesh));
@@ -211,15 +211,16 @@ CLI reads it, with the scanner's covariances: a NoisyMesh. Raises rangebayes.Err
 bad input.)");
   m.def(
       "read_noisy_mesh",
-      [](const std::string& path) {
+      [](const PathArg& path) {
         py::gil_scoped_release nogil;
-        return ReadMeshOrRangeGrid(path);
+        return ReadMeshOrRangeGrid(path.string());
       },
       py::arg("path"),
       "Reads a mesh as a NoisyMesh (covariances empty when the file has none; range grids as read_mesh reads them).");
   m.def(
       "write_mesh",
-      [](const std::string& path, py::handle mesh, const std::string& ply_encoding) {
+      [](const PathArg& path_arg, py::handle mesh, const std::string& ply_encoding) {
+        const std::string path = path_arg.string();
         MeshWriteOptions options = WriteOptions(ply_encoding);
         if (py::isinstance<NoisyMesh>(mesh)) {
           const NoisyMesh noisy = mesh.cast<NoisyMesh>();

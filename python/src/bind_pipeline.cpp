@@ -136,7 +136,7 @@ len(recording) frames; recording[i] / iteration load frames as StereoFrame (imag
             .attr("map")(self.attr("__getitem__"), py::module_::import("builtins").attr("range")(py::len(self)));
       });
   m.def(
-      "open_recording", [](const std::string& folder) { return OpenRecording(folder); }, py::arg("folder"),
+      "open_recording", [](const PathArg& folder) { return OpenRecording(folder.string()); }, py::arg("folder"),
       "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
 
   py::class_<PipelineResult>(m, "PipelineResult", R"(One pipeline result: index, last_index, timestamp_ns, frames,
@@ -205,8 +205,7 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
           throw py::type_error("replay: rig must be a StereoRig or None, not " +
                                py::str(py::type::of(rig).attr("__name__")).cast<std::string>());
         }
-        Recording rec = is_path ? OpenRecording(py::module_::import("os").attr("fspath")(recording).cast<std::string>())
-                                : recording.cast<Recording>();
+        Recording rec = is_path ? OpenRecording(recording.cast<PathArg>().string()) : recording.cast<Recording>();
         if (!rig.is_none()) rec.rig = rig.cast<StereoRig>();
         RB_CHECK(rec.rig.has_value(), rec.folder, ": has no rig.yaml (uncalibrated); give one with rig=");
         RB_CHECK(rec.num_frames() > 0, rec.folder, ": frames.csv lists no frame");

@@ -98,9 +98,12 @@ arrays (copies on read; assign a whole array to change one). Translations in met
       .def_readwrite("doffs_px", &StereoRig::doffs_px)
       .def("rectified_left", &StereoRig::RectifiedLeft, "the rectified left camera")
       .def("baseline_m", &StereoRig::baseline_m);
-  m.def("read_rig", &ReadStereoRig, py::arg("path"), "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");
-  m.def("write_rig", [](const std::string& path, const StereoRig& rig) { WriteStereoRig(rig, path); }, py::arg("path"),
-        py::arg("rig"));
+  m.def(
+      "read_rig", [](const PathArg& path) { return ReadStereoRig(path.string()); }, py::arg("path"),
+      "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");
+  m.def(
+      "write_rig", [](const PathArg& path, const StereoRig& rig) { WriteStereoRig(rig, path.string()); },
+      py::arg("path"), py::arg("rig"));
 
   py::class_<DisparityNoiseModel>(m, "DisparityNoiseModel", "σ_d model fitted by `rangebayes calibrate noise`.")
       .def(py::init<>())
@@ -128,10 +131,12 @@ arrays (copies on read; assign a whole array to change one). Translations in met
           py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
           "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px); raises Error for a "
           "model with fields out of range");
-  m.def("read_noise_model", &ReadDisparityNoiseModel, py::arg("path"));
-  m.def("write_noise_model",
-        [](const std::string& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path); },
-        py::arg("path"), py::arg("model"));
+  m.def(
+      "read_noise_model", [](const PathArg& path) { return ReadDisparityNoiseModel(path.string()); }, py::arg("path"));
+  m.def(
+      "write_noise_model",
+      [](const PathArg& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path.string()); },
+      py::arg("path"), py::arg("model"));
 
   py::class_<DepthFrame>(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres), sigma_depth_m,
 disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where invalid.)")

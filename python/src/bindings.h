@@ -2,7 +2,9 @@
 #pragma once
 
 #include <pybind11/pybind11.h>
+#include <pybind11/stl/filesystem.h>
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -14,6 +16,9 @@
 namespace rangebayes::python {
 
 namespace py = pybind11;
+
+// File and folder arguments: a str or any os.PathLike (pathlib.Path), through pybind11's std::filesystem caster.
+using PathArg = std::filesystem::path;
 
 void BindCore(py::module_& m);
 void BindBayes(py::module_& m);

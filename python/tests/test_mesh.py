@@ -122,3 +122,20 @@ def test_open3d_interop():
     back = rb.from_open3d(om)
     np.testing.assert_array_equal(back.V, V)
     np.testing.assert_array_equal(back.F, F)
+
+
+def test_paths_may_be_pathlib(tmp_path, recording_dir):
+    # Every file or folder argument takes a str or any os.PathLike.
+    m = rb.Mesh(V, F)
+    rb.write_mesh(tmp_path / "m.ply", m)
+    np.testing.assert_array_equal(rb.read_mesh(tmp_path / "m.ply").F, F)
+    np.testing.assert_array_equal(rb.read_noisy_mesh(tmp_path / "m.ply").mesh.F, F)
+    rig = rb.read_rig(recording_dir / "rig.yaml")
+    rb.write_rig(tmp_path / "rig.yaml", rig)
+    assert rb.read_rig(tmp_path / "rig.yaml").width == rig.width
+    model = rb.DisparityNoiseModel()
+    rb.write_noise_model(tmp_path / "noise.yaml", model)
+    assert rb.read_noise_model(tmp_path / "noise.yaml").sigma_px == model.sigma_px
+    assert len(rb.open_recording(recording_dir)) == 8
+    with pytest.raises(TypeError):
+        rb.read_mesh(42)
