@@ -233,7 +233,7 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--time-limit", args->time_limit_s,
                   "seconds for the whole solve, continuation stages and grid levels included; the summary's distance "
                   "says how far from converged it stopped; 0: no limit")
-      ->check(RealRange(0.0, 1e6));
+      ->check(RealRange(0.0, kMaxSmoothTimeLimitS));
   sub->add_option("--gap-tolerance", args->gap_tolerance,
                   "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
                   "0: the --tolerance preset's")

@@ -224,15 +224,21 @@ TEST(BoardSpec, CharucoAvailabilityIsReportedCleanly) {
 namespace rangebayes {
 namespace {
 
-// A rig without distortion (a rectified Middlebury rig, or a synthetic one) writes empty distortion vectors;
-// reading the file back must accept them.
-TEST(StereoRigYaml, RoundTripWithoutDistortion) {
+// A 320×240 rig of focal length 400 px and a 10 cm baseline, without distortion.
+StereoRig SmallRig() {
   StereoRig rig;
   rig.width = 320;
   rig.height = 240;
   rig.K_left << 400, 0, 160, 0, 400, 120, 0, 0, 1;
   rig.K_right = rig.K_left;
   rig.t_right_from_left_m << -0.1, 0, 0;
+  return rig;
+}
+
+// A rig without distortion (a rectified Middlebury rig, or a synthetic one) writes empty distortion vectors;
+// reading the file back must accept them.
+TEST(StereoRigYaml, RoundTripWithoutDistortion) {
+  StereoRig rig = SmallRig();
   rig.is_rectified = true;
   const std::string path =
       (std::filesystem::temp_directory_path() / "rangebayes_rig_no_distortion.yaml").string();
@@ -250,12 +256,7 @@ TEST(StereoRigYaml, RoundTripWithoutDistortion) {
 // R must be a rotation: a scaled or mirrored matrix bent every depth without a word. Refused when a rig is
 // checked (the Rectifier, Python's stereo), written and read (a hand-edited file).
 TEST(StereoRigYaml, NonRotationIsRefused) {
-  StereoRig rig;
-  rig.width = 320;
-  rig.height = 240;
-  rig.K_left << 400, 0, 160, 0, 400, 120, 0, 0, 1;
-  rig.K_right = rig.K_left;
-  rig.t_right_from_left_m << -0.1, 0, 0;
+  StereoRig rig = SmallRig();
   rig.R_right_from_left = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()).toRotationMatrix();
   EXPECT_NO_THROW(rig.Check());
   const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_not_a_rotation.yaml").string();

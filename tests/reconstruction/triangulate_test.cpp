@@ -107,15 +107,21 @@ TEST(Triangulate, BadInputThrows) {
   EXPECT_THROW(TriangulateDepth(PlaneFrame(5, 5, 1.0), o), Error);
 }
 
-// A disparity σ below zero or infinite is no σ: refused with its pixel, where a negative one came out as a negative
-// depth σ; NaN (unknown) stays allowed.
-TEST(DepthFromDisparity, NegativeOrInfiniteSigmaIsRefused) {
+// A 20×10 camera of focal length 100 px.
+CameraIntrinsics TwentyByTen() {
   CameraIntrinsics k;
   k.fx_px = k.fy_px = 100.0;
   k.cx_px = 10.0;
   k.cy_px = 5.0;
   k.width = 20;
   k.height = 10;
+  return k;
+}
+
+// A disparity σ below zero or infinite is no σ: refused with its pixel, where a negative one came out as a negative
+// depth σ; NaN (unknown) stays allowed.
+TEST(DepthFromDisparity, NegativeOrInfiniteSigmaIsRefused) {
+  const CameraIntrinsics k = TwentyByTen();
   const cv::Mat disparity(10, 20, CV_32F, cv::Scalar(5.0f));
   cv::Mat sigma(10, 20, CV_32F, cv::Scalar(0.5f));
   EXPECT_NO_THROW(DepthFromDisparity(disparity, sigma, k, 0.1, 0.0));
@@ -134,12 +140,7 @@ TEST(DepthFromDisparity, NegativeOrInfiniteSigmaIsRefused) {
 
 // Non-finite geometry is refused: a NaN doffs made every depth NaN, an infinite baseline every depth infinite.
 TEST(DepthFromDisparity, NonFiniteGeometryIsRefused) {
-  CameraIntrinsics k;
-  k.fx_px = k.fy_px = 100.0;
-  k.cx_px = 10.0;
-  k.cy_px = 5.0;
-  k.width = 20;
-  k.height = 10;
+  const CameraIntrinsics k = TwentyByTen();
   const cv::Mat disparity(10, 20, CV_32F, cv::Scalar(5.0f));
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
   EXPECT_NO_THROW(DepthFromDisparity(disparity, cv::Mat(), k, 0.1, 2.0));
