@@ -73,7 +73,10 @@ class Run {
     try {
       work(item);
     } catch (const std::exception& e) {
-      item.result.error = StrCat(timing->name, ": ", e.what());
+      // "smooth: …" from the library keeps its own prefix (it was "smooth: smooth: …").
+      const std::string what = e.what();
+      const std::string prefix = StrCat(timing->name, ": ");
+      item.result.error = what.rfind(prefix, 0) == 0 ? what : prefix + what;
       item.result.error_stage = timing->name;
     } catch (...) {
       item.result.error = StrCat(timing->name, ": unknown error");
