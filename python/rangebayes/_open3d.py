@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from ._rangebayes import Mesh, NoisyMesh
+
 
 def _o3d():
     try:
@@ -14,9 +16,11 @@ def _o3d():
 def to_open3d(mesh):
     """An open3d.geometry.TriangleMesh with the vertices, faces and (when present) vertex normals of a Mesh,
     NoisyMesh or DecimatedMesh (copies: Open3D owns its own storage)."""
-    o3d = _o3d()
     if hasattr(mesh, "corner_normals") and hasattr(mesh, "polygons"):
         mesh = mesh.mesh
+    if not isinstance(mesh, (Mesh, NoisyMesh)):
+        raise TypeError(f"to_open3d: expected a Mesh, NoisyMesh or DecimatedMesh, got {type(mesh)}")
+    o3d = _o3d()
     out = o3d.geometry.TriangleMesh()
     out.vertices = o3d.utility.Vector3dVector(np.ascontiguousarray(mesh.V, dtype=np.float64))
     out.triangles = o3d.utility.Vector3iVector(np.ascontiguousarray(mesh.F, dtype=np.int32))

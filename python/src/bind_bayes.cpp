@@ -66,6 +66,9 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
   const LearnedPrior* p = nullptr;
   if (py::isinstance<LearnedPrior>(prior)) {
     p = &prior.cast<const LearnedPrior&>();
+  } else if (py::isinstance(prior, py::module_::import("os").attr("PathLike"))) {
+    read = ReadLearnedPrior(prior.cast<PathArg>().string());
+    p = &*read;
   } else if (py::isinstance<py::str>(prior)) {
     const std::string name = prior.cast<std::string>();
     if (IsPriorFile(name)) {
@@ -77,7 +80,8 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
       return;
     }
   } else {
-    throw py::type_error(what + ": prior must be 'sqrt', 'quadratic', 'cauchy', a .yaml path or a LearnedPrior");
+    throw py::type_error(
+        what + ": prior must be 'sqrt', 'quadratic', 'cauchy', a .yaml path (str or os.PathLike) or a LearnedPrior");
   }
   *learned = std::make_unique<SplinePotential>(p->spline, p->theta);
   options->potential = learned->get();

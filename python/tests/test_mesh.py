@@ -139,3 +139,5 @@ def test_paths_may_be_pathlib(tmp_path, recording_dir):
     assert len(rb.open_recording(recording_dir)) == 8
     with pytest.raises(TypeError):
         rb.read_mesh(42)
+    with pytest.raises(TypeError, match="to_open3d: expected a Mesh"):
+        rb.to_open3d(42)  # said so before open3d is imported

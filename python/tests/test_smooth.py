@@ -174,3 +174,5 @@ def test_learned_prior_file_and_object(tmp_path, trim_star):
     a, _ = rb.smooth(m, noise=0.3, prior=path, tolerance="fast")
     b, _ = rb.smooth(m, noise=0.3, prior=back, tolerance="fast")
     np.testing.assert_array_equal(a.V, b.V)
+    c, _ = rb.smooth(m, noise=0.3, prior=tmp_path / "prior.yaml", tolerance="fast")  # a pathlib.Path too
+    np.testing.assert_array_equal(a.V, c.V)
