@@ -2,7 +2,10 @@
 
 #include <fcntl.h>
 #include <libv4l2.h>
+#include <linux/videodev2.h>
+#include <sys/ioctl.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <cerrno>
 
@@ -11,7 +14,22 @@ namespace {
 
 class LibV4l2 : public V4l2SysCalls {
  public:
-  int Open(const std::string& path, int flags) override { return v4l2_open(path.c_str(), flags); }
+  // libv4l2 prints "libv4l2: error getting capabilities" on a file that is no video device (/dev/null, a
+  // regular file): such a file is refused here first (errno from VIDIOC_QUERYCAP, ENOTTY), so that the caller's
+  // one error line is the only one.
+  int Open(const std::string& path, int flags) override {
+    const int fd = ::open(path.c_str(), flags);
+    if (fd < 0) return -1;
+    v4l2_capability capability{};
+    int wrapped = -1;
+    if (::ioctl(fd, VIDIOC_QUERYCAP, &capability) == 0) wrapped = v4l2_fd_open(fd, 0);
+    if (wrapped < 0) {
+      const int error = errno;
+      ::close(fd);
+      errno = error;
+    }
+    return wrapped;
+  }
   int Close(int fd) override { return v4l2_close(fd); }
   int Ioctl(int fd, unsigned long request, void* arg) override { return v4l2_ioctl(fd, request, arg); }
   void* Mmap(void* address, size_t length, int protection, int flags, int fd, std::int64_t offset) override {

@@ -261,6 +261,17 @@ TEST(Libcamera, ManagerStartsAndStereoNeedsTwoCameras) {
             std::string::npos);
 }
 
+// A file that is no video device is refused with one error line: libv4l2 used to print its own
+// "libv4l2: error getting capabilities" before it.
+TEST(V4l2Camera, NonDeviceIsOneErrorLine) {
+  auto sys = RealV4l2SysCalls();
+  testing::internal::CaptureStderr();
+  const std::string error = ErrorOf([&] { V4l2Camera cam(sys, "/dev/null"); });
+  const std::string printed = testing::internal::GetCapturedStderr();
+  EXPECT_NE(error.find("/dev/null"), std::string::npos) << error;
+  EXPECT_EQ(printed, "");
+}
+
 TEST(V4l2Hardware, RealDeviceNegotiates) {
   if (!std::filesystem::exists("/dev/video0")) GTEST_SKIP() << "no /dev/video0 on this machine";
   auto sys = RealV4l2SysCalls();
