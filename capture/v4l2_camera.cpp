@@ -55,6 +55,7 @@ V4l2Camera::V4l2Camera(std::shared_ptr<V4l2SysCalls> sys, const std::string& pat
   if (fd_ < 0) {
     const int e = errno;
     RB_CHECK(e != ENOENT, path_, ": no such device");
+    RB_CHECK(e != ENOTTY && e != EINVAL, path_, ": not a video capture device (", std::strerror(e), ")");
     Fail("open", e);
   }
   try {
