@@ -291,9 +291,8 @@ void ToEigen(const cv::Mat& m, EigenType* out) {
 }  // namespace
 
 void BoardSpec::Check() const {
-  const int min_side = type == BoardType::kCharuco ? 3 : 2;
-  RB_CHECK(cols >= min_side && rows >= min_side, "board: ", cols, "x", rows, " is too small (each side ≥ ", min_side,
-           ")");
+  // OpenCV's chessboard detectors assert more than 2 inner corners a side; a ChArUco board needs 3 squares.
+  RB_CHECK(cols >= 3 && rows >= 3, "board: ", cols, "x", rows, " is too small (each side ≥ 3)");
   RB_CHECK(square_m > 0 && std::isfinite(square_m), "board: square size ", square_m, " m must be positive");
   RB_CHECK(marker_m >= 0 && marker_m < square_m, "board: marker size ", marker_m,
            " m must be in [0, square size)");

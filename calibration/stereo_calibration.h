@@ -26,8 +26,8 @@ enum class ChessboardDetector { kBest, kSectorBased, kClassic };
 // squares, from an OpenCV predefined dictionary.
 struct BoardSpec {
   BoardType type = BoardType::kChessboard;
-  int cols = 9;                       // chessboard: inner corners across; ChArUco: squares across; ≥ 2 (3)
-  int rows = 6;                       // chessboard: inner corners down; ChArUco: squares down; ≥ 2 (3)
+  int cols = 9;                       // chessboard: inner corners across; ChArUco: squares across; ≥ 3
+  int rows = 6;                       // chessboard: inner corners down; ChArUco: squares down; ≥ 3
   double square_m = 0.025;            // square side in metres (sets the unit of the baseline); > 0
   double marker_m = 0.0;              // ChArUco marker side in metres; 0 = 0.75 × square_m; < square_m
   std::string dictionary = "DICT_4X4_50";  // ChArUco: an OpenCV predefined dictionary name

@@ -186,6 +186,21 @@ TEST(CalibrateStereoRig, SkipsPairsWithoutBoardAndNeedsMinimum) {
 }
 
 // Images too small to hold the board are pairs without it (OpenCV's classic detector asserted on them).
+// A chessboard of 2 inner corners a side stopped with OpenCV's assertion text; both detectors need 3.
+TEST(BoardSpec, TwoCornersASideAreTooFew) {
+  BoardSpec board;
+  board.cols = 2;
+  board.rows = 5;
+  try {
+    board.Check();
+    ADD_FAILURE() << "a 2x5 board was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("2x5 is too small (each side ≥ 3)"), std::string::npos) << e.what();
+  }
+  board.cols = 3;
+  EXPECT_NO_THROW(board.Check());
+}
+
 TEST(CalibrateStereoRig, TinyImagesShowNoBoard) {
   TempDir dir;
   cv::Mat tiny(12, 12, CV_8U);
