@@ -71,11 +71,16 @@ Grid MakeGrid(const ScanExtent& extent, const FuseOptions& options) {
   grid.tau = tau;
   grid.origin = extent.box.min().array() - (tau + 2 * voxel);
   const Eigen::Vector3d size = extent.box.max().array() + (tau + 2 * voxel) - grid.origin.array();
-  grid.dims = (size / voxel).array().ceil().cast<int>() + 1;
+  // Counted in double first: a voxel far too small for the scene (1e-9 of it) overflowed the int sides, and the
+  // wrapped count passed the guard.
+  const Eigen::Vector3d sides = (size / voxel).array().ceil() + 1;
+  const double total_d = sides.prod();
+  RB_CHECK(total_d <= static_cast<double>(options.max_voxels), "fusion: ", sides.x(), "x", sides.y(), "x", sides.z(),
+           " = ", total_d, " voxels of ", voxel, " exceed max_voxels ", options.max_voxels,
+           "; use a larger voxel size");
+  grid.dims = sides.cast<int>();
   const Eigen::Vector3i& dims = grid.dims;
   const long long total = static_cast<long long>(dims.x()) * dims.y() * dims.z();
-  RB_CHECK(total <= options.max_voxels, "fusion: ", dims.x(), "x", dims.y(), "x", dims.z(), " = ", total,
-           " voxels of ", voxel, " exceed max_voxels ", options.max_voxels, "; use a larger voxel size");
   grid.D.assign(static_cast<size_t>(total), 0.0f);
   grid.W.assign(static_cast<size_t>(total), 0.0f);
   grid.V2.assign(static_cast<size_t>(total), 0.0f);

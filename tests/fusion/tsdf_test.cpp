@@ -1,8 +1,11 @@
+#include "fusion/tsdf.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <string>
 
-#include "fusion/tsdf.h"
+#include "core/error.h"
 #include "synthetic.h"
 
 namespace rangebayes {
@@ -30,6 +33,25 @@ TEST(Fuse, TwoViewsOfASphereLieOnTheSphere) {
   const Eigen::Vector3d a = fused.mesh.V.row(fused.mesh.F(0, 0)), b = fused.mesh.V.row(fused.mesh.F(0, 1)),
                         c = fused.mesh.V.row(fused.mesh.F(0, 2));
   EXPECT_GT((b - a).cross(c - a).dot(a), 0);
+}
+
+// A voxel far too small for the scene is refused by the size guard: at 1e-12 of the sphere's size the grid's int
+// sides overflowed, the wrapped count passed the guard, and std::vector's own "cannot create std::vector larger
+// than max_size()" was the error.
+TEST(Fuse, VoxelFarTooSmallIsRefusedByTheGuard) {
+  const Mesh truth = MakeSphereMesh(0.04, Eigen::Vector3d::Zero(), 24);
+  const std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0)};
+  const std::vector<Scan> scans = testing::RenderViews(truth, poses, 2e-4, 20, 1.2e-3);
+  for (const double voxel : {1e-6, 1e-14}) {
+    FuseOptions options;
+    options.voxel_size = voxel;
+    try {
+      FuseScans(scans, poses, options);
+      ADD_FAILURE() << "voxel " << voxel << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("exceed max_voxels"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
