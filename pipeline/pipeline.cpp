@@ -221,6 +221,11 @@ CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor)
   return k;
 }
 
+void CheckSmoothBudgetMs(double budget_ms) {
+  RB_CHECK(budget_ms >= 0.0 && budget_ms <= 1e3 * kMaxSmoothTimeLimitS, "smoothing budget must be in [0, ",
+           1e3 * kMaxSmoothTimeLimitS, "] ms, got ", budget_ms);
+}
+
 void PipelineOptions::Check() const {
   RB_CHECK(queue_capacity >= 1 && queue_capacity <= 64, "pipeline queue capacity must be in 1..64, got ",
            queue_capacity);
@@ -231,8 +236,7 @@ void PipelineOptions::Check() const {
   RB_CHECK(max_consecutive_timeouts >= 1, "max_consecutive_timeouts must be >= 1");
   RB_CHECK(stereo_downsample == 1 || stereo_downsample == 2 || stereo_downsample == 4 || stereo_downsample == 8,
            "stereo downsample must be 1, 2, 4 or 8, got ", stereo_downsample);
-  RB_CHECK(smooth_budget_ms >= 0.0 && smooth_budget_ms <= 1e3 * kMaxSmoothTimeLimitS,
-           "smoothing budget must be in [0, ", 1e3 * kMaxSmoothTimeLimitS, "] ms, got ", smooth_budget_ms);
+  CheckSmoothBudgetMs(smooth_budget_ms);
   RB_CHECK(full_quality_triangulate_downsample >= 1 && full_quality_triangulate_downsample <= 64,
            "full-quality triangulation downsample must be in 1..64, got ", full_quality_triangulate_downsample);
   rectify.Check();

@@ -131,6 +131,10 @@ struct PipelineOptions {
 inline constexpr int kLiveStereoDownsample = 2;
 inline constexpr int kLiveTriangulateDownsample = 4;
 inline constexpr double kLiveSmoothBudgetMs = 80.0;
+
+// Throws Error unless a per-frame smoothing budget (ms) lies in [0, 1000 · kMaxSmoothTimeLimitS] (0: none): the
+// one check of PipelineOptions and PipelineSettings.
+void CheckSmoothBudgetMs(double budget_ms);
 void ApplyLivePathPreset(PipelineOptions* options);
 
 // Uses a calibrated noise model (`rangebayes calibrate noise`) in the stereo stage: sets noise_model and, for the

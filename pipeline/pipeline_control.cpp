@@ -2,14 +2,12 @@
 
 #include <utility>
 
-#include "bayes/smooth.h"
 #include "core/error.h"
 
 namespace rangebayes {
 
 void PipelineSettings::Check() const {
-  RB_CHECK(smooth_budget_ms >= 0.0 && smooth_budget_ms <= 1e3 * kMaxSmoothTimeLimitS,
-           "smoothing budget must be in [0, ", 1e3 * kMaxSmoothTimeLimitS, "] ms, got ", smooth_budget_ms);
+  CheckSmoothBudgetMs(smooth_budget_ms);
   RB_CHECK(stereo_downsample == 1 || stereo_downsample == 2 || stereo_downsample == 4 || stereo_downsample == 8,
            "stereo downsample must be 1, 2, 4 or 8, got ", stereo_downsample);
   RB_CHECK(window_frames >= 1 && window_frames <= 256, "space-time window must be 1..256 frames, got ",

@@ -30,7 +30,7 @@ DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_
   RB_CHECK(intrinsics.fy_px > 0.0 && std::isfinite(intrinsics.fy_px) && std::isfinite(intrinsics.cx_px) &&
                std::isfinite(intrinsics.cy_px) && std::isfinite(doffs_px),
            "fy ", intrinsics.fy_px, " px must be finite and positive, and cx ", intrinsics.cx_px, ", cy ",
-           intrinsics.cy_px, " and doffs ", doffs_px, " px finite (a NaN there made every depth NaN)");
+           intrinsics.cy_px, " and doffs ", doffs_px, " px finite");
   DepthFrame frame;
   frame.intrinsics = intrinsics;
   frame.baseline_m = baseline_m;
