@@ -20,7 +20,12 @@ PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& optio
     : recording_(std::move(recording)), options_(options) {
   options_.Check();
   const int n = recording_.num_frames();
-  position_ = std::min(options_.first_position, n);
+  // Playing nothing is no run: an exit with zero frames and no error said nothing was wrong.
+  RB_CHECK(n > 0, recording_.folder, ": frames.csv lists no frame");
+  RB_CHECK(options_.first_position < n, recording_.folder, ": playback starts at position ", options_.first_position,
+           ", past the recording's ", n, " frame(s)");
+  RB_CHECK(options_.count != 0, "playback count 0 plays no frame (-1: all)");
+  position_ = options_.first_position;
   end_position_ = options_.count < 0 ? n : std::min(n, position_ + options_.count);
 }
 

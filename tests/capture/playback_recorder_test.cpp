@@ -95,6 +95,13 @@ TEST(Playback, RandomAccessStepAndRecordedSpeed) {
   PlaybackOptions bad;
   bad.speed = PlaybackSpeed::kStep;  // without a gate
   EXPECT_THROW(PlaybackSource(rec, bad), Error);
+  // Playing nothing is an error, not a run of zero frames that exits as if all went well.
+  PlaybackOptions past;
+  past.first_position = rec.num_frames();
+  EXPECT_NE(ErrorOf([&] { PlaybackSource s(rec, past); }).find("past the recording's"), std::string::npos);
+  PlaybackOptions none;
+  none.count = 0;
+  EXPECT_NE(ErrorOf([&] { PlaybackSource s(rec, none); }).find("plays no frame"), std::string::npos);
 }
 
 TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {

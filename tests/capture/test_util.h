@@ -99,8 +99,19 @@ inline StereoRig TestRig(int width, int height) {
 #include <stdexcept>
 
 #include "capture/frame_source.h"
+#include "core/error.h"
 
 namespace rangebayes {
+
+// The message of the Error that f throws, or "no error".
+inline std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
 
 // An endless (or limited) source of TestFrames; `hook(i)` runs before frame i is returned and may throw
 // (device lost) or return a status other than kFrame (timeout, skip).

@@ -17,15 +17,6 @@
 namespace rangebayes {
 namespace {
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "no error";
-}
-
 // Frames every 33 ms from t0, sequences from 0, optional skipped sequence numbers.
 std::deque<FakeEvent> Stream(int n, std::int64_t t0_ns, std::uint8_t value0, std::vector<int> lost = {}) {
   std::deque<FakeEvent> s;
