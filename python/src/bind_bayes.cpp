@@ -66,7 +66,7 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
   const LearnedPrior* p = nullptr;
   if (py::isinstance<LearnedPrior>(prior)) {
     p = &prior.cast<const LearnedPrior&>();
-  } else if (py::isinstance(prior, py::module_::import("os").attr("PathLike"))) {
+  } else if (IsPathLike(prior)) {
     read = ReadLearnedPrior(prior.cast<PathArg>().string());
     p = &*read;
   } else if (py::isinstance<py::str>(prior)) {

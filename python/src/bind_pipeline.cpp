@@ -195,8 +195,7 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         py::dict kw = py::dict(kwargs);
         // A folder (str or os.PathLike) or a Recording; anything else is a TypeError that says so (pybind11's cast
         // said "Unable to cast Python instance to C++ type").
-        const bool is_path =
-            py::isinstance<py::str>(recording) || py::isinstance(recording, py::module_::import("os").attr("PathLike"));
+        const bool is_path = py::isinstance<py::str>(recording) || IsPathLike(recording);
         if (!is_path && !py::isinstance<Recording>(recording)) {
           throw py::type_error("replay: recording must be a folder (str or os.PathLike) or a Recording, not " +
                                py::str(py::type::of(recording).attr("__name__")).cast<std::string>());
@@ -243,9 +242,9 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         return std::make_pair(sink.Take(), std::move(summary));
       },
       py::arg("recording"), py::arg("rig") = py::none(),
-      R"(Replays a recording (a Recording, or a folder as str or os.PathLike) through the pipeline (rectify, stereo, triangulate, smooth,
-decimate) as `rangebayes replay` does, without dropping frames: (list of PipelineResult, PipelineSummary).
-The defaults are the library's (PipelineOptions{}), which are the CLI's: replay(rec, **kw) gives the meshes
+      R"(Replays a recording (a Recording, or a folder as str or os.PathLike) through the pipeline (rectify, stereo,
+triangulate, smooth, decimate) as `rangebayes replay` does, without dropping frames: (list of PipelineResult,
+PipelineSummary). The defaults are the library's (PipelineOptions{}), which are the CLI's: replay(rec, **kw) gives the meshes
 `rangebayes replay REC --out DIR` writes for the same options (python/tests compare the bytes).
 Keywords: rangebayes.PIPELINE_OPTIONS fields (matcher 'sgbm'/'spacetime', window_frames, stereo_downsample,
 smooth, decimate, ...), nested dicts sgbm, spacetime, depth, triangulate, smoothing, decimation, playback

@@ -38,6 +38,9 @@ ProgressCallback PythonProgress(py::object function, bool interruptible = true);
 void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
                          std::unique_ptr<SplinePotential>* learned, const std::string& what);
 
+// True for an os.PathLike (pathlib.Path); a str is not one.
+bool IsPathLike(py::handle value);
+
 // Pops `name` from kwargs (None when absent).
 py::object PopKeyword(py::dict& kwargs, const char* name);
 

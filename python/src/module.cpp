@@ -49,6 +49,8 @@ py::object PopKeyword(py::dict& kwargs, const char* name) {
   return value;
 }
 
+bool IsPathLike(py::handle value) { return py::isinstance(value, py::module_::import("os").attr("PathLike")); }
+
 }  // namespace rangebayes::python
 
 PYBIND11_MODULE(_rangebayes, m) {
