@@ -226,6 +226,7 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   }
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
   if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
+    RB_CHECK(!summary.stopped, "stopped by request before the first result");
     RB_FAIL("no frame went through the pipeline (see the errors above)");
   }
   if (summary.failed > 0 || summary.frames_skipped > 0) SetExitCode(3);
@@ -443,6 +444,7 @@ void AddReplay(CLI::App& app) {
     playback.first_position = o->first;
     playback.count = o->count;
     playback.repeats = o->repeats;
+    playback.stop = &StopFlag();
     if (playback.speed == PlaybackSpeed::kStep) {
       playback.step_gate = [] {
         std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");

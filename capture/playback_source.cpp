@@ -81,10 +81,16 @@ FrameResult PlaybackSource::Next() {
       wall_start_ = std::chrono::steady_clock::now();
       recorded_start_ns_ = t_ns;
     } else {
-      const double offset_s = static_cast<double>(t_ns - recorded_start_ns_) * 1e-9 / options_.speed_factor;
+      // At most ~30 years ahead, so that a damaged timestamp cannot overflow the clock's nanoseconds.
+      const double offset_s =
+          std::min(1e9, static_cast<double>(t_ns - recorded_start_ns_) * 1e-9 / options_.speed_factor);
       if (offset_s > 0) {
-        std::this_thread::sleep_until(wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                        std::chrono::duration<double>(offset_s)));
+        const auto until = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                             std::chrono::duration<double>(offset_s));
+        for (auto now = std::chrono::steady_clock::now(); now < until; now = std::chrono::steady_clock::now()) {
+          if (options_.stop != nullptr && options_.stop->load(std::memory_order_relaxed)) return FrameResult{};
+          std::this_thread::sleep_until(std::min(until, now + std::chrono::milliseconds(20)));
+        }
       }
     }
   }

@@ -1,6 +1,7 @@
 // A recording played back as a FrameSource: at recorded speed, as fast as possible, or one frame at a time.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <functional>
 
@@ -23,6 +24,9 @@ struct PlaybackOptions {
   bool loop = false;                 // start again after the last entry (live-path benchmarks)
   int repeats = 1;                   // 1–1e6: play the selection this many times (ignored with loop)
   std::function<bool()> step_gate;   // kStep: called before each frame; false ends the stream
+  // kRecorded: the wait for a frame's recorded time polls this (every 20 ms) and ends the stream when it is set
+  // (e.g. &StopFlag()), so that Ctrl-C or SIGTERM ends a long gap between two frames; null: never.
+  const std::atomic<bool>* stop = nullptr;
   void Check() const;
 };
 

@@ -74,7 +74,9 @@ PipelineSummary RunReplay(Recording recording, const StereoRig& rig, const Playb
     py::gil_scoped_release nogil;
     std::thread runner([&] {
       try {
-        PlaybackSource source(std::move(recording), playback);
+        PlaybackOptions stoppable = playback;
+        stoppable.stop = &stop;  // Ctrl-C also ends a long wait at the recorded speed
+        PlaybackSource source(std::move(recording), stoppable);
         summary = RunPipeline(source, rig, options, {sink});
       } catch (...) {
         run_error = std::current_exception();

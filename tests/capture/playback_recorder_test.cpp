@@ -5,12 +5,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <thread>
 
 #include "capture/file_syscalls.h"
 #include "capture/playback_source.h"
@@ -102,6 +105,26 @@ TEST(Playback, RandomAccessStepAndRecordedSpeed) {
   PlaybackOptions none;
   none.count = 0;
   EXPECT_NE(ErrorOf([&] { PlaybackSource s(rec, none); }).find("plays no frame"), std::string::npos);
+}
+
+// At the recorded speed, a stop request ends the wait for the next frame: a damaged timestamp (or a gap of hours)
+// kept the process asleep, deaf to Ctrl-C and SIGTERM.
+TEST(Playback, StopEndsTheWaitForAFarTimestamp) {
+  const TempDir dir("far");
+  Recording rec = OpenRecording(MakeRecording(dir, 3));
+  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = 9'000'000'000'000'000'000;
+  std::atomic<bool> stop{false};
+  PlaybackOptions o;
+  o.speed = PlaybackSpeed::kRecorded;
+  o.stop = &stop;
+  PlaybackSource source(rec, o);
+  EXPECT_EQ(source.Next().status, FrameStatus::kFrame);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
+  stopper.join();
 }
 
 TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
