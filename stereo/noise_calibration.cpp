@@ -84,8 +84,10 @@ DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const St
            recording.num_frames(), ")");
   int count = 1;
   if (options.matcher == NoiseCalibrationMatcher::kSpaceTime) {
-    count = options.frames > 0 ? std::min(options.frames, recording.num_frames() - first)
-                               : recording.num_frames() - first;
+    // As `spacetime` does: a window beyond the recording is an error, not a shorter window without a word.
+    RB_CHECK(options.frames <= recording.num_frames() - first, "noise calibration: frames ", first, "..",
+             first + options.frames - 1, " requested but the recording has ", recording.num_frames());
+    count = options.frames > 0 ? options.frames : recording.num_frames() - first;
   }
   s.frames_used = count;
   const Rectifier rectifier(rig);

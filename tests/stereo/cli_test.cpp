@@ -42,6 +42,13 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   EXPECT_EQ(text.find("Nan"), std::string::npos) << text;
   EXPECT_NE(text.find("sigma_px"), std::string::npos) << text;
   EXPECT_TRUE(fs::exists(out + "/report.png"));
+  // A space-time window longer than the recording is refused, as `spacetime` refuses it (it was shortened without
+  // a word).
+  r = RunRangebayes("calibrate noise " + rec + " --target plane --matcher spacetime --frames 9 --out " + out +
+                    "/noise9.yaml");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("frames 0..8 requested but the recording has 4"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/noise9.yaml"));
 }
 
 TEST(StereoCli, SynthSpaceTimeEvalDepth) {
