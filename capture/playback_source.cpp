@@ -20,7 +20,7 @@ PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& optio
     : recording_(std::move(recording)), options_(options) {
   options_.Check();
   const int n = recording_.num_frames();
-  // Playing nothing is no run: an exit with zero frames and no error said nothing was wrong.
+  // A selection of no frame is an error: a run of zero frames would end as if all had gone well.
   RB_CHECK(n > 0, recording_.folder, ": frames.csv lists no frame");
   RB_CHECK(options_.first_position < n, recording_.folder, ": playback starts at position ", options_.first_position,
            ", past the recording's ", n, " frame(s)");
