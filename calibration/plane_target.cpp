@@ -70,7 +70,7 @@ std::vector<NoiseSample> PlaneDisparityResiduals(const std::vector<DisparityObse
                                                  PlaneTargetSummary* summary) {
   options.Check();
   const CameraIntrinsics& cam = geometry.camera;
-  RB_CHECK(cam.fx_px > 0 && cam.fy_px > 0, "plane fit: camera focal length is not positive");
+  cam.Check();
   RB_CHECK(geometry.baseline_m > 0, "plane fit: baseline ", geometry.baseline_m, " m is not positive");
   const double fb = cam.fx_px * geometry.baseline_m;
 

@@ -286,8 +286,9 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
   RB_CHECK(frame.sigma_depth_m.size() == frame.depth_m.size() && frame.sigma_depth_m.type() == CV_32F,
            "depth frame ", frame.frame_id, ": sigma_depth size differs from the depth");
   const CameraIntrinsics& K = frame.intrinsics;
-  RB_CHECK(K.fx_px > 0 && K.fy_px > 0 && K.width == frame.width() && K.height == frame.height(), "depth frame ",
-           frame.frame_id, ": intrinsics do not match the ", frame.width(), "x", frame.height(), " image");
+  K.Check();
+  RB_CHECK(K.width == frame.width() && K.height == frame.height(), "depth frame ", frame.frame_id,
+           ": intrinsics do not match the ", frame.width(), "x", frame.height(), " image");
   const int s = options.downsample;
   const double sigma_px = options.sigma_pixel_px >= 0.0 ? options.sigma_pixel_px : frame.sigma_pixel_px;
   const double slope = std::tan(options.max_slope_deg * M_PI / 180.0) * s / K.fx_px;

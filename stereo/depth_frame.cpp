@@ -25,12 +25,9 @@ DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_
   RB_CHECK(intrinsics.width == disparity_px.cols && intrinsics.height == disparity_px.rows, "intrinsics are for ",
            intrinsics.width, "x", intrinsics.height, " but the disparity is ", disparity_px.cols, "x",
            disparity_px.rows);
-  RB_CHECK(intrinsics.fx_px > 0.0 && baseline_m > 0.0 && std::isfinite(intrinsics.fx_px) && std::isfinite(baseline_m),
-           "focal length ", intrinsics.fx_px, " px and baseline ", baseline_m, " m must be finite and positive");
-  RB_CHECK(intrinsics.fy_px > 0.0 && std::isfinite(intrinsics.fy_px) && std::isfinite(intrinsics.cx_px) &&
-               std::isfinite(intrinsics.cy_px) && std::isfinite(doffs_px),
-           "fy ", intrinsics.fy_px, " px must be finite and positive, and cx ", intrinsics.cx_px, ", cy ",
-           intrinsics.cy_px, " and doffs ", doffs_px, " px finite");
+  intrinsics.Check();
+  RB_CHECK(baseline_m > 0.0 && std::isfinite(baseline_m) && std::isfinite(doffs_px), "baseline ", baseline_m,
+           " m must be finite and positive, and doffs ", doffs_px, " px finite");
   DepthFrame frame;
   frame.intrinsics = intrinsics;
   frame.baseline_m = baseline_m;

@@ -39,7 +39,8 @@ struct DepthFromDisparityOptions {
 
 // Builds a DepthFrame from a float disparity (CV_32F, NaN invalid) and optionally its σ (empty: σ NaN).
 // Disparities with d + doffs ≤ 0 become NaN. Throws Error when sizes differ from each other or from
-// intrinsics, when f or the baseline is not positive, or when a valid pixel's σ is negative or infinite.
+// intrinsics, when the intrinsics fail CameraIntrinsics::Check, the baseline is not finite and positive or doffs
+// not finite, or when a valid pixel's σ is negative or infinite.
 DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_disparity_px,
                               const CameraIntrinsics& intrinsics, double baseline_m, double doffs_px,
                               const DepthFromDisparityOptions& options = {});
