@@ -34,26 +34,26 @@ void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_n
 
 namespace {
 
-// A check of one double value: empty string when it passes, else the message.
-CLI::Validator RealCheck(const std::string& description, const std::function<std::string(double)>& check) {
+// A check of one value of type T (double or long long): empty string when it passes, else the message; text that
+// is no T is "'TEXT' is not <what>".
+template <typename T>
+CLI::Validator ValueCheck(const std::string& description, const std::string& what,
+                          const std::function<std::string(T)>& check) {
   return CLI::Validator(
-      [check](std::string& text) -> std::string {
-        double value = 0;
-        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not a number";
+      [check, what](std::string& text) -> std::string {
+        T value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not " + what;
         return check(value);
       },
       description);
 }
 
-// The same for an integer value.
+CLI::Validator RealCheck(const std::string& description, const std::function<std::string(double)>& check) {
+  return ValueCheck<double>(description, "a number", check);
+}
+
 CLI::Validator IntegerCheck(const std::string& description, const std::function<std::string(long long)>& check) {
-  return CLI::Validator(
-      [check](std::string& text) -> std::string {
-        long long value = 0;
-        if (!CLI::detail::lexical_cast(text, value)) return "'" + text + "' is not an integer";
-        return check(value);
-      },
-      description);
+  return ValueCheck<long long>(description, "an integer", check);
 }
 
 }  // namespace
