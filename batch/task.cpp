@@ -13,16 +13,32 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "batch/process.h"
 #include "core/error.h"
+#include "core/json_int.h"
 
 namespace rangebayes {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
+
+// A JSON value that must be an int (`what` names it). A value that is no integer or does not fit an int (a damaged
+// file; get<int>() would wrap it) is a json::type_error, which the callers report as a malformed file.
+int IntOf(const json& v, const std::string& what) {
+  const std::optional<int> i = JsonInt(v);
+  if (!i) throw json::type_error::create(302, what + " is not an int", &v);
+  return *i;
+}
+
+// The int at `key` of a JSON object; `fallback` when the key is absent (nullopt: the key is required).
+int IntAt(const json& j, const char* key, std::optional<int> fallback = std::nullopt) {
+  if (fallback && !j.contains(key)) return *fallback;
+  return IntOf(j.at(key), std::string("\"") + key + "\"");
+}
 
 std::string ReadText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -186,15 +202,15 @@ BatchRecord ReadBatchRecord(const BatchLayout& layout) {
     record.manifest_source = j.at("manifest_source").get<std::string>();
     record.manifest_dir = j.at("manifest_dir").get<std::string>();
     record.binary = j.at("binary").get<std::string>();
-    record.num_tasks = j.at("num_tasks").get<int>();
+    record.num_tasks = IntAt(j, "num_tasks");
     for (const json& js : j.at("submissions")) {
       BatchSubmission s;
       s.kind = js.at("kind").get<std::string>();
       s.time_utc = js.value("time_utc", "");
-      s.indices = js.at("indices").get<std::vector<int>>();
+      for (const json& i : js.at("indices")) s.indices.push_back(IntOf(i, "an element of \"indices\""));
       s.job_id = js.value("job_id", "");
       if (js.contains("command")) s.command = js.at("command").get<std::vector<std::string>>();
-      s.workers = js.value("workers", 0);
+      s.workers = IntAt(js, "workers", 0);
       record.submissions.push_back(s);
     }
   } catch (const json::exception& e) {
@@ -226,14 +242,14 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
   BatchTaskStatus s;
   try {
     const json j = json::parse(text);
-    s.index = j.at("index").get<int>();
+    s.index = IntAt(j, "index");
     s.state = j.at("state").get<std::string>();
-    s.exit_code = j.at("exit_code").get<int>();
-    s.attempt = j.value("attempt", 0);
-    s.run = j.value("run", 1);
+    s.exit_code = IntAt(j, "exit_code");
+    s.attempt = IntAt(j, "attempt", 0);
+    s.run = IntAt(j, "run", 1);
     s.job_id = j.value("job_id", "");
     s.host = j.value("host", "");
-    s.pid = j.value("pid", 0);
+    s.pid = IntAt(j, "pid", 0);
     s.node = j.value("node", "");
     s.start_utc = j.value("start_utc", "");
     s.end_utc = j.value("end_utc", "");

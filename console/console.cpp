@@ -7,13 +7,13 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_int.h"
 #include "core/mesh_io.h"
 #include "pipeline/pipeline_control.h"
 #include "stereo/colormap.h"
@@ -41,20 +41,6 @@ HttpReply JsonReply(int status, const nlohmann::json& body) {
 }
 
 HttpReply ErrorReply(int status, const std::string& message) { return JsonReply(status, {{"error", message}}); }
-
-// A JSON integer that fits an int; nullopt otherwise (a fraction, a string, or a value that get<int>() would wrap:
-// 4294967298 read as 2).
-std::optional<int> SmallInteger(const nlohmann::json& v) {
-  if (!v.is_number_integer()) return std::nullopt;
-  if (v.is_number_unsigned()) {
-    const auto u = v.get<std::uint64_t>();
-    if (u > static_cast<std::uint64_t>(std::numeric_limits<int>::max())) return std::nullopt;
-    return static_cast<int>(u);
-  }
-  const auto i = v.get<std::int64_t>();
-  if (i < std::numeric_limits<int>::min() || i > std::numeric_limits<int>::max()) return std::nullopt;
-  return static_cast<int>(i);
-}
 
 std::string Jpeg(const cv::Mat& bgr_or_grey, int quality) {
   cv::Mat img = bgr_or_grey;
@@ -470,7 +456,7 @@ HttpReply Console::Control(const HttpRequest& request) {
         control_->SetSmoothBudgetMs(j["smooth_budget_ms"].get<double>());
       }
       if (j.contains("stereo_downsample")) {
-        const std::optional<int> factor = SmallInteger(j["stereo_downsample"]);
+        const std::optional<int> factor = JsonInt(j["stereo_downsample"]);
         if (!factor) return ErrorReply(400, "stereo_downsample must be 1, 2, 4 or 8");
         control_->SetStereoDownsample(*factor);
       }
@@ -487,7 +473,7 @@ HttpReply Console::Control(const HttpRequest& request) {
           if (m == PipelineMatcher::kSgbm) w = 1;
         }
         if (j.contains("window_frames")) {
-          const std::optional<int> frames = SmallInteger(j["window_frames"]);
+          const std::optional<int> frames = JsonInt(j["window_frames"]);
           if (!frames) return ErrorReply(400, "window_frames must be an integer from 1 to 256");
           w = *frames;
         }

@@ -173,6 +173,29 @@ TEST(Status, JsonRoundTripAndAtomicReplace) {
   EXPECT_FALSE(ReadBatchTaskStatus(layout, 4).has_value());
   EXPECT_THROW(ParseBatchTaskStatus("{\"index\": 1}", "s.json"), Error);
   EXPECT_THROW(ParseBatchTaskStatus("{\"index\":1,\"state\":\"odd\",\"exit_code\":0}", "s.json"), Error);
+  // A damaged number is refused, not wrapped into another int (4294967298 would read as 2).
+  EXPECT_THROW(ParseBatchTaskStatus("{\"index\":4294967298,\"state\":\"failed\",\"exit_code\":0}", "s.json"), Error);
+  EXPECT_THROW(ParseBatchTaskStatus("{\"index\":1,\"state\":\"failed\",\"exit_code\":0,\"run\":-4294967295}", "s.json"),
+               Error);
+  EXPECT_THROW(ParseBatchTaskStatus("{\"index\":1.5,\"state\":\"failed\",\"exit_code\":0}", "s.json"), Error);
+}
+
+// A batch.json whose task count or indices do not fit an int is malformed, not read as another batch.
+TEST(BatchRecord, NumbersThatDoNotFitAnIntAreMalformed) {
+  const TempDir dir("record-int");
+  const BatchLayout layout(dir.path());
+  const auto record = [&](const std::string& num_tasks, const std::string& index) {
+    std::ofstream(layout.record()) << "{\"manifest_source\":\"m.txt\",\"manifest_dir\":\".\",\"binary\":\"rb\","
+                                   << "\"num_tasks\":" << num_tasks << ",\"submissions\":[{\"kind\":\"local\","
+                                   << "\"indices\":[" << index << "],\"workers\":1}]}";
+  };
+  record("2", "1");
+  EXPECT_EQ(ReadBatchRecord(layout).num_tasks, 2);
+  EXPECT_EQ(ReadBatchRecord(layout).submissions.at(0).indices, std::vector<int>{1});
+  record("4294967298", "1");
+  EXPECT_THROW(ReadBatchRecord(layout), Error);
+  record("2", "4294967297");
+  EXPECT_THROW(ReadBatchRecord(layout), Error);
 }
 
 // A line that names no subcommand of the binary is refused at submit, with its line, before anything is written.
