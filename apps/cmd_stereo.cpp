@@ -179,15 +179,9 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
   std::printf("%s\n", ts.BriefReport().c_str());
 }
 
-cv::Mat ReadImageOrThrow(const std::string& path) {
-  RB_CHECK(fs::is_regular_file(path), path, ": image not found");
-  cv::Mat image;
-  try {
-    image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    RB_FAIL(path, ": unreadable image (", e.err, ")");
-  }
-  RB_CHECK(!image.empty(), path, ": unreadable image");
+// The pair as stored; an alpha channel is dropped.
+cv::Mat ReadStereoImage(const std::string& path) {
+  cv::Mat image = ReadImage(path, cv::IMREAD_UNCHANGED);
   if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
   return image;
 }
@@ -208,7 +202,7 @@ void AddStereo(CLI::App& app) {
   AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o] {
-    cv::Mat left = ReadImageOrThrow(o->left), right = ReadImageOrThrow(o->right);
+    cv::Mat left = ReadStereoImage(o->left), right = ReadStereoImage(o->right);
     RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
              right.cols, "x", right.rows);
     RB_CHECK(left.type() == right.type(), o->left, " and ", o->right, " differ in type (channels or bit depth)");

@@ -13,6 +13,7 @@
 
 #include "calibration/opencv_yaml.h"
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace {
@@ -229,7 +230,7 @@ void NoiseFitOptions::Check() const {
 }
 
 DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
-  RB_CHECK(std::filesystem::is_regular_file(path), path, ": noise model file not found");
+  CheckFileToRead(path, "noise model file");
   CheckOpenCvYamlSubset(path, "noise model");
   cv::FileStorage fs;
   try {

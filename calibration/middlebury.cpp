@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace {
@@ -49,7 +50,7 @@ double ParseNumber(const std::string& path, const std::string& key, const std::s
 }  // namespace
 
 MiddleburyCalib ReadMiddleburyCalib(const std::string& path) {
-  RB_CHECK(std::filesystem::is_regular_file(path), path, ": calib file not found");
+  CheckFileToRead(path, "calib file");
   std::ifstream in(path);
   RB_CHECK(in.good(), path, ": cannot open");
   std::map<std::string, std::string> values;

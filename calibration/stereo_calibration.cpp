@@ -15,11 +15,12 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
-#include <string>
 #include <regex>
 #include <set>
+#include <string>
 
 #include "core/error.h"
+#include "core/files.h"
 
 #ifdef RB_HAVE_ARUCO
 #include <opencv2/aruco/charuco.hpp>
@@ -203,7 +204,7 @@ PairDetection Combine(const Detection& l, const Detection& r, const BoardModel& 
 }
 
 cv::Mat ReadGray(const std::string& path) {
-  RB_CHECK(std::filesystem::is_regular_file(path), path, ": image not found");
+  CheckFileToRead(path, "image");
   cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
   RB_CHECK(!img.empty(), path, ": not a readable image");
   return img;

@@ -9,6 +9,7 @@
 
 #include "calibration/opencv_yaml.h"
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace {
@@ -95,7 +96,7 @@ void StereoRig::Check() const {
 }
 
 StereoRig ReadStereoRig(const std::string& path) {
-  RB_CHECK(std::filesystem::is_regular_file(path), path, ": rig file not found");
+  CheckFileToRead(path, "rig file");
   CheckOpenCvYamlSubset(path, "rig file");
   cv::FileStorage fs;
   try {

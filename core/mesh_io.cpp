@@ -142,6 +142,7 @@ MeshFormat MeshFormatFromPath(const std::string& path) {
   if (ext == "ply") return MeshFormat::kPly;
   if (ext == "obj") return MeshFormat::kObj;
   if (ext == "off") return MeshFormat::kOff;
+  RB_CHECK(!ext.empty(), path, ": no file extension to tell the mesh format (expected .ply, .obj or .off)");
   RB_FAIL(path, ": unknown mesh format '.", ext, "' (expected .ply, .obj or .off)");
 }
 

@@ -8,6 +8,7 @@
 
 #include "calibration/middlebury.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "stereo/pfm.h"
 
 namespace rangebayes {
@@ -21,8 +22,10 @@ bool EndsWithPfm(const std::string& path) {
   return ext == ".pfm";
 }
 
+}  // namespace
+
 cv::Mat ReadImage(const std::string& path, int flags) {
-  RB_CHECK(fs::is_regular_file(path), path, ": file not found");
+  CheckFileToRead(path, "image");
   cv::Mat image;
   try {
     image = cv::imread(path, flags);
@@ -33,12 +36,10 @@ cv::Mat ReadImage(const std::string& path, int flags) {
   return image;
 }
 
-}  // namespace
-
 cv::Mat ReadDisparityMap(const std::string& path, double scale) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   if (EndsWithPfm(path)) {
-    RB_CHECK(fs::is_regular_file(path), path, ": file not found");
+    CheckFileToRead(path, "disparity map");
     cv::Mat d = ReadPfm(path);
     RB_CHECK(d.channels() == 1, path, ": disparity PFM must have one channel");
     for (int y = 0; y < d.rows; ++y) {

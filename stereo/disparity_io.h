@@ -9,6 +9,10 @@
 
 namespace rangebayes {
 
+// Reads an image with cv::imread's `flags` (cv::IMREAD_COLOR, cv::IMREAD_UNCHANGED, ...). Throws Error naming the
+// file when it is missing, not a file, or not a readable image.
+cv::Mat ReadImage(const std::string& path, int flags);
+
 // Reads a disparity map as CV_32F pixels with NaN where unknown. PFM: values as stored, non-finite → NaN.
 // PNG/PGM/PPM (8 or 16 bit, first channel): value / scale, 0 → NaN (Middlebury's "unknown"); scale must be
 // > 0 for these. Throws Error naming the file when it is missing or unreadable.

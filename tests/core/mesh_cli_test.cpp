@@ -85,6 +85,9 @@ TEST_F(MeshCliTest, ConvertUsageErrors) {
   const RunResult r = RunRangebayes(std::string("convert ") + kAngel + " " + Path("x.stl"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("unknown mesh format"), std::string::npos) << r.output;
+  const RunResult none = RunRangebayes(std::string("info /dev/null"));
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_NE(none.output.find("/dev/null: no file extension to tell the mesh format"), std::string::npos) << none.output;
 }
 
 }  // namespace

@@ -153,6 +153,19 @@ TEST(StereoCli, ErrorsAreOneLine) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   r = RunRangebayes("synth --scene teapot --out " + Temp("err4"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
+  // A folder or a device where a file is expected is named as such, not reported missing.
+  r = RunRangebayes("stereo tests/data/stereo/tsukuba tests/data/stereo/tsukuba/imR.png --out " + Temp("err5"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("tests/data/stereo/tsukuba: is a directory"), std::string::npos) << r.output;
+  r = RunRangebayes("eval-depth /dev/null tests/data/stereo/tsukuba/groundtruth.png");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("/dev/null: not a regular file"), std::string::npos) << r.output;
+  r = RunRangebayes(
+      "stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --rig tests/data "
+      "--out " +
+      Temp("err6"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("tests/data: is a directory"), std::string::npos) << r.output;
 }
 
 }  // namespace
