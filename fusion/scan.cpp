@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <utility>
 
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
@@ -235,6 +236,20 @@ void InflateForIncidence(const RangeGridScanOptions& options, Scan* scan) {
   }
 }
 
+// A noise level as large as the scan itself, or below what float coordinates of its size can hold (7 digits), is
+// a mistake of units (millimetres given for a scan in metres, or the reverse): registration would then fail for a
+// reason it cannot name (every residual inside one σ, or a thousand σ away).
+void CheckNoiseAgainstScanSize(const RangeGridScanOptions& options, const Vertices& V, const std::string& name) {
+  const double diagonal = (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
+  for (const auto& [what, sigma] : {std::pair<const char*, double>{"sigma_range", options.sigma_range},
+                                    std::pair<const char*, double>{"sigma_lateral", options.sigma_lateral}}) {
+    RB_CHECK(sigma < diagonal, name, ": ", what, " ", sigma, " is not smaller than the scan itself (bounding-box ",
+             "diagonal ", diagonal, "); give the noise in the scan's units");
+    RB_CHECK(sigma >= 1e-7 * diagonal, name, ": ", what, " ", sigma, " is below the precision of the scan's ",
+             "coordinates (bounding-box diagonal ", diagonal, "); give the noise in the scan's units");
+  }
+}
+
 }  // namespace
 
 void RangeGridScanOptions::Check() const {
@@ -271,6 +286,7 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   const int cuts = triangulation.CountCuts();
   const std::vector<int> faces = triangulation.Triangulate();
   RB_CHECK(!faces.empty(), name, ": empty scan (no triangle: no two neighbouring grid cells hold vertices)");
+  CheckNoiseAgainstScanSize(options, V, name);
   scan.noisy.mesh.F = Eigen::Map<const Faces>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
   OrientTowardsSensor(&scan);
   InflateForIncidence(options, &scan);

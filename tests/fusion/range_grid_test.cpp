@@ -109,6 +109,26 @@ TEST(RangeGrid, BadGridsNameTheFileAndCell) {
             std::string::npos);
 }
 
+// A noise level in the wrong units (as large as the scan, or below its coordinates' precision) is refused by name
+// instead of failing the registration later with a misleading line about the initial poses.
+TEST(RangeGrid, NoiseInTheWrongUnitsIsRefused) {
+  const std::string path = std::string(RB_SOURCE_DIR) + "/tests/data/scans/bun000_piece.ply";
+  for (const double sigma : {1.0, 1e-12}) {
+    RangeGridScanOptions options;
+    options.sigma_range = sigma;
+    try {
+      ReadScan(path, options);
+      FAIL() << "no error for sigma_range " << sigma;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("bun000_piece.ply: sigma_range"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("give the noise in the scan's units"), std::string::npos) << e.what();
+    }
+  }
+  RangeGridScanOptions options;
+  options.sigma_lateral = 10.0;
+  EXPECT_THROW(ReadScan(path, options), Error);
+}
+
 TEST(RangeGrid, EmptyScanIsAnError) {
   const std::string path = WriteTemp("empty.ply", GridPly("0\n0\n0\n0\n0\n0\n"));
   try {
