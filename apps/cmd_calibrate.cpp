@@ -1,15 +1,14 @@
 // `rangebayes calibrate ...`: the stereo rig from board images, and (see below) the disparity noise model.
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <regex>
 #include <string>
 #include <vector>
-
-#include <algorithm>
-#include <cmath>
-#include <optional>
 
 #include "apps/command.h"
 #include "apps/flags.h"
@@ -20,6 +19,7 @@
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "pipeline/png.h"
 #include "stereo/noise_calibration.h"
 #include "stereo/noise_report.h"
@@ -73,6 +73,8 @@ void RunRig(const RigArgs& a) {
   options.drop_outliers = a.drop_outliers;
   options.rational_model = a.rational;
   options.Check();
+  CheckFileToWrite(a.out);
+  if (!a.png.empty()) CheckFileToWrite(a.png);
 
   std::vector<std::string> unpaired;
   const std::vector<CalibrationImagePair> pairs = PairCalibrationImages(a.left, a.right, &unpaired);
@@ -159,6 +161,8 @@ struct NoiseArgs {
 void RunNoiseFromGroundTruth(const NoiseArgs& a) {
   if (a.matcher != "sgbm" && a.matcher != "block") UsageError("--target ground-truth: --matcher must be sgbm or block");
   if (a.form != "auto" && a.form != "learned") UsageError("--target ground-truth fits the learned form only");
+  if (!a.png.empty()) UsageError("--png draws the plane target's report; --target ground-truth prints its own");
+  CheckFileToWrite(a.out);
   GroundTruthNoiseOptions options;
   options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
   options.window_px = a.window_px;
@@ -191,6 +195,8 @@ void RunNoise(const NoiseArgs& a) {
     options.roi = cv::Rect(a.roi[0], a.roi[1], a.roi[2], a.roi[3]);
   }
   options.stride_px = a.stride_px;
+  CheckFileToWrite(a.out);
+  if (!a.png.empty()) CheckFileToWrite(a.png);
 
   RecordingReadSummary read_summary;
   const std::string& recording = a.inputs[0];

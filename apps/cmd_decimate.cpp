@@ -12,6 +12,7 @@
 #include "apps/read_input.h"
 #include "bayes/decimation/decimate.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 #include "pipeline/png.h"
@@ -129,6 +130,14 @@ void Run(const DecimateArgs& a) {
   options.refit_vertices = !a.no_refit;
   options.Check();
 
+  if (animated) {
+    CreateFolder(a.out_dir);
+    for (const std::string& out : outputs) CheckFileToWrite(out);
+  } else {
+    CheckOutputMesh(a.files[1]);
+  }
+  if (!a.png.empty()) CheckFileToWrite(a.png);
+
   std::vector<Mesh> poses;
   NoisyMesh first;  // the first pose's pixel coordinates, for the picture (its mesh stays in poses)
   for (const std::string& path : inputs) {
@@ -148,7 +157,6 @@ void Run(const DecimateArgs& a) {
 
   std::vector<std::string> written;
   if (animated) {
-    std::filesystem::create_directories(a.out_dir);
     for (size_t m = 0; m < out.size(); ++m) {
       WriteOne(out[m], outputs[m], a.polygons);
       written.push_back(outputs[m]);

@@ -15,6 +15,7 @@
 #include "bayes/decimation/decimate.h"
 #include "bayes/smooth.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 #include "core/scan_poses.h"
@@ -107,7 +108,7 @@ void RunFuse(const FuseArgs& args) {
     initial.push_back(file_poses.empty() ? Eigen::Isometry3d::Identity()
                                          : FindScanPose(file_poses, path, args.poses).world_from_scan);
   }
-  std::filesystem::create_directories(args.out_dir);
+  CreateFolder(args.out_dir);
   const std::string dir = args.out_dir + "/";
 
   std::vector<Eigen::Isometry3d> poses = initial;

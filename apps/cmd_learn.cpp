@@ -18,6 +18,7 @@
 #include "bayes/learning/training_set.h"
 #include "bayes/noise_model.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "figures/potential_plot.h"
 #include "pipeline/png.h"
@@ -57,9 +58,7 @@ void RunSynth(const SynthArgs& args) {
   const size_t total = set.train.size() + set.test.size();
   size_t done = 0;
   auto write = [&](const std::vector<SynthPair>& pairs, const std::string& folder) {
-    std::error_code error;
-    fs::create_directories(fs::path(args.out) / folder, error);
-    RB_CHECK(!error, "cannot create '", (fs::path(args.out) / folder).string(), "': ", error.message());
+    CreateFolder((fs::path(args.out) / folder).string());
     PairsList list;
     list.noise_kind = SynthNoiseName(options.noise.kind);
     list.noise_k = options.noise.k;
@@ -124,12 +123,6 @@ std::string DefaultPlotPath(const std::string& out) {
 
 void RunLearn(const LearnArgs& args) {
   ProgressPrinter progress(args.quiet);
-  TrainingSetOptions set_options;
-  set_options.noise_k = args.noise_k;
-  set_options.progress = [&progress](double fraction, std::string_view stage) {
-    progress.Update(0.02 * fraction, stage);
-  };
-  const TrainingSet set = ReadTrainingSet(args.pairs, set_options);
   LearnPriorOptions options;
   options.method = ParseLearnMethod(args.method);
   options.spline.num_knots = args.knots;
@@ -148,11 +141,20 @@ void RunLearn(const LearnArgs& args) {
     progress.Update(0.02 + 0.98 * fraction, stage);
   };
   options.Check();
+  const std::string plot = args.plot.empty() ? DefaultPlotPath(args.out) : args.plot;
+  CheckFileToWrite(args.out);
+  CheckFileToWrite(plot);
+
+  TrainingSetOptions set_options;
+  set_options.noise_k = args.noise_k;
+  set_options.progress = [&progress](double fraction, std::string_view stage) {
+    progress.Update(0.02 * fraction, stage);
+  };
+  const TrainingSet set = ReadTrainingSet(args.pairs, set_options);
   LearnPriorSummary summary;
   const Eigen::VectorXd theta = LearnPrior(set.pairs, options, {}, &summary);
   progress.Finish();
   WriteLearnedPrior(MakeLearnedPrior(set, options, theta, summary), args.out);
-  const std::string plot = args.plot.empty() ? DefaultPlotPath(args.out) : args.plot;
   WritePng(PlotPotential(SplinePotential(options.spline, theta)), plot);
   std::printf("%s\n", summary.BriefReport().c_str());
   const SecondWell well = FindSecondWell(SplinePotential(options.spline, theta));

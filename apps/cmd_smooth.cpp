@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -18,6 +18,7 @@
 #include "bayes/noise_model.h"
 #include "bayes/smooth.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 #include "pipeline/mesh_metrics.h"
@@ -86,6 +87,8 @@ void RunSmooth(const SmoothArgs& args) {
   options.sqrt_epsilon_squared = args.epsilon_squared;
   options.num_threads = args.threads;
   options.Check();
+  CheckOutputMesh(args.output);
+  if (!args.png.empty()) CheckFileToWrite(args.png);
 
   NoisyMesh noisy = ReadInputMesh(args.input, args.quiet);
   std::printf("input:      %s (%d vertices, %d faces)\n", args.input.c_str(), noisy.mesh.num_vertices(),

@@ -18,6 +18,7 @@
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "pipeline/png.h"
 #include "reconstruction/triangulate.h"
@@ -139,9 +140,7 @@ void WritePicture(const cv::Mat& image, const fs::path& path, bool reverse) {
 // Writes the data files, the pictures and (with a rig) depth and the mesh. Prints one summary line.
 void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>& rectifier, std::int64_t frame_id,
                   std::int64_t timestamp_ns, const fs::path& out, const MatchCliOptions& o) {
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  RB_CHECK(!ec && fs::is_directory(out), out.string(), ": cannot create output folder");
+  CreateFolder(out.string());
   WritePfm(result.disparity_px, (out / "disparity.pfm").string());
   WritePicture(result.disparity_px, out / "disparity.png", false);
   if (!result.sigma_disparity_px.empty()) {

@@ -1,6 +1,7 @@
 #include "apps/read_input.h"
 
 #include "apps/progress.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "fusion/scan.h"
 
@@ -11,6 +12,11 @@ NoisyMesh ReadInputMesh(const std::string& path, bool quiet) {
   NoisyMesh noisy = ReadMeshOrRangeGrid(path, &summary);
   for (const std::string& notice : summary.notices) Notice(quiet, path + ": " + notice);
   return noisy;
+}
+
+void CheckOutputMesh(const std::string& path) {
+  MeshFormatFromPath(path);
+  CheckFileToWrite(path);
 }
 
 }  // namespace rangebayes::apps

@@ -1,4 +1,5 @@
-// Reading the input mesh of the mesh commands (`info`, `smooth`, `decimate`, `convert`), one way for all of them.
+// Reading the input mesh of the mesh commands (`info`, `smooth`, `decimate`, `convert`) and checking their output
+// mesh, one way for all of them.
 #pragma once
 
 #include <string>
@@ -11,5 +12,9 @@ namespace rangebayes::apps {
 // its scanner covariances); the file's notices, a grid's triangulation among them, go to stderr unless quiet.
 // Throws Error on an unreadable file.
 NoisyMesh ReadInputMesh(const std::string& path, bool quiet);
+
+// Throws Error unless a mesh can be written to `path`: a known format by its extension (.ply, .obj, .off) and a
+// file that can be created there (core/files.h CheckFileToWrite). The commands call it before their work.
+void CheckOutputMesh(const std::string& path);
 
 }  // namespace rangebayes::apps

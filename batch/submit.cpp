@@ -13,6 +13,7 @@
 
 #include "batch/process.h"
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace fs = std::filesystem;
@@ -164,7 +165,7 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
   // A folder whose earlier submit was refused (no submission recorded) may be used again.
   RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,
            ": already holds a batch (batch.json); use batch resubmit DIR, or another --out");
-  fs::create_directories(layout.dir);
+  CreateFolder(layout.dir);
   fs::copy_file(manifest_path, layout.manifest(), fs::copy_options::overwrite_existing);
   BatchRecord record;
   record.manifest_source = fs::absolute(manifest_path).lexically_normal().string();

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace fs = std::filesystem;
@@ -184,10 +185,8 @@ RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<
   if (fs::exists(root / "frames.csv", ec)) {
     RB_CHECK(options_.overwrite, folder, ": already holds a recording (frames.csv); choose another folder");
   }
-  fs::create_directories(root / "left", ec);
-  RB_CHECK(!ec, folder, ": cannot create folder (", ec.message(), ")");
-  fs::create_directories(root / "right", ec);
-  RB_CHECK(!ec, folder, "/right: cannot create folder (", ec.message(), ")");
+  CreateFolder((root / "left").string());
+  CreateFolder((root / "right").string());
   if (rig.has_value()) {
     WriteStereoRig(*rig, (root / "rig.yaml").string());
   } else {

@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 #include "pipeline/png.h"
@@ -59,13 +60,8 @@ void FileSinkOptions::Check() const {
 
 FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
   options_.Check();
-  std::error_code ec;
-  fs::create_directories(folder_, ec);
-  RB_CHECK(!ec, folder_, ": cannot create output folder (", ec.message(), ")");
-  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"}) {
-    fs::create_directories(fs::path(folder_) / sub, ec);
-    RB_CHECK(!ec, folder_, "/", sub, ": cannot create (", ec.message(), ")");
-  }
+  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"})
+    CreateFolder((fs::path(folder_) / sub).string());
   const std::string index = (fs::path(folder_) / "results.csv").string();
   index_fd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index, ": cannot create (", std::strerror(errno), ")");

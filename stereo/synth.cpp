@@ -7,12 +7,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
-#include <random>
-
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "capture/recording.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "stereo/pfm.h"
 
 namespace rangebayes {
@@ -552,9 +552,7 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   }
   writer.Finish();
   const std::filesystem::path gt = std::filesystem::path(folder) / "ground_truth";
-  std::error_code ec;
-  std::filesystem::create_directories(gt, ec);
-  RB_CHECK(!ec, gt.string(), ": cannot create folder (", ec.message(), ")");
+  CreateFolder(gt.string());
   WritePfm(recording.depth_m, (gt / "depth_left_m.pfm").string());
   WritePfm(recording.disparity_px, (gt / "disparity_left_px.pfm").string());
   if (!recording.pixel_jitter_px.empty()) {

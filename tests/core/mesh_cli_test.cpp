@@ -90,5 +90,38 @@ TEST_F(MeshCliTest, ConvertUsageErrors) {
   EXPECT_NE(none.output.find("/dev/null: no file extension to tell the mesh format"), std::string::npos) << none.output;
 }
 
+// An output that cannot be written is refused before the work, not after it: the commands print their input line
+// (smooth), their progress (learn-prior) or read their meshes only after the check.
+TEST_F(MeshCliTest, OutputsThatCannotBeWrittenAreRefusedBeforeTheWork) {
+  const std::string block = "tests/data/meshes/block_noisy_gauss0.4.obj";
+  RunResult r = RunRangebayes("smooth " + block + " " + Path("missing/out.ply"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("missing/out.ply: cannot create: folder " + Path("missing") + " does not exist"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("input:"), std::string::npos) << r.output;
+  r = RunRangebayes("smooth " + block + " " + Path("out.ply") + " --png " + dir_.string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find(dir_.string() + ": is a directory"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("input:"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.ply")));
+
+  std::ofstream(Path("a_file")) << "x";
+  r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj tests/data/meshes/block_gt.obj --out " + Path("a_file"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("a_file: cannot create folder"), std::string::npos) << r.output;
+  r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + Path("a_file/out.obj"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("a_file/out.obj: cannot create: " + Path("a_file") + " is not a folder"), std::string::npos)
+      << r.output;
+
+  std::ofstream(Path("pairs.txt")) << fs::absolute(block).string() << " "
+                                   << fs::absolute("tests/data/meshes/block_gt.obj").string() << "\n";
+  r = RunRangebayes("learn-prior --pairs " + Path("pairs.txt") + " --out " + dir_.string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find(dir_.string() + ": is a directory"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("%"), std::string::npos) << r.output;  // no progress: nothing was learned
+}
+
 }  // namespace
 }  // namespace rangebayes
