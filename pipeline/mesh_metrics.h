@@ -8,10 +8,10 @@
 
 namespace rangebayes {
 
-// Unsigned distance from each query point to the triangle surface `surface` (exact point–triangle distances;
-// FLANN over face centroids only picks the candidates, with a search radius that provably contains the
-// nearest triangle). Faces with a repeated index count as segments/points. Throws Error for a surface
-// without faces.
+// Unsigned distance from each query point to the triangle surface `surface` (exact point–triangle distances through
+// core/triangle_tree.h; faces with a repeated index count as segments/points, faces with a non-finite corner are
+// left out). A non-finite point, or a surface without a finite face, gets +inf. Throws Error for a surface without
+// faces or with a face index out of range.
 Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface);
 
 struct SurfaceErrors {
