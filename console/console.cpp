@@ -382,7 +382,8 @@ nlohmann::json Console::Status() const {
                     {"messages_sent", server.messages_sent},
                     {"messages_dropped", server.messages_dropped},
                     {"messages_coalesced", server.messages_coalesced},
-                    {"refused", server.refused}};
+                    {"refused", server.refused},
+                    {"idle_closed", server.idle_closed}};
   }
   return j;
 }

@@ -1,17 +1,19 @@
 #include "console/server.h"
 
+#include <pthread.h>
+
+#include <algorithm>
+#include <array>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-#include <algorithm>
-#include <array>
 #include <chrono>
 #include <deque>
-#include <nlohmann/json.hpp>
+#include <list>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
-#include <pthread.h>
 
 #include "core/error.h"
 
@@ -24,6 +26,7 @@ namespace net = boost::asio;
 using tcp = net::ip::tcp;
 
 namespace {
+class HttpSession;
 class WsSession;
 }  // namespace
 
@@ -34,14 +37,16 @@ struct ConsoleServer::State {
   // Guards open_sessions and what Wants() reads of each (written on the server thread only).
   mutable std::mutex demand_mutex;
   std::vector<const WsSession*> open_sessions;
+  std::list<std::weak_ptr<HttpSession>> connections;  // HTTP connections in accept order, server thread only
   net::io_context ioc{1};
   ConsoleServerOptions options;
   Handler handler;
   std::optional<tcp::acceptor> acceptor;
+  std::optional<net::steady_timer> accept_retry;
   std::vector<std::weak_ptr<WsSession>> sessions;  // server thread only
   std::atomic<bool> stopped{false};
   std::atomic<int> clients{0};
-  std::atomic<std::int64_t> queued{0}, sent{0}, dropped{0}, coalesced{0}, requests{0}, refused{0};
+  std::atomic<std::int64_t> queued{0}, sent{0}, dropped{0}, coalesced{0}, requests{0}, refused{0}, idle_closed{0};
 };
 
 namespace {
@@ -283,8 +288,18 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   void Run() { DoRead(); }
 
+  // Waiting for the next request (or for the rest of one that is arriving), nothing to answer yet.
+  bool waiting() const { return waiting_; }
+
+  // Closes the connection; the pending read ends with operation_aborted and the session with it.
+  void Close() {
+    beast::error_code ignored;
+    stream_.socket().close(ignored);
+  }
+
  private:
   void DoRead() {
+    waiting_ = true;
     parser_.emplace();
     parser_->header_limit(static_cast<std::uint32_t>(state_->options.max_header_bytes));
     parser_->body_limit(static_cast<std::uint64_t>(state_->options.max_body_bytes));
@@ -293,6 +308,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   }
 
   void OnRead(beast::error_code ec, size_t) {
+    waiting_ = false;
     if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == net::error::eof ||
         ec == net::error::connection_reset || ec == net::error::operation_aborted) {
       beast::error_code ignored;
@@ -379,15 +395,42 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   http::response<http::string_body> response_;
   std::array<char, 4096> scratch_{};
+  bool waiting_ = false;
 };
+
+// Keeps the HTTP connections within max_connections: at the bound the oldest one waiting for a request is closed.
+// When every one is busy answering, the new one is let in (they end within their timeout).
+void MakeRoomForConnection(State* state) {
+  auto& connections = state->connections;
+  connections.remove_if([](const std::weak_ptr<HttpSession>& c) { return c.expired(); });
+  if (static_cast<int>(connections.size()) < state->options.max_connections) return;
+  for (auto it = connections.begin(); it != connections.end(); ++it) {
+    const std::shared_ptr<HttpSession> c = it->lock();
+    if (c && c->waiting()) {
+      c->Close();
+      connections.erase(it);
+      ++state->idle_closed;
+      return;
+    }
+  }
+}
 
 void DoAccept(State* state) {
   state->acceptor->async_accept(state->ioc, [state](beast::error_code ec, tcp::socket socket) {
+    if (ec == net::error::operation_aborted) return;
     if (ec) {
-      if (ec == net::error::operation_aborted) return;
-    } else {
-      std::make_shared<HttpSession>(std::move(socket), state)->Run();
+      // Out of file descriptors, or another failure of the moment: the connection stays in the backlog, so an
+      // accept at once would fail at once, in a loop that takes a whole core. Try again a moment later.
+      state->accept_retry->expires_after(std::chrono::milliseconds(100));
+      state->accept_retry->async_wait([state](beast::error_code wait_ec) {
+        if (!wait_ec) DoAccept(state);
+      });
+      return;
     }
+    MakeRoomForConnection(state);
+    auto connection = std::make_shared<HttpSession>(std::move(socket), state);
+    state->connections.push_back(connection);
+    connection->Run();
     DoAccept(state);
   });
 }
@@ -463,6 +506,7 @@ void ConsoleServerOptions::Check() const {
   RB_CHECK(max_client_message_bytes >= 64, "console: max_client_message_bytes must be >= 64");
   RB_CHECK(client_queue_messages >= 1, "console: client_queue_messages must be >= 1");
   RB_CHECK(max_clients >= 1, "console: max_clients must be >= 1");
+  RB_CHECK(max_connections >= 1, "console: max_connections must be >= 1");
   RB_CHECK(flow_credits >= 1, "console: flow_credits must be >= 1");
   RB_CHECK(send_buffer_bytes >= 0, "console: send_buffer_bytes must be >= 0");
 }
@@ -485,6 +529,7 @@ ConsoleServer::ConsoleServer(const ConsoleServerOptions& options, Handler handle
   state_->acceptor->listen(net::socket_base::max_listen_connections, ec);
   RB_CHECK(!ec, "console: cannot listen on ", options.address, ":", options.port, ": ", ec.message());
   port_ = state_->acceptor->local_endpoint().port();
+  state_->accept_retry.emplace(state_->ioc);
   DoAccept(state_.get());
   thread_ = std::thread([state = state_.get()] {
     pthread_setname_np(pthread_self(), "rb-console-net");
@@ -544,6 +589,7 @@ ConsoleServerStats ConsoleServer::stats() const {
   s.messages_coalesced = state_->coalesced.load();
   s.requests = state_->requests.load();
   s.refused = state_->refused.load();
+  s.idle_closed = state_->idle_closed.load();
   return s;
 }
 

@@ -33,6 +33,10 @@ struct ConsoleServerOptions {
   int client_queue_messages = 2;       // ≥ 1: messages of one topic waiting per client; beyond it the oldest
                                        // of that topic is dropped (a live view wants the newest, not a backlog)
   int max_clients = 16;                // ≥ 1: WebSocket clients at once (more: 503)
+  // ≥ 1: HTTP connections at once (WebSocket clients apart). At the bound the oldest connection waiting for a
+  // request is closed to make room (a browser opens another when it needs one), so that a flood of idle
+  // connections cannot take the file descriptors that the pipeline needs to write its results.
+  int max_connections = 64;
   int flow_credits = 1;                // ≥ 1: unacknowledged binary messages of one topic on their way to a
                                        // client that asked for credit flow
   // ≥ 0: SO_SNDBUF of WebSocket sockets (0: the system's, which grows to megabytes: a backlog of stale
@@ -91,6 +95,7 @@ struct ConsoleServerStats {
   std::int64_t messages_coalesced = 0;  // held back for a credit-flow client and replaced by a newer one
   std::int64_t requests = 0;          // HTTP requests answered
   std::int64_t refused = 0;           // requests and client messages refused (limits, malformed)
+  std::int64_t idle_closed = 0;       // idle HTTP connections closed to make room (max_connections)
 };
 
 class ConsoleServer {

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <filesystem>
 #include <thread>
+#include <vector>
 
 #include "capture/playback_source.h"
 #include "capture/recording.h"
@@ -298,6 +299,30 @@ TEST(ConsoleServer, AClientThatNeverReadsLosesItsOldestMessagesOnly) {
   // all the rest of its 200 are dropped.
   EXPECT_GE(s.messages_dropped, kMessages - 10);
   EXPECT_EQ(s.clients, 2);
+}
+
+// A flood of idle connections: beyond max_connections the oldest idle one is closed for each new one, so the server
+// holds no more than the bound and a new request is still answered at once.
+TEST(ConsoleServer, IdleConnectionsBeyondTheBoundAreClosedOldestFirst) {
+  ConsoleServerOptions o;
+  o.max_connections = 4;
+  ConsoleServer server(o, [](const HttpRequest&) { return HttpReply{200, "text/plain", "ok", {}}; });
+  net::io_context ioc;
+  std::vector<tcp::socket> idle;
+  for (int i = 0; i < 10; ++i) {
+    idle.emplace_back(ioc);
+    idle.back().connect(Local(server.port()));
+  }
+  ASSERT_TRUE(WaitFor([&] { return server.stats().idle_closed == 6; })) << server.stats().idle_closed;
+  for (int i = 0; i < 6; ++i) {
+    char c = 0;
+    beast::error_code ec;
+    idle[i].read_some(net::buffer(&c, 1), ec);  // closed by the server: end of stream at once
+    EXPECT_TRUE(ec == net::error::eof || ec == net::error::connection_reset) << i << ": " << ec.message();
+  }
+  const std::string reply = Get(server.port(), "/anything");
+  EXPECT_EQ(StatusOf(reply), 200) << reply;
+  EXPECT_EQ(server.stats().idle_closed, 7);  // the new one took the place of the oldest of the last four
 }
 
 // A message "<n>:" padded to a few KB, and the n of one read back.
