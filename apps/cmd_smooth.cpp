@@ -166,25 +166,14 @@ nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 void RunEval(const EvalArgs& args) {
   const Mesh gt = ReadMesh(args.ground_truth);
   const Mesh result = ReadMesh(args.result);
-  nlohmann::json out;
-  if (!args.surface_only) {
-    if (gt.F.rows() != result.F.rows() || gt.F != result.F || gt.num_vertices() != result.num_vertices()) {
-      RB_FAIL(args.result, " and ", args.ground_truth,
-              " do not share connectivity (needed for mae_deg); use --surface-only for surface distances alone");
-    }
-    int skipped = 0;
-    out["mae_deg"] = Number(MeanAngularErrorDeg(result, gt, &skipped));
-    out["mae_skipped_faces"] = skipped;
+  if (!args.surface_only && !SameConnectivity(result, gt)) {
+    RB_FAIL(args.result, " and ", args.ground_truth,
+            " do not share connectivity (needed for mae_deg); use --surface-only for surface distances alone");
   }
-  const SurfaceErrors errors = ComputeSurfaceErrors(result, gt);
-  out["ev"] = Number(errors.ev);
-  out["ev_rel_bbox"] = Number(errors.ev_rel_bbox());
-  out["hausdorff"] = Number(errors.hausdorff);
-  out["hausdorff_rel_bbox"] = Number(errors.hausdorff_rel_bbox());
-  out["mean_distance"] = Number(errors.mean_distance);
-  out["bbox_diagonal"] = Number(errors.bbox_diagonal);
-  out["faces"] = result.num_faces();
-  out["vertices"] = result.num_vertices();
+  nlohmann::json out;
+  for (const EvaluationField& f : EvaluationFields(EvaluateMesh(result, gt, !args.surface_only))) {
+    out[f.name] = f.count ? nlohmann::json(static_cast<std::int64_t>(f.value)) : Number(f.value);
+  }
   std::printf("%s\n", out.dump().c_str());
 }
 

@@ -55,4 +55,37 @@ SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth)
   return errors;
 }
 
+bool SameConnectivity(const Mesh& a, const Mesh& b) {
+  return a.num_vertices() == b.num_vertices() && a.F.rows() == b.F.rows() && a.F == b.F;
+}
+
+MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals) {
+  MeshEvaluation e;
+  if (normals) {
+    RB_CHECK(SameConnectivity(result, ground_truth),
+             "the result and the ground truth do not share connectivity (needed for the normal error)");
+    e.has_normal_error = true;
+    e.mae_deg = MeanAngularErrorDeg(result, ground_truth, &e.mae_skipped_faces);
+  }
+  e.surface = ComputeSurfaceErrors(result, ground_truth);
+  e.faces = result.num_faces();
+  e.vertices = result.num_vertices();
+  return e;
+}
+
+std::vector<EvaluationField> EvaluationFields(const MeshEvaluation& e) {
+  std::vector<EvaluationField> fields = {
+      {"bbox_diagonal", e.surface.bbox_diagonal}, {"ev", e.surface.ev},
+      {"ev_rel_bbox", e.surface.ev_rel_bbox()},   {"faces", static_cast<double>(e.faces), true},
+      {"hausdorff", e.surface.hausdorff},         {"hausdorff_rel_bbox", e.surface.hausdorff_rel_bbox()},
+  };
+  if (e.has_normal_error) {
+    fields.push_back({"mae_deg", e.mae_deg});
+    fields.push_back({"mae_skipped_faces", static_cast<double>(e.mae_skipped_faces), true});
+  }
+  fields.push_back({"mean_distance", e.surface.mean_distance});
+  fields.push_back({"vertices", static_cast<double>(e.vertices), true});
+  return fields;
+}
+
 }  // namespace rangebayes

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
+#include <vector>
 
 #include "core/mesh.h"
 #include "core/normal_error.h"  // MeanAngularErrorDeg
@@ -26,5 +28,29 @@ struct SurfaceErrors {
 
 // Connectivity-independent surface errors (works for decimated results too).
 SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth);
+
+// Same vertex count and the same faces in the same order: what a per-face comparison of normals needs.
+bool SameConnectivity(const Mesh& a, const Mesh& b);
+
+// What `rangebayes eval` and Python's evaluate() report: the surface errors and, with `normals`, the mean angular
+// error of the face normals, which needs SameConnectivity (Error otherwise).
+struct MeshEvaluation {
+  bool has_normal_error = false;
+  double mae_deg = 0;         // mean angle between corresponding face normals, degrees
+  int mae_skipped_faces = 0;  // faces left out of mae_deg (degenerate in either mesh)
+  SurfaceErrors surface;
+  int faces = 0;  // of the result
+  int vertices = 0;
+};
+MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals);
+
+// The evaluation as named numbers, the names of eval's JSON line ("mae_deg", "ev", "hausdorff_rel_bbox", ...),
+// in that line's order (by name). `count`: a whole number (faces, vertices, skipped faces).
+struct EvaluationField {
+  std::string name;
+  double value = 0;
+  bool count = false;
+};
+std::vector<EvaluationField> EvaluationFields(const MeshEvaluation& e);
 
 }  // namespace rangebayes

@@ -1,4 +1,5 @@
-// bayes/: smoothing (what `rangebayes smooth` runs), the generic noise model, decimation, learned priors.
+// bayes/: smoothing (what `rangebayes smooth` runs), the generic noise model, decimation, learned priors, and the
+// evaluation of a result against ground truth (what `rangebayes eval` prints).
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
@@ -6,6 +7,7 @@
 #include <memory>
 #include <optional>
 
+#include "pipeline/mesh_metrics.h"
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
 #include "python/src/option_tables.h"
@@ -222,6 +224,32 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
         return EstimateNoiseLevel(plain);
       },
       py::arg("mesh"), "k = σ / l_e estimated from a noisy mesh (0 when nothing is measurable). GIL released.");
+  m.def(
+      "evaluate",
+      [](py::handle ground_truth, py::handle result, bool surface_only) {
+        const Mesh gt = ToMesh(ground_truth, "evaluate"), r = ToMesh(result, "evaluate");
+        if (!surface_only && !SameConnectivity(r, gt)) {
+          throw py::value_error(
+              "evaluate: ground_truth and result do not share connectivity (needed for mae_deg); pass "
+              "surface_only=True for surface distances alone");
+        }
+        MeshEvaluation e;
+        {
+          py::gil_scoped_release nogil;
+          e = EvaluateMesh(r, gt, !surface_only);
+        }
+        py::dict out;
+        for (const EvaluationField& f : EvaluationFields(e)) {
+          out[py::str(f.name)] = f.count ? py::object(py::int_(static_cast<long long>(f.value))) : py::float_(f.value);
+        }
+        return out;
+      },
+      py::arg("ground_truth"), py::arg("result"), py::arg("surface_only") = false,
+      R"(What `rangebayes eval GT RESULT` prints, as a dict with the same keys: mae_deg (mean angle between corresponding face
+normals, degrees; needs the same faces in both meshes, else ValueError) and mae_skipped_faces, unless
+surface_only; ev, hausdorff, mean_distance (model units; distances of the result's vertices to the ground-truth
+surface, and the other way for hausdorff), their *_rel_bbox, bbox_diagonal, faces, vertices. A vertex that is not
+finite has an infinite distance. GIL released.)");
   m.def(
       "make_generic_noisy_mesh",
       [](py::handle mesh, py::handle noise, py::handle sigma, double across_ratio) {

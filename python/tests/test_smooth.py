@@ -1,5 +1,6 @@
 """smooth(): the CLI's result byte for byte, keyword validation, errors, progress, the GIL."""
 
+import json
 import math
 import subprocess
 
@@ -176,3 +177,25 @@ def test_learned_prior_file_and_object(tmp_path, trim_star):
     np.testing.assert_array_equal(a.V, b.V)
     c, _ = rb.smooth(m, noise=0.3, prior=tmp_path / "prior.yaml", tolerance="fast")  # a pathlib.Path too
     np.testing.assert_array_equal(a.V, c.V)
+
+
+def test_evaluate_is_what_eval_prints(cli, root):
+    """evaluate(): the keys and values of `rangebayes eval`'s JSON line, with and without the normal error."""
+    meshes = root / "tests" / "data" / "meshes"
+    truth, noisy = meshes / "block_gt.obj", meshes / "block_noisy_gauss0.4.obj"
+    for flags, kwargs in (([], {}), (["--surface-only"], dict(surface_only=True))):
+        line = subprocess.run([str(cli), "eval", str(truth), str(noisy), *flags], check=True,
+                              capture_output=True, text=True).stdout
+        expected = json.loads(line)
+        got = rb.evaluate(rb.read_mesh(truth), rb.read_mesh(noisy), **kwargs)  # GT, RESULT as the CLI takes them
+        assert sorted(got) == sorted(expected)
+        for key, value in expected.items():
+            assert got[key] == pytest.approx(value, rel=1e-15, abs=0), key
+        assert ("mae_deg" in got) == (not flags)
+    assert isinstance(got["faces"], int) and got["faces"] == 17550
+    other = rb.read_mesh(meshes / "fandisk_gt.obj")
+    with pytest.raises(ValueError, match="surface_only=True"):
+        rb.evaluate(other, rb.read_mesh(noisy))
+    assert rb.evaluate(other, rb.read_mesh(noisy), surface_only=True)["hausdorff"] > 0
+    with pytest.raises(TypeError, match="evaluate: expected a Mesh or NoisyMesh"):
+        rb.evaluate(other, "a.ply")
