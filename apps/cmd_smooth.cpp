@@ -166,6 +166,8 @@ nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 void RunEval(const EvalArgs& args) {
   const Mesh gt = ReadMesh(args.ground_truth);
   const Mesh result = ReadMesh(args.result);
+  RB_CHECK(gt.num_faces() > 0, args.ground_truth, ": no faces (eval compares surfaces)");
+  RB_CHECK(result.num_faces() > 0, args.result, ": no faces (eval compares surfaces)");
   if (!args.surface_only && !SameConnectivity(result, gt)) {
     RB_FAIL(args.result, " and ", args.ground_truth,
             " do not share connectivity (needed for mae_deg); use --surface-only for surface distances alone");

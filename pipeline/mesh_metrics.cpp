@@ -60,6 +60,8 @@ bool SameConnectivity(const Mesh& a, const Mesh& b) {
 }
 
 MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals) {
+  RB_CHECK(ground_truth.num_faces() > 0, "evaluate: the ground truth has no faces");
+  RB_CHECK(result.num_faces() > 0, "evaluate: the result has no faces");
   MeshEvaluation e;
   if (normals) {
     RB_CHECK(SameConnectivity(result, ground_truth),

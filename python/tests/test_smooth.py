@@ -199,3 +199,6 @@ def test_evaluate_is_what_eval_prints(cli, root):
     assert rb.evaluate(other, rb.read_mesh(noisy), surface_only=True)["hausdorff"] > 0
     with pytest.raises(TypeError, match="evaluate: expected a Mesh or NoisyMesh"):
         rb.evaluate(other, "a.ply")
+    points = rb.Mesh(np.zeros((3, 3)), np.zeros((0, 3), dtype=np.int32))
+    with pytest.raises(rb.Error, match="evaluate: the result has no faces"):
+        rb.evaluate(other, points, surface_only=True)

@@ -92,6 +92,15 @@ TEST_F(MeshCliTest, ConvertUsageErrors) {
 
 // An output that cannot be written is refused before the work, not after it: the commands print their input line
 // (smooth), their progress (learn-prior) or read their meshes only after the check.
+// eval compares surfaces: a mesh without faces (a point cloud) is named.
+TEST_F(MeshCliTest, EvalNamesAMeshWithoutFaces) {
+  std::ofstream(Path("points.ply")) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                       "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  const RunResult r = RunRangebayes("eval " + std::string(kAngel) + " " + Path("points.ply") + " --surface-only");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("points.ply: no faces (eval compares surfaces)"), std::string::npos) << r.output;
+}
+
 TEST_F(MeshCliTest, OutputsThatCannotBeWrittenAreRefusedBeforeTheWork) {
   const std::string block = "tests/data/meshes/block_noisy_gauss0.4.obj";
   RunResult r = RunRangebayes("smooth " + block + " " + Path("missing/out.ply"));
