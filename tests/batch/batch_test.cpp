@@ -2,7 +2,6 @@
 // runner, and the sbatch command line (with stand-in sbatch/squeue scripts; the real cluster is tested by
 // slurm_cluster_test.sh).
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <signal.h>
 #include <sys/mount.h>
 #include <sys/wait.h>
@@ -12,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 
@@ -19,27 +19,11 @@
 #include "batch/submit.h"
 #include "batch/task.h"
 #include "core/error.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  explicit TempDir(const std::string& name)
-      : path_((fs::temp_directory_path() / ("rb_batch_" + name + "_" + std::to_string(getpid()))).string()) {
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
 
 void WriteText(const std::string& path, const std::string& text) {
   fs::create_directories(fs::path(path).parent_path());

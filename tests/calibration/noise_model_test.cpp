@@ -8,6 +8,7 @@
 #include "calibration/disparity_noise_model.h"
 #include "calibration/plane_target.h"
 #include "core/error.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -43,7 +44,7 @@ TEST(DisparityNoiseModel, ApplyForms) {
 }
 
 TEST(DisparityNoiseModel, YamlRoundTripAndErrors) {
-  const fs::path dir = fs::temp_directory_path() / "rb_noise_yaml_test";
+  const fs::path dir = fs::path(TempPath("noise_yaml_test"));
   fs::create_directories(dir);
   DisparityNoiseModel m;
   m.form = NoiseForm::kFloorPlusScale;
@@ -173,7 +174,7 @@ TEST(FitDisparityNoiseModel, LearnedFormRecoversWeightsAndPassesItsCheck) {
 }
 
 TEST(DisparityNoiseModel, LearnedYamlRoundTripAndRequiredFields) {
-  const fs::path dir = fs::temp_directory_path() / "rb_noise_learned_yaml_test";
+  const fs::path dir = fs::path(TempPath("noise_learned_yaml_test"));
   fs::create_directories(dir);
   DisparityNoiseModel m;
   m.form = NoiseForm::kLearned;

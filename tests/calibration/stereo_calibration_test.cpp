@@ -12,6 +12,7 @@
 
 #include "calibration/stereo_rig.h"
 #include "core/error.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -38,21 +39,6 @@ const CalibrationView& Worst(const StereoCalibrationSummary& s) {
   return *std::max_element(s.views.begin(), s.views.end(),
                            [](const auto& a, const auto& b) { return a.rms_stereo_px < b.rms_stereo_px; });
 }
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() / ("rb_calib_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-                                         "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 TEST(PairCalibrationImages, PairsOpenCvSamplesByNumber) {
   std::vector<std::string> unpaired;
@@ -107,8 +93,8 @@ TEST(CalibrateStereoRig, OpenCvSamplesBeatTwoStageBar) {
 
   // rig.yaml round trip.
   {
-    TempDir dir;
-    const std::string path = (dir.path() / "rig.yaml").string();
+    const TempDir dir("calibration");
+    const std::string path = (fs::path(dir.path()) / "rig.yaml").string();
     WriteStereoRig(rig, path);
     const StereoRig back = ReadStereoRig(path);
     EXPECT_TRUE(back.K_left.isApprox(rig.K_left));
@@ -157,16 +143,17 @@ TEST(CalibrateStereoRig, ClassicCornersFlagPair02AndDroppingItHelps) {
 }
 
 TEST(CalibrateStereoRig, SkipsPairsWithoutBoardAndNeedsMinimum) {
-  TempDir dir;
+  const TempDir dir("calibration");
   const fs::path src = "tests/data/calibration/opencv_stereo";
   for (const char* n : {"01", "03", "04", "06"}) {
-    fs::copy_file(src / (std::string("left") + n + ".jpg"), dir.path() / (std::string("left") + n + ".jpg"));
-    fs::copy_file(src / (std::string("right") + n + ".jpg"), dir.path() / (std::string("right") + n + ".jpg"));
+    fs::copy_file(src / (std::string("left") + n + ".jpg"), fs::path(dir.path()) / (std::string("left") + n + ".jpg"));
+    fs::copy_file(src / (std::string("right") + n + ".jpg"),
+                  fs::path(dir.path()) / (std::string("right") + n + ".jpg"));
   }
-  cv::imwrite((dir.path() / "left20.jpg").string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
-  fs::copy_file(src / "right11.jpg", dir.path() / "right20.jpg");
-  const auto pairs =
-      PairCalibrationImages({(dir.path() / "left*.jpg").string()}, {(dir.path() / "right*.jpg").string()});
+  cv::imwrite((fs::path(dir.path()) / "left20.jpg").string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
+  fs::copy_file(src / "right11.jpg", fs::path(dir.path()) / "right20.jpg");
+  const auto pairs = PairCalibrationImages({(fs::path(dir.path()) / "left*.jpg").string()},
+                                           {(fs::path(dir.path()) / "right*.jpg").string()});
   ASSERT_EQ(pairs.size(), 5u);
   StereoCalibrationOptions o = SampleOptions();
   o.board.detector = ChessboardDetector::kClassic;  // fast on the blank image
@@ -202,15 +189,15 @@ TEST(BoardSpec, TwoCornersASideAreTooFew) {
 }
 
 TEST(CalibrateStereoRig, TinyImagesShowNoBoard) {
-  TempDir dir;
+  const TempDir dir("calibration");
   cv::Mat tiny(12, 12, CV_8U);
   cv::randu(tiny, 0, 255);
   for (const char* n : {"01", "02", "03", "04", "05"}) {
-    cv::imwrite((dir.path() / (std::string("left") + n + ".png")).string(), tiny);
-    cv::imwrite((dir.path() / (std::string("right") + n + ".png")).string(), tiny);
+    cv::imwrite((fs::path(dir.path()) / (std::string("left") + n + ".png")).string(), tiny);
+    cv::imwrite((fs::path(dir.path()) / (std::string("right") + n + ".png")).string(), tiny);
   }
-  const auto pairs =
-      PairCalibrationImages({(dir.path() / "left*.png").string()}, {(dir.path() / "right*.png").string()});
+  const auto pairs = PairCalibrationImages({(fs::path(dir.path()) / "left*.png").string()},
+                                           {(fs::path(dir.path()) / "right*.png").string()});
   ASSERT_EQ(pairs.size(), 5u);
   for (ChessboardDetector detector : {ChessboardDetector::kClassic, ChessboardDetector::kSectorBased}) {
     StereoCalibrationOptions o = SampleOptions();
@@ -255,8 +242,7 @@ StereoRig SmallRig() {
 TEST(StereoRigYaml, RoundTripWithoutDistortion) {
   StereoRig rig = SmallRig();
   rig.is_rectified = true;
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "rangebayes_rig_no_distortion.yaml").string();
+  const std::string path = TempPath("rig_no_distortion.yaml");
   WriteStereoRig(rig, path);
   const StereoRig back = ReadStereoRig(path);
   EXPECT_EQ(back.distortion_left.size(), 0);
@@ -274,7 +260,7 @@ TEST(StereoRigYaml, NonRotationIsRefused) {
   StereoRig rig = SmallRig();
   rig.R_right_from_left = Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()).toRotationMatrix();
   EXPECT_NO_THROW(rig.Check());
-  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_not_a_rotation.yaml").string();
+  const std::string path = TempPath("rig_not_a_rotation.yaml");
   std::filesystem::remove(path);
   for (const Eigen::Matrix3d& bad : {Eigen::Matrix3d(Eigen::Vector3d(1, 1, 0).asDiagonal()),
                                      Eigen::Matrix3d(Eigen::Vector3d(1, 1, -1).asDiagonal())}) {
@@ -307,7 +293,7 @@ TEST(StereoRigYaml, NonRotationIsRefused) {
 // A malformed file on which OpenCV's YAML parser throws std::length_error (found by fuzz_rig_yaml; the same
 // bytes are the seed fuzz/corpus/rig_yaml/regress_length_error): an Error naming the file.
 TEST(StereoRigYaml, FilesThatBreakOpenCvsParserAreErrors) {
-  const std::string path = (std::filesystem::temp_directory_path() / "rangebayes_rig_length_error.yaml").string();
+  const std::string path = TempPath("rig_length_error.yaml");
   std::ofstream(path, std::ios::binary) << "%YAML:1.0 \n   s:t: d\n   : 3]\n";
   try {
     ReadStereoRig(path);

@@ -16,26 +16,6 @@
 
 namespace rangebayes {
 
-// A fresh folder under the system temp dir, removed with its contents on destruction.
-class TempDir {
- public:
-  explicit TempDir(const std::string& name) {
-    path_ = (std::filesystem::temp_directory_path() /
-             ("rb_capture_" + name + "_" + std::to_string(::getpid())))
-                .string();
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
-
 // A frame whose pixels and timestamps are a function of its index only (seeded, so reproducible).
 inline StereoFrame TestFrame(std::int64_t index, int width, int height, int type) {
   StereoFrame f;
@@ -100,6 +80,7 @@ inline StereoRig TestRig(int width, int height) {
 
 #include "capture/frame_source.h"
 #include "core/error.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 

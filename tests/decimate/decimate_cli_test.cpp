@@ -6,19 +6,13 @@
 
 #include "core/mesh_io.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 
-std::string TempDir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("rb_decimate_cli_" + name);
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir.string();
-}
-
 TEST(DecimateCli, WritesMeshWithCornerNormalsAndPicture) {
-  const std::string dir = TempDir("static");
+  const std::string dir = FreshTempDir("decimate_cli_static");
   const RunResult r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/out.obj --lambda 5 --png " +
                                     dir + "/out.png --quiet");
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -31,7 +25,7 @@ TEST(DecimateCli, WritesMeshWithCornerNormalsAndPicture) {
 }
 
 TEST(DecimateCli, PolygonsAndTargetFaces) {
-  const std::string dir = TempDir("poly");
+  const std::string dir = FreshTempDir("decimate_cli_poly");
   RunResult r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/poly.obj --lambda 5 --polygons");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("one polygon per patch"), std::string::npos);
@@ -48,7 +42,7 @@ TEST(DecimateCli, PolygonsAndTargetFaces) {
 // on fits whose count is the budget the chain pass filled, over-predicts there, so a search that moves one
 // resolution step per round took 20 full decimations at 200 faces; it gallops down instead and closes its bracket.
 TEST(DecimateCli, TargetFacesSearchDoesNotCreepOnASmoothedStereoMesh) {
-  const std::string dir = TempDir("smoothed_stereo");
+  const std::string dir = FreshTempDir("decimate_cli_smoothed_stereo");
   RunResult r = RunRangebayes("synth --scene planes --width 160 --height 120 --frames 1 --out " + dir + "/rec -q");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = RunRangebayes("replay " + dir + "/rec --out " + dir + "/out --no-decimate -q");
@@ -71,7 +65,7 @@ TEST(DecimateCli, TargetFacesSearchDoesNotCreepOnASmoothedStereoMesh) {
 }
 
 TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {
-  const std::string dir = TempDir("animated");
+  const std::string dir = FreshTempDir("decimate_cli_animated");
   Mesh a = ReadMesh("tests/data/meshes/fandisk_gt.obj");
   Mesh b = a;
   b.V.col(2) += 0.05 * b.V.col(0).cwiseProduct(b.V.col(0));  // a bent copy

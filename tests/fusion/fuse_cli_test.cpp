@@ -10,23 +10,17 @@
 #include "core/scan_poses.h"
 #include "fusion/register.h"
 #include "fusion/scan.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 
 const std::string kData = "tests/data/scans/";
 
-std::string TempDir(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "fuse_" + name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
 std::string Pieces() { return kData + "bun000_piece.ply " + kData + "bun045_piece.ply"; }
 
 TEST(FuseCli, AlignsAndFusesTwoBunnyPiecesFromPerturbedPoses) {
-  const std::string dir = TempDir("pieces");
+  const std::string dir = FreshTempDir("fuse_pieces");
   const std::vector<ScanPose> reference = ReadScanPoses(std::string(RB_SOURCE_DIR) + "/" + kData + "pieces.conf");
   // Start 3° and 6 mm away from the reference pose of the second piece.
   std::vector<ScanPose> start = reference;
@@ -58,7 +52,7 @@ TEST(FuseCli, AlignsAndFusesTwoBunnyPiecesFromPerturbedPoses) {
 // neighbours where the misplaced surfaces cross pass the overlap check, so the residuals' spread must name them
 // instead of a fused model of two misplaced scans.
 TEST(FuseCli, ScansLeftMisalignedAreNamedNotFused) {
-  const std::string dir = TempDir("misaligned");
+  const std::string dir = FreshTempDir("fuse_misaligned");
   const RunResult run = RunRangebayes("fuse " + Pieces() + " --out " + dir + "/out -q");
   EXPECT_NE(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("bun000_piece.ply, bun045_piece.ply: not aligned after registration"), std::string::npos)
@@ -70,7 +64,7 @@ TEST(FuseCli, ScansLeftMisalignedAreNamedNotFused) {
 // --no-align fuses the given poses as they are, after the same test: the pieces 35° apart are named (with the
 // pair report written for a look), at their reference poses they fuse.
 TEST(FuseCli, NoAlignChecksTheGivenPoses) {
-  const std::string dir = TempDir("no_align");
+  const std::string dir = FreshTempDir("fuse_no_align");
   RunResult run = RunRangebayes("fuse " + Pieces() + " --no-align --out " + dir + "/off -q");
   EXPECT_NE(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("bun000_piece.ply, bun045_piece.ply: the given poses do not align them"),
@@ -86,7 +80,7 @@ TEST(FuseCli, NoAlignChecksTheGivenPoses) {
 
 // --smooth smooths each scan before fusion: the model changes and each scan's smoothing is reported.
 TEST(FuseCli, SmoothChangesTheModel) {
-  const std::string dir = TempDir("smooth");
+  const std::string dir = FreshTempDir("fuse_smooth");
   const std::string conf = std::string(RB_SOURCE_DIR) + "/" + kData + "pieces.conf";
   const std::string common = "fuse " + Pieces() + " --poses " + conf + " --no-align -q --out " + dir;
   const RunResult plain = RunRangebayes(common + "/plain");
@@ -101,7 +95,7 @@ TEST(FuseCli, SmoothChangesTheModel) {
 }
 
 TEST(FuseCli, PoseFileWithoutTheScanIsAClearError) {
-  const std::string dir = TempDir("missing");
+  const std::string dir = FreshTempDir("fuse_missing");
   std::ofstream(dir + "/one.conf") << "bmesh bun000_piece.ply 0 0 0 0 0 0 1\n";
   const RunResult run = RunRangebayes("fuse " + Pieces() + " --poses " + dir + "/one.conf --out " + dir + "/out");
   EXPECT_EQ(run.exit_code, 1);
@@ -110,7 +104,7 @@ TEST(FuseCli, PoseFileWithoutTheScanIsAClearError) {
 }
 
 TEST(FuseCli, NonUnitQuaternionIsAClearError) {
-  const std::string dir = TempDir("quat");
+  const std::string dir = FreshTempDir("fuse_quat");
   std::ofstream(dir + "/bad.conf") << "bmesh bun000_piece.ply 0 0 0 0 0 0 1\nbmesh bun045_piece.ply 0 0 0 0.5 0 0 1\n";
   const RunResult run = RunRangebayes("fuse " + Pieces() + " --poses " + dir + "/bad.conf --out " + dir + "/out");
   EXPECT_EQ(run.exit_code, 1);
@@ -118,7 +112,7 @@ TEST(FuseCli, NonUnitQuaternionIsAClearError) {
 }
 
 TEST(FuseCli, ScansThatDoNotOverlapAreNamed) {
-  const std::string dir = TempDir("apart");
+  const std::string dir = FreshTempDir("fuse_apart");
   std::ofstream(dir + "/apart.conf") << "bmesh bun000_piece.ply 0 0 0 0 0 0 1\nbmesh bun045_piece.ply 1 0 0 0 0 0 1\n";
   const RunResult run = RunRangebayes("fuse " + Pieces() + " --poses " + dir + "/apart.conf --out " + dir + "/out");
   EXPECT_EQ(run.exit_code, 1);
@@ -126,7 +120,7 @@ TEST(FuseCli, ScansThatDoNotOverlapAreNamed) {
 }
 
 TEST(FuseCli, EmptyScanIsNamed) {
-  const std::string dir = TempDir("empty");
+  const std::string dir = FreshTempDir("fuse_empty");
   std::ofstream(dir + "/empty.ply") << "ply\nformat ascii 1.0\nobj_info num_cols 2\nobj_info num_rows 1\n"
                                        "element vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
                                        "element range_grid 2\nproperty list uchar int vertex_indices\nend_header\n0\n0\n";
@@ -138,7 +132,7 @@ TEST(FuseCli, EmptyScanIsNamed) {
 TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
   // The pieces as NoisyMesh PLY files in a camera frame (what `replay` writes: camera at the origin looking
   // along +z, vertices, faces, cov_xx..cov_zz), with the matching poses.
-  const std::string dir = TempDir("noisy");
+  const std::string dir = FreshTempDir("fuse_noisy");
   const std::vector<ScanPose> reference = ReadScanPoses(std::string(RB_SOURCE_DIR) + "/" + kData + "pieces.conf");
   Eigen::Isometry3d camera_from_scan = Eigen::Isometry3d::Identity();
   camera_from_scan.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
@@ -175,7 +169,7 @@ TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
 // does: triangulated, with the scanner's covariances. They read it as a mesh of 0 faces before, and `smooth` wrote
 // it back unchanged.
 TEST(MeshCommandsCli, ReadRangeGridScansAsTriangulatedScans) {
-  const std::string dir = TempDir("mesh_commands");
+  const std::string dir = FreshTempDir("fuse_mesh_commands");
   const std::string piece = kData + "bun000_piece.ply";
   const Scan scan = ReadScan(std::string(RB_SOURCE_DIR) + "/" + piece);
   ASSERT_GT(scan.noisy.mesh.num_faces(), 100);

@@ -7,12 +7,13 @@
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "fusion/scan.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = ::testing::TempDir() + name;
+  const std::string path = TempPath(name);
   std::ofstream(path) << text;
   return path;
 }

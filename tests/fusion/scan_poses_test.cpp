@@ -1,16 +1,18 @@
+#include "core/scan_poses.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <string>
 
 #include "core/error.h"
-#include "core/scan_poses.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = ::testing::TempDir() + name;
+  const std::string path = TempPath(name);
   std::ofstream(path) << text;
   return path;
 }
@@ -37,7 +39,7 @@ TEST(ScanPoses, ReadsTheStanfordConventionAndRoundTrips) {
   const Eigen::Quaterniond q = Eigen::Quaterniond(0.955586, 0.00548449, -0.294635, -0.0038555).normalized();
   EXPECT_TRUE(poses[1].world_from_scan.linear().isApprox(q.toRotationMatrix().transpose(), 1e-12));
   EXPECT_NEAR(poses[1].world_from_scan.translation().x(), -0.0520211, 1e-15);
-  const std::string again = ::testing::TempDir() + "again.conf";
+  const std::string again = TempPath("again.conf");
   WriteScanPoses(poses, again);
   const std::vector<ScanPose> read = ReadScanPoses(again);
   ASSERT_EQ(read.size(), 2u);

@@ -6,12 +6,13 @@
 #include "bayes/learn_prior_io.h"
 #include "bayes/learning/training_set.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
 
 TEST(LearnCli, SynthThenLearn) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rb_learn_cli_test";
+  const std::filesystem::path dir = std::filesystem::path(TempPath("learn_cli_test"));
   std::filesystem::remove_all(dir);
   const RunResult synth = RunRangebayes("synth-meshes --out '" + dir.string() +
                                         "' --train 2 --test 1 --min-cells 4 --max-cells 5 --noise 0.3 --quiet");
@@ -56,7 +57,7 @@ TEST(LearnCli, SynthThenLearn) {
 // The command's defaults are LearnPriorOptions{}: the same training set read by the library and the same two
 // overrides on both sides give the same θ, bit for bit, and the same method record.
 TEST(LearnCli, DefaultTrainingEqualsTheLibrary) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rb_learn_cli_default_test";
+  const std::filesystem::path dir = std::filesystem::path(TempPath("learn_cli_default_test"));
   std::filesystem::remove_all(dir);
   const RunResult synth = RunRangebayes("synth-meshes --out '" + dir.string() +
                                         "' --train 2 --test 0 --min-cells 4 --max-cells 5 --noise 0.2 "

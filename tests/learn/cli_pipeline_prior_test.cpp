@@ -7,6 +7,7 @@
 #include "bayes/learn_prior_io.h"
 #include "core/mesh_io.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -14,7 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(LearnCli, ScannerPriorPlugsIntoReplay) {
-  const fs::path dir = fs::temp_directory_path() / "rb_learn_pipeline_prior_test";
+  const fs::path dir = fs::path(TempPath("learn_pipeline_prior_test"));
   fs::remove_all(dir);
   const RunResult synth = RunRangebayes("synth-meshes --out '" + dir.string() +
                                         "' --train 2 --test 0 --min-cells 4 --max-cells 5 --noise 0.4 "

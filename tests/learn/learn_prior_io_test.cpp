@@ -9,13 +9,10 @@
 
 #include "bayes/smooth.h"
 #include "core/error.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
-
-std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("rb_learn_io_" + name)).string();
-}
 
 TEST(LearnPriorIo, RoundTrip) {
   LearnedPrior prior;

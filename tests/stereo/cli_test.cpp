@@ -1,17 +1,17 @@
 // The stereo commands as a user runs them: synth → spacetime → eval-depth, stereo on Middlebury, errors.
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "stereo/pfm.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -19,7 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string Temp(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / "rangebayes_stereo_cli" / name;
+  const fs::path p = fs::path(TempPath("stereo_cli")) / name;
   fs::remove_all(p);
   fs::create_directories(p.parent_path());
   return p.string();

@@ -1,14 +1,16 @@
 // Middlebury readers: calib.txt import (doffs kept), scene layouts, disparity maps with scale, masks, errors.
+#include "calibration/middlebury.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 
-#include "calibration/middlebury.h"
 #include "core/error.h"
 #include "stereo/disparity_io.h"
 #include "stereo/evaluate.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -28,7 +30,7 @@ TEST(Middlebury, CalibTxtBecomesARectifiedRigWithDoffs) {
   const double d = 40.0;
   const double z = c.cam0(0, 0) * 0.193001 / (d + 32.778);
   EXPECT_NEAR(rig.Q(2, 3) / (rig.Q(3, 2) * d + rig.Q(3, 3)), z, 1e-9);
-  const std::string out = (std::filesystem::temp_directory_path() / "rb_motorcycle_rig.yaml").string();
+  const std::string out = TempPath("motorcycle_rig.yaml");
   WriteStereoRig(rig, out);
   const StereoRig back = ReadStereoRig(out);
   EXPECT_DOUBLE_EQ(back.doffs_px, 32.778);
@@ -37,7 +39,7 @@ TEST(Middlebury, CalibTxtBecomesARectifiedRigWithDoffs) {
 }
 
 TEST(Middlebury, CalibErrorsNameTheKey) {
-  const std::string path = (std::filesystem::temp_directory_path() / "rb_bad_calib.txt").string();
+  const std::string path = TempPath("bad_calib.txt");
   {
     std::ofstream out(path);
     out << "cam0=[1 0 0; 0 1 0; 0 0 1]\nbaseline=10\nwidth=5\nheight=5\n";

@@ -1,4 +1,6 @@
 // PFM reading and writing: round trip, Middlebury's bottom-to-top rows and byte order, bad files.
+#include "stereo/pfm.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,16 +11,10 @@
 #include <limits>
 
 #include "core/error.h"
-#include "stereo/pfm.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
-
-std::string TempPath(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / "rangebayes_stereo_test";
-  std::filesystem::create_directories(dir);
-  return (dir / name).string();
-}
 
 TEST(Pfm, RoundTripKeepsValuesNaNAndInf) {
   cv::Mat image(3, 5, CV_32F);

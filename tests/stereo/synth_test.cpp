@@ -1,4 +1,6 @@
 // The synthetic renderer: ground truth of the plane scene, determinism, the recording it writes.
+#include "stereo/synth.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,7 @@
 #include "core/error.h"
 #include "stereo/pfm.h"
 #include "stereo/spacetime_matcher.h"
-#include "stereo/synth.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -69,7 +71,7 @@ TEST(Synth, EveryScenePatternRendersWithDepthInRange) {
 }
 
 TEST(Synth, WritesARecordingThatReadsBack) {
-  const std::string folder = (std::filesystem::temp_directory_path() / "rangebayes_synth_test").string();
+  const std::string folder = TempPath("synth_test");
   std::filesystem::remove_all(folder);
   const SynthOptions o = Small(SynthScene::kBox);
   const SynthRecording rec = RenderSynthetic(o);
@@ -124,7 +126,7 @@ TEST(Synth, PixelJitterMovesRaysButKeepsTheDisparity) {
   // Without jitter the median error on this plane is ~0.02 px; a disparity that followed δu would be off by
   // its median |δu| = 0.67·0.3 = 0.2 px.
   EXPECT_LT(err[err.size() / 2], 0.05);
-  const std::string folder = (std::filesystem::temp_directory_path() / "rangebayes_synth_jitter_test").string();
+  const std::string folder = TempPath("synth_jitter_test");
   std::filesystem::remove_all(folder);
   WriteSyntheticRecording(rec, o, folder);
   const cv::Mat points = ReadPfm(folder + "/ground_truth/points_left_m.pfm");
