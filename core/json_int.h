@@ -1,3 +1,4 @@
+// Integers read from JSON (commands of the console, batch records) without the silent wrap of json::get<int>().
 #pragma once
 
 #include <cstdint>

@@ -60,8 +60,9 @@ void FileSinkOptions::Check() const {
 
 FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
   options_.Check();
-  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"})
+  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"}) {
     CreateFolder((fs::path(folder_) / sub).string());
+  }
   const std::string index = (fs::path(folder_) / "results.csv").string();
   index_fd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index, ": cannot create (", std::strerror(errno), ")");
