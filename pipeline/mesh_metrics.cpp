@@ -59,9 +59,17 @@ bool SameConnectivity(const Mesh& a, const Mesh& b) {
   return a.num_vertices() == b.num_vertices() && a.F.rows() == b.F.rows() && a.F == b.F;
 }
 
+int CountNonFiniteVertices(const Mesh& mesh) {
+  return static_cast<int>((!mesh.V.array().isFinite()).rowwise().any().count());
+}
+
 MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals) {
   RB_CHECK(ground_truth.num_faces() > 0, "evaluate: the ground truth has no faces");
   RB_CHECK(result.num_faces() > 0, "evaluate: the result has no faces");
+  RB_CHECK(CountNonFiniteVertices(ground_truth) == 0, "evaluate: ", CountNonFiniteVertices(ground_truth), " of ",
+           ground_truth.num_vertices(), " vertices of the ground truth not finite");
+  RB_CHECK(CountNonFiniteVertices(result) == 0, "evaluate: ", CountNonFiniteVertices(result), " of ",
+           result.num_vertices(), " vertices of the result not finite");
   MeshEvaluation e;
   if (normals) {
     RB_CHECK(SameConnectivity(result, ground_truth),

@@ -32,8 +32,12 @@ SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth)
 // Same vertex count and the same faces in the same order: what a per-face comparison of normals needs.
 bool SameConnectivity(const Mesh& a, const Mesh& b);
 
+// Vertices with a NaN or infinite coordinate.
+int CountNonFiniteVertices(const Mesh& mesh);
+
 // What `rangebayes eval` and Python's evaluate() report: the surface errors and, with `normals`, the mean angular
-// error of the face normals, which needs SameConnectivity (Error otherwise).
+// error of the face normals, which needs SameConnectivity. Error for a mesh without faces or with a vertex that is
+// not finite (its distances, the bounding box and the face angles would be NaN or quietly left out).
 struct MeshEvaluation {
   bool has_normal_error = false;
   double mae_deg = 0;         // mean angle between corresponding face normals, degrees

@@ -179,7 +179,7 @@ def test_learned_prior_file_and_object(tmp_path, trim_star):
     np.testing.assert_array_equal(a.V, c.V)
 
 
-def test_evaluate_is_what_eval_prints(cli, root):
+def test_evaluate_is_what_eval_prints(cli, root, tmp_path):
     """evaluate(): the keys and values of `rangebayes eval`'s JSON line, with and without the normal error."""
     meshes = root / "tests" / "data" / "meshes"
     truth, noisy = meshes / "block_gt.obj", meshes / "block_noisy_gauss0.4.obj"
@@ -202,3 +202,6 @@ def test_evaluate_is_what_eval_prints(cli, root):
     points = rb.Mesh(np.zeros((3, 3)), np.zeros((0, 3), dtype=np.int32))
     with pytest.raises(rb.Error, match="evaluate: the result has no faces"):
         rb.evaluate(other, points, surface_only=True)
+    (tmp_path / "nan.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="evaluate: vertex 0 is not finite"):
+        rb.evaluate(other, rb.read_mesh(tmp_path / "nan.obj"), surface_only=True)

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -92,13 +93,23 @@ TEST_F(MeshCliTest, ConvertUsageErrors) {
 
 // An output that cannot be written is refused before the work, not after it: the commands print their input line
 // (smooth), their progress (learn-prior) or read their meshes only after the check.
-// eval compares surfaces: a mesh without faces (a point cloud) is named.
-TEST_F(MeshCliTest, EvalNamesAMeshWithoutFaces) {
+// eval compares surfaces: a mesh without faces (a point cloud) or with a vertex that is not finite is named.
+TEST_F(MeshCliTest, EvalNamesMeshesItCannotCompare) {
   std::ofstream(Path("points.ply")) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                                        "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
   const RunResult r = RunRangebayes("eval " + std::string(kAngel) + " " + Path("points.ply") + " --surface-only");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("points.ply: no faces (eval compares surfaces)"), std::string::npos) << r.output;
+  Mesh broken = ReadMesh(kAngel);
+  broken.V(7, 1) = std::numeric_limits<double>::quiet_NaN();
+  WriteMesh(broken, Path("broken.ply"));
+  for (const std::string& order : {std::string(kAngel) + " " + Path("broken.ply"), Path("broken.ply") + " " + kAngel}) {
+    const RunResult nan = RunRangebayes("eval " + order);
+    EXPECT_EQ(nan.exit_code, 1);
+    EXPECT_NE(nan.output.find("broken.ply: 1 of 24566 vertices not finite (eval needs finite meshes)"),
+              std::string::npos)
+        << nan.output;
+  }
 }
 
 TEST_F(MeshCliTest, OutputsThatCannotBeWrittenAreRefusedBeforeTheWork) {

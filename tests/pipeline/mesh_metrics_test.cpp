@@ -1,0 +1,72 @@
+// What `rangebayes eval` computes, on meshes whose answers are known.
+#include "pipeline/mesh_metrics.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "core/error.h"
+
+namespace rangebayes {
+namespace {
+
+// The unit square in z = height, two triangles.
+Mesh Square(double height) {
+  Mesh m;
+  m.V.resize(4, 3);
+  m.V << 0, 0, height, 1, 0, height, 1, 1, height, 0, 1, height;
+  m.F.resize(2, 3);
+  m.F << 0, 1, 2, 0, 2, 3;
+  return m;
+}
+
+TEST(EvaluateMesh, AParallelCopyIsItsOffsetAwayWithTheSameNormals) {
+  const MeshEvaluation e = EvaluateMesh(Square(0.25), Square(0), /*normals=*/true);
+  ASSERT_TRUE(e.has_normal_error);
+  EXPECT_DOUBLE_EQ(e.mae_deg, 0.0);
+  EXPECT_EQ(e.mae_skipped_faces, 0);
+  EXPECT_DOUBLE_EQ(e.surface.mean_distance, 0.25);
+  EXPECT_DOUBLE_EQ(e.surface.hausdorff, 0.25);
+  EXPECT_DOUBLE_EQ(e.surface.ev, 0.25);
+  EXPECT_DOUBLE_EQ(e.surface.bbox_diagonal, std::sqrt(2.0));
+  EXPECT_EQ(e.faces, 2);
+  EXPECT_EQ(e.vertices, 4);
+  // The fields of eval's JSON line, in its order; counts marked as such.
+  const std::vector<EvaluationField> fields = EvaluationFields(e);
+  std::vector<std::string> names;
+  for (const EvaluationField& f : fields) names.push_back(f.name);
+  EXPECT_EQ(names,
+            (std::vector<std::string>{"bbox_diagonal", "ev", "ev_rel_bbox", "faces", "hausdorff", "hausdorff_rel_bbox",
+                                      "mae_deg", "mae_skipped_faces", "mean_distance", "vertices"}));
+  for (const EvaluationField& f : fields) {
+    EXPECT_EQ(f.count, f.name == "faces" || f.name == "vertices" || f.name == "mae_skipped_faces") << f.name;
+  }
+  EXPECT_FALSE(EvaluateMesh(Square(0.25), Square(0), /*normals=*/false).has_normal_error);
+}
+
+TEST(EvaluateMesh, MeshesItCannotCompareAreRefused) {
+  Mesh other = Square(0);
+  other.F.row(1) << 0, 3, 2;  // same vertices, another face
+  EXPECT_FALSE(SameConnectivity(other, Square(0)));
+  EXPECT_THROW(EvaluateMesh(other, Square(0), /*normals=*/true), Error);
+  EXPECT_NO_THROW(EvaluateMesh(other, Square(0), /*normals=*/false));
+  Mesh points = Square(0);
+  points.F.resize(0, 3);
+  EXPECT_THROW(EvaluateMesh(points, Square(0), false), Error);
+  EXPECT_THROW(EvaluateMesh(Square(0), points, false), Error);
+  Mesh broken = Square(0);
+  broken.V(2, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(CountNonFiniteVertices(broken), 1);
+  try {
+    EvaluateMesh(broken, Square(0), false);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("evaluate: 1 of 4 vertices of the result not finite"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(EvaluateMesh(Square(0), broken, false), Error);
+}
+
+}  // namespace
+}  // namespace rangebayes
