@@ -248,8 +248,8 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
       R"(What `rangebayes eval GT RESULT` prints, as a dict with the same keys: mae_deg (mean angle between corresponding face
 normals, degrees; needs the same faces in both meshes, else ValueError) and mae_skipped_faces, unless
 surface_only; ev, hausdorff, mean_distance (model units; distances of the result's vertices to the ground-truth
-surface, and the other way for hausdorff), their *_rel_bbox, bbox_diagonal, faces, vertices. A vertex that is not
-finite has an infinite distance. GIL released.)");
+surface, and the other way for hausdorff), their *_rel_bbox, bbox_diagonal, faces, vertices. A mesh without faces
+or with a vertex that is not finite is refused. GIL released.)");
   m.def(
       "make_generic_noisy_mesh",
       [](py::handle mesh, py::handle noise, py::handle sigma, double across_ratio) {
