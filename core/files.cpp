@@ -28,8 +28,8 @@ void CheckFileToWrite(const std::string& path) {
   const fs::file_status folder = fs::status(parent, ec);
   RB_CHECK(fs::exists(folder), path, ": cannot create: folder ", parent.string(), " does not exist");
   RB_CHECK(fs::is_directory(folder), path, ": cannot create: ", parent.string(), " is not a folder");
-  // An existing file is replaced in place or through a temporary beside it: either needs one of the two.
-  const bool writable = access(parent.c_str(), W_OK) == 0 || (fs::exists(status) && access(path.c_str(), W_OK) == 0);
+  // The writers replace an existing file in place (its own permission counts) or create a new one in the folder.
+  const bool writable = fs::exists(status) ? access(path.c_str(), W_OK) == 0 : access(parent.c_str(), W_OK) == 0;
   RB_CHECK(writable, path, ": cannot write: ", std::strerror(errno));
 }
 
