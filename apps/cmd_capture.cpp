@@ -60,6 +60,7 @@ struct PipelineCli {
   std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
   int preview_width_px = 0;
   bool no_previews = false;
+  bool overwrite = false;
   bool quiet = false;
   std::string ui;            // [ADDR:]PORT of the operator's console; empty: none
   std::string ui_record_dir; // recordings started from the console; empty: OUT/recordings
@@ -112,6 +113,8 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--preview-width", o->preview_width_px,
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
+  sub->add_flag("--overwrite", o->overwrite,
+                "OUT may hold an earlier run's results: they are removed first (without it such a folder is refused)");
   AddQuietFlag(sub, &o->quiet);
   sub->add_option("--ui", o->ui,
                   "Serve the operator's console (a live web page with controls) on [ADDR:]PORT (ADDR default "
@@ -204,6 +207,7 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
     sink_options.preview_width_px = std::max(16, rig.width / options.stereo_downsample);
   }
   if (cli.no_previews) sink_options.depth_png = sink_options.shaded_png = false;
+  sink_options.overwrite = cli.overwrite;
   FileSink sink(out_dir, sink_options);
   ProgressPrinter progress(cli.quiet || console != nullptr);
   options.progress = progress.callback();

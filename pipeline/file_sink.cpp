@@ -60,6 +60,17 @@ void FileSinkOptions::Check() const {
 
 FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
   options_.Check();
+  std::error_code ec;
+  if (fs::exists(fs::path(folder_) / "results.csv", ec)) {
+    RB_CHECK(options_.overwrite, folder_,
+             ": holds the results of an earlier run (results.csv); choose another folder, or --overwrite to replace "
+             "them");
+    // What a run writes here (summary.json by the commands at the end); the console's captures and recordings stay.
+    for (const char* name : {"raw", "smoothed", "decimated", "depth", "shaded", "results.csv", "summary.json"}) {
+      fs::remove_all(fs::path(folder_) / name, ec);
+      RB_CHECK(!ec, folder_, "/", name, ": cannot remove the earlier result (", ec.message(), ")");
+    }
+  }
   for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"}) {
     CreateFolder((fs::path(folder_) / sub).string());
   }

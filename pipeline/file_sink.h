@@ -22,12 +22,16 @@ struct FileSinkOptions {
   bool depth_png = true;
   bool shaded_png = true;
   int preview_width_px = 0;  // 0: the frame width; else 16–4096, width of each rendered panel
+  // A folder that holds an earlier run's results (results.csv) is refused, so that a new run never mixes its
+  // frames with the old ones nor replaces them unasked; true: the earlier results are removed first.
+  bool overwrite = false;
   void Check() const;
 };
 
 class FileSink : public PipelineSink {
  public:
-  // Creates the folder; throws Error naming it when it cannot.
+  // Creates the folder; throws Error naming it when it cannot, or when it holds an earlier run's results and
+  // options.overwrite is false.
   FileSink(const std::string& folder, const FileSinkOptions& options = {});
   void Consume(const PipelineResult& result) override;
   void Finish() override;

@@ -45,6 +45,29 @@ TEST(ReplayCli, BundledRecordingEndToEnd) {
   EXPECT_NE(r.output.find("triangulate"), std::string::npos);
 }
 
+// A second run into the folder of a first is refused (its frames would mix with the first run's, which it would
+// partly replace); with --overwrite the first run's results are removed first, so only the new frames are there.
+TEST(ReplayCli, AFolderWithEarlierResultsIsRefusedUnlessOverwrite) {
+  const TempDir dir("cli_replay_again");
+  const std::string out = dir.path() + "/out";
+  const std::string args =
+      std::string("replay ") + kBundled + " --downsample 4 --tolerance fast --no-previews --out " + out;
+  ASSERT_EQ(RunRangebayes(args + " --count 2").exit_code, 0);
+  ASSERT_TRUE(fs::exists(out + "/raw/000001.ply"));
+  RunResult r = RunRangebayes(args + " --count 1");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find(out + ": holds the results of an earlier run (results.csv)"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/raw/000001.ply"));  // the first run's results untouched
+  r = RunRangebayes(args + " --count 1 --overwrite");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/raw/000000.ply"));
+  EXPECT_FALSE(fs::exists(out + "/raw/000001.ply"));  // not left over from the first run
+  std::ifstream index(out + "/results.csv");
+  int lines = 0;
+  for (std::string line; std::getline(index, line);) ++lines;
+  EXPECT_EQ(lines, 2);  // header and the one new frame
+}
+
 TEST(ReplayCli, MissingRecordingIsOneLineExitOne) {
   const RunResult r = RunRangebayes("replay /nonexistent/rec --out /tmp/never");
   EXPECT_EQ(r.exit_code, 1);
