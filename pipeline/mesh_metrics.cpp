@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "core/error.h"
@@ -63,17 +64,19 @@ int CountNonFiniteVertices(const Mesh& mesh) {
   return static_cast<int>((!mesh.V.array().isFinite()).rowwise().any().count());
 }
 
-MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals) {
-  RB_CHECK(ground_truth.num_faces() > 0, "evaluate: the ground truth has no faces");
-  RB_CHECK(result.num_faces() > 0, "evaluate: the result has no faces");
-  RB_CHECK(CountNonFiniteVertices(ground_truth) == 0, "evaluate: ", CountNonFiniteVertices(ground_truth), " of ",
-           ground_truth.num_vertices(), " vertices of the ground truth not finite");
-  RB_CHECK(CountNonFiniteVertices(result) == 0, "evaluate: ", CountNonFiniteVertices(result), " of ",
-           result.num_vertices(), " vertices of the result not finite");
+MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals, const std::string& result_name,
+                            const std::string& ground_truth_name) {
+  for (const auto& [name, mesh] : {std::pair<const std::string&, const Mesh&>{ground_truth_name, ground_truth},
+                                   std::pair<const std::string&, const Mesh&>{result_name, result}}) {
+    RB_CHECK(mesh.num_faces() > 0, name, ": no faces (eval compares surfaces)");
+    const int non_finite = CountNonFiniteVertices(mesh);
+    RB_CHECK(non_finite == 0, name, ": ", non_finite, " of ", mesh.num_vertices(),
+             " vertices not finite (eval needs finite meshes)");
+  }
   MeshEvaluation e;
   if (normals) {
-    RB_CHECK(SameConnectivity(result, ground_truth),
-             "the result and the ground truth do not share connectivity (needed for the normal error)");
+    RB_CHECK(SameConnectivity(result, ground_truth), result_name, " and ", ground_truth_name,
+             " do not share connectivity (needed for the normal error)");
     e.has_normal_error = true;
     e.mae_deg = MeanAngularErrorDeg(result, ground_truth, &e.mae_skipped_faces);
   }

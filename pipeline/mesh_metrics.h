@@ -46,7 +46,10 @@ struct MeshEvaluation {
   int faces = 0;  // of the result
   int vertices = 0;
 };
-MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals);
+// The names are those of the messages (the file paths in `rangebayes eval`).
+MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals,
+                            const std::string& result_name = "the result",
+                            const std::string& ground_truth_name = "the ground truth");
 
 // The evaluation as named numbers, the names of eval's JSON line ("mae_deg", "ev", "hausdorff_rel_bbox", ...),
 // in that line's order (by name). `count`: a whole number (faces, vertices, skipped faces).

@@ -236,7 +236,7 @@ TypeError naming the valid ones; an out-of-range value a rangebayes.Error.)");
         MeshEvaluation e;
         {
           py::gil_scoped_release nogil;
-          e = EvaluateMesh(r, gt, !surface_only);
+          e = EvaluateMesh(r, gt, !surface_only, "evaluate: result", "evaluate: ground_truth");
         }
         py::dict out;
         for (const EvaluationField& f : EvaluationFields(e)) {

@@ -200,7 +200,7 @@ def test_evaluate_is_what_eval_prints(cli, root, tmp_path):
     with pytest.raises(TypeError, match="evaluate: expected a Mesh or NoisyMesh"):
         rb.evaluate(other, "a.ply")
     points = rb.Mesh(np.zeros((3, 3)), np.zeros((0, 3), dtype=np.int32))
-    with pytest.raises(rb.Error, match="evaluate: the result has no faces"):
+    with pytest.raises(rb.Error, match=r"evaluate: result: no faces \(eval compares surfaces\)"):
         rb.evaluate(other, points, surface_only=True)
     (tmp_path / "nan.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(ValueError, match="evaluate: vertex 0 is not finite"):
