@@ -171,7 +171,8 @@ void RunEval(const EvalArgs& args) {
             " do not share connectivity (needed for mae_deg); use --surface-only for surface distances alone");
   }
   nlohmann::json out;
-  for (const EvaluationField& f : EvaluationFields(EvaluateMesh(result, gt, !args.surface_only, args.result, args.ground_truth))) {
+  for (const EvaluationField& f :
+       EvaluationFields(EvaluateMesh(result, gt, !args.surface_only, args.result, args.ground_truth))) {
     out[f.name] = f.count ? nlohmann::json(static_cast<std::int64_t>(f.value)) : Number(f.value);
   }
   std::printf("%s\n", out.dump().c_str());

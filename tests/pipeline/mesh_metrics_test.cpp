@@ -62,7 +62,8 @@ TEST(EvaluateMesh, MeshesItCannotCompareAreRefused) {
     EvaluateMesh(broken, Square(0), false);
     FAIL() << "no error";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("the result: 1 of 4 vertices not finite (eval needs finite meshes)"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("the result: 1 of 4 vertices not finite (eval needs finite meshes)"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_THROW(EvaluateMesh(Square(0), broken, false), Error);
