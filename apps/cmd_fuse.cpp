@@ -1,5 +1,5 @@
 // `rangebayes fuse SCAN... [--poses FILE] --out DIR`: align range scans with their covariances and fuse them into
-// one mesh (fusion/register.h, fusion/tsdf.h), optionally smoothed and decimated by the bayes stages.
+// one mesh, optionally smoothed and decimated by the bayes stages (fusion/model.h).
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -12,16 +12,12 @@
 #include "apps/command.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
-#include "bayes/decimation/decimate.h"
-#include "bayes/smooth.h"
 #include "core/error.h"
 #include "core/files.h"
 #include "core/mesh_io.h"
 #include "core/render.h"
 #include "core/scan_poses.h"
-#include "fusion/register.h"
-#include "fusion/scan.h"
-#include "fusion/tsdf.h"
+#include "fusion/model.h"
 #include "pipeline/png.h"
 
 namespace rangebayes::apps {
@@ -87,12 +83,16 @@ void RunFuse(const FuseArgs& args) {
   scan_options.sigma_range = args.sigma_range;
   scan_options.sigma_lateral = args.sigma_lateral;
   scan_options.Check();
-  FuseOptions fuse_options;
-  fuse_options.voxel_size = args.voxel;
-  fuse_options.Check();
-  RegisterOptions register_options;
-  register_options.num_threads = args.threads;
-  register_options.Check();
+  ProgressPrinter progress(args.quiet);
+  ModelOptions options;
+  options.align = !args.no_align;
+  options.registration.num_threads = args.threads;
+  options.smooth = args.smooth;
+  options.smoothing.num_threads = args.threads;
+  options.fusion.voxel_size = args.voxel;
+  options.decimate = args.decimate;
+  options.progress = progress.callback();
+  options.Check();
 
   std::vector<ScanPose> file_poses;
   if (!args.poses.empty()) file_poses = ReadScanPoses(args.poses);
@@ -111,56 +111,35 @@ void RunFuse(const FuseArgs& args) {
   CreateFolder(args.out_dir);
   const std::string dir = args.out_dir + "/";
 
-  std::vector<Eigen::Isometry3d> poses = initial;
-  const auto write_report = [&](const RegisterSummary& summary) {
-    const std::string report = FormatPairReport(summary, scans);
-    std::ofstream(dir + "report.txt") << report;
-    std::printf("%s", report.c_str());
+  // The pair report is written also when the given poses fail their check: it says which pairs disagree.
+  ModelSummary summary;
+  const auto write_report = [&] {
+    if (summary.pair_report.empty()) return;
+    std::ofstream(dir + "report.txt") << summary.pair_report;
+    std::printf("%s", summary.pair_report.c_str());
     std::printf("report:     %sreport.txt\n", dir.c_str());
   };
-  if (!args.no_align && scans.size() >= 2) {
-    RegisterSummary summary;
-    poses = RegisterScans(scans, initial, register_options, &summary);
-    std::printf("alignment:  %s\n", summary.BriefReport().c_str());
-    write_report(summary);
-  } else if (scans.size() >= 2) {
-    // --no-align: the given poses are checked as registration's result is, and fused only if they pass.
-    RegisterSummary summary;
-    const std::string misaligned = CheckPoses(scans, initial, register_options, &summary);
-    write_report(summary);
-    RB_CHECK(misaligned.empty(), misaligned, "; leave out --no-align to align them first");
+  std::vector<Eigen::Isometry3d> poses;
+  try {
+    poses = PlaceScans(scans, initial, options, &summary);
+  } catch (const Error&) {
+    write_report();
+    throw;
   }
+  if (options.align) std::printf("alignment:  %s\n", summary.registration.BriefReport().c_str());
+  write_report();
   std::vector<ScanPose> out_poses;
   for (size_t k = 0; k < scans.size(); ++k) out_poses.push_back({FileBaseName(scans[k].name), poses[k]});
   WriteScanPoses(out_poses, dir + "poses.conf");
   std::printf("poses:      %sposes.conf (first scan fixed)\n", dir.c_str());
 
-  // --smooth: each scan is smoothed with its own ray covariance before fusion (measured closer to the truth
-  // than smoothing the fused mesh: BENCHMARKS.md "Many scans, one model").
-  std::vector<Scan> smoothed;
-  if (args.smooth) {
-    SmoothOptions smooth;
-    smooth.num_threads = args.threads;
-    for (const Scan& scan : scans) {
-      ProgressPrinter progress(args.quiet);
-      smooth.progress = progress.callback();
-      SmoothSummary summary;
-      smoothed.push_back(SmoothScan(scan, smooth, &summary));
-      progress.Finish();
-      std::printf("smoothing:  %s\n%s", FileBaseName(scan.name).c_str(), summary.BriefReport().c_str());
-    }
+  const Mesh model = FuseModel(scans, poses, options, &summary);
+  progress.Finish();
+  for (size_t k = 0; k < summary.smoothing.size(); ++k) {
+    std::printf("smoothing:  %s\n%s", FileBaseName(scans[k].name).c_str(), summary.smoothing[k].BriefReport().c_str());
   }
-  FuseSummary fuse_summary;
-  const NoisyMesh fused = FuseScans(args.smooth ? smoothed : scans, poses, fuse_options, &fuse_summary);
-  std::printf("fusion:     %s\n", fuse_summary.BriefReport().c_str());
-  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
-  Mesh model = fused.mesh;
-  if (args.decimate) {
-    DecimateSummary summary;
-    const DecimatedMesh decimated = Decimate(model, {}, &summary);
-    std::printf("decimation:\n%s", summary.BriefReport().c_str());
-    model = decimated.mesh;
-  }
+  std::printf("fusion:     %s\n", summary.fusion.BriefReport().c_str());
+  if (summary.decimated) std::printf("decimation:\n%s", summary.decimation.BriefReport().c_str());
   WriteMesh(model, dir + "fused.ply");
   std::printf("model:      %sfused.ply (%d vertices, %d faces)\n", dir.c_str(), model.num_vertices(),
               model.num_faces());

@@ -331,6 +331,44 @@ def replay(
     **options: Any  # the PipelineOptions fields: see PIPELINE_OPTIONS
 ) -> Tuple[list[PipelineResult], PipelineSummary]: ...
 
+# Many scans, one model
+SCAN_OPTIONS: dict[str, Any]
+REGISTER_OPTIONS: dict[str, Any]
+FUSE_OPTIONS: dict[str, Any]
+
+class RegisterSummary:
+    iterations: int
+    levels: int
+    time_s: float
+    pairs: list[dict[str, Any]]
+    def brief_report(self) -> str: ...
+
+class FuseSummary:
+    voxel_size: float
+    grid: Tuple[int, int, int]
+    observed_voxels: int
+    measurements: int
+    vertices: int
+    faces: int
+    boundary_edges: int
+    time_s: float
+    def brief_report(self) -> str: ...
+
+class ModelSummary:
+    registration: RegisterSummary
+    pair_report: str
+    smoothing: list[SmoothSummary]
+    fusion: FuseSummary
+    decimation: Optional[DecimateSummary]
+
+def fuse(
+    scans: Sequence[Union[StrPath, Mesh, NoisyMesh]],
+    poses: Union[None, StrPath, ArrayLike, Sequence[ArrayLike]] = ...,
+    *, align: bool = ..., smooth: bool = ..., decimate: bool = ..., progress: Optional[Progress] = ...,
+    scan: dict[str, Any] = ..., registration: dict[str, Any] = ..., smoothing: dict[str, Any] = ...,
+    fusion: dict[str, Any] = ..., decimation: dict[str, Any] = ...,
+) -> Tuple[Mesh, np.ndarray, ModelSummary]: ...
+
 # Open3D interop (needs open3d)
 def to_open3d(mesh: Union[Mesh, NoisyMesh, DecimatedMesh]) -> Any: ...
 def from_open3d(o3d_mesh: Any) -> Mesh: ...

@@ -15,36 +15,6 @@
 namespace rangebayes::python {
 namespace {
 
-// A copy of the C++ mesh behind a Python Mesh or NoisyMesh (the call runs without the GIL, so it must not
-// share storage that Python threads may resize), checked for what the library needs.
-NoisyMesh ToNoisyMesh(py::handle mesh, const char* what) {
-  NoisyMesh noisy;
-  if (py::isinstance<NoisyMesh>(mesh)) {
-    noisy = mesh.cast<NoisyMesh>();
-  } else if (py::isinstance<Mesh>(mesh)) {
-    noisy.mesh = mesh.cast<Mesh>();
-  } else {
-    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
-                         py::str(py::type::of(mesh)).cast<std::string>());
-  }
-  CheckNoisyMeshForLibrary(noisy, what);
-  return noisy;
-}
-
-Mesh ToMesh(py::handle mesh, const char* what) {
-  Mesh out;
-  if (py::isinstance<Mesh>(mesh)) {
-    out = mesh.cast<Mesh>();
-  } else if (py::isinstance<NoisyMesh>(mesh)) {
-    out = mesh.cast<const NoisyMesh&>().mesh;
-  } else {
-    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
-                         py::str(py::type::of(mesh)).cast<std::string>());
-  }
-  CheckMeshForLibrary(out, what);
-  return out;
-}
-
 // None: not given (an empty optional: the library estimates it); a NaN given is an error, not a silent None.
 std::optional<double> OptionalNumber(py::handle value, const char* name) {
   if (value.is_none()) return std::nullopt;

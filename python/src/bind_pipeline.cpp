@@ -34,14 +34,6 @@ class CollectingSink : public PipelineSink {
   std::vector<PipelineResult> results_;
 };
 
-template <typename Options>
-void ApplyNested(py::dict& kw, const char* name, const FieldTable<Options>& table, Options* options) {
-  py::object value = PopKeyword(kw, name);
-  if (value.is_none()) return;
-  if (!py::isinstance<py::dict>(value)) throw py::type_error(std::string("replay: ") + name + " must be a dict");
-  ApplyKeywords(table, value.cast<py::dict>(), options, std::string("replay(") + name + "=...)");
-}
-
 // RunPipeline on a worker thread while this (Python) thread waits without the GIL: every 50 ms it takes the
 // GIL to let Python run its signal handlers, so Ctrl-C (KeyboardInterrupt) stops the run. An exception from
 // the progress function (called on the pipeline's sink thread) also stops the run; either is raised here once
@@ -215,10 +207,10 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         py::object live_path = PopKeyword(kw, "live_path");
         if (!live_path.is_none() && FieldFromPython<bool>(live_path, "live_path")) ApplyLivePathPreset(&options);
         options.progress = PythonProgress(PopKeyword(kw, "progress"), false);
-        ApplyNested(kw, "sgbm", SgbmOptionFields(), &options.sgbm);
-        ApplyNested(kw, "spacetime", SpaceTimeOptionFields(), &options.spacetime);
-        ApplyNested(kw, "depth", DepthOptionFields(), &options.depth);
-        ApplyNested(kw, "triangulate", TriangulateOptionFields(), &options.triangulate);
+        ApplyNestedKeywords(kw, "sgbm", SgbmOptionFields(), &options.sgbm, "replay");
+        ApplyNestedKeywords(kw, "spacetime", SpaceTimeOptionFields(), &options.spacetime, "replay");
+        ApplyNestedKeywords(kw, "depth", DepthOptionFields(), &options.depth, "replay");
+        ApplyNestedKeywords(kw, "triangulate", TriangulateOptionFields(), &options.triangulate, "replay");
         std::unique_ptr<SplinePotential> learned;  // the learned prior options.smoothing.potential points to
         py::object smoothing = PopKeyword(kw, "smoothing");
         if (!smoothing.is_none()) {
@@ -231,9 +223,9 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
             ApplySmoothingPrior(prior, beta_given, &options.smoothing, &learned, "replay(smoothing=...)");
           }
         }
-        ApplyNested(kw, "decimation", DecimateOptionFields(), &options.decimation);
+        ApplyNestedKeywords(kw, "decimation", DecimateOptionFields(), &options.decimation, "replay");
         PlaybackOptions playback;
-        ApplyNested(kw, "playback", PlaybackOptionFields(), &playback);
+        ApplyNestedKeywords(kw, "playback", PlaybackOptionFields(), &playback, "replay");
         ApplyKeywords(PipelineOptionFields(), kw, &options, "replay",
                       "live_path, progress, sgbm, spacetime, depth, triangulate, smoothing, decimation, playback");
         options.Check();

@@ -12,6 +12,7 @@
 
 #include "core/progress.h"
 #include "python/src/library.h"
+#include "python/src/options_table.h"
 
 namespace rangebayes::python {
 
@@ -24,6 +25,7 @@ void BindCore(py::module_& m);
 void BindBayes(py::module_& m);
 void BindStereo(py::module_& m);
 void BindPipeline(py::module_& m);
+void BindFusion(py::module_& m);
 
 // A ProgressCallback that calls a Python function (fraction, stage) with the GIL held and then lets Python run
 // its signal handlers, so Ctrl-C (KeyboardInterrupt) stops the call. None gives a callback that only does the
@@ -40,8 +42,5 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
 
 // True for an os.PathLike (pathlib.Path); a str is not one.
 bool IsPathLike(py::handle value);
-
-// Pops `name` from kwargs (None when absent).
-py::object PopKeyword(py::dict& kwargs, const char* name);
 
 }  // namespace rangebayes::python

@@ -388,6 +388,34 @@ void CheckNoisyMeshForLibrary(const NoisyMesh& noisy, const std::string& what) {
   }
 }
 
+NoisyMesh ToNoisyMesh(py::handle mesh, const char* what) {
+  NoisyMesh noisy;
+  if (py::isinstance<NoisyMesh>(mesh)) {
+    noisy = mesh.cast<NoisyMesh>();
+  } else if (py::isinstance<Mesh>(mesh)) {
+    noisy.mesh = mesh.cast<Mesh>();
+  } else {
+    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
+                         py::str(py::type::of(mesh)).cast<std::string>());
+  }
+  CheckNoisyMeshForLibrary(noisy, what);
+  return noisy;
+}
+
+Mesh ToMesh(py::handle mesh, const char* what) {
+  Mesh out;
+  if (py::isinstance<Mesh>(mesh)) {
+    out = mesh.cast<Mesh>();
+  } else if (py::isinstance<NoisyMesh>(mesh)) {
+    out = mesh.cast<const NoisyMesh&>().mesh;
+  } else {
+    throw py::type_error(std::string(what) + ": expected a Mesh or NoisyMesh, got " +
+                         py::str(py::type::of(mesh)).cast<std::string>());
+  }
+  CheckMeshForLibrary(out, what);
+  return out;
+}
+
 py::array VerticesView(Vertices& V, py::handle owner) {
   return py::array_t<double>({V.rows(), Eigen::Index{3}}, {3 * sizeof(double), sizeof(double)}, V.data(), owner);
 }

@@ -45,6 +45,11 @@ Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> PixelsFromArray(py::han
 void CheckMeshForLibrary(const Mesh& mesh, const std::string& what);
 void CheckNoisyMeshForLibrary(const NoisyMesh& noisy, const std::string& what);
 
+// A copy of the C++ mesh behind a Python Mesh or NoisyMesh (the calls run without the GIL, so they must not share
+// storage that Python threads may resize), checked as above. TypeError naming `what` for any other object.
+NoisyMesh ToNoisyMesh(py::handle mesh, const char* what);
+Mesh ToMesh(py::handle mesh, const char* what);
+
 // Views (no copy) of the C++ storage, kept alive by `owner` (a Python object that owns the storage).
 py::array VerticesView(Vertices& V, py::handle owner);
 py::array FacesView(Faces& F, py::handle owner);

@@ -3,8 +3,8 @@
 #pragma once
 
 #include "bayes/decimation/decimate.h"
-#include "bayes/learning/learn_prior.h"
 #include "bayes/learn_prior_io.h"
+#include "bayes/learning/learn_prior.h"
 #include "bayes/noise_model.h"
 #include "bayes/potential.h"
 #include "bayes/smooth.h"
@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
+#include "fusion/model.h"
 #include "fusion/scan.h"
 #include "pipeline/pipeline.h"
 #include "reconstruction/triangulate.h"

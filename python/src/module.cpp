@@ -74,4 +74,5 @@ PYBIND11_MODULE(_rangebayes, m) {
   rp::BindBayes(m);
   rp::BindStereo(m);
   rp::BindPipeline(m);
+  rp::BindFusion(m);
 }

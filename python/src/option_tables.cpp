@@ -174,4 +174,41 @@ const FieldTable<PlaybackOptions>& PlaybackOptionFields() {
   return table;
 }
 
+const FieldTable<RangeGridScanOptions>& ScanOptionFields() {
+  static const FieldTable<RangeGridScanOptions> table = {
+      RB_PY_FIELD(RangeGridScanOptions, sigma_range),       RB_PY_FIELD(RangeGridScanOptions, sigma_lateral),
+      RB_PY_FIELD(RangeGridScanOptions, min_cos_incidence), RB_PY_FIELD(RangeGridScanOptions, max_jump_sigma),
+      RB_PY_FIELD(RangeGridScanOptions, max_slope_deg),
+  };
+  return table;
+}
+
+const FieldTable<RegisterOptions>& RegisterOptionFields() {
+  static const FieldTable<RegisterOptions> table = {
+      RB_PY_FIELD(RegisterOptions, max_distance_edges),
+      RB_PY_FIELD(RegisterOptions, iterations_per_level),
+      RB_PY_FIELD(RegisterOptions, samples_per_scan),
+      RB_PY_FIELD(RegisterOptions, final_samples_per_scan),
+      RB_PY_FIELD(RegisterOptions, max_normal_angle_deg),
+      RB_PY_FIELD(RegisterOptions, slide_sigma_edges),
+      RB_PY_FIELD(RegisterOptions, robust_scale_sigma),
+      RB_PY_FIELD(RegisterOptions, boundary_rings),
+      RB_PY_FIELD(RegisterOptions, min_overlap),
+      RB_PY_FIELD(RegisterOptions, converged_step),
+      RB_PY_FIELD(RegisterOptions, seed),
+      RB_PY_FIELD(RegisterOptions, num_threads),
+  };
+  return table;
+}
+
+const FieldTable<FuseOptions>& FuseOptionFields() {
+  static const FieldTable<FuseOptions> table = {
+      RB_PY_FIELD(FuseOptions, voxel_edges),       RB_PY_FIELD(FuseOptions, voxel_size),
+      RB_PY_FIELD(FuseOptions, truncation_voxels), RB_PY_FIELD(FuseOptions, kernel_radius_edges),
+      RB_PY_FIELD(FuseOptions, min_cos_ray),       RB_PY_FIELD(FuseOptions, min_weight_share),
+      RB_PY_FIELD(FuseOptions, max_voxels),
+  };
+  return table;
+}
+
 }  // namespace rangebayes::python

@@ -19,5 +19,8 @@ const FieldTable<RectifierOptions>& RectifierOptionFields();
 const FieldTable<LearnPriorOptions>& LearnPriorOptionFields();
 const FieldTable<PipelineOptions>& PipelineOptionFields();
 const FieldTable<PlaybackOptions>& PlaybackOptionFields();
+const FieldTable<RangeGridScanOptions>& ScanOptionFields();
+const FieldTable<RegisterOptions>& RegisterOptionFields();
+const FieldTable<FuseOptions>& FuseOptionFields();
 
 }  // namespace rangebayes::python

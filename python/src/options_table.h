@@ -133,6 +133,21 @@ void ApplyKeywords(const FieldTable<Options>& table, const py::dict& kwargs, Opt
   }
 }
 
+// Pops `name` from kwargs (None when absent).
+py::object PopKeyword(py::dict& kwargs, const char* name);
+
+// Pops kwargs[name], a dict of `table`'s keywords for a nested Options struct (replay(sgbm={...}),
+// fuse(registration={...})), and sets them on *options; absent or None leaves *options as it is. `call` names
+// the function in messages.
+template <typename Options>
+void ApplyNestedKeywords(py::dict& kwargs, const char* name, const FieldTable<Options>& table, Options* options,
+                         const std::string& call) {
+  py::object value = PopKeyword(kwargs, name);
+  if (value.is_none()) return;
+  if (!py::isinstance<py::dict>(value)) throw py::type_error(call + ": " + name + " must be a dict");
+  ApplyKeywords(table, value.cast<py::dict>(), options, call + "(" + name + "=...)");
+}
+
 // {field: value} of `options` (e.g. the defaults of Options{}).
 template <typename Options>
 py::dict FieldsToDict(const FieldTable<Options>& table, const Options& options) {

@@ -1,0 +1,77 @@
+#include "fusion/model.h"
+
+#include <string_view>
+#include <utility>
+
+#include "core/error.h"
+#include "core/scan_poses.h"
+
+namespace rangebayes {
+
+void ModelOptions::Check() const {
+  registration.Check();
+  if (smooth) smoothing.Check();
+  fusion.Check();
+  if (decimate) decimation.Check();
+}
+
+std::vector<Eigen::Isometry3d> PlaceScans(const std::vector<Scan>& scans,
+                                          const std::vector<Eigen::Isometry3d>& initial_world_from_scan,
+                                          const ModelOptions& options, ModelSummary* summary) {
+  options.Check();
+  ModelSummary local;
+  ModelSummary& out = summary != nullptr ? *summary : local;
+  out.registration = {};
+  out.pair_report.clear();
+  RB_CHECK(!scans.empty(), "no scans");
+  RB_CHECK(initial_world_from_scan.size() == scans.size(), initial_world_from_scan.size(), " initial poses for ",
+           scans.size(), " scans");
+  RB_CHECK(!options.align || scans.size() >= 2, "alignment needs at least two scans (one scan is fused as it is)");
+  if (scans.size() < 2) return initial_world_from_scan;
+  if (options.align) {
+    std::vector<Eigen::Isometry3d> poses =
+        RegisterScans(scans, initial_world_from_scan, options.registration, &out.registration);
+    out.pair_report = FormatPairReport(out.registration, scans);
+    return poses;
+  }
+  const std::string misaligned = CheckPoses(scans, initial_world_from_scan, options.registration, &out.registration);
+  out.pair_report = FormatPairReport(out.registration, scans);
+  RB_CHECK(misaligned.empty(), misaligned, "; align them first instead of fusing the given poses as they are");
+  return initial_world_from_scan;
+}
+
+Mesh FuseModel(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& world_from_scan,
+               const ModelOptions& options, ModelSummary* summary) {
+  options.Check();
+  ModelSummary local;
+  ModelSummary& out = summary != nullptr ? *summary : local;
+  out.smoothing.clear();
+  out.fusion = {};
+  out.decimated = false;
+  out.decimation = {};
+  const auto report = [&](double fraction, const std::string& stage) {
+    if (options.progress) options.progress(fraction, stage);
+  };
+
+  std::vector<Scan> smoothed;
+  if (options.smooth) {
+    for (const Scan& scan : scans) {
+      SmoothOptions smoothing = options.smoothing;
+      const std::string stage = "smoothing " + FileBaseName(scan.name);
+      smoothing.progress = [&](double fraction, std::string_view) { report(fraction, stage); };
+      SmoothSummary smooth_summary;
+      smoothed.push_back(SmoothScan(scan, smoothing, &smooth_summary));
+      out.smoothing.push_back(std::move(smooth_summary));
+    }
+  }
+  const NoisyMesh fused = FuseScans(options.smooth ? smoothed : scans, world_from_scan, options.fusion, &out.fusion);
+  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
+  if (!options.decimate) return fused.mesh;
+  DecimateOptions decimation = options.decimation;
+  decimation.progress = [&](double fraction, std::string_view) { report(fraction, "decimation"); };
+  DecimatedMesh decimated = Decimate(fused.mesh, decimation, &out.decimation);
+  out.decimated = true;
+  return std::move(decimated.mesh);
+}
+
+}  // namespace rangebayes
