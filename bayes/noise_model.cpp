@@ -245,7 +245,7 @@ NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& opti
   // A mesh without edges or without measurable noise still needs a positive definite covariance.
   double sigma = s.sigma;
   if (!(sigma > 0)) {
-    const double diagonal = nv > 0 ? (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm() : 1.0;
+    const double diagonal = nv > 0 ? BoundingBoxExtent(mesh.V).norm() : 1.0;
     sigma = 1e-6 * (diagonal > 0 ? diagonal : 1.0);
   }
   const double normal_variance = sigma * sigma;

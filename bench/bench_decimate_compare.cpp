@@ -223,7 +223,7 @@ struct Metrics {
   double hausdorff = 0.0, rms = 0.0, normal_deg = 0.0, render_diff = 0.0;
 };
 
-double Diagonal(const Mesh& m) { return (m.V.colwise().maxCoeff() - m.V.colwise().minCoeff()).norm(); }
+double Diagonal(const Mesh& m) { return BoundingBoxExtent(m.V).norm(); }
 
 // Area-weighted angle between each dense face normal and the interpolated shading normal at the closest point.
 double NormalError(const Mesh& dense, const std::vector<Triangle>& tris, const Tree& tree, const Shaded& x) {

@@ -34,4 +34,11 @@ struct NoisyMesh {
   }
 };
 
+// The extent of the axis-aligned bounding box of V (max − min per axis; zero when V has no rows): .norm() is the
+// bounding-box diagonal that scales tolerances and reports.
+inline Eigen::RowVector3d BoundingBoxExtent(const Vertices& V) {
+  if (V.rows() == 0) return Eigen::RowVector3d::Zero();
+  return V.colwise().maxCoeff() - V.colwise().minCoeff();
+}
+
 }  // namespace rangebayes

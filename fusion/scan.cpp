@@ -240,7 +240,7 @@ void InflateForIncidence(const RangeGridScanOptions& options, Scan* scan) {
 // a mistake of units (millimetres given for a scan in metres, or the reverse): registration would then fail for a
 // reason it cannot name (every residual inside one σ, or a thousand σ away).
 void CheckNoiseAgainstScanSize(const RangeGridScanOptions& options, const Vertices& V, const std::string& name) {
-  const double diagonal = (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
+  const double diagonal = BoundingBoxExtent(V).norm();
   for (const auto& [what, sigma] : {std::pair<const char*, double>{"sigma_range", options.sigma_range},
                                     std::pair<const char*, double>{"sigma_lateral", options.sigma_lateral}}) {
     RB_CHECK(sigma < diagonal, name, ": ", what, " ", sigma, " is not smaller than the scan itself (bounding-box ",

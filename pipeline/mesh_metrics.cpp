@@ -17,11 +17,6 @@ namespace {
 
 Eigen::Vector3d Row(const Vertices& V, int i) { return V.row(i).transpose(); }
 
-double BoundingBoxDiagonal(const Vertices& V) {
-  if (V.rows() == 0) return 0;
-  return (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
-}
-
 }  // namespace
 
 Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface) {
@@ -38,7 +33,7 @@ Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface) {
 
 SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth) {
   SurfaceErrors errors;
-  errors.bbox_diagonal = BoundingBoxDiagonal(ground_truth.V);
+  errors.bbox_diagonal = BoundingBoxExtent(ground_truth.V).norm();
   const Eigen::VectorXd to_gt = DistanceToSurface(result.V, ground_truth);
   const Eigen::VectorXd to_result = DistanceToSurface(ground_truth.V, result);
   errors.hausdorff = std::max(to_gt.size() > 0 ? to_gt.maxCoeff() : 0.0, to_result.size() > 0 ? to_result.maxCoeff() : 0.0);

@@ -320,7 +320,7 @@ Problem BuildProblem(const Prepared& prep, DecimateWeighting weighting, std::vec
   double diag2 = 0.0;
   for (int m = 0; m < M; ++m) {
     const Vertices& V = prep.poses[m];
-    diag2 = std::max(diag2, (V.colwise().maxCoeff() - V.colwise().minCoeff()).squaredNorm());
+    diag2 = std::max(diag2, BoundingBoxExtent(V).squaredNorm());
   }
   int zero_area = 0;
   std::vector<char> degenerate(nf, 0);

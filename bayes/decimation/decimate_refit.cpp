@@ -542,7 +542,7 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
     if (rep[v] >= 0) kept[rep[v]] = 1;
   }
   std::vector<Eigen::Vector3d> patch_normal(std::max(in.num_patches, 0), Eigen::Vector3d::Zero());
-  double diag2 = (V.colwise().maxCoeff() - V.colwise().minCoeff()).squaredNorm();
+  double diag2 = BoundingBoxExtent(V).squaredNorm();
   const double area_eps = 1e-14 * diag2;
   AddFaceQuadrics(in, area_eps, &Q, &patch_normal);
   if (has_boundary && options.boundary_weight > 0.0) AddBoundaryQuadrics(in, options.boundary_weight, &Qb);

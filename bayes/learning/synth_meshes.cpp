@@ -298,7 +298,7 @@ NoisyMesh AddSynthNoise(const Mesh& clean, const SynthNoiseOptions& options, std
   Eigen::Vector3d view(rng.Gaussian(), rng.Gaussian(), rng.Gaussian());
   view.normalize();
   const Eigen::Vector3d centre = clean.V.colwise().mean().transpose();
-  const double diagonal = (clean.V.colwise().maxCoeff() - clean.V.colwise().minCoeff()).norm();
+  const double diagonal = BoundingBoxExtent(clean.V).norm();
   const Eigen::Vector3d camera = centre - 5.0 * std::max(diagonal, 1e-9) * view;
   const double sigma_lat = sigma / 10.0;
   noisy.covariance.resize(nv);

@@ -906,7 +906,7 @@ double SymmetricRmsRelative(const Mesh& dense, const Mesh& out) {
       }
     }
   }
-  const double diag = (dense.V.colwise().maxCoeff() - dense.V.colwise().minCoeff()).norm();
+  const double diag = BoundingBoxExtent(dense.V).norm();
   return std::sqrt(0.5 * (one_way(dense.V, dense_area, out) + one_way(points, out_weight, dense))) / diag;
 }
 
