@@ -144,7 +144,7 @@ struct NoiseArgs {
   std::string rig;
   std::string target = "plane";
   std::string out;
-  std::string matcher = "block";
+  std::string matcher;  // empty: the target's default (plane: block; ground-truth: the library's, sgbm)
   std::string form = "auto";
   int frame = 0;
   int frames = 0;
@@ -159,12 +159,14 @@ struct NoiseArgs {
 };
 
 void RunNoiseFromGroundTruth(const NoiseArgs& a) {
-  if (a.matcher != "sgbm" && a.matcher != "block") UsageError("--target ground-truth: --matcher must be sgbm or block");
+  if (!a.matcher.empty() && a.matcher != "sgbm" && a.matcher != "block") {
+    UsageError("--target ground-truth: --matcher must be sgbm or block");
+  }
   if (a.form != "auto" && a.form != "learned") UsageError("--target ground-truth fits the learned form only");
   if (!a.png.empty()) UsageError("--png draws the plane target's report; --target ground-truth prints its own");
   CheckFileToWrite(a.out);
   GroundTruthNoiseOptions options;
-  options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
+  if (!a.matcher.empty()) options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
   options.window_px = a.window_px;
   options.image_noise_gray = a.image_noise_gray;
   options.stride_px = a.stride_px;
@@ -179,10 +181,10 @@ void RunNoise(const NoiseArgs& a) {
   if (a.target == "ground-truth") return RunNoiseFromGroundTruth(a);
   if (a.inputs.size() != 1) UsageError("--target plane takes one recording");
   NoiseCalibrationOptions options;
-  options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
+  if (!a.matcher.empty()) options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
   if (a.form != "auto") options.form = ParseNoiseForm(a.form);
   if (options.form == NoiseForm::kFloorPlusScale && options.matcher == NoiseCalibrationMatcher::kSgbm) {
-    UsageError("--form floor-plus-scale needs a matcher that predicts sigma_d (block or spacetime), not " + a.matcher);
+    UsageError("--form floor-plus-scale needs a matcher that predicts sigma_d (block or spacetime), not sgbm");
   }
   options.first_frame = a.frame;
   options.frames = a.frames;
@@ -239,7 +241,8 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("--out", a->out, "output noise model (OpenCV FileStorage YAML)")->required();
   sub->add_option("--matcher", a->matcher,
                   "block (single frame, predicts sigma_d), spacetime (all frames from --frame, predicts sigma_d) or "
-                  "sgbm (single frame, no prediction)")
+                  "sgbm (single frame, no prediction); default: block for a plane, sgbm (the matcher of `stereo`) for "
+                  "ground truth")
       ->check(CLI::IsMember({"block", "spacetime", "sgbm"}));
   sub->add_option("--form", a->form,
                   "model form: auto (plane: floor-plus-scale when the matcher predicts sigma_d; ground-truth: learned), "

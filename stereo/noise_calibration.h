@@ -65,7 +65,7 @@ struct GroundTruthNoiseOptions {
   NoiseCalibrationMatcher matcher = NoiseCalibrationMatcher::kSgbm;  // sgbm or block (one frame per scene)
   int window_px = 5;              // odd, 1–31: the features' SSD window (and the block matcher's window)
   double image_noise_gray = 2.0;  // > 0: σ_n of the features
-  int stride_px = 2;              // 1–64: every n-th pixel in x and y
+  int stride_px = 1;              // 1–64: every n-th pixel in x and y (the fit thins to max_samples)
   int max_samples = 200000;       // ≥ 1000: the fit thins larger sets by a regular stride
   void Check() const;
 };

@@ -92,6 +92,20 @@ TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
             std::string::npos) << r.output;
 }
 
+// `calibrate noise --target ground-truth` without --matcher fits the matcher `stereo` runs by default (it fitted
+// the block matcher, the plane target's default, and `stereo --noise-model` then refused the model it wrote).
+TEST(StereoCli, NoiseFromGroundTruthFitsTheMatcherStereoRuns) {
+  const std::string out = Temp("gt_noise");
+  fs::create_directories(out);
+  RunResult r =
+      RunRangebayes("calibrate noise tests/data/stereo/tsukuba --target ground-truth --out " + out + "/noise.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("learned (sgbm)"), std::string::npos) << r.output;
+  r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --noise-model " + out +
+                    "/noise.yaml --no-mesh --out " + out + "/stereo");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
 // The bundled real recording (Middlebury 2014 ArtL, quarter size; README command 1 replays it): its first
 // pair through `stereo` with the recording's rig, scored against the recording's ground truth.
 TEST(StereoCli, BundledMiddleburyRecordingScoresAgainstItsGroundTruth) {
