@@ -229,6 +229,55 @@ class DisparityNoiseModel:
 def read_noise_model(path: StrPath) -> DisparityNoiseModel: ...
 def write_noise_model(path: StrPath, model: DisparityNoiseModel) -> None: ...
 
+BOARD_OPTIONS: dict[str, Any]
+RIG_CALIBRATION_OPTIONS: dict[str, Any]
+PLANE_NOISE_OPTIONS: dict[str, Any]
+GROUND_TRUTH_NOISE_OPTIONS: dict[str, Any]
+
+class StereoCalibrationSummary:
+    pairs_given: int
+    pairs_found: int
+    pairs_used: int
+    rms_left_px: float
+    rms_right_px: float
+    rms_stereo_px: float
+    epipolar_error_mean_px: float
+    epipolar_error_max_px: float
+    views: list[dict[str, Any]]
+    def brief_report(self) -> str: ...
+
+def calibrate_rig(
+    left: Union[StrPath, Sequence[StrPath]], right: Union[StrPath, Sequence[StrPath]], *,
+    board: dict[str, Any] = ..., progress: Optional[Progress] = ...,
+    **options: Any  # the StereoCalibrationOptions fields: see RIG_CALIBRATION_OPTIONS
+) -> Tuple[StereoRig, StereoCalibrationSummary]: ...
+
+class NoiseCalibrationReport:
+    outlier_fraction: float
+    constant_sigma_px: float
+    log_likelihood: float
+    scenes: int
+    samples: np.ndarray
+    def brief_report(self) -> str: ...
+
+def calibrate_noise(
+    inputs: Union[StrPath, Sequence[StrPath]], *, target: str = ..., rig: Union[None, StrPath, StereoRig] = ...,
+    form: Optional[str] = ..., roi: Optional[Tuple[int, int, int, int]] = ...,
+    **options: Any  # PLANE_NOISE_OPTIONS or GROUND_TRUTH_NOISE_OPTIONS fields
+) -> Tuple[DisparityNoiseModel, NoiseCalibrationReport]: ...
+
+class NoiseModelCheck:
+    samples: int
+    observed_within: list[float]
+    predicted_within: list[float]
+    rms_within3: float
+    predicted_rms_within3: float
+    outlier_share: float
+    def passes(self, max_share_error: float = 0.03, max_rms_error: float = 0.1) -> bool: ...
+    def brief_report(self) -> str: ...
+
+def check_noise_model(model: DisparityNoiseModel, scenes: Union[StrPath, Sequence[StrPath]], stride_px: int = 2) -> NoiseModelCheck: ...
+
 class DepthFrame:
     depth_m: npt.NDArray[np.float32]
     sigma_depth_m: npt.NDArray[np.float32]

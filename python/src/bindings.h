@@ -26,6 +26,7 @@ void BindBayes(py::module_& m);
 void BindStereo(py::module_& m);
 void BindPipeline(py::module_& m);
 void BindFusion(py::module_& m);
+void BindCalibration(py::module_& m);
 
 // A ProgressCallback that calls a Python function (fraction, stage) with the GIL held and then lets Python run
 // its signal handlers, so Ctrl-C (KeyboardInterrupt) stops the call. None gives a callback that only does the

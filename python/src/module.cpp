@@ -75,4 +75,5 @@ PYBIND11_MODULE(_rangebayes, m) {
   rp::BindStereo(m);
   rp::BindPipeline(m);
   rp::BindFusion(m);
+  rp::BindCalibration(m);
 }

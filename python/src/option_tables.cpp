@@ -211,4 +211,56 @@ const FieldTable<FuseOptions>& FuseOptionFields() {
   return table;
 }
 
+RB_PY_ENUM_NAMES(BoardType, {{"chessboard", BoardType::kChessboard}, {"charuco", BoardType::kCharuco}});
+RB_PY_ENUM_NAMES(ChessboardDetector, {{"best", ChessboardDetector::kBest},
+                                      {"sb", ChessboardDetector::kSectorBased},
+                                      {"classic", ChessboardDetector::kClassic}});
+
+const FieldTable<BoardSpec>& BoardOptionFields() {
+  static const FieldTable<BoardSpec> table = {
+      RB_PY_FIELD(BoardSpec, type),     RB_PY_FIELD(BoardSpec, cols),
+      RB_PY_FIELD(BoardSpec, rows),     RB_PY_FIELD(BoardSpec, square_m),
+      RB_PY_FIELD(BoardSpec, marker_m), RB_PY_FIELD(BoardSpec, dictionary),
+      RB_PY_FIELD(BoardSpec, detector), RB_PY_FIELD(BoardSpec, accurate_corners),
+  };
+  return table;
+}
+
+// board is a separate dict argument of calibrate_rig().
+const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields() {
+  static const FieldTable<StereoCalibrationOptions> table = {
+      RB_PY_FIELD(StereoCalibrationOptions, min_pairs),
+      RB_PY_FIELD(StereoCalibrationOptions, outlier_mad_factor),
+      RB_PY_FIELD(StereoCalibrationOptions, outlier_min_ratio),
+      RB_PY_FIELD(StereoCalibrationOptions, drop_outliers),
+      RB_PY_FIELD(StereoCalibrationOptions, rational_model),
+      RB_PY_FIELD(StereoCalibrationOptions, coverage_grid),
+  };
+  return table;
+}
+
+RB_PY_ENUM_NAMES(NoiseCalibrationMatcher, {{"block", NoiseCalibrationMatcher::kBlock},
+                                           {"spacetime", NoiseCalibrationMatcher::kSpaceTime},
+                                           {"sgbm", NoiseCalibrationMatcher::kSgbm}});
+
+// form (None or a form's name) and roi (x, y, width, height) are handled by calibrate_noise() itself.
+const FieldTable<NoiseCalibrationOptions>& PlaneNoiseOptionFields() {
+  static const FieldTable<NoiseCalibrationOptions> table = {
+      RB_PY_FIELD(NoiseCalibrationOptions, matcher),          RB_PY_FIELD(NoiseCalibrationOptions, first_frame),
+      RB_PY_FIELD(NoiseCalibrationOptions, frames),           RB_PY_FIELD(NoiseCalibrationOptions, min_disparity_px),
+      RB_PY_FIELD(NoiseCalibrationOptions, num_disparities),  RB_PY_FIELD(NoiseCalibrationOptions, window_px),
+      RB_PY_FIELD(NoiseCalibrationOptions, image_noise_gray), RB_PY_FIELD(NoiseCalibrationOptions, stride_px),
+  };
+  return table;
+}
+
+const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields() {
+  static const FieldTable<GroundTruthNoiseOptions> table = {
+      RB_PY_FIELD(GroundTruthNoiseOptions, matcher),          RB_PY_FIELD(GroundTruthNoiseOptions, window_px),
+      RB_PY_FIELD(GroundTruthNoiseOptions, image_noise_gray), RB_PY_FIELD(GroundTruthNoiseOptions, stride_px),
+      RB_PY_FIELD(GroundTruthNoiseOptions, max_samples),
+  };
+  return table;
+}
+
 }  // namespace rangebayes::python

@@ -22,5 +22,9 @@ const FieldTable<PlaybackOptions>& PlaybackOptionFields();
 const FieldTable<RangeGridScanOptions>& ScanOptionFields();
 const FieldTable<RegisterOptions>& RegisterOptionFields();
 const FieldTable<FuseOptions>& FuseOptionFields();
+const FieldTable<BoardSpec>& BoardOptionFields();
+const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields();
+const FieldTable<NoiseCalibrationOptions>& PlaneNoiseOptionFields();
+const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields();
 
 }  // namespace rangebayes::python
