@@ -278,6 +278,37 @@ class NoiseModelCheck:
 
 def check_noise_model(model: DisparityNoiseModel, scenes: Union[StrPath, Sequence[StrPath]], stride_px: int = 2) -> NoiseModelCheck: ...
 
+class MiddleburyScene:
+    folder: str
+    layout: str
+    left: np.ndarray
+    right: np.ndarray
+    gt_disparity_px: Optional[np.ndarray]
+    mask_nonocc: Optional[np.ndarray]
+    num_disparities: int
+    rig: Optional[StereoRig]
+
+def read_middlebury_scene(folder: StrPath) -> MiddleburyScene: ...
+def read_disparity(path: StrPath, scale: float = 1.0) -> np.ndarray: ...
+
+DISPARITY_EVALUATION_OPTIONS: dict[str, Any]
+
+class DisparityEvaluation:
+    evaluated_pixels: int
+    estimated_pixels: int
+    coverage: float
+    thresholds_px: list[float]
+    bad_with_holes: list[float]
+    bad_valid_only: list[float]
+    rms_px: float
+    mean_abs_px: float
+    def brief_report(self) -> str: ...
+
+def evaluate_disparity(
+    estimate: ArrayLike, ground_truth: Union[MiddleburyScene, ArrayLike], mask: Optional[ArrayLike] = ...,
+    *, bad_thresholds_px: Sequence[float] = ..., estimate_scale: float = ...
+) -> DisparityEvaluation: ...
+
 class DepthFrame:
     depth_m: npt.NDArray[np.float32]
     sigma_depth_m: npt.NDArray[np.float32]

@@ -254,6 +254,99 @@ DepthFromDisparityOptions (min_depth_m, max_depth_m, sigma_pixel_px). GIL releas
       R"(Organized triangulation of a DepthFrame into a NoisyMesh (metres, rectified left camera frame) with the
 ray-aligned covariance per vertex. Keywords: rangebayes.TRIANGULATE_OPTIONS. GIL released.)");
   m.attr("TRIANGULATE_OPTIONS") = FieldsToDict(TriangulateOptionFields(), TriangulateOptions{});
+
+  py::class_<MiddleburyScene>(
+      m, "MiddleburyScene",
+      R"(One Middlebury scene folder (2014, v2, 2005/2006, 2001 or 2003 layout): the two views as
+stored (BGR uint8), the ground-truth disparity (float32, NaN unknown; None when the folder has none), the
+non-occluded mask (uint8, 255 = evaluate; None when absent), the search range and (2014) the rectified rig.)")
+      .def_readonly("folder", &MiddleburyScene::folder)
+      .def_readonly("layout", &MiddleburyScene::layout)
+      .def_property_readonly("left", [](const MiddleburyScene& s) { return ArrayFromMat(s.left); })
+      .def_property_readonly("right", [](const MiddleburyScene& s) { return ArrayFromMat(s.right); })
+      .def_property_readonly("gt_disparity_px",
+                             [](const MiddleburyScene& s) { return ArrayFromMat(s.gt_disparity_px); })
+      .def_property_readonly("mask_nonocc", [](const MiddleburyScene& s) { return ArrayFromMat(s.mask_nonocc); })
+      .def_readonly("num_disparities", &MiddleburyScene::num_disparities)
+      .def_property_readonly(
+          "rig", [](const MiddleburyScene& s) { return s.rig ? py::cast(*s.rig) : py::object(py::none()); });
+  m.def(
+      "read_middlebury_scene",
+      [](const PathArg& folder) {
+        py::gil_scoped_release nogil;
+        return ReadMiddleburyScene(folder.string());
+      },
+      py::arg("folder"), "Reads a Middlebury scene folder (the layouts `rangebayes eval-depth --scene` reads).");
+
+  py::class_<DisparityEvaluation>(m, "DisparityEvaluation",
+                                  "A disparity map scored against ground truth; brief_report() is what `rangebayes "
+                                  "eval-depth` prints.")
+      .def_readonly("evaluated_pixels", &DisparityEvaluation::evaluated_pixels)
+      .def_readonly("estimated_pixels", &DisparityEvaluation::estimated_pixels)
+      .def_readonly("coverage", &DisparityEvaluation::coverage)
+      .def_readonly("thresholds_px", &DisparityEvaluation::thresholds_px)
+      .def_readonly("bad_with_holes", &DisparityEvaluation::bad_with_holes,
+                    "per threshold: share of evaluated pixels missing or off by more (Middlebury's bad-N)")
+      .def_readonly("bad_valid_only", &DisparityEvaluation::bad_valid_only, "the same among estimated pixels")
+      .def_readonly("rms_px", &DisparityEvaluation::rms_px)
+      .def_readonly("mean_abs_px", &DisparityEvaluation::mean_abs_px)
+      .def("brief_report", &DisparityEvaluation::BriefReport);
+  m.def(
+      "evaluate_disparity",
+      [](py::handle estimate, py::handle ground_truth, py::handle mask, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        DisparityEvaluationOptions options;
+        ApplyKeywords(DisparityEvaluationOptionFields(), kw, &options, "evaluate_disparity");
+        options.Check();
+        std::vector<ImageIn> keep;
+        cv::Mat e = MatOrEmpty(estimate, "estimate", &keep);
+        cv::Mat gt, m_in;
+        if (py::isinstance<MiddleburyScene>(ground_truth)) {
+          const MiddleburyScene& scene = ground_truth.cast<const MiddleburyScene&>();
+          if (scene.gt_disparity_px.empty())
+            throw py::value_error("evaluate_disparity: " + scene.folder + " has no ground truth");
+          gt = scene.gt_disparity_px;
+          m_in = scene.mask_nonocc;
+        } else {
+          gt = MatOrEmpty(ground_truth, "ground_truth", &keep);
+        }
+        if (!mask.is_none()) m_in = MatOrEmpty(mask, "mask", &keep);
+        // float64 maps are scored as float32 (the library's type; NaN stays NaN).
+        for (cv::Mat* d : {&e, &gt}) {
+          if (d->type() == CV_64F) d->convertTo(*d, CV_32F);
+        }
+        if (e.empty() || e.type() != CV_32F || gt.type() != CV_32F) {
+          throw py::type_error(
+              "evaluate_disparity: estimate and ground_truth must be float32 or float64 (h, w) "
+              "disparities");
+        }
+        if (!m_in.empty() && m_in.type() != CV_8U)
+          throw py::type_error("evaluate_disparity: mask must be uint8 (h, w)");
+        if (e.size() != gt.size() || (!m_in.empty() && m_in.size() != gt.size())) {
+          throw py::value_error("evaluate_disparity: estimate, ground truth and mask differ in size");
+        }
+        py::gil_scoped_release nogil;
+        return EvaluateDisparity(e, gt, m_in, options);
+      },
+      py::arg("estimate"), py::arg("ground_truth"), py::arg("mask") = py::none(),
+      R"(Scores a disparity map (float32 or float64 (h, w), NaN missing) as `rangebayes eval-depth` does: a DisparityEvaluation.
+ground_truth: a MiddleburyScene (its ground truth and non-occluded mask) or a float32 array; mask (uint8, non-zero =
+score) replaces the scene's. Keywords: bad_thresholds_px, estimate_scale. GIL released.)");
+  m.def(
+      "read_disparity",
+      [](const PathArg& path, double scale) {
+        cv::Mat d;
+        {
+          py::gil_scoped_release nogil;
+          d = ReadDisparityMap(path.string(), scale);
+        }
+        return ArrayFromMat(d);
+      },
+      py::arg("path"), py::arg("scale") = 1.0,
+      "A disparity map file (PFM as `stereo` writes disparity.pfm, or PNG/PGM × scale) as float32 (h, w), NaN "
+      "unknown.");
+  m.attr("DISPARITY_EVALUATION_OPTIONS") =
+      FieldsToDict(DisparityEvaluationOptionFields(), DisparityEvaluationOptions{});
 }
 
 }  // namespace rangebayes::python

@@ -22,6 +22,8 @@
 #include "pipeline/pipeline.h"
 #include "reconstruction/triangulate.h"
 #include "stereo/depth_frame.h"
+#include "stereo/disparity_io.h"
+#include "stereo/evaluate.h"
 #include "stereo/noise_calibration.h"
 #include "stereo/rectify.h"
 #include "stereo/sgbm_matcher.h"

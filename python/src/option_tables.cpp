@@ -263,4 +263,12 @@ const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields() {
   return table;
 }
 
+const FieldTable<DisparityEvaluationOptions>& DisparityEvaluationOptionFields() {
+  static const FieldTable<DisparityEvaluationOptions> table = {
+      RB_PY_FIELD(DisparityEvaluationOptions, bad_thresholds_px),
+      RB_PY_FIELD(DisparityEvaluationOptions, estimate_scale),
+  };
+  return table;
+}
+
 }  // namespace rangebayes::python

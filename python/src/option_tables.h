@@ -26,5 +26,6 @@ const FieldTable<BoardSpec>& BoardOptionFields();
 const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields();
 const FieldTable<NoiseCalibrationOptions>& PlaneNoiseOptionFields();
 const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields();
+const FieldTable<DisparityEvaluationOptions>& DisparityEvaluationOptionFields();
 
 }  // namespace rangebayes::python
