@@ -134,7 +134,8 @@ GIL released.)");
       [](py::handle inputs, py::kwargs kwargs) {
         py::dict kw = py::dict(kwargs);
         py::object target_arg = PopKeyword(kw, "target");
-        const std::string target = target_arg.is_none() ? "plane" : target_arg.cast<std::string>();
+        const std::string target =
+            target_arg.is_none() ? "plane" : FieldFromPython<std::string>(target_arg, "calibrate_noise: target");
         NoiseCalibrationReport report;
         DisparityNoiseModel model;
         if (target == "ground-truth") {
@@ -171,8 +172,13 @@ GIL released.)");
           const std::string folder = inputs.cast<PathArg>().string();
           std::optional<StereoRig> rig;
           if (!rig_arg.is_none()) {
-            rig = py::isinstance<StereoRig>(rig_arg) ? rig_arg.cast<StereoRig>()
-                                                     : ReadStereoRig(rig_arg.cast<PathArg>().string());
+            if (py::isinstance<StereoRig>(rig_arg)) {
+              rig = rig_arg.cast<StereoRig>();
+            } else if (py::isinstance<py::str>(rig_arg) || IsPathLike(rig_arg)) {
+              rig = ReadStereoRig(rig_arg.cast<PathArg>().string());
+            } else {
+              throw py::type_error("calibrate_noise: rig must be a StereoRig or a rig file");
+            }
           }
           NoiseCalibrationSummary summary;
           py::gil_scoped_release nogil;

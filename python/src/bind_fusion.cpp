@@ -111,7 +111,7 @@ void BindFusion(py::module_& m) {
 
   m.def(
       "fuse",
-      [](const py::sequence& scan_args, py::object poses_arg, py::kwargs kwargs) {
+      [](py::handle scan_args, py::object poses_arg, py::kwargs kwargs) {
         py::dict kw = py::dict(kwargs);
         ModelOptions options;
         options.align = TakeBool(kw, "align", true);
@@ -131,7 +131,9 @@ void BindFusion(py::module_& m) {
         }
         scan_options.Check();
         options.Check();
-        if (py::isinstance<py::str>(scan_args)) throw py::type_error("fuse: scans must be a list, not one str");
+        if (py::isinstance<py::str>(scan_args) || IsPathLike(scan_args) || !py::isinstance<py::iterable>(scan_args)) {
+          throw py::type_error("fuse: scans must be a list of paths or meshes");
+        }
 
         // Scans: file paths (read as `fuse` reads them) or meshes (Mesh: the generic noise model; NoisyMesh:
         // its covariances, the sensor at the origin of its frame).
@@ -156,6 +158,9 @@ void BindFusion(py::module_& m) {
           if (!meshes.empty()) throw py::value_error("fuse: poses from a file need every scan given as a path");
           poses_file = poses_arg.cast<PathArg>().string();
         } else if (!poses_arg.is_none()) {
+          if (!py::isinstance<py::sequence>(poses_arg)) {
+            throw py::type_error("fuse: poses must be None, a pose file or a list of 4x4 matrices");
+          }
           const py::sequence seq = poses_arg.cast<py::sequence>();
           if (seq.size() != n) {
             throw py::value_error("fuse: " + std::to_string(seq.size()) + " poses for " + std::to_string(n) + " scans");

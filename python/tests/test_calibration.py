@@ -71,6 +71,10 @@ def test_noise_from_a_plane_is_the_cli_model(tmp_path, cli):
         rb.calibrate_noise(rec, target="cube")
     with pytest.raises(TypeError, match="one recording folder"):
         rb.calibrate_noise([rec, rec])
+    with pytest.raises(TypeError, match="rig must be a StereoRig or a rig file"):
+        rb.calibrate_noise(rec, rig=5)
+    with pytest.raises(TypeError, match="target: cannot convert"):
+        rb.calibrate_noise(rec, target=3)
 
 
 def test_noise_from_ground_truth_and_its_check(tmp_path, cli, root):

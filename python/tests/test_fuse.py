@@ -100,8 +100,12 @@ def test_bad_input_is_named(pieces, tmp_path):
         rb.fuse(scans, [np.eye(3), np.eye(4)])
     with pytest.raises(ValueError, match="every scan given as a path"):
         rb.fuse([rb.read_mesh(scans[0]), scans[1]], conf)
-    with pytest.raises(TypeError, match="not one str"):
+    with pytest.raises(TypeError, match="scans must be a list of paths or meshes"):
         rb.fuse(str(scans[0]))
+    with pytest.raises(TypeError, match="poses must be None, a pose file or a list of 4x4 matrices"):
+        rb.fuse(scans, 5)
+    from_generator, _, _ = rb.fuse((s for s in scans), conf, align=False)  # any iterable of scans
+    assert from_generator.num_faces > 5000
     with pytest.raises(rb.Error, match="not found|No such file"):
         rb.fuse([scans[0], tmp_path / "missing.ply"], align=False)
     with pytest.raises(rb.Error, match="voxel_size"):
