@@ -328,8 +328,10 @@ or with a vertex that is not finite is refused. GIL released.)");
         options.Check();
         std::vector<TrainingPair> training;
         for (py::handle pair : pairs) {
+          if (!py::isinstance<py::sequence>(pair) || py::isinstance<py::str>(pair) || py::len(pair) != 2) {
+            throw py::value_error("learn_prior: each pair is (noisy NoisyMesh, truth Mesh)");
+          }
           auto t = pair.cast<py::tuple>();
-          if (t.size() != 2) throw py::value_error("learn_prior: each pair is (noisy NoisyMesh, truth Mesh)");
           TrainingPair p;
           p.name = "pair " + std::to_string(training.size());
           p.noisy = ToNoisyMesh(t[0], "learn_prior");

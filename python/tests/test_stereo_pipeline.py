@@ -131,6 +131,9 @@ def test_learn_prior_runs(trim_star):
                                    tolerance="fast")
     assert prior.theta.shape == (prior.num_knots,)
     assert summary["iterations"] >= 1
+    for bad in (5, None, "ab", (noisy,), (noisy, truth, truth)):  # 5 and None raised "'int' object is not iterable"
+        with pytest.raises(ValueError, match=r"each pair is \(noisy NoisyMesh, truth Mesh\)"):
+            rb.learn_prior([bad])
 
 
 def write_test_prior(path, prior_weight):
