@@ -24,7 +24,7 @@ struct ModelOptions {
   bool align = true;
   RegisterOptions registration;
   // Each scan smoothed with its own ray covariance before fusion (SmoothScan): measured closer to the truth than
-  // smoothing the fused mesh (BENCHMARKS.md "Many scans, one model").
+  // smoothing the fused mesh (docs/design.md §9).
   bool smooth = false;
   SmoothOptions smoothing;  // its progress is replaced by `progress` below
   FuseOptions fusion;
