@@ -29,8 +29,10 @@ std::vector<Eigen::Isometry3d> PlaceScans(const std::vector<Scan>& scans,
   RB_CHECK(!options.align || scans.size() >= 2, "alignment needs at least two scans (one scan is fused as it is)");
   if (scans.size() < 2) return initial_world_from_scan;
   if (options.align) {
+    RegisterOptions registration = options.registration;
+    registration.progress = options.progress;
     std::vector<Eigen::Isometry3d> poses =
-        RegisterScans(scans, initial_world_from_scan, options.registration, &out.registration);
+        RegisterScans(scans, initial_world_from_scan, registration, &out.registration);
     out.pair_report = FormatPairReport(out.registration, scans);
     return poses;
   }

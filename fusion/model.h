@@ -22,7 +22,7 @@ struct ModelOptions {
   // true: RegisterScans from the initial poses. false: the initial poses as they are, after CheckPoses (scans
   // they leave misaligned are an error).
   bool align = true;
-  RegisterOptions registration;
+  RegisterOptions registration;  // its progress is replaced by `progress` below
   // Each scan smoothed with its own ray covariance before fusion (SmoothScan): measured closer to the truth than
   // smoothing the fused mesh (docs/design.md §9).
   bool smooth = false;
@@ -30,7 +30,7 @@ struct ModelOptions {
   FuseOptions fusion;
   bool decimate = false;       // Bayesian decimation of the fused mesh
   DecimateOptions decimation;  // its progress is replaced by `progress` below
-  // Smoothing ("smoothing NAME", per scan) and decimation ("decimation") report here.
+  // Alignment ("alignment"), smoothing ("smoothing NAME", per scan) and decimation ("decimation") report here.
   ProgressCallback progress;
   void Check() const;
 };

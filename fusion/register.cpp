@@ -323,7 +323,12 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
       ++local->iterations;
       last = std::move(linear.systems);
       CheckEveryScanOverlaps(problem.scans, eq, max_distance);
-      if (TakeDampedStep(problem.edge, &eq, pose) < options.converged_step) break;
+      const bool converged = TakeDampedStep(problem.edge, &eq, pose) < options.converged_step;
+      if (options.progress) {
+        const int done = converged ? options.iterations_per_level : it + 1;
+        options.progress((level + static_cast<double>(done) / options.iterations_per_level) / levels, "alignment");
+      }
+      if (converged) break;
     }
     ++local->levels;
   }

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "core/progress.h"
 #include "fusion/scan.h"
 
 namespace rangebayes {
@@ -39,6 +40,8 @@ struct RegisterOptions {
   double converged_step = 1e-5;
   std::uint64_t seed = 1;              // choice of the sample points
   int num_threads = 0;                 // 0: all cores
+  // Called after each Gauss–Newton step of RegisterScans with the share of the levels done, stage "alignment".
+  ProgressCallback progress;
   void Check() const;
 };
 

@@ -121,3 +121,5 @@ def test_progress_that_raises_stops_fuse(pieces):
 
     with pytest.raises(KeyError, match="stop here"):
         rb.fuse(scans, conf, align=False, smooth=True, progress=stop)
+    with pytest.raises(KeyError, match="stop here"):  # alignment reports too
+        rb.fuse(scans, conf, progress=stop)

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 #include <string>
 #include <string_view>
@@ -26,7 +27,11 @@ TEST(Model, PlacesThenSmoothsFusesAndDecimates) {
   options.decimate = true;
   options.decimation.target_faces = 500;
   std::set<std::string> stages;
-  options.progress = [&](double, std::string_view stage) { stages.emplace(stage); };
+  std::vector<double> alignment;  // the fractions reported while aligning
+  options.progress = [&](double fraction, std::string_view stage) {
+    stages.emplace(stage);
+    if (stage == "alignment") alignment.push_back(fraction);
+  };
   ModelSummary summary;
   const std::vector<Eigen::Isometry3d> poses = PlaceScans(scans, start, options, &summary);
   ASSERT_EQ(poses.size(), 2u);
@@ -35,6 +40,10 @@ TEST(Model, PlacesThenSmoothsFusesAndDecimates) {
   EXPECT_LT(error.rotation_deg, 0.2);
   EXPECT_GT(summary.registration.iterations, 0);
   EXPECT_NE(summary.pair_report.find("view0 view1 "), std::string::npos) << summary.pair_report;
+  ASSERT_EQ(static_cast<int>(alignment.size()), summary.registration.iterations);  // one report per step
+  EXPECT_TRUE(std::is_sorted(alignment.begin(), alignment.end()));
+  EXPECT_GT(alignment.front(), 0.0);
+  EXPECT_EQ(alignment.back(), 1.0);
 
   const Mesh model = FuseModel(scans, poses, options, &summary);
   ASSERT_EQ(summary.smoothing.size(), 2u);
@@ -44,7 +53,7 @@ TEST(Model, PlacesThenSmoothsFusesAndDecimates) {
   EXPECT_EQ(summary.decimation.input_faces, summary.fusion.faces);
   EXPECT_LE(model.num_faces(), 500);
   EXPECT_GT(model.num_faces(), 250);
-  EXPECT_EQ(stages, (std::set<std::string>{"smoothing view0", "smoothing view1", "decimation"}));
+  EXPECT_EQ(stages, (std::set<std::string>{"alignment", "smoothing view0", "smoothing view1", "decimation"}));
 }
 
 // Without align the given poses are kept when they pass the check, and named (with the pair table already in the
