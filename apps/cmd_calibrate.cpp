@@ -171,7 +171,10 @@ void RunNoiseFromGroundTruth(const NoiseArgs& a) {
   options.image_noise_gray = a.image_noise_gray;
   options.stride_px = a.stride_px;
   GroundTruthNoiseSummary summary;
+  ProgressPrinter progress(a.quiet);
+  options.progress = progress.callback();
   const DisparityNoiseModel model = CalibrateDisparityNoiseFromGroundTruth(a.inputs, options, &summary);
+  progress.Finish();
   WriteDisparityNoiseModel(model, a.out);
   std::fputs(summary.BriefReport(model).c_str(), stdout);
   std::printf("wrote %s (%s, %d samples)\n", a.out.c_str(), NoiseFormName(model.form), model.samples);
@@ -268,6 +271,7 @@ void AddCheckNoise(CLI::App* calibrate) {
     std::vector<std::string> scenes;
     std::string model;
     int stride_px = 2;
+    bool quiet = false;
   };
   auto a = std::make_shared<Args>();
   CLI::App* sub = calibrate->add_subcommand(
@@ -278,9 +282,12 @@ void AddCheckNoise(CLI::App* calibrate) {
   sub->add_option("--noise-model", a->model, "noise.yaml of form learned (rangebayes calibrate noise --target "
                   "ground-truth)")->required();
   sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
+  AddQuietFlag(sub, &a->quiet);
   sub->callback([a] {
     const DisparityNoiseModel model = ReadDisparityNoiseModel(a->model);
-    const NoiseModelCheck check = CheckDisparityNoiseOnGroundTruth(model, a->scenes, a->stride_px);
+    ProgressPrinter progress(a->quiet);
+    const NoiseModelCheck check = CheckDisparityNoiseOnGroundTruth(model, a->scenes, a->stride_px, progress.callback());
+    progress.Finish();
     std::fputs(check.BriefReport().c_str(), stdout);
   });
 }

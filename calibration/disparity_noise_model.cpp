@@ -106,21 +106,22 @@ Vec<N> NelderMead(const std::function<double(const Vec<N>&)>& f, Vec<N> start, d
 }
 
 // NelderMead (step 0.4) from each start; the end point with the lowest value, which goes to *nll. Each run's
-// iterations are added to *iterations.
+// iterations are added to *iterations; progress (stage "fit") after each start.
 template <size_t N, size_t S>
 Vec<N> BestOfStarts(const std::function<double(const Vec<N>&)>& f, const std::array<Vec<N>, S>& starts,
-                    int max_iterations, int* iterations, double* nll) {
+                    int max_iterations, const ProgressCallback& progress, int* iterations, double* nll) {
   *nll = std::numeric_limits<double>::infinity();
   Vec<N> best{};
-  for (const Vec<N>& start : starts) {
+  for (size_t k = 0; k < S; ++k) {
     int it = 0;
     double value = 0;
-    const Vec<N> p = NelderMead<N>(f, start, 0.4, max_iterations, &it, &value);
+    const Vec<N> p = NelderMead<N>(f, starts[k], 0.4, max_iterations, &it, &value);
     *iterations += it;
     if (value < *nll) {
       *nll = value;
       best = p;
     }
+    if (progress) progress(static_cast<double>(k + 1) / static_cast<double>(S), "fit");
   }
   return best;
 }
@@ -335,8 +336,8 @@ struct NoiseColumns {
 
 // The learned form, σ = sqrt(floor² + (scale·σ_pred)² + (jump_scale·jump)²) plus outliers: the best of three
 // starts, which begin at s0 (the constant fit's σ) and e0 (its outlier share, as a logit).
-void FitLearned(const NoiseColumns& columns, double range, double s0, double e0, DisparityNoiseModel* model,
-                NoiseFitSummary* sum) {
+void FitLearned(const NoiseColumns& columns, double range, double s0, double e0, const ProgressCallback& progress,
+                DisparityNoiseModel* model, NoiseFitSummary* sum) {
   const std::vector<double>& r = columns.r;
   const std::vector<double>& pred = columns.pred;
   const std::vector<double>& jump = columns.jump;
@@ -356,7 +357,7 @@ void FitLearned(const NoiseColumns& columns, double range, double s0, double e0,
       Vec<4>{std::log(0.5 * s0), std::log(0.7 * s0 / med_pred), std::log(0.5 * s0 / mean_jump), e0},
       Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
   double best_nll = 0;
-  const Vec<4> best = BestOfStarts<4>(f, starts, 2500, &sum->iterations, &best_nll);
+  const Vec<4> best = BestOfStarts<4>(f, starts, 2500, progress, &sum->iterations, &best_nll);
   model->floor_px = std::exp(Clamp(best[0]));
   model->scale = std::exp(Clamp(best[1]));
   model->jump_scale = std::exp(Clamp(best[2]));
@@ -365,8 +366,8 @@ void FitLearned(const NoiseColumns& columns, double range, double s0, double e0,
 }
 
 // The floor-and-scale form, σ = sqrt(floor² + (scale·σ_pred)²) plus outliers; s0 and e0 as in FitLearned.
-void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, double e0, DisparityNoiseModel* model,
-                      NoiseFitSummary* sum) {
+void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, double e0, const ProgressCallback& progress,
+                      DisparityNoiseModel* model, NoiseFitSummary* sum) {
   const std::vector<double>& r = columns.r;
   const std::vector<double>& pred = columns.pred;
   const double med_pred = std::max(Median(pred), 1e-6);
@@ -380,7 +381,7 @@ void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, doub
                                         Vec<3>{std::log(0.7 * s0), std::log(0.7 * s0 / med_pred), e0},
                                         Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
   double best_nll = 0;
-  const Vec<3> best = BestOfStarts<3>(f, starts, 1500, &sum->iterations, &best_nll);
+  const Vec<3> best = BestOfStarts<3>(f, starts, 1500, progress, &sum->iterations, &best_nll);
   model->floor_px = std::exp(Clamp(best[0]));
   model->scale = std::exp(Clamp(best[1]));
   model->outlier_fraction = Logistic(best[2]);
@@ -466,9 +467,9 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
     sum.log_likelihood = -constant.nll;
     sum.iterations = constant.iterations;
   } else if (options.form == NoiseForm::kLearned) {
-    FitLearned(columns, range, s0, e0, &model, &sum);
+    FitLearned(columns, range, s0, e0, options.progress, &model, &sum);
   } else {
-    FitFloorAndScale(columns, range, s0, e0, &model, &sum);
+    FitFloorAndScale(columns, range, s0, e0, options.progress, &model, &sum);
   }
   model.sigma_px = std::max(model.sigma_px, options.min_sigma_px);
   model.floor_px = std::max(model.floor_px, options.min_sigma_px);

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "core/progress.h"
+
 namespace rangebayes {
 
 enum class NoiseForm {
@@ -77,6 +79,8 @@ struct NoiseFitOptions {
   // Lower bound on the fitted σ (constant) and floor (floor-plus-scale), e.g. the quantisation of a matcher's
   // output (1/16 px steps: 0.018 px); ≥ 0.
   double min_sigma_px = 0.0;
+  // The non-constant forms: after each of the fit's starts (stage "fit", the share of starts done).
+  ProgressCallback progress;
   void Check() const;
 };
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 
 #include "core/error.h"
@@ -220,6 +221,17 @@ std::vector<NoiseSample> GroundTruthNoiseSamples(const MiddleburyScene& scene, c
   return samples;
 }
 
+namespace {
+// Stage "scene NAME (k of n)" before scene k of `folders` (0-based), with the share of scenes done.
+void ReportScene(const ProgressCallback& progress, const std::vector<std::string>& folders, size_t k) {
+  if (!progress) return;
+  const std::string name = std::filesystem::path(folders[k]).lexically_normal().filename().string();
+  progress(static_cast<double>(k) / static_cast<double>(folders.size()), "scene " + (name.empty() ? folders[k] : name) +
+                                                                             " (" + std::to_string(k + 1) + " of " +
+                                                                             std::to_string(folders.size()) + ")");
+}
+}  // namespace
+
 DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std::string>& scene_folders,
                                                            const GroundTruthNoiseOptions& options,
                                                            GroundTruthNoiseSummary* summary) {
@@ -229,8 +241,9 @@ DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std
   GroundTruthNoiseSummary& s = summary != nullptr ? *summary : local;
   s = GroundTruthNoiseSummary{};
   std::vector<NoiseSample> all;
-  for (const std::string& folder : scene_folders) {
-    const MiddleburyScene scene = ReadMiddleburyScene(folder);
+  for (size_t k = 0; k < scene_folders.size(); ++k) {
+    ReportScene(options.progress, scene_folders, k);
+    const MiddleburyScene scene = ReadMiddleburyScene(scene_folders[k]);
     const std::vector<NoiseSample> samples = GroundTruthNoiseSamples(scene, options);
     all.insert(all.end(), samples.begin(), samples.end());
     const int w = scene.left.cols;
@@ -244,6 +257,8 @@ DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std
   fit.max_samples = options.max_samples;
   fit.depth_bins = 1;
   if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
+  fit.progress = options.progress;
+  if (options.progress) options.progress(0.0, "fit");
   DisparityNoiseModel model = FitDisparityNoiseModel(all, fit, &s.fit);
   model.matcher = NoiseCalibrationMatcherName(options.matcher);
   model.image_noise_gray = options.image_noise_gray;
@@ -255,7 +270,8 @@ DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std
 }
 
 NoiseModelCheck CheckDisparityNoiseOnGroundTruth(const DisparityNoiseModel& model,
-                                                 const std::vector<std::string>& scene_folders, int stride_px) {
+                                                 const std::vector<std::string>& scene_folders, int stride_px,
+                                                 const ProgressCallback& progress) {
   RB_CHECK(model.form == NoiseForm::kLearned, "noise check: the model's form is '", NoiseFormName(model.form),
            "'; only a learned model can be checked on ground truth");
   RB_CHECK(!scene_folders.empty(), "noise check: no scene with ground truth given");
@@ -265,7 +281,9 @@ NoiseModelCheck CheckDisparityNoiseOnGroundTruth(const DisparityNoiseModel& mode
   if (model.image_noise_gray > 0) options.image_noise_gray = model.image_noise_gray;
   options.stride_px = stride_px;
   std::vector<NoiseSample> all;
-  for (const std::string& folder : scene_folders) {
+  for (size_t k = 0; k < scene_folders.size(); ++k) {
+    ReportScene(progress, scene_folders, k);
+    const std::string& folder = scene_folders[k];
     const MiddleburyScene scene = ReadMiddleburyScene(folder);
     model.CheckApplicable(model.matcher, scene.left.cols, folder);
     const std::vector<NoiseSample> samples = GroundTruthNoiseSamples(scene, options);

@@ -12,6 +12,7 @@
 #include "calibration/plane_target.h"
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
+#include "core/progress.h"
 #include "stereo/disparity_io.h"
 
 namespace rangebayes {
@@ -67,6 +68,8 @@ struct GroundTruthNoiseOptions {
   double image_noise_gray = 2.0;  // > 0: σ_n of the features
   int stride_px = 1;              // 1–64: every n-th pixel in x and y (the fit thins to max_samples)
   int max_samples = 200000;       // ≥ 1000: the fit thins larger sets by a regular stride
+  // Before each scene (stage "scene NAME (k of n)", the share of scenes done), then the fit's (NoiseFitOptions).
+  ProgressCallback progress;
   void Check() const;
 };
 
@@ -92,6 +95,7 @@ DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std
 // The calibration test of a model on scenes with ground truth (CheckNoiseModel on their samples); the model must
 // apply to each scene's matcher and width (DisparityNoiseModel::CheckApplicable).
 NoiseModelCheck CheckDisparityNoiseOnGroundTruth(const DisparityNoiseModel& model,
-                                                 const std::vector<std::string>& scene_folders, int stride_px = 2);
+                                                 const std::vector<std::string>& scene_folders, int stride_px = 2,
+                                                 const ProgressCallback& progress = {});
 
 }  // namespace rangebayes

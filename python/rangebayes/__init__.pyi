@@ -262,7 +262,8 @@ class NoiseCalibrationReport:
 
 def calibrate_noise(
     inputs: Union[StrPath, Sequence[StrPath]], *, target: str = ..., rig: Union[None, StrPath, StereoRig] = ...,
-    form: Optional[str] = ..., roi: Optional[Tuple[int, int, int, int]] = ...,
+    form: Optional[str] = ..., roi: Optional[Tuple[int, int, int, int]] = ...,  # target="plane"
+    progress: Optional[Progress] = ...,  # target="ground-truth"
     **options: Any  # PLANE_NOISE_OPTIONS or GROUND_TRUTH_NOISE_OPTIONS fields
 ) -> Tuple[DisparityNoiseModel, NoiseCalibrationReport]: ...
 
@@ -276,7 +277,10 @@ class NoiseModelCheck:
     def passes(self, max_share_error: float = 0.03, max_rms_error: float = 0.1) -> bool: ...
     def brief_report(self) -> str: ...
 
-def check_noise_model(model: DisparityNoiseModel, scenes: Union[StrPath, Sequence[StrPath]], stride_px: int = 2) -> NoiseModelCheck: ...
+def check_noise_model(
+    model: DisparityNoiseModel, scenes: Union[StrPath, Sequence[StrPath]], stride_px: int = 2, *,
+    progress: Optional[Progress] = ...
+) -> NoiseModelCheck: ...
 
 class MiddleburyScene:
     folder: str

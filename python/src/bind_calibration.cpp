@@ -140,8 +140,9 @@ GIL released.)");
         DisparityNoiseModel model;
         if (target == "ground-truth") {
           GroundTruthNoiseOptions options;
+          options.progress = PythonProgress(PopKeyword(kw, "progress"));
           ApplyKeywords(GroundTruthNoiseOptionFields(), kw, &options, "calibrate_noise(target='ground-truth')",
-                        "target");
+                        "target, progress");
           options.Check();
           const std::vector<std::string> scenes = PathList(inputs, "calibrate_noise: scenes");
           GroundTruthNoiseSummary summary;
@@ -198,7 +199,8 @@ GIL released.)");
 target='plane' (default): inputs is a recording folder of one plane; rig= a StereoRig or rig file (default: the
 recording's rig.yaml); form= 'constant' or 'floor-plus-scale' (default: by the matcher); roi= (x, y, width,
 height) of the target in the rectified left image; keywords: rangebayes.PLANE_NOISE_OPTIONS. target='ground-truth': inputs is a list of
-Middlebury scene folders (the learned form); keywords: rangebayes.GROUND_TRUTH_NOISE_OPTIONS. GIL released.)");
+Middlebury scene folders (the learned form); keywords: rangebayes.GROUND_TRUTH_NOISE_OPTIONS and progress. GIL
+released.)");
   m.attr("PLANE_NOISE_OPTIONS") = FieldsToDict(PlaneNoiseOptionFields(), NoiseCalibrationOptions{});
   m.attr("GROUND_TRUTH_NOISE_OPTIONS") = FieldsToDict(GroundTruthNoiseOptionFields(), GroundTruthNoiseOptions{});
 
@@ -219,12 +221,13 @@ Middlebury scene folders (the learned form); keywords: rangebayes.GROUND_TRUTH_N
       .def("brief_report", &NoiseModelCheck::BriefReport);
   m.def(
       "check_noise_model",
-      [](const DisparityNoiseModel& model, py::handle scenes_arg, int stride_px) {
+      [](const DisparityNoiseModel& model, py::handle scenes_arg, int stride_px, py::object progress_arg) {
         const std::vector<std::string> scenes = PathList(scenes_arg, "check_noise_model: scenes");
+        const ProgressCallback progress = PythonProgress(progress_arg);
         py::gil_scoped_release nogil;
-        return CheckDisparityNoiseOnGroundTruth(model, scenes, stride_px);
+        return CheckDisparityNoiseOnGroundTruth(model, scenes, stride_px, progress);
       },
-      py::arg("model"), py::arg("scenes"), py::arg("stride_px") = 2,
+      py::arg("model"), py::arg("scenes"), py::arg("stride_px") = 2, py::kw_only(), py::arg("progress") = py::none(),
       "The calibration test of a learned model on held-out scenes with ground truth (`rangebayes calibrate "
       "check-noise`): a NoiseModelCheck. GIL released.");
 }

@@ -7,6 +7,10 @@
 #include <filesystem>
 #include <limits>
 #include <random>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include "calibration/disparity_noise_model.h"
 #include "core/error.h"
@@ -48,8 +52,14 @@ TEST(DisparityFeatures, TexturedPlaneHasSmallSigmaNoJumpFlatHasTheCap) {
 TEST(LearnedNoise, FitFromTsukubaGroundTruthAndItsErrors) {
   GroundTruthNoiseOptions o;
   o.stride_px = 2;
+  std::vector<std::pair<std::string, double>> progress;
+  o.progress = [&](double fraction, std::string_view stage) { progress.emplace_back(stage, fraction); };
   GroundTruthNoiseSummary s;
   const DisparityNoiseModel m = CalibrateDisparityNoiseFromGroundTruth({"tests/data/stereo/tsukuba"}, o, &s);
+  // The scene, then the fit's start and each of its three starts.
+  const std::vector<std::pair<std::string, double>> expected = {
+      {"scene tsukuba (1 of 1)", 0.0}, {"fit", 0.0}, {"fit", 1.0 / 3.0}, {"fit", 2.0 / 3.0}, {"fit", 1.0}};
+  EXPECT_EQ(progress, expected);
   EXPECT_EQ(m.form, NoiseForm::kLearned);
   EXPECT_EQ(m.matcher, "sgbm");
   EXPECT_EQ(m.width_min_px, 384);
