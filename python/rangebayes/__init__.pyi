@@ -313,6 +313,18 @@ def evaluate_disparity(
     *, bad_thresholds_px: Sequence[float] = ..., estimate_scale: float = ...
 ) -> DisparityEvaluation: ...
 
+SYNTH_OPTIONS: dict[str, Any]
+
+class SynthRecording:
+    left: list[np.ndarray]
+    right: list[np.ndarray]
+    depth_m: np.ndarray
+    disparity_px: np.ndarray
+    rig: StereoRig
+    intrinsics: CameraIntrinsics
+
+def synth(*, out: Optional[StrPath] = ..., overwrite: bool = ..., **options: Any) -> SynthRecording: ...
+
 class DepthFrame:
     depth_m: npt.NDArray[np.float32]
     sigma_depth_m: npt.NDArray[np.float32]

@@ -347,6 +347,57 @@ score) replaces the scene's. Keywords: bad_thresholds_px, estimate_scale. GIL re
       "unknown.");
   m.attr("DISPARITY_EVALUATION_OPTIONS") =
       FieldsToDict(DisparityEvaluationOptionFields(), DisparityEvaluationOptions{});
+
+  py::class_<SynthRecording>(
+      m, "SynthRecording",
+      R"(A synthetic rectified stereo recording with exact ground truth (`rangebayes synth`): left,
+right (lists of uint8 (h, w) frames), depth_m and disparity_px of the left view (float32, NaN none), the rig and
+the intrinsics.)")
+      .def_property_readonly("left",
+                             [](const SynthRecording& r) {
+                               py::list out;
+                               for (const cv::Mat& f : r.left) out.append(ArrayFromMat(f));
+                               return out;
+                             })
+      .def_property_readonly("right",
+                             [](const SynthRecording& r) {
+                               py::list out;
+                               for (const cv::Mat& f : r.right) out.append(ArrayFromMat(f));
+                               return out;
+                             })
+      .def_property_readonly("depth_m", [](const SynthRecording& r) { return ArrayFromMat(r.depth_m); })
+      .def_property_readonly("disparity_px", [](const SynthRecording& r) { return ArrayFromMat(r.disparity_px); })
+      .def_readonly("rig", &SynthRecording::rig)
+      .def_readonly("intrinsics", &SynthRecording::intrinsics);
+  m.def(
+      "synth",
+      [](py::object out, bool overwrite, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        SynthOptions options;
+        ApplyKeywords(SynthOptionFields(), kw, &options, "synth");
+        options.Check();
+        std::string folder;
+        if (!out.is_none()) {
+          if (!py::isinstance<py::str>(out) && !IsPathLike(out))
+            throw py::type_error("synth: out must be a folder path");
+          folder = out.cast<PathArg>().string();
+        }
+        py::gil_scoped_release nogil;
+        SynthRecording recording = RenderSynthetic(options);
+        if (!folder.empty()) {
+          SynthWriteOptions write;
+          write.overwrite = overwrite;
+          WriteSyntheticRecording(recording, options, folder, write);
+        }
+        return recording;
+      },
+      py::kw_only(), py::arg("out") = py::none(), py::arg("overwrite") = false,
+      R"(Renders a synthetic recording of a known scene under projected patterns, as `rangebayes synth` does: a
+SynthRecording. out: also write it there as a recording folder (open_recording / replay read it; the same files as
+`synth --out`), overwrite: replace a recording already there. Keywords: rangebayes.SYNTH_OPTIONS (scene 'plane',
+'planes', 'box', 'sphere', 'cylinder' or 'stairs'; pattern 'random' or 'graycode'; frames, width, height, seed,
+...). GIL released.)");
+  m.attr("SYNTH_OPTIONS") = FieldsToDict(SynthOptionFields(), SynthOptions{});
 }
 
 }  // namespace rangebayes::python

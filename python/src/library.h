@@ -28,3 +28,4 @@
 #include "stereo/rectify.h"
 #include "stereo/sgbm_matcher.h"
 #include "stereo/spacetime_matcher.h"
+#include "stereo/synth.h"

@@ -271,4 +271,34 @@ const FieldTable<DisparityEvaluationOptions>& DisparityEvaluationOptionFields() 
   return table;
 }
 
+RB_PY_ENUM_NAMES(SynthScene, {{"plane", SynthScene::kPlane},
+                              {"planes", SynthScene::kPlanes},
+                              {"box", SynthScene::kBox},
+                              {"sphere", SynthScene::kSphere},
+                              {"cylinder", SynthScene::kCylinder},
+                              {"stairs", SynthScene::kStairs}});
+RB_PY_ENUM_NAMES(SynthPattern, {{"random", SynthPattern::kRandom}, {"graycode", SynthPattern::kGrayCode}});
+
+const FieldTable<SynthOptions>& SynthOptionFields() {
+  static const FieldTable<SynthOptions> table = {
+      RB_PY_FIELD(SynthOptions, scene),
+      RB_PY_FIELD(SynthOptions, pattern),
+      RB_PY_FIELD(SynthOptions, frames),
+      RB_PY_FIELD(SynthOptions, image_noise_gray),
+      RB_PY_FIELD(SynthOptions, seed),
+      RB_PY_FIELD(SynthOptions, width),
+      RB_PY_FIELD(SynthOptions, height),
+      RB_PY_FIELD(SynthOptions, focal_px),
+      RB_PY_FIELD(SynthOptions, baseline_m),
+      RB_PY_FIELD(SynthOptions, pattern_cell_px),
+      RB_PY_FIELD(SynthOptions, projector_roll_deg),
+      RB_PY_FIELD(SynthOptions, optics_blur_px),
+      RB_PY_FIELD(SynthOptions, ambient),
+      RB_PY_FIELD(SynthOptions, supersample),
+      RB_PY_FIELD(SynthOptions, pixel_jitter_px),
+      RB_PY_FIELD(SynthOptions, pixel_jitter_cell_px),
+  };
+  return table;
+}
+
 }  // namespace rangebayes::python

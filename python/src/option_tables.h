@@ -27,5 +27,6 @@ const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields();
 const FieldTable<NoiseCalibrationOptions>& PlaneNoiseOptionFields();
 const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields();
 const FieldTable<DisparityEvaluationOptions>& DisparityEvaluationOptionFields();
+const FieldTable<SynthOptions>& SynthOptionFields();
 
 }  // namespace rangebayes::python
