@@ -25,3 +25,10 @@ def test_smooth_scan(root, tmp_path):
 def test_replay_recording(root, tmp_path):
     run(root, "replay_recording.py", "--out", str(tmp_path), "--count", "2", cwd=tmp_path)
     assert len(list(tmp_path.glob("frame_*.ply"))) == 2
+
+
+def test_calibrate_noise(root, tmp_path):
+    run(root, "calibrate_noise.py", "--out", str(tmp_path), cwd=tmp_path)
+    assert (tmp_path / "residuals.png").stat().st_size > 1000
+    model = rb.read_noise_model(str(tmp_path / "noise.yaml"))
+    assert model.form == "floor-plus-scale" and model.samples > 1000
