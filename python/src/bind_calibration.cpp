@@ -101,9 +101,19 @@ void BindCalibration(py::module_& m) {
         const std::vector<std::string> right_patterns = PathList(right, "calibrate_rig: right");
         StereoCalibrationSummary summary;
         StereoRig rig;
+        std::vector<std::string> unpaired;
+        std::vector<CalibrationImagePair> pairs;
         {
           py::gil_scoped_release nogil;
-          const std::vector<CalibrationImagePair> pairs = PairCalibrationImages(left_patterns, right_patterns);
+          pairs = PairCalibrationImages(left_patterns, right_patterns, &unpaired);
+        }
+        // What the CLI prints as notices: images without a partner are left out.
+        for (const std::string& u : unpaired) {
+          const std::string text = "calibrate_rig: no partner image for " + u + " (skipped)";
+          if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // -W error
+        }
+        {
+          py::gil_scoped_release nogil;
           rig = CalibrateStereoRig(pairs, options, &summary, progress);
         }
         return std::make_pair(std::move(rig), std::move(summary));

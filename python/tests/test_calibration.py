@@ -24,6 +24,9 @@ def test_rig_is_the_cli_rig(tmp_path, cli, root):
     assert 0 < summary.rms_stereo_px < 0.5
     assert rig.baseline_m() == pytest.approx(0.083, abs=0.002)  # 25 mm squares
     assert "left01.jpg" in summary.brief_report()  # the table of views
+    # An image without a partner is left out with a warning (the CLI's notice).
+    with pytest.warns(UserWarning, match=r"no partner image for .*left01\.jpg"):
+        rb.calibrate_rig(lefts, [p for p in sorted(boards.glob("right*.jpg")) if p.name != "right01.jpg"])
 
 
 def test_rig_bad_input(root):
