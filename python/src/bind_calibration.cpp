@@ -108,10 +108,9 @@ void BindCalibration(py::module_& m) {
           pairs = PairCalibrationImages(left_patterns, right_patterns, &unpaired);
         }
         // What the CLI prints as notices: images without a partner are left out.
-        for (const std::string& u : unpaired) {
-          const std::string text = "calibrate_rig: no partner image for " + u + " (skipped)";
-          if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // -W error
-        }
+        std::vector<std::string> notices;
+        for (const std::string& u : unpaired) notices.push_back("no partner image for " + u + " (skipped)");
+        WarnNotices(notices, "calibrate_rig");
         {
           py::gil_scoped_release nogil;
           rig = CalibrateStereoRig(pairs, options, &summary, progress);
@@ -192,8 +191,10 @@ GIL released.)");
             }
           }
           NoiseCalibrationSummary summary;
+          RecordingReadSummary read;
+          const Recording recording = OpenRecording(folder, &read);
+          WarnNotices(read.notices, folder);
           py::gil_scoped_release nogil;
-          const Recording recording = OpenRecording(folder);
           RB_CHECK(rig || recording.rig.has_value(), folder, ": recording has no rig.yaml; give rig=");
           model = CalibrateDisparityNoise(recording, rig ? *rig : *recording.rig, options, &summary);
           report.brief = summary.BriefReport(model);

@@ -130,8 +130,16 @@ len(recording) frames; recording[i] / iteration load frames as StereoFrame (imag
             .attr("map")(self.attr("__getitem__"), py::module_::import("builtins").attr("range")(py::len(self)));
       });
   m.def(
-      "open_recording", [](const PathArg& folder) { return OpenRecording(folder.string()); }, py::arg("folder"),
-      "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/).");
+      "open_recording",
+      [](const PathArg& folder) {
+        RecordingReadSummary summary;
+        Recording recording = OpenRecording(folder.string(), &summary);
+        WarnNotices(summary.notices, folder.string());
+        return recording;
+      },
+      py::arg("folder"),
+      "Opens a recording folder (frames.csv, meta.yaml, rig.yaml, left/, right/). What the CLI prints as notices (a "
+      "cut last line, missing frames) are UserWarnings.");
 
   py::class_<PipelineResult>(m, "PipelineResult", R"(One pipeline result: index, last_index, timestamp_ns, frames,
 left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh or None), decimated
@@ -198,7 +206,14 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
           throw py::type_error("replay: rig must be a StereoRig or None, not " +
                                py::str(py::type::of(rig).attr("__name__")).cast<std::string>());
         }
-        Recording rec = is_path ? OpenRecording(recording.cast<PathArg>().string()) : recording.cast<Recording>();
+        Recording rec;
+        if (is_path) {
+          RecordingReadSummary read;
+          rec = OpenRecording(recording.cast<PathArg>().string(), &read);
+          WarnNotices(read.notices, rec.folder);
+        } else {
+          rec = recording.cast<Recording>();
+        }
         if (!rig.is_none()) rec.rig = rig.cast<StereoRig>();
         RB_CHECK(rec.rig.has_value(), rec.folder, ": has no rig.yaml (uncalibrated); give one with rig=");
         RB_CHECK(rec.num_frames() > 0, rec.folder, ": frames.csv lists no frame");

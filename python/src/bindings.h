@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/progress.h"
 #include "python/src/library.h"
@@ -40,6 +41,10 @@ ProgressCallback PythonProgress(py::object function, bool interruptible = true);
 // beta_given (the rule of `rangebayes smooth --prior` / `replay --prior`). `what` names the call in errors.
 void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
                          std::unique_ptr<SplinePotential>* learned, const std::string& what);
+
+// Each notice the CLI prints for an input (a mesh file repaired or triangulated, a recording's missing frames) as
+// a Python UserWarning "WHAT: notice". Needs the GIL; a warning turned into an error (-W error) is raised.
+void WarnNotices(const std::vector<std::string>& notices, const std::string& what);
 
 // True for an os.PathLike (pathlib.Path); a str is not one.
 bool IsPathLike(py::handle value);

@@ -49,6 +49,13 @@ py::object PopKeyword(py::dict& kwargs, const char* name) {
   return value;
 }
 
+void WarnNotices(const std::vector<std::string>& notices, const std::string& what) {
+  for (const std::string& notice : notices) {
+    const std::string text = what + ": " + notice;
+    if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();
+  }
+}
+
 bool IsPathLike(py::handle value) { return py::isinstance(value, py::module_::import("os").attr("PathLike")); }
 
 }  // namespace rangebayes::python

@@ -60,6 +60,20 @@ def test_recording_frames_are_numpy(recording_dir):
         rec[8]
 
 
+def test_recording_notices_are_warnings(tmp_path, recording_dir):
+    """What `replay` prints about a damaged recording (a frame missing on disk) reaches Python as a UserWarning."""
+    import shutil
+
+    damaged = tmp_path / "rec"
+    shutil.copytree(recording_dir, damaged)
+    (damaged / "left" / "000003.png").unlink()
+    with pytest.warns(UserWarning, match=r"frame 3: left/000003.png is missing"):
+        rec = rb.open_recording(damaged)
+    assert len(rec) == 8
+    with pytest.warns(UserWarning, match=r"frame 3: left/000003.png is missing"):
+        rb.replay(damaged, playback={"count": 1}, smooth=False, decimate=False)
+
+
 def test_stereo_sgbm_and_spacetime_then_triangulate(recording_dir):
     rec = rb.open_recording(str(recording_dir))
     f = rec[0]
