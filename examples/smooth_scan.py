@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Smooth a noisy scan and save a before/after picture (headless: matplotlib's Agg backend, no display).
+"""Smooth a noisy scan and save a before/after picture (rangebayes.render: headless, no display).
 
     python3 examples/smooth_scan.py [MESH] [--out DIR] [--noise K]
 
@@ -9,32 +9,11 @@ MESH defaults to the bundled trim-star scan; writes DIR/smoothed.ply and DIR/bef
 import argparse
 import pathlib
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import rangebayes as rb  # noqa: E402
+import rangebayes as rb
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-
-
-def shade(ax, mesh, title):
-    V, F = mesh.V, mesh.F
-    tri = V[F]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
-    light = np.array([0.3, 0.4, 1.0]) / np.linalg.norm([0.3, 0.4, 1.0])
-    order = np.argsort(tri[:, :, 2].mean(axis=1))  # painter's order along z
-    grey = np.clip(np.abs(n @ light), 0.05, 1.0)[order]
-    from matplotlib.collections import PolyCollection
-
-    ax.add_collection(PolyCollection(tri[order][:, :, :2], facecolors=plt.cm.gray(grey), edgecolors="none"))
-    ax.autoscale()
-    ax.set_aspect("equal")
-    ax.set_axis_off()
-    ax.set_title(title)
 
 
 def main():
@@ -51,10 +30,11 @@ def main():
     print(summary.brief_report(), end="")
     rb.write_mesh(str(out / "smoothed.ply"), smoothed)
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5))
-    shade(axes[0], noisy, "noisy")
-    shade(axes[1], smoothed, "smoothed")
-    fig.savefig(out / "before_after.png", dpi=80, bbox_inches="tight")
+    # One framing for both pictures (the noisy mesh's), side by side.
+    before = rb.render(noisy)
+    after = rb.render(smoothed, frame_like=noisy)
+    gap = np.full((before.shape[0], 8, 3), 255, np.uint8)
+    rb.write_png(out / "before_after.png", np.concatenate([before, gap, after], axis=1))
     print(f"wrote {out / 'smoothed.ply'} and {out / 'before_after.png'}")
 
 

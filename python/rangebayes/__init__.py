@@ -4,8 +4,9 @@ The C++ library from Python. Entry points: read_mesh / write_mesh, smooth (the s
 `rangebayes smooth`), decimate / decimate_animated, match / stereo / triangulate, read_rig / write_rig,
 read_noise_model / write_noise_model, calibrate_rig / calibrate_noise / check_noise_model,
 read_middlebury_scene / read_disparity / evaluate_disparity, synth, open_recording / replay, learn_prior,
-fuse (many scans, one model). Every library error is a rangebayes.Error (a RuntimeError) with the library's
-message. Open3D interop: to_open3d / from_open3d (when open3d is installed). Long calls release the GIL.
+fuse (many scans, one model), render / write_png (pictures of meshes). Every library error is a
+rangebayes.Error (a RuntimeError) with the library's message. Open3D interop: to_open3d / from_open3d (when
+open3d is installed). Long calls release the GIL.
 
 Importing sets glibc's malloc as the `rangebayes` CLI does, so that buffers freed by one call are reused by the
 next instead of being faulted in again: blocks up to 32 MiB come from the heap and up to 256 MiB of free heap

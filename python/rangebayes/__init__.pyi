@@ -465,6 +465,16 @@ def fuse(
     fusion: dict[str, Any] = ..., decimation: dict[str, Any] = ...,
 ) -> Tuple[Mesh, np.ndarray, ModelSummary]: ...
 
+# Pictures
+RENDER_OPTIONS: dict[str, Any]
+def render(
+    mesh: Union[Mesh, NoisyMesh, DecimatedMesh], *, frame_like: Optional[Union[Mesh, NoisyMesh]] = ...,
+    view_direction: Sequence[float] = ..., up: Sequence[float] = ..., light_in_camera: Sequence[float] = ...,
+    base_color: Sequence[float] = ..., background: Sequence[float] = ...,
+    **options: Any  # the RenderOptions fields: see RENDER_OPTIONS
+) -> np.ndarray: ...
+def write_png(path: StrPath, image: np.ndarray) -> None: ...
+
 # Open3D interop (needs open3d)
 def to_open3d(mesh: Union[Mesh, NoisyMesh, DecimatedMesh]) -> Any: ...
 def from_open3d(o3d_mesh: Any) -> Mesh: ...

@@ -1,12 +1,45 @@
-// core/: Mesh, NoisyMesh and mesh files.
+// core/: Mesh, NoisyMesh, mesh files and pictures of meshes.
+#include <pybind11/numpy.h>
 #include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
 #include "python/src/library.h"
+#include "python/src/option_tables.h"
 
 namespace rangebayes::python {
 namespace {
+
+// A 3-vector keyword (view_direction, up, colours): any sequence of three finite numbers.
+template <typename Vector>
+Vector Vector3(py::handle value, const std::string& what) {
+  std::vector<double> v;
+  try {
+    v = value.cast<std::vector<double>>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(what + ": expected three numbers");
+  }
+  if (v.size() != 3) throw py::value_error(what + ": expected three numbers, got " + std::to_string(v.size()));
+  for (double x : v) {
+    if (!std::isfinite(x)) throw py::value_error(what + ": not finite");
+  }
+  return Vector(static_cast<typename Vector::Scalar>(v[0]), static_cast<typename Vector::Scalar>(v[1]),
+                static_cast<typename Vector::Scalar>(v[2]));
+}
+
+// A (h, w, 3) uint8 array from an RgbImage (a copy).
+py::array ArrayFromRgb(const RgbImage& image) {
+  py::array_t<std::uint8_t> out(
+      {static_cast<py::ssize_t>(image.height), static_cast<py::ssize_t>(image.width), py::ssize_t{3}});
+  std::copy(image.rgb.begin(), image.rgb.end(), out.mutable_data());
+  return out;
+}
 
 // Normals: None gives (0, 3); else (n, 3) for n vertices (any n when num_vertices < 0).
 Normals NormalsFromArray(py::handle obj, Eigen::Index num_vertices) {
@@ -252,6 +285,92 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
                              [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
       .def_property_readonly("normal_index",
                              [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); });
+  m.def(
+      "render",
+      [](py::handle mesh, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        RenderOptions options;
+        options.width_px = 640;
+        options.height_px = 480;
+        options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+        for (const char* name : {"view_direction", "up", "light_in_camera"}) {
+          py::object value = PopKeyword(kw, name);
+          if (value.is_none()) continue;
+          const Eigen::Vector3d v = Vector3<Eigen::Vector3d>(value, std::string("render: ") + name);
+          if (std::string(name) == "view_direction") options.view_direction = v;
+          if (std::string(name) == "up") options.up = v;
+          if (std::string(name) == "light_in_camera") options.light_in_camera = v;
+        }
+        for (const char* name : {"base_color", "background"}) {
+          py::object value = PopKeyword(kw, name);
+          if (value.is_none()) continue;
+          const Eigen::Vector3f c = Vector3<Eigen::Vector3f>(value, std::string("render: ") + name);
+          (std::string(name) == "base_color" ? options.base_color : options.background) = c;
+        }
+        py::object frame_like = PopKeyword(kw, "frame_like");
+        ApplyKeywords(RenderOptionFields(), kw, &options, "render",
+                      "view_direction, up, light_in_camera, base_color, background, frame_like");
+        // The mesh, and a decimated mesh's patch normal fields for smooth shading.
+        NoisyMesh noisy;
+        if (py::isinstance<DecimatedMesh>(mesh)) {
+          const DecimatedMesh& d = mesh.cast<const DecimatedMesh&>();
+          noisy.mesh = d.mesh;
+          if (options.shading == Shading::kSmooth && !d.corner_normals.empty()) {
+            options.corner_normals.resize(3 * d.mesh.num_faces(), 3);
+            for (int f = 0; f < d.mesh.num_faces(); ++f) {
+              for (int c = 0; c < 3; ++c) {
+                options.corner_normals.row(3 * f + c) =
+                    d.corner_normals.normals.row(d.corner_normals.normal_index(f, c));
+              }
+            }
+          }
+        } else {
+          noisy = ToNoisyMesh(mesh, "render");
+        }
+        // The framing: a depth image's mesh as its camera saw it, any other from view_direction, fitted to the
+        // mesh, or to frame_like (so that pictures of a mesh and of its smoothed or decimated result match).
+        if (frame_like.is_none()) {
+          FitView(noisy, &options);
+        } else {
+          FitView(ToNoisyMesh(frame_like, "render: frame_like"), &options);
+        }
+        options.Check(noisy.mesh);
+        RgbImage image;
+        {
+          py::gil_scoped_release nogil;
+          image = RenderMesh(noisy.mesh, options);
+        }
+        return ArrayFromRgb(image);
+      },
+      py::arg("mesh"),
+      R"(A picture of a mesh (Mesh, NoisyMesh or DecimatedMesh) as the CLI's --png pictures draw it: (h, w, 3) uint8
+RGB, z-buffered, Lambert-shaded, headless. A mesh from a depth image is seen as its camera saw it, any other along
+view_direction (default (-0.6, -0.5, -1)); frame_like: frame the view on another mesh (the noisy input of a
+smoothed result, so both pictures match). Keywords: rangebayes.RENDER_OPTIONS (width_px 640, height_px 480,
+shading 'flat' or 'smooth' (a DecimatedMesh: its patch normal fields), projection, ...), view_direction, up,
+light_in_camera, base_color, background (three numbers each). GIL released.)");
+  m.attr("RENDER_OPTIONS") = FieldsToDict(RenderOptionFields(), [] {
+    RenderOptions o;
+    o.width_px = 640;
+    o.height_px = 480;
+    return o;
+  }());
+  m.def(
+      "write_png",
+      [](const PathArg& path, py::handle image) {
+        if (!py::isinstance<py::array_t<std::uint8_t>>(image)) {
+          throw py::type_error("write_png: expected an (h, w, 3) uint8 RGB array");
+        }
+        const auto a = py::array_t<std::uint8_t, py::array::c_style>::ensure(image);
+        if (!a || a.ndim() != 3 || a.shape(2) != 3 || a.shape(0) < 1 || a.shape(1) < 1) {
+          throw py::type_error("write_png: expected an (h, w, 3) uint8 RGB array");
+        }
+        RgbImage rgb(static_cast<int>(a.shape(1)), static_cast<int>(a.shape(0)));
+        std::copy(a.data(), a.data() + a.size(), rgb.rgb.begin());
+        py::gil_scoped_release nogil;
+        WritePng(rgb, path.string());
+      },
+      py::arg("path"), py::arg("image"), "Writes an (h, w, 3) uint8 RGB array (render()'s pictures) as a PNG.");
 }
 
 }  // namespace rangebayes::python

@@ -301,4 +301,18 @@ const FieldTable<SynthOptions>& SynthOptionFields() {
   return table;
 }
 
+RB_PY_ENUM_NAMES(Projection, {{"orthographic", Projection::kOrthographic}, {"perspective", Projection::kPerspective}});
+RB_PY_ENUM_NAMES(Shading, {{"flat", Shading::kFlat}, {"smooth", Shading::kSmooth}});
+
+// Vector fields (view_direction, up, colours) and the framing are separate keywords of render().
+const FieldTable<RenderOptions>& RenderOptionFields() {
+  static const FieldTable<RenderOptions> table = {
+      RB_PY_FIELD(RenderOptions, width_px),        RB_PY_FIELD(RenderOptions, height_px),
+      RB_PY_FIELD(RenderOptions, projection),      RB_PY_FIELD(RenderOptions, field_of_view_deg),
+      RB_PY_FIELD(RenderOptions, margin_fraction), RB_PY_FIELD(RenderOptions, shading),
+      RB_PY_FIELD(RenderOptions, ambient),         RB_PY_FIELD(RenderOptions, two_sided),
+  };
+  return table;
+}
+
 }  // namespace rangebayes::python

@@ -28,5 +28,6 @@ const FieldTable<NoiseCalibrationOptions>& PlaneNoiseOptionFields();
 const FieldTable<GroundTruthNoiseOptions>& GroundTruthNoiseOptionFields();
 const FieldTable<DisparityEvaluationOptions>& DisparityEvaluationOptionFields();
 const FieldTable<SynthOptions>& SynthOptionFields();
+const FieldTable<RenderOptions>& RenderOptionFields();
 
 }  // namespace rangebayes::python
