@@ -71,12 +71,7 @@ RgbImage Picture(const NoisyMesh& input, const DecimatedMesh& d) {
   const RgbImage b = RenderMesh(dense, coloured);
   RenderOptions smooth = options;
   smooth.shading = Shading::kSmooth;
-  smooth.corner_normals.resize(3 * d.mesh.num_faces(), 3);
-  for (int f = 0; f < d.mesh.num_faces(); ++f) {
-    for (int c = 0; c < 3; ++c) {
-      smooth.corner_normals.row(3 * f + c) = d.corner_normals.normals.row(d.corner_normals.normal_index(f, c));
-    }
-  }
+  smooth.corner_normals = CornerNormalRows(d.corner_normals);
   const RgbImage c = RenderMesh(d.mesh, smooth);
   return SideBySide({a, b, c});
 }

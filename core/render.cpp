@@ -271,6 +271,15 @@ void RenderOptions::Check(const Mesh& mesh) const {
   RB_CHECK(light_in_camera.norm() > 0, "render: light_in_camera must be nonzero");
 }
 
+Normals CornerNormalRows(const CornerNormals& corner_normals) {
+  const Eigen::Index faces = corner_normals.normal_index.rows();
+  Normals rows(3 * faces, 3);
+  for (Eigen::Index f = 0; f < faces; ++f) {
+    for (int k = 0; k < 3; ++k) rows.row(3 * f + k) = corner_normals.normals.row(corner_normals.normal_index(f, k));
+  }
+  return rows;
+}
+
 Normals AreaWeightedVertexNormals(const Mesh& mesh) {
   Normals normals = Normals::Zero(mesh.num_vertices(), 3);
   for (int f = 0; f < mesh.num_faces(); ++f) {

@@ -15,6 +15,7 @@
 
 #include "core/image.h"
 #include "core/mesh.h"
+#include "core/mesh_io.h"  // CornerNormals
 
 namespace rangebayes {
 
@@ -85,6 +86,10 @@ bool SetCameraFrameView(const NoisyMesh& mesh, RenderOptions* options);
 // The framing of a picture of `mesh` and of the meshes made from it (smoothed, decimated), shared by all of them:
 // SetCameraFrameView where it applies, else options' own view_direction and up, fitted to the bounding box.
 void FitView(const NoisyMesh& mesh, RenderOptions* options);
+
+// RenderOptions::corner_normals from indexed per-corner normals (a decimated mesh's patch normal fields): row
+// 3·f + k is corner_normals.normals.row(corner_normals.normal_index(f, k)).
+Normals CornerNormalRows(const CornerNormals& corner_normals);
 
 // Area-weighted vertex normals (#V×3, unit; zero rows for isolated vertices or all-degenerate fans).
 Normals AreaWeightedVertexNormals(const Mesh& mesh);

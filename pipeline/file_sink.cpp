@@ -129,12 +129,7 @@ void FileSink::Consume(const PipelineResult& result) {
       RenderOptions smooth_view = view;
       if (!d.corner_normals.empty()) {
         smooth_view.shading = Shading::kSmooth;
-        smooth_view.corner_normals.resize(3 * d.mesh.num_faces(), 3);
-        for (int f = 0; f < d.mesh.num_faces(); ++f) {
-          for (int k = 0; k < 3; ++k) {
-            smooth_view.corner_normals.row(3 * f + k) = d.corner_normals.normals.row(d.corner_normals.normal_index(f, k));
-          }
-        }
+        smooth_view.corner_normals = CornerNormalRows(d.corner_normals);
       }
       panels.push_back(RenderMesh(d.mesh, smooth_view));
     }

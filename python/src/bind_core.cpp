@@ -316,13 +316,7 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
           const DecimatedMesh& d = mesh.cast<const DecimatedMesh&>();
           noisy.mesh = d.mesh;
           if (options.shading == Shading::kSmooth && !d.corner_normals.empty()) {
-            options.corner_normals.resize(3 * d.mesh.num_faces(), 3);
-            for (int f = 0; f < d.mesh.num_faces(); ++f) {
-              for (int c = 0; c < 3; ++c) {
-                options.corner_normals.row(3 * f + c) =
-                    d.corner_normals.normals.row(d.corner_normals.normal_index(f, c));
-              }
-            }
+            options.corner_normals = CornerNormalRows(d.corner_normals);
           }
         } else {
           noisy = ToNoisyMesh(mesh, "render");
