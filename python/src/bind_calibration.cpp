@@ -193,7 +193,7 @@ GIL released.)");
           NoiseCalibrationSummary summary;
           RecordingReadSummary read;
           const Recording recording = OpenRecording(folder, &read);
-          WarnNotices(read.notices, folder);
+          WarnNotices(read.notices, "");  // they name the folder
           py::gil_scoped_release nogil;
           RB_CHECK(rig || recording.rig.has_value(), folder, ": recording has no rig.yaml; give rig=");
           model = CalibrateDisparityNoise(recording, rig ? *rig : *recording.rig, options, &summary);

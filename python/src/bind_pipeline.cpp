@@ -134,7 +134,7 @@ len(recording) frames; recording[i] / iteration load frames as StereoFrame (imag
       [](const PathArg& folder) {
         RecordingReadSummary summary;
         Recording recording = OpenRecording(folder.string(), &summary);
-        WarnNotices(summary.notices, folder.string());
+        WarnNotices(summary.notices, "");  // they name the folder
         return recording;
       },
       py::arg("folder"),
@@ -210,7 +210,7 @@ left_rectified (numpy), depth (DepthFrame), raw_mesh (NoisyMesh), smoothed (Mesh
         if (is_path) {
           RecordingReadSummary read;
           rec = OpenRecording(recording.cast<PathArg>().string(), &read);
-          WarnNotices(read.notices, rec.folder);
+          WarnNotices(read.notices, "");
         } else {
           rec = recording.cast<Recording>();
         }

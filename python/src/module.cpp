@@ -51,7 +51,7 @@ py::object PopKeyword(py::dict& kwargs, const char* name) {
 
 void WarnNotices(const std::vector<std::string>& notices, const std::string& what) {
   for (const std::string& notice : notices) {
-    const std::string text = what + ": " + notice;
+    const std::string text = what.empty() ? notice : what + ": " + notice;
     if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();
   }
 }

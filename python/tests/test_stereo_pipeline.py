@@ -62,15 +62,17 @@ def test_recording_frames_are_numpy(recording_dir):
 
 def test_recording_notices_are_warnings(tmp_path, recording_dir):
     """What `replay` prints about a damaged recording (a frame missing on disk) reaches Python as a UserWarning."""
+    import re
     import shutil
 
     damaged = tmp_path / "rec"
     shutil.copytree(recording_dir, damaged)
     (damaged / "left" / "000003.png").unlink()
-    with pytest.warns(UserWarning, match=r"frame 3: left/000003.png is missing"):
+    notice = "^" + re.escape(f"{damaged}: frame 3: left/000003.png is missing") + "$"  # the CLI's line
+    with pytest.warns(UserWarning, match=notice):
         rec = rb.open_recording(damaged)
     assert len(rec) == 8
-    with pytest.warns(UserWarning, match=r"frame 3: left/000003.png is missing"):
+    with pytest.warns(UserWarning, match=notice):
         rb.replay(damaged, playback={"count": 1}, smooth=False, decimate=False)
 
 
