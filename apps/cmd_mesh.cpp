@@ -28,6 +28,7 @@ nlohmann::json Vec(const Eigen::RowVector3d& v) { return nlohmann::json::array({
 void RunInfo(const InfoArgs& args) {
   MeshReadSummary summary;
   const NoisyMesh noisy = ReadMeshOrRangeGrid(args.mesh_path, &summary);
+  if (!summary.range_grid.empty()) summary.notices.push_back(summary.range_grid);  // info lists it as a note
   const MeshInfo info = DescribeMesh(noisy);
   if (args.json) {
     const MeshValidation& v = info.validation;

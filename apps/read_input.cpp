@@ -11,6 +11,7 @@ NoisyMesh ReadInputMesh(const std::string& path, bool quiet) {
   MeshReadSummary summary;
   NoisyMesh noisy = ReadMeshOrRangeGrid(path, &summary);
   for (const std::string& notice : summary.notices) Notice(quiet, path + ": " + notice);
+  if (!summary.range_grid.empty()) Notice(quiet, path + ": " + summary.range_grid);
   return noisy;
 }
 

@@ -17,7 +17,8 @@ enum class PlyEncoding { kBinaryLittleEndian, kAscii, kBinaryBigEndian };
 struct MeshReadSummary {
   MeshFormat format = MeshFormat::kPly;
   int polygons_triangulated = 0;
-  std::vector<std::string> notices;
+  std::vector<std::string> notices;  // what the reader left out or changed (skipped elements, ignored normals, ...)
+  std::string range_grid;            // how a range grid without faces was triangulated (fusion/scan.h); "" if not
 };
 
 // Per-face-corner normals: normal_index(f, k) indexes a row of normals for corner k of face f.

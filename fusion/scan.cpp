@@ -352,10 +352,9 @@ NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary,
   RangeGridScanSummary made;
   Scan scan = MakeRangeGridScan(grid, path, options, &made);
   if (summary != nullptr) {
-    summary->notices.push_back(StrCat("range grid ", grid.width, "x", grid.height, " triangulated: ", made.faces,
-                                      " faces, ", made.cut_edges, made.cut_edges == 1 ? " edge" : " edges",
-                                      " cut at discontinuities; covariance along ",
-                                      "the scanner's rays (", made.ray_model, ")"));
+    summary->range_grid = StrCat("range grid ", grid.width, "x", grid.height, " triangulated: ", made.faces, " faces, ",
+                                 made.cut_edges, made.cut_edges == 1 ? " edge" : " edges",
+                                 " cut at discontinuities; covariance along the scanner's rays (", made.ray_model, ")");
   }
   return std::move(scan.noisy);
 }

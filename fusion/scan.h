@@ -84,7 +84,7 @@ Scan ReadScan(const std::string& path, const RangeGridScanOptions& options = {},
 
 // A mesh file as the mesh commands (`info`, `smooth`, `decimate`, `convert`) read it: a PLY with a range_grid and
 // no faces (the Stanford scans) is triangulated as MakeRangeGridScan does, with its ray-aligned covariances and its
-// grid cells as pixels, so that smoothing treats it as the organized scan it is (a notice in *summary says what the
+// grid cells as pixels, so that smoothing treats it as the organized scan it is (summary->range_grid says what the
 // triangulation made); any other file reads as ReadNoisyMesh reads it.
 NoisyMesh ReadMeshOrRangeGrid(const std::string& path, MeshReadSummary* summary = nullptr,
                               const RangeGridScanOptions& options = {});

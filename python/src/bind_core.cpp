@@ -230,10 +230,12 @@ writable views of the C++ storage (no copy); assignment copies.)")
       "read_mesh",
       [](const PathArg& path) -> py::object {
         NoisyMesh noisy;
+        MeshReadSummary summary;
         {
           py::gil_scoped_release nogil;
-          noisy = ReadMeshOrRangeGrid(path.string());
+          noisy = ReadMeshOrRangeGrid(path.string(), &summary);
         }
+        WarnNotices(summary.notices, path.string());  // not summary.range_grid: the docstring says so
         if (noisy.has_covariance()) return py::cast(std::move(noisy));
         return py::cast(std::move(noisy.mesh));
       },
@@ -241,12 +243,19 @@ writable views of the C++ storage (no copy); assignment copies.)")
       R"(Reads a PLY / OBJ / OFF mesh (by extension). Returns a NoisyMesh when the file has per-vertex covariances
 (PLY cov_xx..cov_zz), else a Mesh. A PLY range-grid scan without faces (the Stanford scans) is triangulated as the
 CLI reads it, with the scanner's covariances: a NoisyMesh. Raises rangebayes.Error naming the file and line on
-bad input.)");
+bad input; what the reader left out or changed (polygons fan-triangulated, normals ignored) is a UserWarning, as
+the CLI prints it.)");
   m.def(
       "read_noisy_mesh",
       [](const PathArg& path) {
-        py::gil_scoped_release nogil;
-        return ReadMeshOrRangeGrid(path.string());
+        NoisyMesh noisy;
+        MeshReadSummary summary;
+        {
+          py::gil_scoped_release nogil;
+          noisy = ReadMeshOrRangeGrid(path.string(), &summary);
+        }
+        WarnNotices(summary.notices, path.string());
+        return noisy;
       },
       py::arg("path"),
       "Reads a mesh as a NoisyMesh (covariances empty when the file has none; range grids as read_mesh reads them).");

@@ -42,7 +42,7 @@ ProgressCallback PythonProgress(py::object function, bool interruptible = true);
 void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
                          std::unique_ptr<SplinePotential>* learned, const std::string& what);
 
-// Each notice the CLI prints about an input (a recording's missing frames, an image without a partner) as a Python
+// Each notice the CLI prints about an input (a recording's missing frames, a mesh's ignored normals) as a Python
 // UserWarning "WHAT: notice" ("notice" when `what` is empty: the notice names its input already). Needs the GIL;
 // a warning turned into an error (-W error) is raised.
 void WarnNotices(const std::vector<std::string>& notices, const std::string& what);

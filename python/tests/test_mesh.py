@@ -1,5 +1,8 @@
 """Meshes from and to numpy and files: dtypes, shapes, strides, views, copies, errors, Open3D."""
 
+import re
+import warnings
+
 import numpy as np
 import pytest
 
@@ -91,9 +94,21 @@ def test_files_round_trip(tmp_path, trim_star):
     np.testing.assert_array_equal(back.covariances[:, r, c], noisy.covariances[:, r, c])
 
 
+def test_reader_notices_are_warnings(tmp_path):
+    """What the reader left out or changed, which the CLI prints as a notice, is a UserWarning."""
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    notice = "^" + re.escape(f"{tmp_path / 'quad.obj'}: 1 polygons with more than 3 vertices were fan-triangulated")
+    with pytest.warns(UserWarning, match=notice):
+        assert rb.read_mesh(tmp_path / "quad.obj").num_faces == 2
+    with pytest.warns(UserWarning, match=notice):
+        rb.read_noisy_mesh(tmp_path / "quad.obj")
+
+
 def test_range_grid_scans_read_as_the_cli_reads_them(root, cli, tmp_path):
     piece = root / "tests" / "data" / "scans" / "bun000_piece.ply"
-    scan = rb.read_mesh(str(piece))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a range grid's triangulation is no repair: no warning
+        scan = rb.read_mesh(str(piece))
     assert isinstance(scan, rb.NoisyMesh) and scan.has_covariance and scan.num_faces > 10000
     np.testing.assert_array_equal(rb.read_noisy_mesh(str(piece)).mesh.F, scan.mesh.F)
     import subprocess
