@@ -15,11 +15,6 @@
 namespace rangebayes::python {
 namespace {
 
-bool TakeBool(py::dict& kw, const char* name, bool fallback) {
-  py::object value = PopKeyword(kw, name);
-  return value.is_none() ? fallback : FieldFromPython<bool>(value, std::string("fuse: ") + name);
-}
-
 // A rigid 4×4 world_from_scan matrix (rotation orthonormal within 1e-6, det +1, last row 0 0 0 1).
 Eigen::Isometry3d PoseFromArray(py::handle value, size_t k) {
   const std::string what = "fuse: poses[" + std::to_string(k) + "]";
@@ -114,9 +109,6 @@ void BindFusion(py::module_& m) {
       [](py::handle scan_args, py::object poses_arg, py::kwargs kwargs) {
         py::dict kw = py::dict(kwargs);
         ModelOptions options;
-        options.align = TakeBool(kw, "align", true);
-        options.smooth = TakeBool(kw, "smooth", false);
-        options.decimate = TakeBool(kw, "decimate", false);
         options.progress = PythonProgress(PopKeyword(kw, "progress"));
         RangeGridScanOptions scan_options;
         ApplyNestedKeywords(kw, "scan", ScanOptionFields(), &scan_options, "fuse");
@@ -124,11 +116,8 @@ void BindFusion(py::module_& m) {
         ApplyNestedKeywords(kw, "smoothing", SmoothOptionFields(), &options.smoothing, "fuse");
         ApplyNestedKeywords(kw, "fusion", FuseOptionFields(), &options.fusion, "fuse");
         ApplyNestedKeywords(kw, "decimation", DecimateOptionFields(), &options.decimation, "fuse");
-        if (!kw.empty()) {
-          throw py::type_error("fuse: unexpected keyword '" + py::cast<std::string>((*kw.begin()).first) +
-                               "'; valid: align, smooth, decimate, scan, registration, smoothing, fusion, "
-                               "decimation, progress");
-        }
+        ApplyKeywords(ModelOptionFields(), kw, &options, "fuse",
+                      "progress, scan, registration, smoothing, fusion, decimation");
         scan_options.Check();
         options.Check();
         if (py::isinstance<py::str>(scan_args) || IsPathLike(scan_args) || !py::isinstance<py::iterable>(scan_args)) {

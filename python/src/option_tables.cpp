@@ -201,6 +201,16 @@ const FieldTable<RegisterOptions>& RegisterOptionFields() {
   return table;
 }
 
+// The nested options (registration, smoothing, fusion, decimation) and progress are separate arguments of fuse().
+const FieldTable<ModelOptions>& ModelOptionFields() {
+  static const FieldTable<ModelOptions> table = {
+      RB_PY_FIELD(ModelOptions, align),
+      RB_PY_FIELD(ModelOptions, smooth),
+      RB_PY_FIELD(ModelOptions, decimate),
+  };
+  return table;
+}
+
 const FieldTable<FuseOptions>& FuseOptionFields() {
   static const FieldTable<FuseOptions> table = {
       RB_PY_FIELD(FuseOptions, voxel_edges),       RB_PY_FIELD(FuseOptions, voxel_size),

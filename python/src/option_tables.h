@@ -21,6 +21,7 @@ const FieldTable<PipelineOptions>& PipelineOptionFields();
 const FieldTable<PlaybackOptions>& PlaybackOptionFields();
 const FieldTable<RangeGridScanOptions>& ScanOptionFields();
 const FieldTable<RegisterOptions>& RegisterOptionFields();
+const FieldTable<ModelOptions>& ModelOptionFields();
 const FieldTable<FuseOptions>& FuseOptionFields();
 const FieldTable<BoardSpec>& BoardOptionFields();
 const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields();

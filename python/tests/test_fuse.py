@@ -89,7 +89,7 @@ def test_bad_input_is_named(pieces, tmp_path):
         rb.fuse(scans, align=False)  # identity poses, 45 degrees apart
     with pytest.raises(rb.Error, match="alignment needs at least two scans"):
         rb.fuse(scans[:1])
-    with pytest.raises(TypeError, match="unexpected keyword 'voxel'"):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'voxel'"):
         rb.fuse(scans, conf, voxel=0.001)
     with pytest.raises(TypeError, match=r"fuse\(fusion=...\).*voxl"):
         rb.fuse(scans, conf, fusion={"voxl": 0.001})
