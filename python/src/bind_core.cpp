@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "python/src/bindings.h"
@@ -31,6 +32,15 @@ Vector Vector3(py::handle value, const std::string& what) {
   }
   return Vector(static_cast<typename Vector::Scalar>(v[0]), static_cast<typename Vector::Scalar>(v[1]),
                 static_cast<typename Vector::Scalar>(v[2]));
+}
+
+// render()'s defaults: the library's, in a 640×480 picture seen obliquely (as the decimate command's pictures).
+RenderOptions PythonRenderDefaults() {
+  RenderOptions options;
+  options.width_px = 640;
+  options.height_px = 480;
+  options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
+  return options;
 }
 
 // A (h, w, 3) uint8 array from an RgbImage (a copy).
@@ -298,23 +308,18 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
       "render",
       [](py::handle mesh, py::kwargs kwargs) {
         py::dict kw = py::dict(kwargs);
-        RenderOptions options;
-        options.width_px = 640;
-        options.height_px = 480;
-        options.view_direction = Eigen::Vector3d(-0.6, -0.5, -1.0);
-        for (const char* name : {"view_direction", "up", "light_in_camera"}) {
+        RenderOptions options = PythonRenderDefaults();
+        for (const auto& [name, field] :
+             {std::pair<const char*, Eigen::Vector3d*>{"view_direction", &options.view_direction},
+              {"up", &options.up},
+              {"light_in_camera", &options.light_in_camera}}) {
           py::object value = PopKeyword(kw, name);
-          if (value.is_none()) continue;
-          const Eigen::Vector3d v = Vector3<Eigen::Vector3d>(value, std::string("render: ") + name);
-          if (std::string(name) == "view_direction") options.view_direction = v;
-          if (std::string(name) == "up") options.up = v;
-          if (std::string(name) == "light_in_camera") options.light_in_camera = v;
+          if (!value.is_none()) *field = Vector3<Eigen::Vector3d>(value, std::string("render: ") + name);
         }
-        for (const char* name : {"base_color", "background"}) {
+        for (const auto& [name, field] : {std::pair<const char*, Eigen::Vector3f*>{"base_color", &options.base_color},
+                                          {"background", &options.background}}) {
           py::object value = PopKeyword(kw, name);
-          if (value.is_none()) continue;
-          const Eigen::Vector3f c = Vector3<Eigen::Vector3f>(value, std::string("render: ") + name);
-          (std::string(name) == "base_color" ? options.base_color : options.background) = c;
+          if (!value.is_none()) *field = Vector3<Eigen::Vector3f>(value, std::string("render: ") + name);
         }
         py::object frame_like = PopKeyword(kw, "frame_like");
         ApplyKeywords(RenderOptionFields(), kw, &options, "render",
@@ -352,12 +357,7 @@ view_direction (default (-0.6, -0.5, -1)); frame_like: frame the view on another
 smoothed result, so both pictures match). Keywords: rangebayes.RENDER_OPTIONS (width_px 640, height_px 480,
 shading 'flat' or 'smooth' (a DecimatedMesh: its patch normal fields), projection, ...), view_direction, up,
 light_in_camera, base_color, background (three numbers each). GIL released.)");
-  m.attr("RENDER_OPTIONS") = FieldsToDict(RenderOptionFields(), [] {
-    RenderOptions o;
-    o.width_px = 640;
-    o.height_px = 480;
-    return o;
-  }());
+  m.attr("RENDER_OPTIONS") = FieldsToDict(RenderOptionFields(), PythonRenderDefaults());
   m.def(
       "write_png",
       [](const PathArg& path, py::handle image) {
