@@ -70,10 +70,12 @@ m="$work"/manifest
 mkdir -p "$m"
 ln -s "$src"/recordings "$m"/recordings
 ln -s "$src"/tests/data/meshes "$m"/meshes
-long='replay recordings/synth_planes_320x240 --repeat 16 --downsample 4 --tolerance fast --no-previews --out replay_long'
+# At a quarter of the recorded frame rate, so that the long tasks last at least 17 s on any machine: played as fast
+# as possible they took 5.6 s on a fast one and ended before Slurm's 3 s scheduling passes had started B's task.
+long='replay recordings/synth_planes_320x240 --repeat 16 --speed recorded --speed-factor 0.25 --downsample 4 --tolerance fast --no-previews --out replay_long'
 cat >"$m"/tasks.txt <<MANIFEST
 smooth meshes/trim-star_noisy_gauss_n3.obj trim-star.ply --tolerance fast --threads 1
-# the long task: 128 frames (the recording's 8, played 16 times), killed while it writes them
+# the long task: 128 frames (the recording's 8, played 16 times at 7.5 frames/s), killed while it writes them
 $long
 smooth meshes/fandisk_noisy_gauss0.3.obj fandisk.ply --noise 0.3 --tolerance fast --threads 1
 MANIFEST
