@@ -72,9 +72,16 @@ bool RayPreconditioner::Update(const Eigen::VectorXd& x) {
     coarse = std::move(next);
   }
   const Eigen::SparseMatrix<double>& a = levels_.size() == 1 ? a_ : coarse;
-  if (!analysed_) {
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const auto columns = static_cast<size_t>(a.outerSize()) + 1;
+  const auto entries = static_cast<size_t>(a.nonZeros());
+  if (analysed_outer_.size() != columns || analysed_inner_.size() != entries ||
+      !std::equal(outer, outer + columns, analysed_outer_.begin()) ||
+      !std::equal(inner, inner + entries, analysed_inner_.begin())) {
     coarsest_.analyzePattern(a);
-    analysed_ = true;
+    analysed_outer_.assign(outer, outer + columns);
+    analysed_inner_.assign(inner, inner + entries);
   }
   coarsest_.factorize(a);
   ++updates_;

@@ -64,7 +64,10 @@ class RayPreconditioner {
   std::vector<Level> levels_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarsest_;
   int direct_vertices_;
-  bool analysed_ = false;
+  // The pattern coarsest_ was analysed for: the Galerkin products drop exact zeros, so a weight that the
+  // Gauss–Newton matrix clips to 0 (a learned prior's falling stretch) changes the coarse pattern between updates,
+  // and factorize() on a pattern other than the analysed one writes outside its buffers.
+  std::vector<int> analysed_outer_, analysed_inner_;
   bool valid_ = false;
   int updates_ = 0;
   // A's entries refilled in place: the pattern of SmoothingEnergy::RayGaussNewton, its values, and for each value

@@ -19,6 +19,7 @@
 #include "bayes/potential.h"
 #include "bayes/ray_preconditioner.h"
 #include "bayes/smoothing_energy.h"
+#include "bayes/spline_potential.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "tests/bayes/test_meshes.h"
@@ -415,6 +416,49 @@ TEST(RayPreconditioner, IsSymmetricPositiveDefinite) {
       EXPECT_GT(u.dot(mu), 0);
       EXPECT_TRUE(mu.allFinite());
     }
+  }
+}
+
+// The Galerkin products drop exact zeros, and the Gauss–Newton matrix clips a pair's weight to 0 where a learned
+// prior falls, so the coarsest level's pattern changes between updates: from a rough surface (many normal
+// differences on the falling stretch) to a smooth one. Factorising the new pattern with the analysis of the old
+// one wrote outside the factor's buffers (a segfault of `smooth --prior` on a 42,000-vertex range grid); the
+// preconditioner after both updates must equal one made at the second state alone.
+TEST(RayPreconditioner, FollowsACoarsePatternThatChanges) {
+  const NoisyMesh input = testing::RangeGrid(60, 50, 0.03, 0.001, 6);
+  std::vector<Eigen::Matrix3d> information;
+  for (const Eigen::Matrix3d& c : input.covariance) information.push_back(InformationFromCovariance(c));
+  SplinePotentialOptions spline;
+  Eigen::VectorXd theta(spline.num_knots);  // rises to 1 at d = 0.4, falls to 0.3 at d = 1.2, then to b(2)
+  for (int j = 0; j < spline.num_knots; ++j) {
+    theta[j] = j <= 3   ? 0.01 + (1.0 - 0.01) * j / 3.0
+               : j <= 9 ? 1.0 - 0.7 * (j - 3) / 6.0
+                        : 0.3 + (std::sqrt(4.0 + spline.epsilon_squared) - 0.3) * (j - 9) / 6.0;
+  }
+  const SplinePotential potential(spline, theta);
+  const SmoothingEnergy energy(input.mesh, information, 2.4, potential);
+  const std::vector<GridLevel> levels = BuildGridHierarchy(input, GridHierarchyOptions{.min_vertices = 100});
+  ASSERT_GE(levels.size(), 2u);
+  std::mt19937 rng(4);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  Eigen::VectorXd rough = energy.Measurements();
+  for (Eigen::Index i = 0; i < rough.size(); ++i) rough[i] += 0.05 * gauss(rng);
+  const NoisyMesh clean = testing::RangeGrid(60, 50, 0.0, 0.0, 6);
+  Eigen::VectorXd smooth(rough.size());
+  for (int i = 0; i < clean.mesh.num_vertices(); ++i) smooth.segment<3>(3 * i) = clean.mesh.V.row(i).transpose();
+
+  RayPreconditioner changed(energy, ProlongationMatrices(levels, 0, {}), 10);
+  ASSERT_TRUE(changed.Update(rough));
+  ASSERT_TRUE(changed.Update(smooth));
+  RayPreconditioner fresh(energy, ProlongationMatrices(levels, 0, {}), 10);
+  ASSERT_TRUE(fresh.Update(smooth));
+  for (int trial = 0; trial < 3; ++trial) {
+    Eigen::VectorXd u(rough.size()), a, b;
+    for (Eigen::Index i = 0; i < u.size(); ++i) u[i] = gauss(rng);
+    changed.Apply(u, &a);
+    fresh.Apply(u, &b);
+    ASSERT_TRUE(a.allFinite());
+    EXPECT_LT((a - b).norm(), 1e-9 * b.norm());
   }
 }
 
