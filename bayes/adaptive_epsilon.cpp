@@ -77,6 +77,7 @@ SmoothOptions FastPrepassOptions(const SmoothOptions& options, int max_iteration
   pre.tolerance = SmoothTolerance::kFast;
   pre.max_iterations = max_iterations;
   pre.face_epsilon_squared.clear();
+  pre.epsilon_continuation_stages = 0;  // the final solve takes per-face ε, so no stages there either
   pre.progress = nullptr;
   pre.adaptive_epsilon = false;
   return pre;

@@ -279,10 +279,11 @@ struct MinimiseResult {
 // at a vertex, which goes as |e|²/|c|², exceeds the rest of the mesh's by up to 1e9, and a step along −(2W)⁻¹g
 // that suits the rest turns those faces' normals over: the solve stalled at its start ("no further decrease").
 // Vertices whose prior stiffness (SmoothingEnergy::StiffVertices, trace) exceeds kStiffRatio times the median
-// vertex's take M_i = 2W_i + B_i instead (block Jacobi); on meshes without such vertices nothing changes. Rebuilt
-// every kRayRefreshIterations, as slivers open up. Largest / median stiffness: ≤ 1.2e3 on 25 noisy and clean
-// benchmark meshes (igea; most below 200), 3.5e8 on the GuidedDenoising iron scan and 4e8 on camelhead, which
-// stalled before and converge with a cut of 1e4 or 1e5 (1e6 still stalls the iron scan):
+// vertex's take M_i = 2W_i + B_i instead (block Jacobi); on meshes without such vertices nothing changes. When the
+// start has any, the set is rebuilt every kRayRefreshIterations (slivers of the input open up as it smooths; a
+// start without any is not searched again, so generic meshes pay nothing for it). Largest / median stiffness: ≤ 1.2e3
+// on 25 noisy and clean benchmark meshes (igea; most below 200), 3.5e8 on the GuidedDenoising iron scan and 4e8 on
+// camelhead, which stalled before and converge with a cut of 1e4 or 1e5 (1e6 still stalls the iron scan):
 // docs/journal/reliability.md.
 constexpr double kStiffRatio = 1e4;
 
@@ -614,6 +615,10 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   RB_CHECK(static_cast<int>(noisy.covariance.size()) == mesh.num_vertices(), "smooth: the mesh has ",
            noisy.covariance.size(), " covariances for ", mesh.num_vertices(),
            " vertices (use MakeGenericNoisyMesh for a plain mesh)");
+  // The energy's buffers index coordinates and face corners as int (3 and 9 entries per vertex and face).
+  constexpr int kMaxElements = std::numeric_limits<int>::max() / 9;
+  RB_CHECK(mesh.num_vertices() <= kMaxElements && mesh.num_faces() <= kMaxElements, "smooth: ", mesh.num_vertices(),
+           " vertices and ", mesh.num_faces(), " faces; at most ", kMaxElements, " of each");
   auto prepared = std::make_unique<PreparedEnergy>();
   const Potential* potential = options.potential;
   if (potential == nullptr) {
@@ -797,8 +802,11 @@ std::string SmoothSummary::BriefReport() const {
                   pixel_stride, prior_weight, std::min(pixel_stride, kMaxStrideForPriorWeight));
     out += line;
   }
-  if (levels > 1) {
-    std::snprintf(line, sizeof(line), "levels:     %d grid levels, coarse levels %.1f input evaluations\n", levels,
+  if (levels > 1 || continuation_stages > 0) {
+    std::string what;
+    if (continuation_stages > 0) what = StrCat(continuation_stages, " eps continuation stage(s)");
+    if (levels > 1) what += StrCat(what.empty() ? "" : ", ", levels, " grid levels (coarse to fine)");
+    std::snprintf(line, sizeof(line), "earlier:    %s: %.1f input evaluations before the final solve\n", what.c_str(),
                   coarse_work);
     out += line;
   }
@@ -942,7 +950,7 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
           coarse_x = ProlongPositions(levels[static_cast<size_t>(k)], finer, level->ToCaller(r.x));
         }
         x = fine->ToSolver(coarse_x);
-        if (last) summary.levels = static_cast<int>(levels.size()) + 1;
+        summary.levels = static_cast<int>(levels.size()) + 1;
       }
       Problem problem(energy);
       SmoothSummary stage_summary;
@@ -951,6 +959,7 @@ Mesh SolveStages(const NoisyMesh& noisy, const SmoothOptions& options, bool orga
       x = std::move(m.x);
       if (!last) {
         earlier_work += problem.evaluations + level_work;
+        ++summary.continuation_stages;
         continue;
       }
       summary.coarse_work = level_work;
@@ -982,8 +991,11 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
   const int continuation_stages = options.epsilon_continuation_stages >= 0
                                       ? options.epsilon_continuation_stages
                                       : (organized && options.initial_positions == nullptr ? 3 : 0);
+  // Continuation asked for explicitly is a global-ε path: it takes precedence over the per-face ε of the
+  // adaptive rule (whose pre-pass and final solve would otherwise drop it).
   if (options.adaptive_epsilon && !organized && options.prior == PriorKind::kSqrt && options.potential == nullptr &&
-      options.face_epsilon_squared.empty() && options.initial_positions == nullptr) {
+      options.face_epsilon_squared.empty() && options.initial_positions == nullptr &&
+      options.epsilon_continuation_stages <= 0) {
     SmoothOptions plain = options;
     plain.adaptive_epsilon = false;
     AdaptiveEpsilonSummary adaptive;
@@ -998,6 +1010,12 @@ Mesh SmoothWithin(const NoisyMesh& noisy, const SmoothOptions& caller_options, C
   Mesh result = SolveStages(noisy, options, organized, continuation ? continuation_stages : 0, deadline, summary_out);
   if (summary_out != nullptr) {
     summary_out->pixel_stride = stride;
+    if (options.epsilon_continuation_stages > 0 && !continuation) {
+      summary_out->notices.push_back(
+          StrCat("no epsilon continuation: it needs the square-root prior with one global "
+                 "epsilon (the ",
+                 continuation_stages, " stages asked for were not run)"));
+    }
     if (organized && grid_step == 0) {
       summary_out->notices.push_back(StrCat("the pixel positions are not one grid (", not_a_grid,
                                             "): smoothed without the pixel-stride prior weight and the grid levels"));

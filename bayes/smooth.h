@@ -58,7 +58,7 @@ struct SmoothOptions {
   bool prior_weight_per_stride = true;
   SmoothTolerance tolerance = SmoothTolerance::kDefault;
   // Stop when the relative energy decrease per iteration (mean over 5) falls below this; 0: the preset's
-  // (fast 1e-4, default 3e-5, tight 1e-9). [0, 1)
+  // (fast 1e-4; default and tight: off, they stop on the distance below). [0, 1)
   double energy_tolerance = 0;
   // Stop when the estimated distance to the optimum E − E* (SmoothSummary::remaining_decrease) falls below this
   // fraction of the energy; 0: the preset's (fast: off, it stops on the decrease per iteration; default 3e-4, on
@@ -77,9 +77,9 @@ struct SmoothOptions {
   const Vertices* initial_positions = nullptr;
   // Per-face ε² read from a fast pre-pass on curved meshes (SmoothAdaptiveEpsilon, bayes/adaptive_epsilon.h,
   // with its default rule); piecewise-flat meshes keep the global ε². On by default: this is what `rangebayes
-  // smooth` runs. Applies only to the built-in square-root prior with no face_epsilon_squared and no
-  // initial_positions given, on meshes that are not organized (organized meshes take the continuation below);
-  // ignored otherwise.
+  // smooth` runs. Applies only to the built-in square-root prior with no face_epsilon_squared, no
+  // initial_positions and no epsilon_continuation_stages > 0 given, on meshes that are not organized (organized
+  // meshes take the continuation below); ignored otherwise.
   bool adaptive_epsilon = true;
   // Organized meshes (NoisyMesh::pixel set, as from a depth image): solve coarse-to-fine over the pixel grid
   // (bayes/grid_hierarchy.h), each level started from the prolongated result of the coarser one. Same energy
@@ -101,7 +101,8 @@ struct SmoothOptions {
   // first stage runs coarse-to-fine when `multilevel` applies. −1 (default): 3 stages on organized meshes
   // (pixel positions and covariances, as from a depth image) without initial_positions (a warm start is
   // already near its optimum), none on others (measured: BENCHMARKS.md "Smoothing
-  // on real stereo"; on generic CAD meshes continuation lands in worse minima). [−1, 6]
+  // on real stereo"; on generic CAD meshes continuation lands in worse minima). Stages asked for that cannot run
+  // (a learned prior, face_epsilon_squared given) are reported in the summary's notices. [−1, 6]
   int epsilon_continuation_stages = -1;
   // Seconds for the whole call, continuation stages and coarse levels included (0: no limit). Checked after each
   // iteration; stage k of S continuation stages ends by k/(S+1) of what the setup (done once per call) left, so
@@ -174,8 +175,11 @@ struct SmoothSummary {
   int num_threads = 0;
   std::string potential_name;
   size_t memory_bytes = 0;         // solver memory beyond the input mesh (energy buffers + minimiser vectors)
-  int levels = 1;                  // grid levels solved (1: single level)
-  double coarse_work = 0;          // evaluations on the coarse levels, in units of one evaluation of the input
+  int levels = 1;                  // grid levels solved coarse to fine, in any stage (1: single level)
+  int continuation_stages = 0;     // ε-continuation stages solved before the final solve
+  // Evaluations before the final solve (coarse levels and continuation stages), in units of one evaluation of the
+  // input (iterations and evaluations above are the final solve's).
+  double coarse_work = 0;
   bool adaptive_epsilon_used = false;  // the adaptive-ε default ran (then `adaptive` says what it did)
   AdaptiveEpsilonSummary adaptive;
 

@@ -386,6 +386,42 @@ TEST(Smooth, MultilevelReachesTheSameMinimum) {
   EXPECT_LT((a.V - b.V).cwiseAbs().maxCoeff(), 1e-4);
 }
 
+// The summary says what ran before the final solve: on a range grid by default three ε-continuation stages, the
+// first coarse to fine over the grid levels (the levels were reported only when they ran in the final solve).
+TEST(Smooth, SummaryReportsTheStagesAndLevelsBeforeTheFinalSolve) {
+  const NoisyMesh input = testing::RangeGrid(100, 80, 0.02, 0.001, 5);
+  SmoothSummary summary;
+  Smooth(input, SmoothOptions{}, &summary);
+  EXPECT_EQ(summary.continuation_stages, 3);
+  EXPECT_GT(summary.levels, 1);
+  EXPECT_GT(summary.coarse_work, 0);
+  EXPECT_NE(summary.BriefReport().find("earlier:    3 eps continuation stage(s), " + std::to_string(summary.levels) +
+                                       " grid levels (coarse to fine)"),
+            std::string::npos)
+      << summary.BriefReport();
+}
+
+// Continuation asked for on a generic mesh runs, with the global ε (the adaptive rule's per-face ε dropped it from
+// the final solve and ran the stages in its pre-pass instead); where it cannot run, the summary says so.
+TEST(Smooth, ContinuationAskedForRunsOrIsReported) {
+  const NoisyMesh roof =
+      MakeGenericNoisyMesh(testing::NoisyRoof(20, 20, 0.02, 3), GenericNoiseOptions{.noise_edge_multiple = 0.2});
+  SmoothOptions options;
+  options.epsilon_continuation_stages = 2;
+  SmoothSummary summary;
+  Smooth(roof, options, &summary);
+  EXPECT_FALSE(summary.adaptive_epsilon_used);
+  EXPECT_EQ(summary.continuation_stages, 2);
+  EXPECT_TRUE(summary.notices.empty());
+
+  const SplinePotential learned;  // the square root as a spline: a potential of the caller's, no continuation
+  options.potential = &learned;
+  Smooth(testing::RangeGrid(30, 20, 0.02, 0.001, 5), options, &summary);
+  EXPECT_EQ(summary.continuation_stages, 0);
+  ASSERT_EQ(summary.notices.size(), 1u);
+  EXPECT_NE(summary.notices[0].find("no epsilon continuation"), std::string::npos) << summary.notices[0];
+}
+
 // The ray preconditioner is a fixed symmetric positive definite operator between updates, as CG needs: by
 // factorisation (small meshes) and by the V-cycle over the grid hierarchy (forced here on a small grid).
 TEST(RayPreconditioner, IsSymmetricPositiveDefinite) {
