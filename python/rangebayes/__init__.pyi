@@ -102,6 +102,9 @@ class SmoothSummary:
     num_threads: int
     potential_name: str
     memory_bytes: int
+    levels: int
+    continuation_stages: int
+    coarse_work: float
     adaptive_epsilon_used: bool
     adaptive: AdaptiveEpsilonSummary
     noise_model: NoiseModelChoice

@@ -147,6 +147,13 @@ void BindBayes(py::module_& m) {
       .def_readonly("num_threads", &SmoothSummary::num_threads)
       .def_readonly("potential_name", &SmoothSummary::potential_name)
       .def_readonly("memory_bytes", &SmoothSummary::memory_bytes)
+      .def_readonly("levels", &SmoothSummary::levels,
+                    "grid levels solved coarse to fine, in any stage (1: single level)")
+      .def_readonly("continuation_stages", &SmoothSummary::continuation_stages,
+                    "ε-continuation stages solved before the final solve")
+      .def_readonly("coarse_work", &SmoothSummary::coarse_work,
+                    "evaluations before the final solve (coarse levels, continuation stages) in units of one "
+                    "evaluation of the input; iterations and evaluations are the final solve's")
       .def_readonly("adaptive_epsilon_used", &SmoothSummary::adaptive_epsilon_used)
       .def_readonly("adaptive", &SmoothSummary::adaptive)
       .def("brief_report", &SmoothSummary::BriefReport);
