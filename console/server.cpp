@@ -59,6 +59,34 @@ struct Outgoing {
   std::string topic;
 };
 
+// Subscription groups one client may hold: the server publishes a handful (mesh, depth, ...); a client that names
+// more only makes the server remember them (a page sending new names in a loop grew the process without bound).
+constexpr size_t kMaxSubscriptionGroups = 16;
+
+// A WebSocket upgrade a browser makes for a page of another site is refused: browsers send Origin with every
+// upgrade and do not apply the same-origin rule to WebSockets, so any page open in the operator's browser could
+// otherwise read the camera images and meshes. Accepted: no Origin (a program, not a browser page), or an Origin
+// whose host and port are the request's Host; on a loopback address that host must also be a loopback name (a
+// site whose DNS name is rebound to 127.0.0.1 sends its own name in both).
+bool WebSocketOriginAllowed(const http::request<http::string_body>& request, const std::string& bound_address) {
+  const auto origin_field = request.find(http::field::origin);
+  if (origin_field == request.end()) return true;
+  const std::string origin(origin_field->value());
+  const size_t scheme_end = origin.find("://");
+  if (scheme_end == std::string::npos) return false;
+  const std::string scheme = origin.substr(0, scheme_end);
+  const std::string authority = origin.substr(scheme_end + 3);
+  if ((scheme != "http" && scheme != "https") || authority.empty()) return false;
+  if (authority != std::string(request[http::field::host])) return false;
+  boost::system::error_code ec;
+  const net::ip::address bound = net::ip::make_address(bound_address, ec);
+  if (ec || !bound.is_loopback()) return true;
+  const size_t port_colon = authority.rfind(':');
+  const bool has_port = port_colon != std::string::npos && authority.find(']', port_colon) == std::string::npos;
+  const std::string host = has_port ? authority.substr(0, port_colon) : authority;
+  return host == "localhost" || host == "127.0.0.1" || host == "[::1]" || host == bound_address;
+}
+
 bool TopicWanted(const std::map<std::string, std::string>& subscriptions, const std::string& topic) {
   const size_t slash = topic.find('/');
   if (slash == std::string::npos) return true;
@@ -192,7 +220,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     if (!message) return false;
     {
       std::lock_guard<std::mutex> lock(state_->demand_mutex);
-      for (const auto& [group, value] : message->subscribe) subscriptions_[group] = value;
+      for (const auto& [group, value] : message->subscribe) {
+        if (subscriptions_.size() >= kMaxSubscriptionGroups && !subscriptions_.contains(group)) return false;
+        subscriptions_[group] = value;
+      }
       if (message->credit_flow) credit_flow_ = true;
     }
     // A message held back for a topic the client no longer wants would only be stale when it comes back.
@@ -326,6 +357,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (parsed.websocket_upgrade) {
       const std::string path = parsed.request.target.substr(0, parsed.request.target.find('?'));
       if (path != "/ws" || req.method() != http::verb::get) return Refuse(404, "no WebSocket here");
+      if (!WebSocketOriginAllowed(req, state_->options.address)) return Refuse(403, "WebSocket from another origin");
       if (state_->clients.load() >= state_->options.max_clients) return Refuse(503, "too many clients");
       std::make_shared<WsSession>(stream_.release_socket(), state_)->Run(parser_->release());
       return;
@@ -339,7 +371,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       reply.body = nlohmann::json{{"error", e.what()}}.dump();
     }
     if (reply.status >= 400) ++state_->refused;
-    Send(reply, !req.keep_alive(), req.version());
+    Send(reply, !req.keep_alive(), req.version(), req.method() == http::verb::head);
   }
 
   void Refuse(int status, const std::string& reason) {
@@ -350,7 +382,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     Send(reply, /*close=*/true, 11);
   }
 
-  void Send(const HttpReply& reply, bool close, unsigned version) {
+  // head: the answer to a HEAD request, its headers (Content-Length included) without the body.
+  void Send(const HttpReply& reply, bool close, unsigned version, bool head = false) {
     ++state_->requests;
     response_ = {};
     response_.version(version);
@@ -364,6 +397,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     response_.body() = reply.body;
     response_.keep_alive(!close);
     response_.prepare_payload();
+    if (head) response_.body().clear();
     http::async_write(stream_, response_,
                       beast::bind_front_handler(&HttpSession::OnWrite, shared_from_this(), close));
   }

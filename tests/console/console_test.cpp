@@ -182,6 +182,52 @@ TEST_F(ConsoleTest, ServesThePageAndNothingElse) {
   EXPECT_EQ(StatusOf(Exchange(console_->port(), "DELETE / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")), 405);
 }
 
+// HEAD gets the headers of GET and no body: a body after them was read by a keep-alive client as the start of the
+// next answer.
+TEST_F(ConsoleTest, HeadGetsTheHeadersWithoutTheBody) {
+  const std::string get = Get(console_->port(), "/");
+  const std::string head =
+      Exchange(console_->port(), "HEAD / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(StatusOf(head), 200);
+  EXPECT_EQ(BodyOf(head), "");
+  ASSERT_FALSE(BodyOf(get).empty());
+  EXPECT_NE(head.find("Content-Length: " + std::to_string(BodyOf(get).size()) + "\r\n"), std::string::npos) << head;
+}
+
+// A browser page of another site may not open the console's WebSocket (browsers send its Origin and do not apply
+// the same-origin rule to WebSockets), nor may a site whose name is rebound to 127.0.0.1; the console's own page
+// and programs (no Origin) may.
+TEST_F(ConsoleTest, WebSocketsFromOtherOriginsAreRefused) {
+  const std::string self = "127.0.0.1:" + std::to_string(console_->port());
+  auto handshake = [&](const std::string& host, const std::string& origin) {
+    net::io_context ioc;
+    websocket::stream<tcp::socket> ws(ioc);
+    ws.next_layer().connect(Local(console_->port()));
+    ws.set_option(websocket::stream_base::decorator([origin](websocket::request_type& request) {
+      if (!origin.empty()) request.set(beast::http::field::origin, origin);
+    }));
+    beast::error_code ec;
+    ws.handshake(host, "/ws", ec);
+    if (!ec) return 101;
+    // Refused: the server's answer, from the same request sent as is.
+    return StatusOf(Exchange(console_->port(), StrCat("GET /ws HTTP/1.1\r\nHost: ", host,
+                                                      "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                                                      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                                                      "Sec-WebSocket-Version: 13\r\nOrigin: ",
+                                                      origin, "\r\n\r\n")));
+  };
+  EXPECT_EQ(handshake(self, "http://evil.example"), 403);
+  EXPECT_EQ(handshake("evil.example:" + std::to_string(console_->port()),
+                      "http://evil.example:" + std::to_string(console_->port())),
+            403);  // DNS rebinding: Host and Origin agree, but name no loopback host
+  EXPECT_EQ(handshake(self, "null"), 403);
+  EXPECT_EQ(handshake(self, "http://" + self), 101);
+  EXPECT_EQ(handshake("localhost:" + std::to_string(console_->port()),
+                      "http://localhost:" + std::to_string(console_->port())),
+            101);
+  EXPECT_EQ(handshake(self, ""), 101);
+}
+
 TEST_F(ConsoleTest, ControlNeedsTheTokenAndWellFormedCommands) {
   const int port = console_->port();
   const std::string token = TestOptions(dir_).token;
@@ -254,6 +300,37 @@ TEST_F(ConsoleTest, OversizedAndMalformedClientMessagesCloseTheConnection) {
   EXPECT_EQ(SendAndReadClose(port, "\x01\x02", false), websocket::close_code::policy_error);
   EXPECT_GE(console_->server_stats().refused, 5);
   EXPECT_FALSE(control_.settings().paused);  // no control over the WebSocket
+}
+
+// A client may name at most 16 subscription groups: new names sent in a loop made the server remember each one
+// (a page could grow the process without bound); the message that would pass the bound closes the connection.
+TEST_F(ConsoleTest, SubscriptionGroupsPerClientAreBounded) {
+  net::io_context ioc;
+  websocket::stream<tcp::socket> ws(ioc);
+  ws.next_layer().connect(Local(console_->port()));
+  ws.handshake("127.0.0.1", "/ws");
+  auto groups = [](int first) {
+    nlohmann::json j;
+    for (int g = first; g < first + 8; ++g) j["subscribe"][StrCat("g", g)] = "x";
+    return j.dump();
+  };
+  // The default subscription (mesh) and 8 + 7 new groups: 16, accepted; the same names again change nothing.
+  ws.write(net::buffer(groups(0)));
+  nlohmann::json seven;
+  for (int g = 8; g < 15; ++g) seven["subscribe"][StrCat("g", g)] = "y";
+  ws.write(net::buffer(seven.dump()));
+  ws.write(net::buffer(groups(0)));
+  const int refused_before = console_->server_stats().refused;
+  ws.write(net::buffer(R"({"subscribe":{"one-too-many":"x"}})"));
+  beast::flat_buffer buffer;
+  beast::error_code ec;
+  for (int i = 0; i < 1000 && !ec; ++i) {
+    ws.read(buffer, ec);
+    buffer.consume(buffer.size());
+  }
+  ASSERT_EQ(ec, websocket::error::closed);
+  EXPECT_EQ(static_cast<websocket::close_code>(ws.reason().code), websocket::close_code::policy_error);
+  EXPECT_EQ(console_->server_stats().refused, refused_before + 1);
 }
 
 // A client that completes the handshake and then never reads, with the smallest socket buffers.
