@@ -220,7 +220,12 @@ void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices,
   auto finish = [&](pid_t pid, const ProcessExit& exit) {
     const int index = running.at(pid);
     running.erase(pid);
-    std::optional<BatchTaskStatus> status = ReadBatchTaskStatus(layout, index);
+    std::optional<BatchTaskStatus> status;
+    try {
+      status = ReadBatchTaskStatus(layout, index);
+    } catch (const Error&) {
+      // Unreadable: as if run-task had written none (the other workers are still to be waited for).
+    }
     if (!status || status->state == "running") {
       // run-task died before writing its final status.
       BatchTaskStatus failed = status.value_or(BatchTaskStatus{});

@@ -1,5 +1,6 @@
 #include "batch/task.h"
 
+#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -57,6 +58,14 @@ std::string HostName() {
   char name[256] = {};
   if (gethostname(name, sizeof(name) - 1) != 0) return "";
   return name;
+}
+
+// The kernel's id of this boot ("" where /proc does not say).
+std::string BootId() {
+  std::ifstream in("/proc/sys/kernel/random/boot_id");
+  std::string id;
+  std::getline(in, id);
+  return id;
 }
 
 // The line that says why a command failed: its last line containing "error:", else its last line.
@@ -123,6 +132,22 @@ void Publish(const fs::path& from, const fs::path& to) {
 
 }  // namespace
 
+std::int64_t ProcessStartTicks(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(in, line)) return -1;
+  const size_t name_end = line.rfind(')');  // the command name, field 2, may hold spaces and parentheses
+  if (name_end == std::string::npos) return -1;
+  std::istringstream fields(line.substr(name_end + 1));
+  std::string field;
+  for (int k = 3; k <= 22; ++k) {
+    if (!(fields >> field)) return -1;
+  }
+  char* end = nullptr;
+  const long long ticks = std::strtoll(field.c_str(), &end, 10);
+  return end != field.c_str() && *end == '\0' && ticks >= 0 ? ticks : -1;
+}
+
 BatchLayout::BatchLayout(const std::string& folder)
     : dir(fs::absolute(fs::path(folder)).lexically_normal().string()) {
   while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
@@ -162,6 +187,16 @@ void WriteFileAtomically(const std::string& path, const std::string& text) {
       fs::remove(temporary, ec);  // a full disk leaves no half-written temporary behind
       RB_FAIL(path, ": write failed (", std::strerror(error), ")");
     }
+  }
+  // On the disk before the rename: renamed first, a crash of the machine could leave the name on an empty file
+  // (a status that no command can read).
+  const int fd = ::open(temporary.c_str(), O_RDONLY | O_CLOEXEC);
+  const bool synced = fd >= 0 && ::fsync(fd) == 0;
+  const int sync_error = errno;
+  if (fd >= 0) ::close(fd);
+  if (!synced) {
+    fs::remove(temporary, ec);
+    RB_FAIL(path, ": write failed (", std::strerror(sync_error), ")");
   }
   fs::rename(temporary, target, ec);
   if (ec) {
@@ -229,6 +264,8 @@ std::string BatchTaskStatusJson(const BatchTaskStatus& s) {
   j["job_id"] = s.job_id;
   j["host"] = s.host;
   j["pid"] = s.pid;
+  j["pid_start_ticks"] = s.pid_start_ticks;
+  j["boot_id"] = s.boot_id;
   j["node"] = s.node;
   j["start_utc"] = s.start_utc;
   j["end_utc"] = s.end_utc;
@@ -250,6 +287,8 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
     s.job_id = j.value("job_id", "");
     s.host = j.value("host", "");
     s.pid = IntAt(j, "pid", 0);
+    s.pid_start_ticks = j.value("pid_start_ticks", std::int64_t{-1});
+    s.boot_id = j.value("boot_id", "");
     s.node = j.value("node", "");
     s.start_utc = j.value("start_utc", "");
     s.end_utc = j.value("end_utc", "");
@@ -298,10 +337,16 @@ BatchTaskStatus StartingStatus(const BatchLayout& layout, int index, const std::
   status.state = "running";
   const std::string restarts = Env("SLURM_RESTART_COUNT");
   status.attempt = restarts.empty() ? 0 : std::atoi(restarts.c_str());
-  if (const auto previous = ReadBatchTaskStatus(layout, index)) status.run = previous->run + 1;
+  try {
+    if (const auto previous = ReadBatchTaskStatus(layout, index)) status.run = previous->run + 1;
+  } catch (const Error&) {
+    // A damaged status (a machine that crashed while writing it) is replaced by this run's; its count is lost.
+  }
   status.job_id = Env("SLURM_ARRAY_JOB_ID");
   status.host = HostName();
   status.pid = static_cast<int>(getpid());
+  status.pid_start_ticks = ProcessStartTicks(status.pid);
+  status.boot_id = BootId();
   status.node = Env("SLURMD_NODENAME");
   status.start_utc = NowUtc();
   status.command = QuoteForShell(arguments);
@@ -431,7 +476,10 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
 
 bool RunTaskIsGone(const BatchTaskStatus& status) {
   if (status.state != "running" || status.pid <= 0 || status.host != HostName()) return false;
-  return kill(static_cast<pid_t>(status.pid), 0) != 0 && errno == ESRCH;
+  if (!status.boot_id.empty() && status.boot_id != BootId()) return true;  // the machine restarted since
+  if (kill(static_cast<pid_t>(status.pid), 0) != 0 && errno == ESRCH) return true;
+  // A process with that pid runs, but it may be another that reused the pid.
+  return status.pid_start_ticks >= 0 && ProcessStartTicks(status.pid) != status.pid_start_ticks;
 }
 
 BatchReport CollectBatchReport(const std::string& dir) {
@@ -441,7 +489,17 @@ BatchReport CollectBatchReport(const std::string& dir) {
   report.dir = layout.dir;
   report.tasks = ReadManifest(layout.manifest());
   for (const ManifestTask& task : report.tasks) {
-    std::optional<BatchTaskStatus> status = ReadBatchTaskStatus(layout, task.index);
+    std::optional<BatchTaskStatus> status;
+    try {
+      status = ReadBatchTaskStatus(layout, task.index);
+    } catch (const Error& e) {
+      // A status that cannot be read counts as failed, with why, so that resubmit runs the task again (and its
+      // new status replaces the damaged one) instead of every command on the batch failing on it.
+      status = BatchTaskStatus{};
+      status->index = task.index;
+      status->state = "failed";
+      status->error_line = e.what();
+    }
     std::string state = "missing";
     if (status) {
       if (status->state == "succeeded") {

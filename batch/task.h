@@ -10,6 +10,7 @@
 //   DIR/slurm/              job script and Slurm's output files (%A_%a.out, opened for append)
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -64,6 +65,8 @@ struct BatchTaskStatus {
   std::string job_id;     // SLURM_ARRAY_JOB_ID, empty outside Slurm
   std::string host;       // gethostname()
   int pid = 0;            // run-task's process id on `host` (0: not recorded)
+  std::int64_t pid_start_ticks = -1;  // when that process started (clock ticks after boot; -1: not recorded)
+  std::string boot_id;                // the kernel's boot id on `host` when it started (empty: not recorded)
   std::string node;       // SLURMD_NODENAME, empty outside Slurm
   std::string start_utc, end_utc;  // ISO 8601 with milliseconds; end empty while running
   double duration_s = 0;           // wall time of the command
@@ -98,8 +101,13 @@ struct RunTaskOptions {
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options = {});
 
 // True when `status` says running but its run-task process is gone: it ran on this host and no process
-// `status.pid` exists any more (killed with SIGKILL, or the machine restarted).
+// `status.pid` exists any more (killed with SIGKILL), or the machine restarted since (another boot id), or the
+// process with that pid now is another one (another start time: pids are reused).
 bool RunTaskIsGone(const BatchTaskStatus& status);
+
+// When process `pid` started, in clock ticks after the boot (field 22 of /proc/PID/stat); -1 when there is no such
+// process or /proc does not say. A pid and its start identify a process: pids are reused, their starts are not.
+std::int64_t ProcessStartTicks(int pid);
 
 // The state of every task of a batch, from its status files and task folders (no Slurm accounting).
 struct BatchReport {
@@ -108,7 +116,7 @@ struct BatchReport {
   // Per task: "succeeded" (status says so and tasks/<index>/ exists), "failed", "running", "interrupted"
   // (status says running, but it was written by a run-task process on this host that is gone: RunTaskIsGone;
   // one on another host cannot be checked from here and stays "running"), or "missing" (never started, or
-  // its result folder is gone).
+  // its result folder is gone). A status file that cannot be read counts as "failed", its error line saying why.
   std::vector<std::string> states;
   std::vector<std::optional<BatchTaskStatus>> statuses;
   int succeeded = 0, failed = 0, running = 0, interrupted = 0, missing = 0;

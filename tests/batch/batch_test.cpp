@@ -343,7 +343,16 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   EXPECT_TRUE(RunTaskIsGone(killed));
   BatchTaskStatus alive = killed;
   alive.pid = static_cast<int>(getpid());
+  alive.pid_start_ticks = ProcessStartTicks(static_cast<int>(getpid()));
+  ASSERT_GT(alive.pid_start_ticks, 0);
   EXPECT_FALSE(RunTaskIsGone(alive));
+  // A live process that reused the pid: another start time, or a status from before the machine restarted.
+  BatchTaskStatus reused = alive;
+  reused.pid_start_ticks = alive.pid_start_ticks + 1;
+  EXPECT_TRUE(RunTaskIsGone(reused));
+  reused = alive;
+  reused.boot_id = "a-boot-before";
+  EXPECT_TRUE(RunTaskIsGone(reused));
   alive.host = "another-host";
   alive.pid = static_cast<int>(gone);
   EXPECT_FALSE(RunTaskIsGone(alive));  // another machine's process cannot be checked from here
@@ -356,6 +365,29 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
   EXPECT_TRUE(fs::exists(out + "/tasks/1/b.ply"));
   EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
+// A status file that cannot be read (cut to nothing when a machine crashed) made every command on the batch fail
+// on it (status, resubmit, run-task of that very task): it counts as failed, saying why, and a resubmit runs
+// that task again, whose new status replaces it.
+TEST(LocalRunner, ADamagedStatusCountsAsFailedAndIsRunAgain) {
+  const TempDir dir("damaged_status");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\n");
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  const std::string status_file = BatchLayout(out).status_file(1);
+  std::ofstream(status_file, std::ios::trunc) << "{\"index\": 1, \"sta";
+  const BatchReport damaged = CollectBatchReport(out);
+  EXPECT_EQ(damaged.states, (std::vector<std::string>{"succeeded", "failed"}));
+  EXPECT_NE(damaged.BriefReport().find("failed: task 1 (manifest line 2"), std::string::npos) << damaged.BriefReport();
+  EXPECT_NE(damaged.BriefReport().find("malformed task status"), std::string::npos) << damaged.BriefReport();
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
+  const BatchReport again = CollectBatchReport(out);
+  EXPECT_EQ(again.succeeded, 2);
+  EXPECT_EQ(again.statuses.at(1)->run, 1);  // the damaged status's count of runs is lost
 }
 
 // A flat grid of n×n vertices as OBJ text: an input whose converted output is large (about 1.7 MB as OBJ for
