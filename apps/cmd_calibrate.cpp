@@ -150,7 +150,7 @@ struct NoiseArgs {
   int frames = 0;
   int min_disparity_px = 0;
   int num_disparities = 64;
-  int window_px = 5;
+  int window_px = 0;  // 0: the matcher's (the library's default)
   double image_noise_gray = 2.0;
   std::vector<int> roi;
   int stride_px = 1;
@@ -158,7 +158,12 @@ struct NoiseArgs {
   bool quiet = false;
 };
 
-void RunNoiseFromGroundTruth(const NoiseArgs& a) {
+void RunNoiseFromGroundTruth(const NoiseArgs& a, const CLI::App& sub) {
+  for (const char* plane_only : {"--rig", "--frame", "--frames", "--min-disparity", "--num-disparities", "--roi"}) {
+    if (sub.count(plane_only) > 0) {
+      UsageError(std::string(plane_only) + " applies to --target plane (ground truth gives each scene's range)");
+    }
+  }
   if (!a.matcher.empty() && a.matcher != "sgbm" && a.matcher != "block") {
     UsageError("--target ground-truth: --matcher must be sgbm or block");
   }
@@ -167,7 +172,7 @@ void RunNoiseFromGroundTruth(const NoiseArgs& a) {
   CheckFileToWrite(a.out);
   GroundTruthNoiseOptions options;
   if (!a.matcher.empty()) options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
-  options.window_px = a.window_px;
+  if (a.window_px > 0) options.window_px = a.window_px;
   options.image_noise_gray = a.image_noise_gray;
   options.stride_px = a.stride_px;
   GroundTruthNoiseSummary summary;
@@ -180,8 +185,8 @@ void RunNoiseFromGroundTruth(const NoiseArgs& a) {
   std::printf("wrote %s (%s, %d samples)\n", a.out.c_str(), NoiseFormName(model.form), model.samples);
 }
 
-void RunNoise(const NoiseArgs& a) {
-  if (a.target == "ground-truth") return RunNoiseFromGroundTruth(a);
+void RunNoise(const NoiseArgs& a, const CLI::App& sub) {
+  if (a.target == "ground-truth") return RunNoiseFromGroundTruth(a, sub);
   if (a.inputs.size() != 1) UsageError("--target plane takes one recording");
   NoiseCalibrationOptions options;
   if (!a.matcher.empty()) options.matcher = ParseNoiseCalibrationMatcher(a.matcher);
@@ -256,14 +261,17 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("--min-disparity", a->min_disparity_px, "smallest disparity searched (px)");
   sub->add_option("--num-disparities", a->num_disparities, "disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
-  AddWindowOption(sub, &a->window_px, "default 5; sgbm uses at most 11", 1);
+  AddWindowOption(sub, &a->window_px,
+                  "default: the matcher's command's, block 5, spacetime 7 below 16 frames else 5, sgbm 5; sgbm uses "
+                  "at most 11",
+                  1);
   sub->add_option("--image-noise", a->image_noise_gray, "image noise sigma_n for the predicted sigma_d (grey levels)");
   sub->add_option("--roi", a->roi, "region of the target in the rectified left image: x y width height (px)")
       ->expected(4);
   sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--png", a->png, "report picture: residual histogram against the model, sigma_d against depth");
   AddQuietFlag(sub, &a->quiet);
-  sub->callback([a] { RunNoise(*a); });
+  sub->callback([a, sub] { RunNoise(*a, *sub); });
 }
 
 void AddCheckNoise(CLI::App* calibrate) {

@@ -36,7 +36,9 @@ void NoiseCalibrationOptions::Check() const {
   RB_CHECK(first_frame >= 0, "noise calibration: first_frame must be >= 0");
   RB_CHECK(frames >= 0, "noise calibration: frames must be >= 0");
   RB_CHECK(num_disparities >= 3 && num_disparities <= 1024, "noise calibration: num_disparities must be in [3, 1024]");
-  RB_CHECK(window_px >= 1 && window_px <= 31, "noise calibration: window_px must be in [1, 31]");
+  RB_CHECK(window_px == 0 || (window_px >= 1 && window_px <= 31),
+           "noise calibration: window_px must be in [1, 31] "
+           "(0: the matcher's)");
   RB_CHECK(image_noise_gray > 0, "noise calibration: image_noise_gray must be > 0");
   RB_CHECK(stride_px >= 1 && stride_px <= 64, "noise calibration: stride_px must be in [1, 64]");
   RB_CHECK(form != NoiseForm::kLearned,
@@ -50,18 +52,22 @@ void NoiseCalibrationOptions::Check() const {
 
 namespace {
 
-std::unique_ptr<StereoMatcher> MakeMatcher(const NoiseCalibrationOptions& o) {
+// The matcher as its command runs it (`stereo --matcher sgbm` / `block`, `spacetime` over `frames` frames), so
+// that the model fits the disparities that command will produce: the space-time preset's Gauss–Newton step and
+// window, not the plain block matcher's parabola (whose bias the fit took for a floor, 1.4× too wide σ_d after).
+std::unique_ptr<StereoMatcher> MakeMatcher(const NoiseCalibrationOptions& o, int frames) {
   if (o.matcher == NoiseCalibrationMatcher::kSgbm) {
     SgbmMatcherOptions s;
     s.min_disparity_px = o.min_disparity_px;
     s.num_disparities = o.num_disparities;
-    s.block_size_px = std::min(o.window_px, 11);
+    s.block_size_px = std::min(o.window_px > 0 ? o.window_px : 5, 11);
     return std::make_unique<SgbmMatcher>(s);
   }
-  SpaceTimeMatcherOptions m;
+  SpaceTimeMatcherOptions m = o.matcher == NoiseCalibrationMatcher::kSpaceTime ? SpaceTimeStaticSceneOptions(frames)
+                                                                               : SpaceTimeMatcherOptions{};
   m.min_disparity_px = o.min_disparity_px;
   m.num_disparities = o.num_disparities;
-  m.window_px = o.window_px;
+  if (o.window_px > 0) m.window_px = o.window_px;
   m.image_noise_gray = o.image_noise_gray;
   // The raw curvature prediction: the fit supplies floor and scale.
   m.sigma_floor_px = 0.0;
@@ -100,7 +106,7 @@ DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const St
     left.push_back(l);
     right.push_back(r);
   }
-  const DisparityResult match = MakeMatcher(options)->Match(left, right);
+  const DisparityResult match = MakeMatcher(options, count)->Match(left, right);
   s.valid_fraction = match.valid_fraction;
 
   ObservationSelection selection;

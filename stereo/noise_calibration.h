@@ -32,7 +32,9 @@ struct NoiseCalibrationOptions {
   int frames = 0;                 // space-time: frames from first_frame (0: all); ≥ 0
   int min_disparity_px = 0;
   int num_disparities = 64;       // [3, 1024]
-  int window_px = 5;              // odd, [1, 31]; SGBM uses at most 11
+  // Odd, [1, 31]; 0: the window the matcher's command uses (block 5; spacetime 7 below 16 frames, else 5, as
+  // `spacetime`; sgbm 5). SGBM uses at most 11.
+  int window_px = 0;
   double image_noise_gray = 2.0;  // σ_n for the predicted σ_d (grey levels); > 0
   cv::Rect roi;                   // the target in the rectified left image (px); empty: the whole image
   int stride_px = 1;              // every n-th pixel in x and y; [1, 64]

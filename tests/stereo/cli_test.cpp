@@ -51,6 +51,40 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   EXPECT_FALSE(fs::exists(out + "/noise9.yaml"));
 }
 
+// A noise model fitted with `calibrate noise --matcher spacetime` describes what `spacetime` outputs: on another
+// recording of the plane its σ_d match the errors (normalised residuals of RMS 1; the Gaussian core, |z| < 5).
+// The calibration ran the plain block matcher's parabola over the frames, not the command's Gauss–Newton step
+// and window, and the model's σ_d came out 1.4× too wide for `spacetime` (RMS 0.71).
+TEST(StereoCli, SpaceTimeNoiseModelFitsWhatSpaceTimeOutputs) {
+  const std::string train = Temp("st_train"), test = Temp("st_test"), out = Temp("st_out");
+  for (const auto& [folder, seed] : {std::pair{train, 1}, std::pair{test, 7}}) {
+    const RunResult r = RunRangebayes("synth --scene plane --frames 8 --noise 4 --width 160 --height 120 --seed " +
+                                      std::to_string(seed) + " --out " + folder + " -q");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  fs::create_directories(out);
+  RunResult r =
+      RunRangebayes("calibrate noise " + train + " --target plane --matcher spacetime --out " + out + "/noise.yaml -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes("spacetime " + test + " --noise-model " + out + "/noise.yaml --no-mesh --out " + out + "/st -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat d = ReadPfm(out + "/st/disparity.pfm"), s = ReadPfm(out + "/st/sigma_disparity.pfm");
+  const cv::Mat gt = ReadPfm(test + "/ground_truth/disparity_left_px.pfm");
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < d.rows; ++y) {
+    for (int x = 0; x < d.cols; ++x) {
+      const double z = (d.at<float>(y, x) - gt.at<float>(y, x)) / s.at<float>(y, x);
+      if (std::isfinite(z) && std::abs(z) < 5) {
+        sum += z * z;
+        ++n;
+      }
+    }
+  }
+  ASSERT_GT(n, d.rows * d.cols / 2);
+  EXPECT_NEAR(std::sqrt(sum / n), 1.0, 0.1);
+}
+
 TEST(StereoCli, SynthSpaceTimeEvalDepth) {
   const std::string rec = Temp("rec"), out = Temp("out");
   RunResult r = RunRangebayes("synth --scene box --frames 6 --width 160 --height 120 --seed 3 --out " + rec);
@@ -104,6 +138,12 @@ TEST(StereoCli, NoiseFromGroundTruthFitsTheMatcherStereoRuns) {
   r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --noise-model " + out +
                     "/noise.yaml --no-mesh --out " + out + "/stereo");
   EXPECT_EQ(r.exit_code, 0) << r.output;
+  // The plane target's options are refused here (they were read and ignored).
+  r = RunRangebayes("calibrate noise tests/data/stereo/tsukuba --target ground-truth --num-disparities 16 --out " +
+                    out + "/noise16.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--num-disparities applies to --target plane"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/noise16.yaml"));
 }
 
 // The bundled real recording (Middlebury 2014 ArtL, quarter size; README command 1 replays it): its first
