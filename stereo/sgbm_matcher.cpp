@@ -45,13 +45,16 @@ SgbmMatcher::SgbmMatcher(const SgbmMatcherOptions& options) : options_(options) 
 cv::Mat FixedPointDisparityToFloat(const cv::Mat& disparity16, int min_disparity_px) {
   RB_CHECK(disparity16.type() == CV_16S, "fixed-point disparity must be CV_16S");
   cv::Mat out(disparity16.size(), CV_32F);
-  const int invalid_below = min_disparity_px * 16;
+  // The lower end itself is no measurement either: SGBM interpolates no sub-pixel offset there, and a winner at
+  // exactly min_disparity is a tie (a textureless region, where every disparity costs the same: a uniform pair came
+  // out 91% valid, one fake plane) or a match beyond the range.
+  const int invalid_up_to = min_disparity_px * 16;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   for (int y = 0; y < disparity16.rows; ++y) {
     const short* in = disparity16.ptr<short>(y);
     float* o = out.ptr<float>(y);
     for (int x = 0; x < disparity16.cols; ++x) {
-      o[x] = in[x] < invalid_below ? nan : static_cast<float>(in[x]) * (1.0f / 16.0f);
+      o[x] = in[x] <= invalid_up_to ? nan : static_cast<float>(in[x]) * (1.0f / 16.0f);
     }
   }
   return out;

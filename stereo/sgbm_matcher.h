@@ -33,7 +33,7 @@ class SgbmMatcher : public StereoMatcher {
 };
 
 // Converts OpenCV's CV_16S disparity (value·16; below min_disparity·16 means invalid) to CV_32F pixels, NaN
-// where invalid.
+// where invalid and at min_disparity exactly (a winner at the range's lower end is a tie or beyond the range).
 cv::Mat FixedPointDisparityToFloat(const cv::Mat& disparity16, int min_disparity_px);
 
 }  // namespace rangebayes

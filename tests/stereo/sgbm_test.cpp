@@ -14,14 +14,29 @@ namespace rangebayes {
 namespace {
 
 TEST(Sgbm, FixedPointBecomesFloatWithNaN) {
-  cv::Mat d16(1, 3, CV_16S);
+  cv::Mat d16(1, 4, CV_16S);
   d16.at<short>(0, 0) = 16 * 5 + 8;  // 5.5 px
   d16.at<short>(0, 1) = -16;          // invalid (min disparity 0 → invalid is (0 − 1)·16)
-  d16.at<short>(0, 2) = 0;
+  d16.at<short>(0, 2) = 0;            // the range's lower end: a tie or beyond the range
+  d16.at<short>(0, 3) = 1;            // 1/16 px
   const cv::Mat f = FixedPointDisparityToFloat(d16, 0);
   EXPECT_FLOAT_EQ(f.at<float>(0, 0), 5.5f);
   EXPECT_TRUE(std::isnan(f.at<float>(0, 1)));
-  EXPECT_FLOAT_EQ(f.at<float>(0, 2), 0.0f);
+  EXPECT_TRUE(std::isnan(f.at<float>(0, 2)));
+  EXPECT_FLOAT_EQ(f.at<float>(0, 3), 1.0f / 16.0f);
+  // With min disparity 5: 5.5 px stays, 5 px exactly is the lower end.
+  EXPECT_FLOAT_EQ(FixedPointDisparityToFloat(d16, 5).at<float>(0, 0), 5.5f);
+  EXPECT_TRUE(std::isnan(FixedPointDisparityToFloat(cv::Mat(1, 1, CV_16S, cv::Scalar(80)), 5).at<float>(0, 0)));
+}
+
+// A pair with no texture has no disparity: every disparity costs the same, SGBM's winner is the range's lower end,
+// and that was kept as a measurement (a uniform grey pair came out 91% valid, one plane at the range's far end).
+TEST(Sgbm, AUniformPairHasNoValidDisparity) {
+  const cv::Mat grey(120, 160, CV_8U, cv::Scalar(128));
+  SgbmMatcherOptions o;
+  o.num_disparities = 32;
+  const DisparityResult r = SgbmMatcher(o).Match({grey}, {grey});
+  EXPECT_EQ(r.valid_fraction, 0.0);
 }
 
 // Middlebury v2 reports OpenCV's SGBM at about 5% bad-1.0 (non-occluded, holes as errors) on Tsukuba; our
