@@ -121,14 +121,28 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
 }
 
 // --noise-model: refuses a model of another matcher or (learned form) resolution; a learned model replaces the
-// disparity's σ_d by its own, from the frames and the disparity.
+// disparity's σ_d by its own, from the frames and the disparity; a constant one gives SGBM (which has none) its
+// σ_d, so that sigma_disparity.pfm and sigma_depth.pfm hold what the mesh uses. Then --max-sigma on the σ_d the
+// outputs carry (the block matcher applied it to its own σ_d only; SGBM never did).
 void ApplyNoiseModelAfterMatch(const MatchCliOptions& o, const std::string& matcher, const std::vector<cv::Mat>& left,
                                const std::vector<cv::Mat>& right, DisparityResult* result) {
-  if (o.noise_model.empty()) return;
-  const DisparityNoiseModel model = ReadDisparityNoiseModel(o.noise_model);
-  model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
-  if (model.form != NoiseForm::kLearned) return;
-  result->sigma_disparity_px = LearnedDisparitySigma(model, matcher, left, right, result->disparity_px, o.noise_model);
+  if (!o.noise_model.empty()) {
+    const DisparityNoiseModel model = ReadDisparityNoiseModel(o.noise_model);
+    model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
+    if (model.form == NoiseForm::kLearned) {
+      result->sigma_disparity_px =
+          LearnedDisparitySigma(model, matcher, left, right, result->disparity_px, o.noise_model);
+    } else if (model.form == NoiseForm::kConstant && result->sigma_disparity_px.empty()) {
+      const cv::Mat valid = result->disparity_px == result->disparity_px;
+      result->sigma_disparity_px =
+          cv::Mat(result->disparity_px.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+      result->sigma_disparity_px.setTo(model.sigma_px, valid);
+    }
+  }
+  if (o.max_sigma_px > 0) {
+    RB_CHECK(!result->sigma_disparity_px.empty(), "--max-sigma: the ", matcher, " matcher gave no sigma_d");
+    DropAboveSigma(o.max_sigma_px, result);
+  }
 }
 
 void WritePicture(const cv::Mat& image, const fs::path& path, bool reverse) {
@@ -201,6 +215,9 @@ void AddStereo(CLI::App& app) {
   AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o] {
+    if (o->matcher == "sgbm" && o->m.max_sigma_px > 0 && o->m.noise_model.empty()) {
+      UsageError("--max-sigma needs a sigma_d: SGBM has none; give --noise-model or use --matcher block");
+    }
     cv::Mat left = ReadStereoImage(o->left), right = ReadStereoImage(o->right);
     RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
              right.cols, "x", right.rows);

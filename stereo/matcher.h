@@ -47,6 +47,11 @@ class StereoMatcher {
   virtual std::string name() const = 0;
 };
 
+// Pixels whose σ_d exceeds max_sigma_px become NaN (disparity and σ_d); valid_fraction follows. For a σ_d that a
+// noise model gave after matching (the matcher's own max_sigma_disparity_px saw the matcher's σ_d). Requires
+// result->sigma_disparity_px; max_sigma_px > 0.
+void DropAboveSigma(double max_sigma_px, DisparityResult* result);
+
 // Throws Error unless left and right hold the same number (≥ 1) of non-empty images of one size and type.
 void CheckStereoSequence(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right);
 

@@ -85,6 +85,32 @@ TEST(StereoCli, SpaceTimeNoiseModelFitsWhatSpaceTimeOutputs) {
   EXPECT_NEAR(std::sqrt(sum / n), 1.0, 0.1);
 }
 
+// A constant noise model gives SGBM, which has no σ_d of its own, the σ_d that the mesh uses, in the σ outputs
+// too (sigma_disparity.pfm was not written and sigma_depth.pfm was NaN everywhere).
+TEST(StereoCli, ConstantNoiseModelGivesSgbmItsSigmaMaps) {
+  const std::string rec = Temp("sgbm_plane"), out = Temp("sgbm_const");
+  RunResult r = RunRangebayes("synth --scene plane --frames 1 --width 160 --height 120 --out " + rec + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  fs::create_directories(out);
+  r = RunRangebayes("calibrate noise " + rec + " --target plane --matcher sgbm --out " + out + "/noise.yaml -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_NE(r.output.find("constant"), std::string::npos) << r.output;
+  r = RunRangebayes("stereo " + rec + "/left/000000.png " + rec + "/right/000000.png --rig " + rec +
+                    "/rig.yaml --noise-model " + out + "/noise.yaml --out " + out + "/stereo -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat d = ReadPfm(out + "/stereo/disparity.pfm");
+  const cv::Mat s = ReadPfm(out + "/stereo/sigma_disparity.pfm");
+  const cv::Mat sz = ReadPfm(out + "/stereo/sigma_depth.pfm");
+  const int valid = cv::countNonZero(d == d);
+  ASSERT_GT(valid, d.rows * d.cols / 2);
+  EXPECT_EQ(cv::countNonZero(s == s), valid);
+  EXPECT_EQ(cv::countNonZero(sz == sz), valid);
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(s, &lo, &hi, nullptr, nullptr, s == s);
+  EXPECT_EQ(lo, hi);  // one σ_d, the model's
+  EXPECT_GT(lo, 0);
+}
+
 TEST(StereoCli, SynthSpaceTimeEvalDepth) {
   const std::string rec = Temp("rec"), out = Temp("out");
   RunResult r = RunRangebayes("synth --scene box --frames 6 --width 160 --height 120 --seed 3 --out " + rec);
@@ -138,6 +164,28 @@ TEST(StereoCli, NoiseFromGroundTruthFitsTheMatcherStereoRuns) {
   r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --noise-model " + out +
                     "/noise.yaml --no-mesh --out " + out + "/stereo");
   EXPECT_EQ(r.exit_code, 0) << r.output;
+  // --max-sigma applies to the σ_d the outputs carry, here the learned model's (it was applied to the block
+  // matcher's own σ_d only, and SGBM's pixels all stayed, σ_d up to 51 px on Middlebury Pipes).
+  const cv::Mat learned = ReadPfm(out + "/stereo/sigma_disparity.pfm");
+  double learned_max = 0;
+  cv::minMaxLoc(learned, nullptr, &learned_max, nullptr, nullptr, learned == learned);
+  ASSERT_GT(learned_max, 0.5);
+  r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --noise-model " + out +
+                    "/noise.yaml --max-sigma 0.5 --no-mesh --out " + out + "/stereo_max");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat capped = ReadPfm(out + "/stereo_max/sigma_disparity.pfm");
+  const cv::Mat capped_disparity = ReadPfm(out + "/stereo_max/disparity.pfm");
+  double capped_max = 0;
+  cv::minMaxLoc(capped, nullptr, &capped_max, nullptr, nullptr, capped == capped);
+  EXPECT_LE(capped_max, 0.5);
+  EXPECT_EQ(cv::countNonZero(capped_disparity == capped_disparity), cv::countNonZero(capped == capped));
+  EXPECT_LT(cv::countNonZero(capped == capped), cv::countNonZero(learned == learned));
+  r = RunRangebayes(
+      "stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --max-sigma 0.5 "
+      "--no-mesh --out " +
+      out + "/stereo_none");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--max-sigma needs a sigma_d"), std::string::npos) << r.output;
   // The plane target's options are refused here (they were read and ignored).
   r = RunRangebayes("calibrate noise tests/data/stereo/tsukuba --target ground-truth --num-disparities 16 --out " +
                     out + "/noise16.yaml");
