@@ -84,6 +84,13 @@ void StereoRig::Check() const {
                R_right_from_left.allFinite() && t_right_from_left_m.allFinite() && R1.allFinite() && R2.allFinite() &&
                P1.allFinite() && P2.allFinite() && Q.allFinite() && std::isfinite(doffs_px),
            "the rig has non-finite entries");
+  // OpenCV's models: none, 4, 5, 8, 12 or 14 coefficients (another length failed deep in the rectification maps).
+  for (const auto& [name, d] : {std::pair<const char*, const Eigen::VectorXd&>{"D_left", distortion_left},
+                                std::pair<const char*, const Eigen::VectorXd&>{"D_right", distortion_right}}) {
+    const Eigen::Index n = d.size();
+    RB_CHECK(n == 0 || n == 4 || n == 5 || n == 8 || n == 12 || n == 14, name, " has ", n,
+             " coefficients; OpenCV's distortion models have 4, 5, 8, 12 or 14");
+  }
   RB_CHECK(K_left(0, 0) > 0 && K_left(1, 1) > 0, "K_left has a non-positive focal length");
   RB_CHECK(K_right(0, 0) > 0 && K_right(1, 1) > 0, "K_right has a non-positive focal length");
   RB_CHECK(baseline_m() > 0, "T (baseline) is zero");

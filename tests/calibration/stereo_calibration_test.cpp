@@ -270,6 +270,19 @@ TEST(StereoRigYaml, NonRotationIsRefused) {
     EXPECT_THROW(WriteStereoRig(wrong, path), Error);
     EXPECT_FALSE(std::filesystem::exists(path));
   }
+  // A distortion vector of a length no OpenCV model has (it failed inside OpenCV's rectification maps with an
+  // assertion that named neither the file nor the field).
+  for (const int n : {3, 7}) {
+    StereoRig wrong = rig;
+    wrong.distortion_right = Eigen::VectorXd::Zero(n);
+    try {
+      wrong.Check();
+      ADD_FAILURE() << "no error for " << n << " coefficients";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("D_right has " + std::to_string(n) + " coefficients"), std::string::npos)
+          << e.what();
+    }
+  }
   // A file whose R was edited by hand into a mirror.
   rig.R_right_from_left.setIdentity();
   WriteStereoRig(rig, path);
