@@ -60,7 +60,8 @@ struct MatchCliOptions {
 // by_frames: the defaults are SpaceTimeStaticSceneOptions(T) (spacetime), else SpaceTimeMatcherOptions{}.
 void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
-  sub->add_option("--num-disparities", o->num_disparities, "Number of disparities searched (px, 3-1024)")
+  sub->add_option("--num-disparities", o->num_disparities,
+                  "Number of disparities searched (px, 3-1024; sgbm searches the next multiple of 16)")
       ->check(CLI::Range(3, 1024));
   AddWindowOption(sub, &o->window_px,
                   by_frames ? "0: the default, 7 for T < 16 frames, 5 for T >= 16" : "0: the default, 5", 0);
@@ -162,12 +163,17 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
     WritePicture(result.sigma_disparity_px, out / "sigma_disparity.png", false);
   }
   std::printf("%s\n", result.BriefReport().c_str());
+  const int searched = result.num_disparities_searched > 0 ? result.num_disparities_searched : o.num_disparities;
+  if (searched != o.num_disparities) {
+    Notice(o.quiet, StrCat("searched ", searched, " disparities (", o.min_disparity_px, " to ",
+                           o.min_disparity_px + searched - 1, " px), not ", o.num_disparities,
+                           ": SGBM searches multiples of 16"));
+  }
   if (result.range_end_fraction >= kRangeEndWarning) {
     char share[32];
     std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * result.range_end_fraction);
     Notice(o.quiet, StrCat("warning: ", share, " of the pixels matched best at an end of the disparities searched (",
-                           o.min_disparity_px, " to ", o.min_disparity_px + o.num_disparities - 1,
-                           " px): ", RangeEndAdvice()));
+                           o.min_disparity_px, " to ", o.min_disparity_px + searched - 1, " px): ", RangeEndAdvice()));
   }
   if (!rectifier) {
     Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");

@@ -21,6 +21,9 @@ struct DisparityResult {
   // lower end only above disparity 0): much of it says that part of the scene lies outside the search range
   // (closer or farther), where nothing can be matched. See kRangeEndWarning.
   double range_end_fraction = 0.0;
+  // The disparities searched, when the matcher searched other than those asked for (SGBM: a multiple of 16); 0:
+  // as asked.
+  int num_disparities_searched = 0;
 
   // One line for people: "disparity: WxH, P% valid, matched in T ms over N frame(s)".
   std::string BriefReport() const;

@@ -94,6 +94,7 @@ DisparityResult SgbmMatcher::Match(const std::vector<cv::Mat>& left, const std::
   DisparityResult result;
   result.disparity_px = FixedPointDisparityToFloat(disparity16, options_.min_disparity_px);
   result.frames_used = 1;
+  if (num != options_.num_disparities) result.num_disparities_searched = num;
   result.match_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   const cv::Mat valid = result.disparity_px == result.disparity_px;
   result.valid_fraction = static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());

@@ -150,6 +150,15 @@ TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("of the pixels matched best at an end of the disparities searched (8 to 23 px)"),
             std::string::npos) << r.output;
+  // SGBM searches a multiple of 16 disparities: the command says which it searched (it named the range asked for).
+  r = RunRangebayes(
+      "stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png "
+      "--num-disparities 10 --no-mesh --out " +
+      out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("searched 16 disparities (0 to 15 px), not 10: SGBM searches multiples of 16"),
+            std::string::npos)
+      << r.output;
 }
 
 // `calibrate noise --target ground-truth` without --matcher fits the matcher `stereo` runs by default (it fitted
