@@ -57,6 +57,7 @@ py::dict DisparityDict(const DisparityResult& r) {
   d["frames_used"] = r.frames_used;
   d["valid_fraction"] = r.valid_fraction;
   d["range_end_fraction"] = r.range_end_fraction;
+  d["num_disparities_searched"] = r.num_disparities_searched;
   return d;
 }
 
@@ -184,8 +185,8 @@ disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (
 place when C-contiguous, uint8/uint16/float, 1 or 3 channels). matcher 'sgbm' (OpenCV SGBM) or 'spacetime'
 (ours, with σ_d); keywords: rangebayes.SGBM_OPTIONS / SPACETIME_OPTIONS. Returns a dict: disparity_px,
 sigma_disparity_px (float32 (h, w), NaN invalid; σ None for sgbm), match_ms, frames_used, valid_fraction,
-range_end_fraction (share of pixels matched best at an end of the search range: the range may be too short).
-GIL released.)");
+range_end_fraction (share of pixels matched best at an end of the search range: the range may be too short),
+num_disparities_searched (when other than asked: SGBM searches a multiple of 16; else 0). GIL released.)");
   m.attr("SGBM_OPTIONS") = FieldsToDict(SgbmOptionFields(), SgbmMatcherOptions{});
   m.attr("SPACETIME_OPTIONS") = FieldsToDict(SpaceTimeOptionFields(), SpaceTimeMatcherOptions{});
 

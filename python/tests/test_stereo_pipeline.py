@@ -100,6 +100,8 @@ def test_stereo_sgbm_and_spacetime_then_triangulate(recording_dir):
     d = rb.match(f.left, f.right)  # the synthetic rig is already rectified
     assert d["disparity_px"].shape == (240, 320) and d["sigma_disparity_px"] is None
     assert 0.0 <= d["range_end_fraction"] < 0.03  # the synthetic scene lies inside the default search range
+    assert d["num_disparities_searched"] == 0  # 64, as asked
+    assert rb.match(f.left, f.right, num_disparities=40)["num_disparities_searched"] == 48
     back = rb.depth_from_disparity(st.disparity_px, st.sigma_disparity_px, st.intrinsics, st.baseline_m,
                                    max_depth_m=100.0)
     np.testing.assert_array_equal(back.depth_m, st.depth_m)
