@@ -1,6 +1,7 @@
 #include "calibration/middlebury.h"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -47,6 +48,14 @@ double ParseNumber(const std::string& path, const std::string& key, const std::s
   }
 }
 
+// A whole number in [lo, hi] (image sizes, disparity counts), checked before the cast to int.
+int ParseCount(const std::string& path, const std::string& key, const std::string& value, int lo, int hi) {
+  const double x = ParseNumber(path, key, value);
+  RB_CHECK(std::isfinite(x) && x == std::floor(x) && x >= lo && x <= hi, path, ": '", key, "' = '", value,
+           "' is not a whole number in [", lo, ", ", hi, "]");
+  return static_cast<int>(x);
+}
+
 }  // namespace
 
 MiddleburyCalib ReadMiddleburyCalib(const std::string& path) {
@@ -78,10 +87,10 @@ MiddleburyCalib ReadMiddleburyCalib(const std::string& path) {
   c.cam0 = ParseMatrix(path, "cam0", require("cam0"));
   c.cam1 = ParseMatrix(path, "cam1", require("cam1"));
   c.baseline_mm = ParseNumber(path, "baseline", require("baseline"));
-  c.width = static_cast<int>(ParseNumber(path, "width", require("width")));
-  c.height = static_cast<int>(ParseNumber(path, "height", require("height")));
+  c.width = ParseCount(path, "width", require("width"), 1, 1 << 16);
+  c.height = ParseCount(path, "height", require("height"), 1, 1 << 16);
   if (values.count("doffs")) c.doffs_px = ParseNumber(path, "doffs", values["doffs"]);
-  if (values.count("ndisp")) c.ndisp = static_cast<int>(ParseNumber(path, "ndisp", values["ndisp"]));
+  if (values.count("ndisp")) c.ndisp = ParseCount(path, "ndisp", values["ndisp"], 0, 1 << 16);
   if (values.count("vmin")) c.vmin = ParseNumber(path, "vmin", values["vmin"]);
   if (values.count("vmax")) c.vmax = ParseNumber(path, "vmax", values["vmax"]);
   RB_CHECK(c.cam0(0, 0) > 0 && c.cam1(0, 0) > 0, path, ": focal length must be positive");

@@ -63,6 +63,19 @@ TEST(Middlebury, CalibErrorsNameTheKey) {
     EXPECT_NE(std::string(e.what()).find(": line 1 is not text: not a Middlebury calib.txt"), std::string::npos)
         << e.what();
   }
+  // Sizes and counts beyond int (a cast of 1e30 is undefined) or not whole.
+  for (const char* bad : {"width=1e12", "ndisp=1e30", "height=2.5", "width=-3"}) {
+    {
+      std::ofstream out(path, std::ios::trunc);
+      out << "cam0=[1 0 0; 0 1 0; 0 0 1]\ncam1=[1 0 0; 0 1 0; 0 0 1]\nbaseline=10\nwidth=5\nheight=5\n" << bad << "\n";
+    }
+    try {
+      ReadMiddleburyCalib(path);
+      ADD_FAILURE() << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("is not a whole number in"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Middlebury, V2SceneReadsWithScaleAndMask) {
