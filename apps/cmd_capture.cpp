@@ -426,7 +426,7 @@ void AddReplay(CLI::App& app) {
       ->check(RealRange(0.001, 1000.0));
   sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")
       ->check(NonNegativeInteger());
-  sub->add_option("--count", o->count, "Entries to play (-1: all)");
+  sub->add_option("--count", o->count, "Entries to play (-1: all)")->check(CountOrAll());
   sub->add_option("--repeat", o->repeats,
                   "Play the entries this many times (frame indices keep increasing; for live-path timing)")
       ->check(CLI::Range(1, 1000000));

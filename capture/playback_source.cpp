@@ -26,7 +26,11 @@ PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& optio
            ", past the recording's ", n, " frame(s)");
   RB_CHECK(options_.count != 0, "playback count 0 plays no frame (-1: all)");
   position_ = options_.first_position;
-  end_position_ = options_.count < 0 ? n : std::min(n, position_ + options_.count);
+  // In 64 bits: first + count passes INT_MAX for a count meant as "all the rest" (--count 2147483647).
+  end_position_ =
+      options_.count < 0
+          ? n
+          : static_cast<int>(std::min<std::int64_t>(n, std::int64_t{position_} + std::int64_t{options_.count}));
 }
 
 std::string PlaybackSource::Describe() const {

@@ -50,6 +50,13 @@ TEST(Cli, BadNumericValuesAreOnePlainLine) {
       {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 2.5", "--target-faces: '2.5' is not an integer"},
       {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --smooth-budget 1e300",
        "--smooth-budget: must be a number in [-1, 1e+09], got 1e+300"},
+      // --count is an int: 2147483648 was "Could not convert", -2 and 0 errors of the library (exit 1).
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count 2147483648",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got 2147483648"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count -2",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got -2"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count 0",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got 0"},
   };
   for (const auto& [args, message] : cases) {
     const RunResult r = RunRangebayes(args);

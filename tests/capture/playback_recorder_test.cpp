@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <thread>
@@ -143,6 +144,19 @@ TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
   PlaybackOptions bad;
   bad.repeats = 0;
   EXPECT_THROW(PlaybackSource(rec, bad), Error);
+}
+
+// The end of the selection in 64 bits: first 1 + count 2147483647 passed INT_MAX and played no frame at all.
+TEST(Playback, CountUpToIntMaxPlaysTheRestOfTheRecording) {
+  const TempDir dir("count_max");
+  PlaybackOptions o;
+  o.first_position = 1;
+  o.count = std::numeric_limits<int>::max();
+  PlaybackSource source(OpenRecording(MakeRecording(dir, 4)), o);
+  EXPECT_EQ(source.frames_total().value_or(-1), 3);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = source.Next(); r.status == FrameStatus::kFrame; r = source.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got, (std::vector<std::int64_t>{1, 2, 3}));
 }
 
 TEST(Playback, LoopKeepsIndicesIncreasing) {

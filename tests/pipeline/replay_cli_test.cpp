@@ -32,6 +32,13 @@ void CopyBundled(const std::string& folder, int frames) {
   }
 }
 
+int CountLines(const std::string& path) {
+  std::ifstream in(path);
+  int lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  return lines;
+}
+
 TEST(ReplayCli, BundledRecordingEndToEnd) {
   const TempDir dir("cli_replay");
   const RunResult r = RunRangebayes(std::string("replay ") + kBundled + " --count 2 --downsample 4 --tolerance fast --out " +
@@ -124,6 +131,17 @@ TEST(ReplayCli, WrongRigAndMismatchedSizesAreClear) {
   r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --out " + dir.path() + "/out2");
   EXPECT_EQ(r.exit_code, 3) << r.output;
   EXPECT_NE(r.output.find("frame 1: left is 320x240 but right is 10x10"), std::string::npos) << r.output;
+}
+
+// The end of the selection in 64 bits: --first 1 --count 2147483647 played no frame and exited 0.
+TEST(ReplayCli, CountUpToIntMaxPlaysTheRest) {
+  const TempDir dir("cli_count_max");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 3);
+  const RunResult r = RunRangebayes("replay " + rec + " --first 1 --count 2147483647 --downsample 4 --no-smooth " +
+                                    "--no-decimate --no-previews --out " + dir.path() + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(CountLines(dir.path() + "/out/results.csv"), 3);  // header and frames 1 and 2
 }
 
 }  // namespace
