@@ -191,7 +191,8 @@ CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor)
 PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
                             const std::vector<PipelineSink*>& sinks);
 
-// Writes the summary as JSON (stages, counts, errors); throws Error naming the path on failure.
+// Writes the summary as JSON (stages, counts, errors); bytes of its strings that are not UTF-8 are written as
+// U+FFFD. Throws Error naming the path on failure.
 void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path);
 
 }  // namespace rangebayes

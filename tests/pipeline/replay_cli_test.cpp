@@ -3,7 +3,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <string>
 
 #include "tests/apps/run_binary.h"
 #include "tests/capture/test_util.h"
@@ -30,6 +33,21 @@ void CopyBundled(const std::string& folder, int frames) {
     fs::copy_file(src + "/left/" + name, folder + "/left/" + name);
     fs::copy_file(src + "/right/" + name, folder + "/right/" + name);
   }
+}
+
+// The whole of a text file ("" when it does not exist).
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Replaces the first `from` in FOLDER/frames.csv by `to`.
+void EditIndex(const std::string& folder, const std::string& from, const std::string& to) {
+  std::string text = ReadAll(folder + "/frames.csv");
+  const size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  std::ofstream(folder + "/frames.csv", std::ios::binary) << text;
 }
 
 int CountLines(const std::string& path) {
@@ -142,6 +160,25 @@ TEST(ReplayCli, CountUpToIntMaxPlaysTheRest) {
                                     "--no-decimate --no-previews --out " + dir.path() + "/out");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(CountLines(dir.path() + "/out/results.csv"), 3);  // header and frames 1 and 2
+}
+
+// A frames.csv line may name any Linux file name, UTF-8 or not. Its frame is skipped (missing file) and
+// summary.json holds the error with U+FFFD for the byte: json::dump threw there after the file was truncated,
+// leaving it empty and the run at exit 1 instead of 3 (frames skipped).
+TEST(ReplayCli, FileNameThatIsNotUtf8GivesAValidSummaryAndExitThree) {
+  const TempDir dir("cli_utf8");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  EditIndex(rec, "left/000001.png", "left/\xff.png");
+  const RunResult r = RunRangebayes("replay " + rec + " --downsample 4 --no-smooth --no-decimate --no-previews --out " +
+                                    dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir.path() + "/out/summary.json"));
+  EXPECT_EQ(j["results"], 1);
+  EXPECT_EQ(j["frames_skipped"], 1);
+  ASSERT_EQ(j["errors"].size(), 1u);
+  EXPECT_NE(j["errors"][0].get<std::string>().find("frame 1: left/\xEF\xBF\xBD.png is missing"), std::string::npos)
+      << j["errors"][0];
 }
 
 }  // namespace
