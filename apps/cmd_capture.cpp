@@ -1,19 +1,23 @@
 // Subcommands cameras, record, live and replay: from cameras or recordings through the stereo-to-mesh pipeline.
+#include <poll.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
-#include <thread>
-#include <optional>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "apps/command.h"
-#include "calibration/disparity_noise_model.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/learn_prior_io.h"
+#include "calibration/disparity_noise_model.h"
 #include "capture/device_list.h"
 #include "capture/libcamera_source.h"
 #include "capture/playback_source.h"
@@ -333,6 +337,27 @@ void AddCameras(CLI::App& app) {
   });
 }
 
+// The step gate of `replay --speed step`, on the capture thread: true when a line is entered, false for a line
+// that starts with q, the end of stdin, or a stop request. stdin is polled (not read blocking) so that Ctrl-C or
+// SIGTERM ends the wait within 100 ms, whether or not anything is typed.
+bool WaitForEnter() {
+  std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
+  std::string line;
+  while (!StopRequested()) {
+    pollfd in{STDIN_FILENO, POLLIN, 0};
+    const int ready = ::poll(&in, 1, 100);
+    if (ready < 0 && errno != EINTR) return false;
+    if (ready <= 0) continue;
+    char c = 0;
+    const ssize_t n = ::read(STDIN_FILENO, &c, 1);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return !line.empty() && line.front() != 'q';  // end of input (or stdin unreadable)
+    if (c == '\n') return line.empty() || line.front() != 'q';
+    line += c;
+  }
+  return false;
+}
+
 std::optional<StereoRig> ReadOptionalRig(const std::string& path) {
   if (path.empty()) return std::nullopt;
   return ReadStereoRig(path);
@@ -449,13 +474,7 @@ void AddReplay(CLI::App& app) {
     playback.count = o->count;
     playback.repeats = o->repeats;
     playback.stop = &StopFlag();
-    if (playback.speed == PlaybackSpeed::kStep) {
-      playback.step_gate = [] {
-        std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
-        const int c = std::getchar();
-        return c != EOF && c != 'q';
-      };
-    }
+    if (playback.speed == PlaybackSpeed::kStep) playback.step_gate = WaitForEnter;
     PlaybackSource source(std::move(recording), playback);
     RunToFolder(source, rig, MakePipelineOptions(o->pipeline), o->pipeline, o->out);
   });

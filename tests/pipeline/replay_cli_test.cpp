@@ -1,12 +1,19 @@
 // `rangebayes replay` as a user runs it: the bundled recording end to end, and bad input.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <string>
+#include <thread>
 
 #include "tests/apps/run_binary.h"
 #include "tests/capture/test_util.h"
@@ -179,6 +186,86 @@ TEST(ReplayCli, FileNameThatIsNotUtf8GivesAValidSummaryAndExitThree) {
   ASSERT_EQ(j["errors"].size(), 1u);
   EXPECT_NE(j["errors"][0].get<std::string>().find("frame 1: left/\xEF\xBF\xBD.png is missing"), std::string::npos)
       << j["errors"][0];
+}
+
+// Kills and reaps a child process that a failed assertion left running.
+class ChildGuard {
+ public:
+  explicit ChildGuard(pid_t pid) : pid_(pid) {}
+  ~ChildGuard() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  // Waits up to `seconds` for the child to end; its waitpid status, or nullopt if it still runs.
+  std::optional<int> WaitFor(double seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    do {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return status;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    } while (std::chrono::steady_clock::now() < end);
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_;
+};
+
+// `replay --speed step` waits for Enter on the capture thread. SIGTERM while it waits ends the run with the
+// results so far: the wait polls stdin and the stop flag. A blocking getchar() kept the process there until Enter
+// or the end of stdin (25 s after SIGTERM in the review, for ever here, where stdin stays open).
+TEST(ReplayCli, SigtermEndsAStepReplayWaitingForEnter) {
+  const TempDir dir("cli_step");
+  const std::string out = dir.path() + "/out", log = dir.path() + "/log.txt";
+  int input[2];
+  ASSERT_EQ(::pipe(input), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::dup2(input[0], STDIN_FILENO);
+    ::close(input[0]);
+    ::close(input[1]);
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
+    ::close(fd);
+    if (::chdir(RB_SOURCE_DIR) != 0) ::_exit(127);
+    ::execl(RB_BINARY, RB_BINARY, "replay", kBundled, "--speed", "step", "--count", "3", "--downsample", "4",
+            "--no-smooth", "--no-decimate", "--no-previews", "--out", out.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ChildGuard child(pid);
+  ::close(input[0]);
+  ASSERT_EQ(::write(input[1], "\n", 1), 1);  // frame 0; frame 1 then waits for the next Enter
+  const auto prompts = [&] {
+    const std::string text = ReadAll(log);
+    int n = 0;
+    for (size_t at = text.find("Enter for the next frame"); at != std::string::npos;
+         at = text.find("Enter for the next frame", at + 1)) {
+      ++n;
+    }
+    return n;
+  };
+  // Generous bounds (not timings): a wait that runs out means the run is stuck.
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while ((prompts() < 2 || CountLines(out + "/results.csv") < 2) && std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(prompts(), 2) << ReadAll(log);
+  ASSERT_EQ(CountLines(out + "/results.csv"), 2) << ReadAll(log);  // frame 0 is through
+  ASSERT_EQ(::kill(pid, SIGTERM), 0);
+  const std::optional<int> status = child.WaitFor(60.0);
+  ::close(input[1]);
+  ASSERT_TRUE(status.has_value()) << "still waiting for Enter 60 s after SIGTERM\n" << ReadAll(log);
+  ASSERT_TRUE(WIFEXITED(*status)) << ReadAll(log);
+  EXPECT_EQ(WEXITSTATUS(*status), 0) << ReadAll(log);
+  EXPECT_NE(ReadAll(log).find("stopped by request"), std::string::npos) << ReadAll(log);
+  EXPECT_EQ(CountLines(out + "/results.csv"), 2);
 }
 
 }  // namespace
