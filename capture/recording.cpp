@@ -227,6 +227,8 @@ void RecordingWriter::Write(const StereoFrame& frame) {
            ": frame ", frame.index, ": left and right images differ in size or type");
   RB_CHECK(frame.index > last_index_, folder_, ": frame index ", frame.index, " does not increase (last ",
            last_index_, ")");
+  RB_CHECK(frame.index <= kMaxRecordingIndex, folder_, ": frame index ", frame.index,
+           " is above the largest a recording holds (", kMaxRecordingIndex, ")");
   const int depth = frame.left.depth();
   RB_CHECK(depth == CV_8U || depth == CV_16U, folder_, ": frame ", frame.index,
            ": only 8-bit or 16-bit images can be recorded");
@@ -313,6 +315,8 @@ std::vector<RecordingEntry> ParseRecordingIndex(const std::string& text, const s
       problem = StrCat("has ", f.size(), " fields, expected 6");
     } else if (!ParseInt64(f[0], &e.index) || e.index < 0) {
       problem = StrCat("field 'index' is not a non-negative integer ('", f[0], "')");
+    } else if (e.index > kMaxRecordingIndex) {
+      problem = StrCat("field 'index' is ", e.index, ", above the largest frame index ", kMaxRecordingIndex);
     } else if (!ParseInt64(f[1], &e.timestamp_left_ns)) {
       problem = StrCat("field 'timestamp_left_ns' is not an integer ('", f[1], "')");
     } else if (!ParseInt64(f[2], &e.timestamp_right_ns)) {

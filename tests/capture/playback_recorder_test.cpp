@@ -159,6 +159,54 @@ TEST(Playback, CountUpToIntMaxPlaysTheRestOfTheRecording) {
   EXPECT_EQ(got, (std::vector<std::int64_t>{1, 2, 3}));
 }
 
+// A pass that would number frames past kMaxRecordingIndex is an error, not an index that wraps to a negative
+// one (a last index of 9223372036854775807 played twice numbered the second pass from -9223372036854775808).
+TEST(Playback, RepeatsThatWouldPassTheLargestIndexThrow) {
+  const TempDir dir("repeat_max");
+  Recording rec = OpenRecording(MakeRecording(dir, 2));
+  for (const std::int64_t last : {kMaxRecordingIndex, std::numeric_limits<std::int64_t>::max()}) {
+    SCOPED_TRACE(last);
+    rec.frames[1].index = last;
+    PlaybackOptions o;
+    o.repeats = 2;
+    PlaybackSource source(rec, o);
+    EXPECT_EQ(source.Next().frame.index, 0);
+    EXPECT_EQ(source.Next().frame.index, last);
+    EXPECT_NE(ErrorOf([&] { source.Next(); }).find("playing it again would number frames past 9007199254740991"),
+              std::string::npos);
+  }
+  // The largest pass that fits: indices 0 and 2^52 - 1, played twice, end at 2^53 - 1.
+  rec.frames[1].index = (std::int64_t{1} << 52) - 1;
+  PlaybackOptions o;
+  o.repeats = 2;
+  PlaybackSource source(rec, o);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = source.Next(); r.status == FrameStatus::kFrame; r = source.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got,
+            (std::vector<std::int64_t>{0, (std::int64_t{1} << 52) - 1, std::int64_t{1} << 52, kMaxRecordingIndex}));
+}
+
+// Timestamps of opposite sign far apart: their difference overflowed int64 (to -1 ns here) and the frame came at
+// once; in double it is a gap of about 584 years, capped and waited for until the stop request.
+TEST(Playback, RecordedSpeedWaitsForTimestampsOfOppositeSign) {
+  const TempDir dir("far_apart");
+  Recording rec = OpenRecording(MakeRecording(dir, 2));
+  rec.frames[0].timestamp_left_ns = rec.frames[0].timestamp_right_ns = std::numeric_limits<std::int64_t>::min();
+  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = std::numeric_limits<std::int64_t>::max();
+  std::atomic<bool> stop{false};
+  PlaybackOptions o;
+  o.speed = PlaybackSpeed::kRecorded;
+  o.stop = &stop;
+  PlaybackSource source(rec, o);
+  EXPECT_EQ(source.Next().status, FrameStatus::kFrame);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
+  stopper.join();
+}
+
 TEST(Playback, LoopKeepsIndicesIncreasing) {
   const TempDir dir("loop");
   PlaybackOptions options;

@@ -188,6 +188,21 @@ TEST(ReplayCli, FileNameThatIsNotUtf8GivesAValidSummaryAndExitThree) {
       << j["errors"][0];
 }
 
+// --repeat that would number frames past 2^53 - 1 ends the run with one error line and exit 1 (a last index of
+// 9223372036854775807 wrapped to negative indices and exited 0).
+TEST(ReplayCli, RepeatsPastTheLargestIndexAreOneErrorLine) {
+  const TempDir dir("cli_repeat_max");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  EditIndex(rec, "\n1,", "\n9007199254740991,");
+  const RunResult r = RunRangebayes("replay " + rec + " --repeat 2 --downsample 4 --no-smooth --no-decimate " +
+                                    "--no-previews --quiet --out " + dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.output, "rangebayes replay: error: " + rec +
+                          ": playing it again would number frames past 9007199254740991 (its last index is "
+                          "9007199254740991); play it fewer times\n");
+}
+
 // Kills and reaps a child process that a failed assertion left running.
 class ChildGuard {
  public:
