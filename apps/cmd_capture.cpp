@@ -59,7 +59,7 @@ struct PipelineCli {
   bool no_decimate = false;
   bool decimate = false;
   double lambda = DecimateOptions{}.lambda;
-  int queue_capacity = 4;
+  int queue_capacity = 0;  // 0: the preset's (PipelineOptions' 4, or 1 with --live-path)
   bool live_path = false;
   std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
   int preview_width_px = 0;
@@ -109,11 +109,12 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
   sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
-  sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64; 0: 4, or 1 with --live-path)")
+      ->check(CLI::Range(0, 64));
   sub->add_flag("--live-path", o->live_path,
-                "Live preview settings: drop the oldest frame when a stage is busy, match at half resolution, "
-                "triangulate every 4th pixel, fast smoothing tolerance within an 80 ms budget, no decimation "
-                "(overrides --downsample and --tolerance)");
+                "Live preview settings: drop the oldest frame when a stage is busy (queues of 1 unless --queue), "
+                "match at half resolution, triangulate every 4th pixel, fast smoothing tolerance within an 80 ms "
+                "budget, no decimation (overrides --downsample and --tolerance)");
   sub->add_option("--preview-width", o->preview_width_px,
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
@@ -130,7 +131,6 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
 
 PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   PipelineOptions p;
-  p.queue_capacity = o.queue_capacity;
   p.matcher = o.matcher == "spacetime" ? PipelineMatcher::kSpaceTime : PipelineMatcher::kSgbm;
   if (o.window_frames > 1 && p.matcher != PipelineMatcher::kSpaceTime) {
     UsageError("--window-frames > 1 needs --matcher spacetime");
@@ -168,6 +168,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
     if (o.smooth_budget_ms >= 0.0) p.smooth_budget_ms = o.smooth_budget_ms;
     p.decimate = o.decimate && !o.no_decimate;
   }
+  if (o.queue_capacity > 0) p.queue_capacity = o.queue_capacity;
   return p;
 }
 

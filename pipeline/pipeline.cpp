@@ -305,6 +305,7 @@ class Stages {
     t_smooth = &summary.stages[4];
     t_decimate = &summary.stages[5];
     t_sinks = &summary.stages[6];
+    summary.queue_capacity = options.queue_capacity;
     if (!options.smooth) summary.notices.push_back("smoothing switched off: results carry no smoothed mesh");
     if (!options.decimate) summary.notices.push_back("decimation switched off: results carry no decimated mesh");
 
@@ -856,6 +857,7 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["failed"] = summary.failed;
   j["dropped"] = summary.dropped;
   j["dropped_per_queue"] = summary.dropped_per_queue;
+  j["queue_capacity"] = summary.queue_capacity;
   j["abandoned"] = summary.abandoned;
   j["stopped"] = summary.stopped;
   j["fatal_error"] = summary.fatal_error;

@@ -160,6 +160,7 @@ struct PipelineSummary {
   std::int64_t failed = 0;           // results that failed in a stage
   std::int64_t dropped = 0;          // live: items dropped from full queues (all queues)
   std::vector<std::int64_t> dropped_per_queue;
+  int queue_capacity = 0;            // of each queue between two stages (PipelineOptions::queue_capacity)
   std::int64_t abandoned = 0;        // items discarded after a stop request
   bool stopped = false;              // the stop flag ended the run
   std::string fatal_error;           // the source failed for good (device lost)

@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "tests/apps/run_binary.h"
 #include "tests/capture/test_util.h"
@@ -186,6 +187,21 @@ TEST(ReplayCli, FileNameThatIsNotUtf8GivesAValidSummaryAndExitThree) {
   ASSERT_EQ(j["errors"].size(), 1u);
   EXPECT_NE(j["errors"][0].get<std::string>().find("frame 1: left/\xEF\xBF\xBD.png is missing"), std::string::npos)
       << j["errors"][0];
+}
+
+// --queue is kept with --live-path (whose preset sets queues of one item), and left out it is the preset's.
+TEST(ReplayCli, QueueGivenIsKeptWithLivePath) {
+  const TempDir dir("cli_queue");
+  const std::pair<std::string, int> cases[] = {
+      {"", 4}, {"--queue 2", 2}, {"--live-path", 1}, {"--live-path --queue 8", 8}};
+  int run = 0;
+  for (const auto& [flags, capacity] : cases) {
+    const std::string out = dir.path() + "/out" + std::to_string(run++);
+    const RunResult r = RunRangebayes(std::string("replay ") + kBundled + " --count 1 --no-smooth --no-decimate " +
+                                      "--no-previews " + flags + " --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << flags << "\n" << r.output;
+    EXPECT_EQ(nlohmann::json::parse(ReadAll(out + "/summary.json"))["queue_capacity"], capacity) << flags;
+  }
 }
 
 // --repeat that would number frames past 2^53 - 1 ends the run with one error line and exit 1 (a last index of
