@@ -249,8 +249,8 @@ struct CameraCli {
   bool libcamera = false;
   int width = 640;
   int height = 480;
-  double fps = 30.0;
-  std::string format = "auto";
+  std::optional<double> fps;          // V4L2 only; empty: V4l2CameraOptions' rate
+  std::optional<std::string> format;  // V4L2 only; empty: auto
   double tolerance_ms = 10.0;
   int timeout_ms = 2000;
   std::string rig;
@@ -259,12 +259,15 @@ struct CameraCli {
 void AddCameraOptions(CLI::App* sub, CameraCli* o) {
   sub->add_option("--left", o->left, "Left camera: V4L2 device (/dev/videoN) or, with --libcamera, a camera id");
   sub->add_option("--right", o->right, "Right camera: V4L2 device or libcamera id (ignored with --side-by-side)");
-  sub->add_flag("--side-by-side", o->side_by_side, "One V4L2 device (--left) delivering both views side by side");
+  sub->add_flag("--side-by-side", o->side_by_side,
+                "One V4L2 device (--left) delivering both views side by side (not with --libcamera)");
   sub->add_flag("--libcamera", o->libcamera, "Use libcamera cameras instead of V4L2 devices");
   sub->add_option("--width", o->width, "Requested image width (px; the closest offered is used)");
   sub->add_option("--height", o->height, "Requested image height (px)");
-  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s)")->check(RealRange(0.1, 1000.0));
-  sub->add_option("--format", o->format, "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg")
+  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s, default 30; V4L2 only, not with --libcamera)")
+      ->check(RealRange(0.1, 1000.0));
+  sub->add_option("--format", o->format,
+                  "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg (not with --libcamera)")
       ->check(CLI::IsMember({"auto", "grey", "yuyv", "mjpeg"}));
   sub->add_option("--pair-tolerance", o->tolerance_ms, "Largest left/right timestamp difference of a pair (ms)")
       ->check(RealRange(0.001, 1000.0));
@@ -277,6 +280,10 @@ std::unique_ptr<FrameSource> OpenCameras(const CameraCli& o) {
   FramePairerOptions pairing;
   pairing.tolerance_ns = static_cast<std::int64_t>(o.tolerance_ms * 1e6);
   if (o.libcamera) {
+    // LibcameraStereoSource has no frame rate, pixel format or side-by-side mode: the flags would do nothing.
+    if (o.side_by_side) UsageError("--side-by-side is for one V4L2 device; --libcamera uses two cameras");
+    if (o.fps.has_value()) UsageError("--fps is not supported with --libcamera (the cameras run at their own rate)");
+    if (o.format.has_value()) UsageError("--format is a V4L2 pixel format; --libcamera uses the cameras' YUV or R8");
     LibcameraStereoOptions l;
     l.left_camera = o.left.rfind("/dev/", 0) == 0 ? "" : o.left;
     l.right_camera = o.right.rfind("/dev/", 0) == 0 ? "" : o.right;
@@ -292,10 +299,11 @@ std::unique_ptr<FrameSource> OpenCameras(const CameraCli& o) {
   v.side_by_side = o.side_by_side;
   v.camera.width = o.width;
   v.camera.height = o.height;
-  v.camera.fps = o.fps;
-  if (o.format == "grey") v.camera.formats = {FourccGrey()};
-  if (o.format == "yuyv") v.camera.formats = {FourccYuyv()};
-  if (o.format == "mjpeg") v.camera.formats = {FourccMjpeg()};
+  if (o.fps.has_value()) v.camera.fps = *o.fps;
+  const std::string format = o.format.value_or("auto");
+  if (format == "grey") v.camera.formats = {FourccGrey()};
+  if (format == "yuyv") v.camera.formats = {FourccYuyv()};
+  if (format == "mjpeg") v.camera.formats = {FourccMjpeg()};
   v.pairing = pairing;
   v.timeout_ms = o.timeout_ms;
   return std::make_unique<V4l2StereoSource>(RealV4l2SysCalls(), v);
