@@ -76,11 +76,14 @@ class RecordingWriter {
 
   // Writes both images as FOLDER/left/<index>.png and FOLDER/right/<index>.png (index: the frame's index
   // field, six digits), then appends and flushes its frames.csv line. Indices must increase and stay at most
-  // kMaxRecordingIndex.
+  // kMaxRecordingIndex. With fsync_every_frames, a failed fsync does not stop the recording (no frame is lost
+  // for it); Finish reports it.
   void Write(const StereoFrame& frame);
 
   // Rewrites meta.yaml with the frame count, `complete: "true"` and `extra` merged in, and closes the index.
-  // Safe to call twice; Write after Finish throws.
+  // Safe to call twice; Write after Finish throws. When frames.csv could not be synced to disk or closed (now or
+  // at an earlier fsync), meta.yaml says `complete: "false"` and Finish throws Error naming frames.csv and the
+  // system's reason: its last lines may not have reached the disk.
   void Finish(const RecordingMeta& extra = {});
 
   const std::string& folder() const { return folder_; }
@@ -97,6 +100,7 @@ class RecordingWriter {
   int index_fd_ = -1;
   std::int64_t last_index_ = -1;
   bool index_cut_ = false;  // a write of frames.csv failed part-way: no line may follow
+  std::string sync_error_;  // the first failed fsync of frames.csv during Write, for Finish to report
 };
 
 // What a reader found that is not fatal. Each notice is one line a user can read.
