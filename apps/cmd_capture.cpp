@@ -1,19 +1,23 @@
 // Subcommands cameras, record, live and replay: from cameras or recordings through the stereo-to-mesh pipeline.
+#include <poll.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
-#include <thread>
-#include <optional>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "apps/command.h"
-#include "calibration/disparity_noise_model.h"
 #include "apps/flags.h"
 #include "apps/progress.h"
 #include "bayes/learn_prior_io.h"
+#include "calibration/disparity_noise_model.h"
 #include "capture/device_list.h"
 #include "capture/libcamera_source.h"
 #include "capture/playback_source.h"
@@ -55,7 +59,7 @@ struct PipelineCli {
   bool no_decimate = false;
   bool decimate = false;
   double lambda = DecimateOptions{}.lambda;
-  int queue_capacity = 4;
+  int queue_capacity = 0;  // 0: the preset's (PipelineOptions' 4, or 1 with --live-path)
   bool live_path = false;
   std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
   int preview_width_px = 0;
@@ -105,11 +109,12 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
   sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
-  sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64; 0: 4, or 1 with --live-path)")
+      ->check(CLI::Range(0, 64));
   sub->add_flag("--live-path", o->live_path,
-                "Live preview settings: drop the oldest frame when a stage is busy, match at half resolution, "
-                "triangulate every 4th pixel, fast smoothing tolerance within an 80 ms budget, no decimation "
-                "(overrides --downsample and --tolerance)");
+                "Live preview settings: drop the oldest frame when a stage is busy (queues of 1 unless --queue), "
+                "match at half resolution, triangulate every 4th pixel, fast smoothing tolerance within an 80 ms "
+                "budget, no decimation (overrides --downsample and --tolerance)");
   sub->add_option("--preview-width", o->preview_width_px,
                   "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
   sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
@@ -126,7 +131,6 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
 
 PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   PipelineOptions p;
-  p.queue_capacity = o.queue_capacity;
   p.matcher = o.matcher == "spacetime" ? PipelineMatcher::kSpaceTime : PipelineMatcher::kSgbm;
   if (o.window_frames > 1 && p.matcher != PipelineMatcher::kSpaceTime) {
     UsageError("--window-frames > 1 needs --matcher spacetime");
@@ -164,6 +168,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
     if (o.smooth_budget_ms >= 0.0) p.smooth_budget_ms = o.smooth_budget_ms;
     p.decimate = o.decimate && !o.no_decimate;
   }
+  if (o.queue_capacity > 0) p.queue_capacity = o.queue_capacity;
   return p;
 }
 
@@ -244,8 +249,8 @@ struct CameraCli {
   bool libcamera = false;
   int width = 640;
   int height = 480;
-  double fps = 30.0;
-  std::string format = "auto";
+  std::optional<double> fps;          // V4L2 only; empty: V4l2CameraOptions' rate
+  std::optional<std::string> format;  // V4L2 only; empty: auto
   double tolerance_ms = 10.0;
   int timeout_ms = 2000;
   std::string rig;
@@ -254,12 +259,15 @@ struct CameraCli {
 void AddCameraOptions(CLI::App* sub, CameraCli* o) {
   sub->add_option("--left", o->left, "Left camera: V4L2 device (/dev/videoN) or, with --libcamera, a camera id");
   sub->add_option("--right", o->right, "Right camera: V4L2 device or libcamera id (ignored with --side-by-side)");
-  sub->add_flag("--side-by-side", o->side_by_side, "One V4L2 device (--left) delivering both views side by side");
+  sub->add_flag("--side-by-side", o->side_by_side,
+                "One V4L2 device (--left) delivering both views side by side (not with --libcamera)");
   sub->add_flag("--libcamera", o->libcamera, "Use libcamera cameras instead of V4L2 devices");
   sub->add_option("--width", o->width, "Requested image width (px; the closest offered is used)");
   sub->add_option("--height", o->height, "Requested image height (px)");
-  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s)")->check(RealRange(0.1, 1000.0));
-  sub->add_option("--format", o->format, "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg")
+  sub->add_option("--fps", o->fps, "Requested frame rate (frames/s, default 30; V4L2 only, not with --libcamera)")
+      ->check(RealRange(0.1, 1000.0));
+  sub->add_option("--format", o->format,
+                  "V4L2 pixel format: auto (GREY, YUYV, MJPEG in that order), grey, yuyv, mjpeg (not with --libcamera)")
       ->check(CLI::IsMember({"auto", "grey", "yuyv", "mjpeg"}));
   sub->add_option("--pair-tolerance", o->tolerance_ms, "Largest left/right timestamp difference of a pair (ms)")
       ->check(RealRange(0.001, 1000.0));
@@ -272,6 +280,10 @@ std::unique_ptr<FrameSource> OpenCameras(const CameraCli& o) {
   FramePairerOptions pairing;
   pairing.tolerance_ns = static_cast<std::int64_t>(o.tolerance_ms * 1e6);
   if (o.libcamera) {
+    // LibcameraStereoSource has no frame rate, pixel format or side-by-side mode: the flags would do nothing.
+    if (o.side_by_side) UsageError("--side-by-side is for one V4L2 device; --libcamera uses two cameras");
+    if (o.fps.has_value()) UsageError("--fps is not supported with --libcamera (the cameras run at their own rate)");
+    if (o.format.has_value()) UsageError("--format is a V4L2 pixel format; --libcamera uses the cameras' YUV or R8");
     LibcameraStereoOptions l;
     l.left_camera = o.left.rfind("/dev/", 0) == 0 ? "" : o.left;
     l.right_camera = o.right.rfind("/dev/", 0) == 0 ? "" : o.right;
@@ -287,10 +299,11 @@ std::unique_ptr<FrameSource> OpenCameras(const CameraCli& o) {
   v.side_by_side = o.side_by_side;
   v.camera.width = o.width;
   v.camera.height = o.height;
-  v.camera.fps = o.fps;
-  if (o.format == "grey") v.camera.formats = {FourccGrey()};
-  if (o.format == "yuyv") v.camera.formats = {FourccYuyv()};
-  if (o.format == "mjpeg") v.camera.formats = {FourccMjpeg()};
+  if (o.fps.has_value()) v.camera.fps = *o.fps;
+  const std::string format = o.format.value_or("auto");
+  if (format == "grey") v.camera.formats = {FourccGrey()};
+  if (format == "yuyv") v.camera.formats = {FourccYuyv()};
+  if (format == "mjpeg") v.camera.formats = {FourccMjpeg()};
   v.pairing = pairing;
   v.timeout_ms = o.timeout_ms;
   return std::make_unique<V4l2StereoSource>(RealV4l2SysCalls(), v);
@@ -331,6 +344,27 @@ void AddCameras(CLI::App& app) {
                       cams.cameras.empty();
     if (none) std::printf("No cameras found: record and live need cameras; replay works on recordings.\n");
   });
+}
+
+// The step gate of `replay --speed step`, on the capture thread: true when a line is entered, false for a line
+// that starts with q, the end of stdin, or a stop request. stdin is polled (not read blocking) so that Ctrl-C or
+// SIGTERM ends the wait within 100 ms, whether or not anything is typed.
+bool WaitForEnter() {
+  std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
+  std::string line;
+  while (!StopRequested()) {
+    pollfd in{STDIN_FILENO, POLLIN, 0};
+    const int ready = ::poll(&in, 1, 100);
+    if (ready < 0 && errno != EINTR) return false;
+    if (ready <= 0) continue;
+    char c = 0;
+    const ssize_t n = ::read(STDIN_FILENO, &c, 1);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return !line.empty() && line.front() != 'q';  // end of input (or stdin unreadable)
+    if (c == '\n') return line.empty() || line.front() != 'q';
+    line += c;
+  }
+  return false;
 }
 
 std::optional<StereoRig> ReadOptionalRig(const std::string& path) {
@@ -426,7 +460,7 @@ void AddReplay(CLI::App& app) {
       ->check(RealRange(0.001, 1000.0));
   sub->add_option("--first", o->first, "First frames.csv entry to play (0-based position)")
       ->check(NonNegativeInteger());
-  sub->add_option("--count", o->count, "Entries to play (-1: all)");
+  sub->add_option("--count", o->count, "Entries to play (-1: all)")->check(CountOrAll());
   sub->add_option("--repeat", o->repeats,
                   "Play the entries this many times (frame indices keep increasing; for live-path timing)")
       ->check(CLI::Range(1, 1000000));
@@ -449,13 +483,7 @@ void AddReplay(CLI::App& app) {
     playback.count = o->count;
     playback.repeats = o->repeats;
     playback.stop = &StopFlag();
-    if (playback.speed == PlaybackSpeed::kStep) {
-      playback.step_gate = [] {
-        std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
-        const int c = std::getchar();
-        return c != EOF && c != 'q';
-      };
-    }
+    if (playback.speed == PlaybackSpeed::kStep) playback.step_gate = WaitForEnter;
     PlaybackSource source(std::move(recording), playback);
     RunToFolder(source, rig, MakePipelineOptions(o->pipeline), o->pipeline, o->out);
   });

@@ -11,6 +11,7 @@
 #include "apps/progress.h"
 #include "apps/read_input.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/mesh_info.h"
 #include "core/mesh_io.h"
 #include "fusion/scan.h"
@@ -64,7 +65,7 @@ void RunInfo(const InfoArgs& args) {
                          {"inconsistent_edges", v.inconsistent_edges},
                          {"boundary_edges", v.boundary_edges}};
     out["notices"] = summary.notices;
-    std::printf("%s\n", out.dump(2).c_str());
+    std::printf("%s\n", JsonText(out, 2).c_str());
     return;
   }
   std::printf("file:             %s (%s)\n%s", args.mesh_path.c_str(), MeshFormatName(summary.format),

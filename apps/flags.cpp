@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 
 namespace rangebayes::apps {
 
@@ -86,6 +87,14 @@ CLI::Validator PositiveInteger() {
 CLI::Validator NonNegativeInteger() {
   return IntegerCheck("NONNEGATIVE", [](long long v) {
     return v >= 0 ? std::string() : "must be an integer >= 0, got " + std::to_string(v);
+  });
+}
+
+CLI::Validator CountOrAll() {
+  return IntegerCheck("-1 or 1..2147483647", [](long long v) {
+    return v == -1 || (v >= 1 && v <= std::numeric_limits<int>::max())
+               ? std::string()
+               : "must be -1 (all) or an integer in 1..2147483647, got " + std::to_string(v);
   });
 }
 

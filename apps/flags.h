@@ -32,6 +32,7 @@ CLI::Validator RealRange(double lo, double hi);  // a number in [lo, hi] (NaN re
 // Counts and indices: CLI11's checks for these print the largest double as the range's end.
 CLI::Validator PositiveInteger();     // an integer > 0
 CLI::Validator NonNegativeInteger();  // an integer ≥ 0
+CLI::Validator CountOrAll();          // -1 (all) or an int count in 1..2147483647
 // Any number but NaN: for options whose absence the library marks with NaN ("estimate it"), so that a NaN given
 // is not silently taken for the option left out.
 CLI::Validator NotNaN();

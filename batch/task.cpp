@@ -20,6 +20,7 @@
 #include "batch/process.h"
 #include "core/error.h"
 #include "core/json_int.h"
+#include "core/json_text.h"
 
 namespace rangebayes {
 namespace fs = std::filesystem;
@@ -226,7 +227,15 @@ void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
     }
     j["submissions"].push_back(js);
   }
-  WriteFileAtomically(layout.record(), j.dump(2) + "\n");
+  std::string text;
+  try {
+    text = j.dump(2) + "\n";
+  } catch (const json::type_error& e) {
+    // Not JsonText's U+FFFD: these paths are read back to run the tasks, and a changed one names another file.
+    RB_FAIL(layout.record(), ": cannot record the batch: a path (manifest ", record.manifest_source, ", binary ",
+            record.binary, ") is not UTF-8 text, which JSON cannot hold; rename it (", e.what(), ")");
+  }
+  WriteFileAtomically(layout.record(), text);
 }
 
 BatchRecord ReadBatchRecord(const BatchLayout& layout) {
@@ -272,7 +281,7 @@ std::string BatchTaskStatusJson(const BatchTaskStatus& s) {
   j["duration_s"] = s.duration_s;
   j["error_line"] = s.error_line;
   j["command"] = s.command;
-  return j.dump(2) + "\n";
+  return JsonText(j, 2) + "\n";
 }
 
 BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string& source) {
@@ -573,7 +582,7 @@ std::string BatchReport::Json() const {
     if (statuses[i]) t["status"] = json::parse(BatchTaskStatusJson(*statuses[i]));
     j["task"].push_back(t);
   }
-  return j.dump(2) + "\n";
+  return JsonText(j, 2) + "\n";
 }
 
 }  // namespace rangebayes

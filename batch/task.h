@@ -51,6 +51,7 @@ struct BatchRecord {
   std::vector<BatchSubmission> submissions;
 };
 
+// Throws Error naming DIR/batch.json when a path is not UTF-8 (JSON cannot hold it, and the paths are read back).
 void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record);
 // Throws naming DIR when it holds no batch (no batch.json) or the file is malformed.
 BatchRecord ReadBatchRecord(const BatchLayout& layout);
@@ -74,6 +75,7 @@ struct BatchTaskStatus {
   std::string command;             // the manifest line as run, paths resolved
 };
 
+// Bytes of its strings that are not UTF-8 (an error line naming such a file) are written as U+FFFD.
 std::string BatchTaskStatusJson(const BatchTaskStatus& status);
 BatchTaskStatus ParseBatchTaskStatus(const std::string& json, const std::string& source);
 // Written to a temporary file and renamed over the old one, so a reader sees the old or the new status.

@@ -1,12 +1,13 @@
 #include "capture/libcamera_source.h"
 
+#include <libcamera/libcamera.h>
 #include <sys/mman.h>
 
+#include <atomic>
 #include <chrono>
-#include <cstdlib>
 #include <condition_variable>
+#include <cstdlib>
 #include <deque>
-#include <libcamera/libcamera.h>
 #include <map>
 #include <mutex>
 
@@ -65,7 +66,9 @@ struct CameraStream {
   libcamera::Stream* stream = nullptr;
   int width = 0, height = 0, stride = 0;
   std::string format;
-  bool acquired = false, started = false;
+  bool acquired = false;
+  // Read on libcamera's callback thread (to requeue a completed request), written by Start and ~Impl.
+  std::atomic<bool> started{false};
   SequenceGapCounter gaps;
 };
 
@@ -167,16 +170,21 @@ struct LibcameraStereoSource::Impl {
     }
   }
 
+  // Everything that holds a Camera (requests, allocator, configuration) goes before the manager stops: the
+  // manager must not stop while a camera is still referenced.
   ~Impl() {
     for (CameraStream& cs : cams) {
-      if (cs.started) {
-        cs.started = false;
-        cs.camera->stop();
-      }
+      if (cs.started.exchange(false)) cs.camera->stop();
+      if (cs.camera) cs.camera->requestCompleted.disconnect(this);
       cs.requests.clear();
       for (auto& entry : cs.mapped) munmap(entry.second.base, entry.second.length);
+      cs.mapped.clear();
       if (cs.allocator && cs.stream != nullptr) cs.allocator->free(cs.stream);
+      cs.allocator.reset();
+      cs.config.reset();
+      cs.stream = nullptr;
       if (cs.acquired) cs.camera->release();
+      cs.acquired = false;
       cs.camera.reset();
     }
     if (manager) manager->stop();

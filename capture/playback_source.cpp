@@ -26,7 +26,11 @@ PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& optio
            ", past the recording's ", n, " frame(s)");
   RB_CHECK(options_.count != 0, "playback count 0 plays no frame (-1: all)");
   position_ = options_.first_position;
-  end_position_ = options_.count < 0 ? n : std::min(n, position_ + options_.count);
+  // In 64 bits: first + count passes INT_MAX for a count meant as "all the rest" (--count 2147483647).
+  end_position_ =
+      options_.count < 0
+          ? n
+          : static_cast<int>(std::min<std::int64_t>(n, std::int64_t{position_} + std::int64_t{options_.count}));
 }
 
 std::string PlaybackSource::Describe() const {
@@ -68,7 +72,13 @@ FrameResult PlaybackSource::Next() {
     if (end_position_ <= options_.first_position) return result;
     if (!options_.loop && ++plays_done_ >= options_.repeats) return result;
     // Indices keep increasing across loops so that sinks and recorders never see one twice.
-    loop_index_offset_ += recording_.frames[static_cast<size_t>(end_position_ - 1)].index + 1;
+    // The next pass's last index stays within kMaxRecordingIndex; the offset, at most that, and the index checked
+    // first cannot overflow the sum.
+    const std::int64_t last_index = recording_.frames[static_cast<size_t>(end_position_ - 1)].index;
+    RB_CHECK(last_index <= kMaxRecordingIndex && loop_index_offset_ + 2 * last_index + 1 <= kMaxRecordingIndex,
+             recording_.folder, ": playing it again would number frames past ", kMaxRecordingIndex,
+             " (its last index is ", last_index, "); play it fewer times");
+    loop_index_offset_ += last_index + 1;
     Seek(options_.first_position);
   }
   if (options_.speed == PlaybackSpeed::kStep && !options_.step_gate()) return result;
@@ -81,9 +91,10 @@ FrameResult PlaybackSource::Next() {
       wall_start_ = std::chrono::steady_clock::now();
       recorded_start_ns_ = t_ns;
     } else {
-      // At most ~30 years ahead, so that a damaged timestamp cannot overflow the clock's nanoseconds.
-      const double offset_s =
-          std::min(1e9, static_cast<double>(t_ns - recorded_start_ns_) * 1e-9 / options_.speed_factor);
+      // At most ~30 years ahead, so that a damaged timestamp cannot overflow the clock's nanoseconds; the
+      // difference in double, which two timestamps of opposite sign cannot overflow.
+      const double offset_s = std::min(
+          1e9, (static_cast<double>(t_ns) - static_cast<double>(recorded_start_ns_)) * 1e-9 / options_.speed_factor);
       if (offset_s > 0) {
         const auto until = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                              std::chrono::duration<double>(offset_s));

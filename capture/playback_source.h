@@ -31,7 +31,8 @@ struct PlaybackOptions {
 };
 
 // Missing or corrupt images are returned as kSkipped with the frame index and file in `reason`; the
-// stream goes on with the next entry.
+// stream goes on with the next entry. Repeats and loops number the frames of each pass after the last of the
+// pass before; Next throws Error naming the recording when a pass would number one past kMaxRecordingIndex.
 class PlaybackSource : public FrameSource {
  public:
   PlaybackSource(Recording recording, const PlaybackOptions& options = {});

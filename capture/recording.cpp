@@ -227,6 +227,8 @@ void RecordingWriter::Write(const StereoFrame& frame) {
            ": frame ", frame.index, ": left and right images differ in size or type");
   RB_CHECK(frame.index > last_index_, folder_, ": frame index ", frame.index, " does not increase (last ",
            last_index_, ")");
+  RB_CHECK(frame.index <= kMaxRecordingIndex, folder_, ": frame index ", frame.index,
+           " is above the largest a recording holds (", kMaxRecordingIndex, ")");
   const int depth = frame.left.depth();
   RB_CHECK(depth == CV_8U || depth == CV_16U, folder_, ": frame ", frame.index,
            ": only 8-bit or 16-bit images can be recorded");
@@ -266,23 +268,48 @@ void RecordingWriter::Write(const StereoFrame& frame) {
   }
   last_index_ = frame.index;
   ++summary_.frames_written;
-  if (options_.fsync_every_frames > 0 && summary_.frames_written % options_.fsync_every_frames == 0) {
-    files_->Fsync(index_fd_);
+  if (options_.fsync_every_frames > 0 && summary_.frames_written % options_.fsync_every_frames == 0 &&
+      files_->Fsync(index_fd_) != 0) {
+    const std::string why = ErrnoText();
+    // Kept for Finish instead of thrown: the recorder would stop, and the frames still to come be lost.
+    if (sync_error_.empty()) {
+      sync_error_ = StrCat(folder_, "/frames.csv: fsync failed after frame ", frame.index, " (", why, ")");
+    }
   }
 }
 
 void RecordingWriter::Finish(const RecordingMeta& extra) {
   if (summary_.finished) return;
   summary_.finished = true;
+  std::string index_error = sync_error_;
   if (index_fd_ >= 0) {
-    files_->Fsync(index_fd_);
-    files_->Close(index_fd_);
+    const std::string index_path = folder_ + "/frames.csv";
+    if (files_->Fsync(index_fd_) != 0) {
+      const std::string why = ErrnoText();
+      if (index_error.empty()) index_error = StrCat(index_path, ": fsync failed (", why, ")");
+    }
+    // Not retried when it fails: Linux releases the descriptor whatever close returns.
+    if (files_->Close(index_fd_) != 0) {
+      const std::string why = ErrnoText();
+      if (index_error.empty()) index_error = StrCat(index_path, ": close failed (", why, ")");
+    }
     index_fd_ = -1;
   }
   for (const auto& [key, value] : extra) meta_[key] = value;
   meta_["frame_count"] = std::to_string(summary_.frames_written);
-  meta_["complete"] = "true";
-  WriteMeta(meta_);
+  if (index_error.empty()) {
+    meta_["complete"] = "true";
+    WriteMeta(meta_);
+    return;
+  }
+  // The frames are still readable up to the last line that reached the disk; the recording is not complete.
+  meta_["complete"] = "false";
+  try {
+    WriteMeta(meta_);
+  } catch (const Error&) {
+    // The index's error is the one to report; meta.yaml keeps its earlier `complete: "false"`.
+  }
+  RB_FAIL(index_error);
 }
 
 std::vector<RecordingEntry> ParseRecordingIndex(const std::string& text, const std::string& source,
@@ -313,6 +340,8 @@ std::vector<RecordingEntry> ParseRecordingIndex(const std::string& text, const s
       problem = StrCat("has ", f.size(), " fields, expected 6");
     } else if (!ParseInt64(f[0], &e.index) || e.index < 0) {
       problem = StrCat("field 'index' is not a non-negative integer ('", f[0], "')");
+    } else if (e.index > kMaxRecordingIndex) {
+      problem = StrCat("field 'index' is ", e.index, ", above the largest frame index ", kMaxRecordingIndex);
     } else if (!ParseInt64(f[1], &e.timestamp_left_ns)) {
       problem = StrCat("field 'timestamp_left_ns' is not an integer ('", f[1], "')");
     } else if (!ParseInt64(f[2], &e.timestamp_right_ns)) {

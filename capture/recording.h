@@ -27,9 +27,13 @@ namespace rangebayes {
 
 inline constexpr const char* kRecordingIndexHeader = "index,timestamp_left_ns,timestamp_right_ns,left,right,pattern_id";
 
+// The largest frame index a recording holds (2^53 - 1, the largest integer a double holds exactly, so that an
+// index survives JSON and Python), and the largest a PlaybackSource delivers across repeats and loops.
+inline constexpr std::int64_t kMaxRecordingIndex = (std::int64_t{1} << 53) - 1;
+
 // One line of frames.csv.
 struct RecordingEntry {
-  std::int64_t index = 0;
+  std::int64_t index = 0;  // 0..kMaxRecordingIndex
   std::int64_t timestamp_left_ns = 0;
   std::int64_t timestamp_right_ns = 0;
   std::string left;   // relative to the recording folder
@@ -71,11 +75,15 @@ class RecordingWriter {
   RecordingWriter& operator=(const RecordingWriter&) = delete;
 
   // Writes both images as FOLDER/left/<index>.png and FOLDER/right/<index>.png (index: the frame's index
-  // field, six digits), then appends and flushes its frames.csv line. Indices must increase.
+  // field, six digits), then appends and flushes its frames.csv line. Indices must increase and stay at most
+  // kMaxRecordingIndex. With fsync_every_frames, a failed fsync does not stop the recording (no frame is lost
+  // for it); Finish reports it.
   void Write(const StereoFrame& frame);
 
   // Rewrites meta.yaml with the frame count, `complete: "true"` and `extra` merged in, and closes the index.
-  // Safe to call twice; Write after Finish throws.
+  // Safe to call twice; Write after Finish throws. When frames.csv could not be synced to disk or closed (now or
+  // at an earlier fsync), meta.yaml says `complete: "false"` and Finish throws Error naming frames.csv and the
+  // system's reason: its last lines may not have reached the disk.
   void Finish(const RecordingMeta& extra = {});
 
   const std::string& folder() const { return folder_; }
@@ -92,6 +100,7 @@ class RecordingWriter {
   int index_fd_ = -1;
   std::int64_t last_index_ = -1;
   bool index_cut_ = false;  // a write of frames.csv failed part-way: no line may follow
+  std::string sync_error_;  // the first failed fsync of frames.csv during Write, for Finish to report
 };
 
 // What a reader found that is not fatal. Each notice is one line a user can read.
@@ -113,8 +122,8 @@ struct Recording {
 };
 
 // Parses frames.csv text (`source` names it in errors). A truncated last line (no newline and too few
-// fields or an unparsable number) is dropped and reported in the summary; any other malformed line throws
-// Error naming the line number and the field.
+// fields or an unparsable number) is dropped and reported in the summary; any other malformed line (an index
+// above kMaxRecordingIndex among them) throws Error naming the line number and the field.
 std::vector<RecordingEntry> ParseRecordingIndex(const std::string& text, const std::string& source,
                                                 RecordingReadSummary* summary = nullptr);
 

@@ -14,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/json_int.h"
+#include "core/json_text.h"
 #include "core/mesh_io.h"
 #include "pipeline/pipeline_control.h"
 #include "stereo/colormap.h"
@@ -36,7 +37,7 @@ std::int64_t UnixMs() {
 HttpReply JsonReply(int status, const nlohmann::json& body) {
   HttpReply r;
   r.status = status;
-  r.body = body.dump();
+  r.body = JsonText(body);
   return r;
 }
 
@@ -293,13 +294,13 @@ void Console::SaveCapture(const PipelineResult& r) {
     std::lock_guard<std::mutex> lock(mutex_);
     captures_.push_back(c);
   }
-  server_->Broadcast(std::make_shared<const std::string>(msg.dump()), /*binary=*/false, "capture");
+  server_->Broadcast(std::make_shared<const std::string>(JsonText(msg)), /*binary=*/false, "capture");
 }
 
 void Console::BroadcastStatus() {
   nlohmann::json s = Status();
   s["type"] = "status";
-  server_->Broadcast(std::make_shared<const std::string>(s.dump()), /*binary=*/false, "status");
+  server_->Broadcast(std::make_shared<const std::string>(JsonText(s)), /*binary=*/false, "status");
 }
 
 nlohmann::json Console::RecordingStatus() const {

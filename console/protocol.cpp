@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace rangebayes {
 namespace {
@@ -24,7 +25,7 @@ std::uint32_t GetU32(std::string_view s, size_t at) {
 }  // namespace
 
 std::string EncodeConsoleMessage(ConsoleMessageType type, const nlohmann::json& header, std::string_view payload) {
-  const std::string h = header.dump();
+  const std::string h = JsonText(header);
   std::string out;
   out.reserve(8 + h.size() + 3 + payload.size());
   out.push_back(static_cast<char>(type));

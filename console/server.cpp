@@ -16,6 +16,7 @@
 #include <optional>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace rangebayes {
 
@@ -368,7 +369,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       reply = state_->handler(request);
     } catch (const std::exception& e) {
       reply.status = 500;
-      reply.body = nlohmann::json{{"error", e.what()}}.dump();
+      reply.body = JsonText(nlohmann::json{{"error", e.what()}});
     }
     if (reply.status >= 400) ++state_->refused;
     Send(reply, !req.keep_alive(), req.version(), req.method() == http::verb::head);
@@ -378,7 +379,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     ++state_->refused;
     HttpReply reply;
     reply.status = status;
-    reply.body = nlohmann::json{{"error", reason}}.dump();
+    reply.body = JsonText(nlohmann::json{{"error", reason}});
     Send(reply, /*close=*/true, 11);
   }
 

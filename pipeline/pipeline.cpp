@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pipeline/pipeline_control.h"
 #include "stereo/disparity_features.h"
 
@@ -304,6 +305,7 @@ class Stages {
     t_smooth = &summary.stages[4];
     t_decimate = &summary.stages[5];
     t_sinks = &summary.stages[6];
+    summary.queue_capacity = options.queue_capacity;
     if (!options.smooth) summary.notices.push_back("smoothing switched off: results carry no smoothed mesh");
     if (!options.decimate) summary.notices.push_back("decimation switched off: results carry no decimated mesh");
 
@@ -855,6 +857,7 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
   j["failed"] = summary.failed;
   j["dropped"] = summary.dropped;
   j["dropped_per_queue"] = summary.dropped_per_queue;
+  j["queue_capacity"] = summary.queue_capacity;
   j["abandoned"] = summary.abandoned;
   j["stopped"] = summary.stopped;
   j["fatal_error"] = summary.fatal_error;
@@ -886,10 +889,14 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
                       {"items_per_s", s.total_ms > 0 ? 1000.0 * static_cast<double>(s.items) / s.total_ms : 0.0}});
   }
   j["stages"] = stages;
+  // The text first: the file is truncated when it opens, and an error message or source name may hold bytes
+  // that are not UTF-8 (a file name from frames.csv).
+  const std::string text = JsonText(j, 2) + "\n";
   std::ofstream out(path);
   RB_CHECK(out.good(), path, ": cannot write the pipeline summary");
-  out << j.dump(2) << "\n";
-  RB_CHECK(out.good(), path, ": write failed");
+  out << text;
+  out.close();  // a full disk may only show when the buffer is flushed
+  RB_CHECK(!out.fail(), path, ": write failed");
 }
 
 }  // namespace rangebayes

@@ -160,6 +160,7 @@ struct PipelineSummary {
   std::int64_t failed = 0;           // results that failed in a stage
   std::int64_t dropped = 0;          // live: items dropped from full queues (all queues)
   std::vector<std::int64_t> dropped_per_queue;
+  int queue_capacity = 0;            // of each queue between two stages (PipelineOptions::queue_capacity)
   std::int64_t abandoned = 0;        // items discarded after a stop request
   bool stopped = false;              // the stop flag ended the run
   std::string fatal_error;           // the source failed for good (device lost)
@@ -191,7 +192,8 @@ CameraIntrinsics DownsampledIntrinsics(const CameraIntrinsics& full, int factor)
 PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const PipelineOptions& options,
                             const std::vector<PipelineSink*>& sinks);
 
-// Writes the summary as JSON (stages, counts, errors); throws Error naming the path on failure.
+// Writes the summary as JSON (stages, counts, errors); bytes of its strings that are not UTF-8 are written as
+// U+FFFD. Throws Error naming the path on failure.
 void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string& path);
 
 }  // namespace rangebayes

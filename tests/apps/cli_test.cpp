@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <utility>
 
@@ -50,6 +51,13 @@ TEST(Cli, BadNumericValuesAreOnePlainLine) {
       {"decimate " + mesh + " /tmp/rb_cli_never.ply --target-faces 2.5", "--target-faces: '2.5' is not an integer"},
       {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --smooth-budget 1e300",
        "--smooth-budget: must be a number in [-1, 1e+09], got 1e+300"},
+      // --count is an int: 2147483648 was "Could not convert", -2 and 0 errors of the library (exit 1).
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count 2147483648",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got 2147483648"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count -2",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got -2"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --count 0",
+       "--count: must be -1 (all) or an integer in 1..2147483647, got 0"},
   };
   for (const auto& [args, message] : cases) {
     const RunResult r = RunRangebayes(args);
@@ -57,6 +65,23 @@ TEST(Cli, BadNumericValuesAreOnePlainLine) {
     EXPECT_NE(r.output.find(message), std::string::npos) << args << "\n" << r.output;
     EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
   }
+}
+
+// The libcamera source has no frame rate, pixel format or side-by-side mode: those flags are refused with
+// --libcamera (they were ignored without a word), before any camera is opened or folder created.
+TEST(Cli, V4l2OnlyCameraFlagsAreRefusedWithLibcamera) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"--fps 15", "--fps is not supported with --libcamera"},
+      {"--format grey", "--format is a V4L2 pixel format"},
+      {"--side-by-side", "--side-by-side is for one V4L2 device"},
+  };
+  for (const auto& [flag, message] : cases) {
+    const RunResult r = RunRangebayes("record --libcamera " + flag + " --out /tmp/rb_cli_never_rec");
+    EXPECT_EQ(r.exit_code, 2) << flag << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << flag << "\n" << r.output;
+    EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists("/tmp/rb_cli_never_rec"));
 }
 
 }  // namespace

@@ -182,6 +182,48 @@ TEST(BatchRecord, NumbersThatDoNotFitAnIntAreMalformed) {
   EXPECT_THROW(ReadBatchRecord(layout), Error);
 }
 
+// A task that failed on a file whose name is not UTF-8 (any byte but '/' and NUL is a Linux file name) has that
+// name in its error line: its status is written with U+FFFD in place of the byte; json::dump threw before, and the
+// task kept no status.
+TEST(Status, ErrorLineThatIsNotUtf8IsWrittenWithAReplacementCharacter) {
+  const TempDir dir("status-utf8");
+  const BatchLayout layout(dir.path());
+  BatchTaskStatus s;
+  s.index = 0;
+  s.state = "failed";
+  s.exit_code = 1;
+  s.error_line = "rangebayes replay: error: rec: frame 1: left/\xff.png is missing";
+  s.command = "replay rec/\xff";
+  ASSERT_NO_THROW(WriteBatchTaskStatus(layout, s));
+  const auto read = ReadBatchTaskStatus(layout, 0);
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(read->error_line, "rangebayes replay: error: rec: frame 1: left/\xEF\xBF\xBD.png is missing");
+  EXPECT_EQ(read->command, "replay rec/\xEF\xBF\xBD");
+}
+
+// batch.json's paths are read back to run the tasks, so one that is not UTF-8 is refused with one clear error (it
+// was json's own type_error) instead of being recorded changed.
+TEST(BatchRecord, PathThatIsNotUtf8IsOneClearError) {
+  const TempDir dir("record-utf8");
+  const BatchLayout layout(dir.path());
+  BatchRecord record;
+  record.manifest_source = dir.path() + "/\xff/m.txt";
+  record.manifest_dir = dir.path() + "/\xff";
+  record.binary = "/usr/bin/rangebayes";
+  record.num_tasks = 1;
+  std::string message;
+  try {
+    WriteBatchRecord(layout, record);
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("batch.json: cannot record the batch: a path (manifest " + record.manifest_source),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("is not UTF-8 text"), std::string::npos) << message;
+  EXPECT_FALSE(fs::exists(layout.record()));
+}
+
 // A line that names no subcommand of the binary is refused at submit, with its line, before anything is written.
 TEST(SubmitBatch, UnknownSubcommandIsRefusedBeforeAnythingRuns) {
   const TempDir dir("unknown");

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <thread>
@@ -143,6 +144,67 @@ TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
   PlaybackOptions bad;
   bad.repeats = 0;
   EXPECT_THROW(PlaybackSource(rec, bad), Error);
+}
+
+// The end of the selection in 64 bits: first 1 + count 2147483647 passed INT_MAX and played no frame at all.
+TEST(Playback, CountUpToIntMaxPlaysTheRestOfTheRecording) {
+  const TempDir dir("count_max");
+  PlaybackOptions o;
+  o.first_position = 1;
+  o.count = std::numeric_limits<int>::max();
+  PlaybackSource source(OpenRecording(MakeRecording(dir, 4)), o);
+  EXPECT_EQ(source.frames_total().value_or(-1), 3);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = source.Next(); r.status == FrameStatus::kFrame; r = source.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got, (std::vector<std::int64_t>{1, 2, 3}));
+}
+
+// A pass that would number frames past kMaxRecordingIndex is an error, not an index that wraps to a negative
+// one (a last index of 9223372036854775807 played twice numbered the second pass from -9223372036854775808).
+TEST(Playback, RepeatsThatWouldPassTheLargestIndexThrow) {
+  const TempDir dir("repeat_max");
+  Recording rec = OpenRecording(MakeRecording(dir, 2));
+  for (const std::int64_t last : {kMaxRecordingIndex, std::numeric_limits<std::int64_t>::max()}) {
+    SCOPED_TRACE(last);
+    rec.frames[1].index = last;
+    PlaybackOptions o;
+    o.repeats = 2;
+    PlaybackSource source(rec, o);
+    EXPECT_EQ(source.Next().frame.index, 0);
+    EXPECT_EQ(source.Next().frame.index, last);
+    EXPECT_NE(ErrorOf([&] { source.Next(); }).find("playing it again would number frames past 9007199254740991"),
+              std::string::npos);
+  }
+  // The largest pass that fits: indices 0 and 2^52 - 1, played twice, end at 2^53 - 1.
+  rec.frames[1].index = (std::int64_t{1} << 52) - 1;
+  PlaybackOptions o;
+  o.repeats = 2;
+  PlaybackSource source(rec, o);
+  std::vector<std::int64_t> got;
+  for (FrameResult r = source.Next(); r.status == FrameStatus::kFrame; r = source.Next()) got.push_back(r.frame.index);
+  EXPECT_EQ(got,
+            (std::vector<std::int64_t>{0, (std::int64_t{1} << 52) - 1, std::int64_t{1} << 52, kMaxRecordingIndex}));
+}
+
+// Timestamps of opposite sign far apart: their difference overflowed int64 (to -1 ns here) and the frame came at
+// once; in double it is a gap of about 584 years, capped and waited for until the stop request.
+TEST(Playback, RecordedSpeedWaitsForTimestampsOfOppositeSign) {
+  const TempDir dir("far_apart");
+  Recording rec = OpenRecording(MakeRecording(dir, 2));
+  rec.frames[0].timestamp_left_ns = rec.frames[0].timestamp_right_ns = std::numeric_limits<std::int64_t>::min();
+  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = std::numeric_limits<std::int64_t>::max();
+  std::atomic<bool> stop{false};
+  PlaybackOptions o;
+  o.speed = PlaybackSpeed::kRecorded;
+  o.stop = &stop;
+  PlaybackSource source(rec, o);
+  EXPECT_EQ(source.Next().status, FrameStatus::kFrame);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
+  stopper.join();
 }
 
 TEST(Playback, LoopKeepsIndicesIncreasing) {
@@ -333,6 +395,90 @@ class FullDisk final : public FileSysCalls {
   int writes_ = 0;
   bool full_ = false;
 };
+
+// The system's file calls, except that fsync of frames.csv fails with EIO from its `fail_fsync_from`-th call on
+// (0: never), and closing frames.csv reports EIO when `fail_close` (the descriptor is closed all the same), as a
+// disk or network file system that loses writes does.
+class FailingIndexSync final : public FileSysCalls {
+ public:
+  FailingIndexSync(int fail_fsync_from, bool fail_close) : fail_fsync_from_(fail_fsync_from), fail_close_(fail_close) {}
+  int Open(const std::string& path, int flags, mode_t mode) override {
+    const int fd = real_->Open(path, flags, mode);
+    if (fd >= 0 && path.find("frames.csv") != std::string::npos) index_fd_ = fd;
+    return fd;
+  }
+  ssize_t Write(int fd, const void* data, size_t size) override { return real_->Write(fd, data, size); }
+  int Fsync(int fd) override {
+    if (fd == index_fd_ && fail_fsync_from_ > 0 && ++fsyncs_ >= fail_fsync_from_) {
+      errno = EIO;
+      return -1;
+    }
+    return real_->Fsync(fd);
+  }
+  int Close(int fd) override {
+    const int r = real_->Close(fd);
+    if (fd != index_fd_) return r;
+    index_fd_ = -1;  // the number may be handed out again
+    if (!fail_close_) return r;
+    errno = EIO;
+    return -1;
+  }
+  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
+
+ private:
+  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
+  int fail_fsync_from_;
+  bool fail_close_;
+  int index_fd_ = -1;
+  int fsyncs_ = 0;
+};
+
+// A failed fsync or close of frames.csv at Finish is an error naming the file and the system's reason, and
+// meta.yaml does not say complete (both were ignored, and the recording said complete: "true").
+TEST(RecordingWriter, FailedFsyncOrCloseAtFinishIsAnErrorAndTheRecordingNotComplete) {
+  for (const bool close : {false, true}) {
+    SCOPED_TRACE(close ? "close" : "fsync");
+    const TempDir dir("finish_sync");
+    const std::string folder = dir.path() + "/rec";
+    RecordingWriterOptions options;
+    options.files = std::make_shared<FailingIndexSync>(close ? 0 : 1, close);
+    RecordingWriter writer(folder, std::nullopt, {}, options);
+    for (int i = 0; i < 3; ++i) writer.Write(TestFrame(i, 32, 16, CV_8UC1));
+    const std::string error = ErrorOf([&] { writer.Finish({{"stopped", "end of stream"}}); });
+    EXPECT_NE(
+        error.find(folder + "/frames.csv: " + (close ? "close" : "fsync") + " failed (" + std::strerror(EIO) + ")"),
+        std::string::npos)
+        << error;
+    EXPECT_EQ(ErrorOf([&] { writer.Finish(); }), "no error");  // once
+    const Recording rec = OpenRecording(folder);
+    EXPECT_EQ(rec.meta.at("complete"), "false");
+    EXPECT_EQ(rec.meta.at("frame_count"), "3");
+    EXPECT_EQ(rec.meta.at("stopped"), "end of stream");
+    EXPECT_EQ(rec.num_frames(), 3);
+    ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
+  }
+}
+
+// With fsync every frame, a failed fsync in the middle of a recording does not stop it (the frames after it would
+// be lost); every frame is recorded and the failure is the recorder's error at the end.
+TEST(Recorder, FailedPeriodicFsyncLosesNoFrameAndIsReportedAtTheEnd) {
+  const TempDir dir("periodic_sync");
+  FakeFrameSource source(32, 16, 6);
+  RecordingWriterOptions options;
+  options.fsync_every_frames = 1;
+  options.files = std::make_shared<FailingIndexSync>(2, false);  // after frame 1 and every later one
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {}, options);
+  const RecorderSummary s = Record(source, writer);
+  EXPECT_EQ(s.stop, RecorderStop::kEndOfStream);
+  EXPECT_EQ(s.frames_written, 6);
+  EXPECT_NE(s.error.find("frames.csv: fsync failed after frame 1 (" + std::string(std::strerror(EIO)) + ")"),
+            std::string::npos)
+      << s.error;
+  const Recording rec = OpenRecording(dir.path() + "/rec");
+  EXPECT_EQ(rec.num_frames(), 6);
+  EXPECT_EQ(rec.meta.at("complete"), "false");
+  ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
+}
 
 std::vector<std::string> PartialFiles(const std::string& folder) {
   std::vector<std::string> found;

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <vector>
 
 #include "core/error.h"
 #include "tests/capture/test_util.h"
@@ -141,6 +142,39 @@ TEST(RecordingIndex, MalformedLinesNameLineAndField) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("expected header"), std::string::npos);
   }
+}
+
+// Indices above 2^53 - 1 are refused where they enter: a line of frames.csv (9223372036854775807 played twice
+// numbered frames from -9223372036854775808 before), and the writer, so that it never writes what the reader
+// refuses.
+TEST(RecordingIndex, IndexAboveTheLargestIsAnErrorNamingTheLine) {
+  const std::string header = std::string(kRecordingIndexHeader) + "\n";
+  const std::vector<RecordingEntry> entries =
+      ParseRecordingIndex(header + "0,1,2,l,r,0\n9007199254740991,1,2,l,r,0\n", "frames.csv");
+  ASSERT_EQ(entries.size(), 2u);
+  EXPECT_EQ(entries[1].index, kMaxRecordingIndex);
+  for (const char* index : {"9007199254740992", "9223372036854775807"}) {
+    std::string message = "no error";
+    try {
+      ParseRecordingIndex(header + "0,1,2,l,r,0\n" + index + ",1,2,l,r,0\n", "frames.csv");
+    } catch (const Error& e) {
+      message = e.what();
+    }
+    EXPECT_NE(message.find(std::string("frames.csv: line 3 field 'index' is ") + index +
+                           ", above the largest frame index 9007199254740991"),
+              std::string::npos)
+        << message;
+  }
+  const TempDir dir("largest");
+  StereoFrame frame = TestFrame(0, 8, 4, CV_8UC1);  // (TestFrame's timestamps overflow for such indices)
+  frame.index = kMaxRecordingIndex;
+  RecordingWriter writer(dir.path() + "/rec", std::nullopt, {});
+  writer.Write(frame);
+  writer.Finish();
+  EXPECT_EQ(OpenRecording(dir.path() + "/rec").frames.at(0).index, kMaxRecordingIndex);
+  RecordingWriter second(dir.path() + "/rec2", std::nullopt, {});
+  frame.index = kMaxRecordingIndex + 1;
+  EXPECT_NE(ErrorOf([&] { second.Write(frame); }).find("is above the largest a recording holds"), std::string::npos);
 }
 
 TEST(Recording, MissingCorruptAndMismatchedImagesNameTheFrame) {

@@ -163,6 +163,29 @@ TEST_F(ConsoleTest, StatusHasTheIssuesFieldsAndFollowsTheRun) {
   EXPECT_EQ(BodyOf(ply).rfind("ply\n", 0), 0u);
 }
 
+// A frame skipped for a file whose name is not UTF-8 (a valid Linux name) puts that name in the status's errors;
+// the status is sent with U+FFFD for the byte. json::dump threw there: /api/status answered 500, and the periodic
+// status broadcast ended the process (an exception out of the console's thread).
+TEST_F(ConsoleTest, StatusWithAFileNameThatIsNotUtf8) {
+  Recording rec = recording_;
+  rec.frames[1].left = "left/\xff.png";
+  PlaybackOptions playback;
+  playback.count = 2;
+  PlaybackSource source(rec, playback);
+  PipelineOptions options = FastOptions();
+  options.control = &control_;
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {console_.get()});
+  ASSERT_EQ(s.frames_skipped, 1);
+  // Ten status periods, each a broadcast of the status with the error in it.
+  std::this_thread::sleep_for(std::chrono::duration<double>(10 * TestOptions(dir_).status_period_s));
+  const std::string reply = Get(console_->port(), "/api/status");
+  ASSERT_EQ(StatusOf(reply), 200) << reply;
+  const nlohmann::json j = nlohmann::json::parse(BodyOf(reply));
+  ASSERT_EQ(j["errors"].size(), 1u) << j["errors"];
+  EXPECT_NE(j["errors"][0].get<std::string>().find("frame 1: left/\xEF\xBF\xBD.png is missing"), std::string::npos)
+      << j["errors"][0];
+}
+
 TEST_F(ConsoleTest, ServesThePageAndNothingElse) {
   EXPECT_EQ(StatusOf(Get(console_->port(), "/")), 200);
   EXPECT_NE(Get(console_->port(), "/").find("text/html"), std::string::npos);

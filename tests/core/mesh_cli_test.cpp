@@ -53,6 +53,18 @@ TEST_F(MeshCliTest, InfoJson) {
   EXPECT_GT(j["mean_edge_length"].get<double>(), 0.0);
 }
 
+// A file name that is not UTF-8 (a valid Linux name) is printed with U+FFFD for its byte; json::dump threw on it
+// and `info --json` printed an error instead.
+TEST_F(MeshCliTest, InfoJsonOfAFileNameThatIsNotUtf8) {
+  const std::string path = Path("\xff.off");
+  std::ofstream(path) << "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const RunResult r = RunRangebayes("info '" + path + "' --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["file"], Path("\xEF\xBF\xBD.off"));
+  EXPECT_EQ(j["faces"], 1);
+}
+
 TEST_F(MeshCliTest, InfoOnBadFilesIsOneErrorLine) {
   RunResult r = RunRangebayes("info " + Path("missing.ply"));
   EXPECT_EQ(r.exit_code, 1);

@@ -1,9 +1,20 @@
 // `rangebayes replay` as a user runs it: the bundled recording end to end, and bad input.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
 
 #include "tests/apps/run_binary.h"
 #include "tests/capture/test_util.h"
@@ -30,6 +41,28 @@ void CopyBundled(const std::string& folder, int frames) {
     fs::copy_file(src + "/left/" + name, folder + "/left/" + name);
     fs::copy_file(src + "/right/" + name, folder + "/right/" + name);
   }
+}
+
+// The whole of a text file ("" when it does not exist).
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Replaces the first `from` in FOLDER/frames.csv by `to`.
+void EditIndex(const std::string& folder, const std::string& from, const std::string& to) {
+  std::string text = ReadAll(folder + "/frames.csv");
+  const size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  std::ofstream(folder + "/frames.csv", std::ios::binary) << text;
+}
+
+int CountLines(const std::string& path) {
+  std::ifstream in(path);
+  int lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  return lines;
 }
 
 TEST(ReplayCli, BundledRecordingEndToEnd) {
@@ -124,6 +157,146 @@ TEST(ReplayCli, WrongRigAndMismatchedSizesAreClear) {
   r = RunRangebayes("replay " + rec + " --no-smooth --no-decimate --out " + dir.path() + "/out2");
   EXPECT_EQ(r.exit_code, 3) << r.output;
   EXPECT_NE(r.output.find("frame 1: left is 320x240 but right is 10x10"), std::string::npos) << r.output;
+}
+
+// The end of the selection in 64 bits: --first 1 --count 2147483647 played no frame and exited 0.
+TEST(ReplayCli, CountUpToIntMaxPlaysTheRest) {
+  const TempDir dir("cli_count_max");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 3);
+  const RunResult r = RunRangebayes("replay " + rec + " --first 1 --count 2147483647 --downsample 4 --no-smooth " +
+                                    "--no-decimate --no-previews --out " + dir.path() + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(CountLines(dir.path() + "/out/results.csv"), 3);  // header and frames 1 and 2
+}
+
+// A frames.csv line may name any Linux file name, UTF-8 or not. Its frame is skipped (missing file) and
+// summary.json holds the error with U+FFFD for the byte: json::dump threw there after the file was truncated,
+// leaving it empty and the run at exit 1 instead of 3 (frames skipped).
+TEST(ReplayCli, FileNameThatIsNotUtf8GivesAValidSummaryAndExitThree) {
+  const TempDir dir("cli_utf8");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  EditIndex(rec, "left/000001.png", "left/\xff.png");
+  const RunResult r = RunRangebayes("replay " + rec + " --downsample 4 --no-smooth --no-decimate --no-previews --out " +
+                                    dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir.path() + "/out/summary.json"));
+  EXPECT_EQ(j["results"], 1);
+  EXPECT_EQ(j["frames_skipped"], 1);
+  ASSERT_EQ(j["errors"].size(), 1u);
+  EXPECT_NE(j["errors"][0].get<std::string>().find("frame 1: left/\xEF\xBF\xBD.png is missing"), std::string::npos)
+      << j["errors"][0];
+}
+
+// --queue is kept with --live-path (whose preset sets queues of one item), and left out it is the preset's.
+TEST(ReplayCli, QueueGivenIsKeptWithLivePath) {
+  const TempDir dir("cli_queue");
+  const std::pair<std::string, int> cases[] = {
+      {"", 4}, {"--queue 2", 2}, {"--live-path", 1}, {"--live-path --queue 8", 8}};
+  int run = 0;
+  for (const auto& [flags, capacity] : cases) {
+    const std::string out = dir.path() + "/out" + std::to_string(run++);
+    const RunResult r = RunRangebayes(std::string("replay ") + kBundled + " --count 1 --no-smooth --no-decimate " +
+                                      "--no-previews " + flags + " --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << flags << "\n" << r.output;
+    EXPECT_EQ(nlohmann::json::parse(ReadAll(out + "/summary.json"))["queue_capacity"], capacity) << flags;
+  }
+}
+
+// --repeat that would number frames past 2^53 - 1 ends the run with one error line and exit 1 (a last index of
+// 9223372036854775807 wrapped to negative indices and exited 0).
+TEST(ReplayCli, RepeatsPastTheLargestIndexAreOneErrorLine) {
+  const TempDir dir("cli_repeat_max");
+  const std::string rec = dir.path() + "/rec";
+  CopyBundled(rec, 2);
+  EditIndex(rec, "\n1,", "\n9007199254740991,");
+  const RunResult r = RunRangebayes("replay " + rec + " --repeat 2 --downsample 4 --no-smooth --no-decimate " +
+                                    "--no-previews --quiet --out " + dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.output, "rangebayes replay: error: " + rec +
+                          ": playing it again would number frames past 9007199254740991 (its last index is "
+                          "9007199254740991); play it fewer times\n");
+}
+
+// Kills and reaps a child process that a failed assertion left running.
+class ChildGuard {
+ public:
+  explicit ChildGuard(pid_t pid) : pid_(pid) {}
+  ~ChildGuard() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  // Waits up to `seconds` for the child to end; its waitpid status, or nullopt if it still runs.
+  std::optional<int> WaitFor(double seconds) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    do {
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return status;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    } while (std::chrono::steady_clock::now() < end);
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_;
+};
+
+// `replay --speed step` waits for Enter on the capture thread. SIGTERM while it waits ends the run with the
+// results so far: the wait polls stdin and the stop flag. A blocking getchar() kept the process there until Enter
+// or the end of stdin (25 s after SIGTERM in the review, for ever here, where stdin stays open).
+TEST(ReplayCli, SigtermEndsAStepReplayWaitingForEnter) {
+  const TempDir dir("cli_step");
+  const std::string out = dir.path() + "/out", log = dir.path() + "/log.txt";
+  int input[2];
+  ASSERT_EQ(::pipe(input), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::dup2(input[0], STDIN_FILENO);
+    ::close(input[0]);
+    ::close(input[1]);
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
+    ::close(fd);
+    if (::chdir(RB_SOURCE_DIR) != 0) ::_exit(127);
+    ::execl(RB_BINARY, RB_BINARY, "replay", kBundled, "--speed", "step", "--count", "3", "--downsample", "4",
+            "--no-smooth", "--no-decimate", "--no-previews", "--out", out.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ChildGuard child(pid);
+  ::close(input[0]);
+  ASSERT_EQ(::write(input[1], "\n", 1), 1);  // frame 0; frame 1 then waits for the next Enter
+  const auto prompts = [&] {
+    const std::string text = ReadAll(log);
+    int n = 0;
+    for (size_t at = text.find("Enter for the next frame"); at != std::string::npos;
+         at = text.find("Enter for the next frame", at + 1)) {
+      ++n;
+    }
+    return n;
+  };
+  // Generous bounds (not timings): a wait that runs out means the run is stuck.
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while ((prompts() < 2 || CountLines(out + "/results.csv") < 2) && std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(prompts(), 2) << ReadAll(log);
+  ASSERT_EQ(CountLines(out + "/results.csv"), 2) << ReadAll(log);  // frame 0 is through
+  ASSERT_EQ(::kill(pid, SIGTERM), 0);
+  const std::optional<int> status = child.WaitFor(60.0);
+  ::close(input[1]);
+  ASSERT_TRUE(status.has_value()) << "still waiting for Enter 60 s after SIGTERM\n" << ReadAll(log);
+  ASSERT_TRUE(WIFEXITED(*status)) << ReadAll(log);
+  EXPECT_EQ(WEXITSTATUS(*status), 0) << ReadAll(log);
+  EXPECT_NE(ReadAll(log).find("stopped by request"), std::string::npos) << ReadAll(log);
+  EXPECT_EQ(CountLines(out + "/results.csv"), 2);
 }
 
 }  // namespace
