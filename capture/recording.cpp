@@ -198,7 +198,13 @@ RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<
   const std::string index_path = (root / "frames.csv").string();
   index_fd_ = files_->Open(index_path, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index_path, ": cannot create (", ErrnoText(), ")");
-  WriteAll(*files_, index_fd_, std::string(kRecordingIndexHeader) + "\n", index_path);
+  try {
+    WriteAll(*files_, index_fd_, std::string(kRecordingIndexHeader) + "\n", index_path);
+  } catch (...) {
+    files_->Close(index_fd_);  // the constructor throws: no destructor will close it
+    index_fd_ = -1;
+    throw;
+  }
 }
 
 RecordingWriter::~RecordingWriter() {

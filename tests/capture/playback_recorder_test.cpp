@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <set>
 #include <thread>
 
 #include "capture/file_syscalls.h"
@@ -505,6 +506,44 @@ TEST(Recorder, DiskFullDuringAnImageLosesOnlyThatFrameAndSaysSo) {
   EXPECT_EQ(rec.num_frames(), 3);
   EXPECT_EQ(read.missing_files, 0);
   ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
+}
+
+// The system's file calls, counting the descriptors of frames.csv still open; its first write fails with ENOSPC.
+class IndexHeaderFails final : public FileSysCalls {
+ public:
+  int Open(const std::string& path, int flags, mode_t mode) override {
+    const int fd = real_->Open(path, flags, mode);
+    if (fd >= 0 && path.find("frames.csv") != std::string::npos) index_fds.insert(fd);
+    return fd;
+  }
+  ssize_t Write(int fd, const void* data, size_t size) override {
+    if (index_fds.count(fd) > 0) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return real_->Write(fd, data, size);
+  }
+  int Fsync(int fd) override { return real_->Fsync(fd); }
+  int Close(int fd) override {
+    index_fds.erase(fd);
+    return real_->Close(fd);
+  }
+  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
+  std::set<int> index_fds;
+
+ private:
+  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
+};
+
+// A recording whose frames.csv header cannot be written is an error, and the file is closed (the constructor
+// threw, so no destructor closed it: one descriptor lost per attempt).
+TEST(Recorder, AnIndexHeaderThatCannotBeWrittenLeavesNoOpenFile) {
+  const TempDir dir("header_fails");
+  const auto files = std::make_shared<IndexHeaderFails>();
+  RecordingWriterOptions options;
+  options.files = files;
+  EXPECT_THROW(RecordingWriter(dir.path() + "/rec", std::nullopt, {}, options), Error);
+  EXPECT_TRUE(files->index_fds.empty());
 }
 
 TEST(Recorder, DiskFullInTheIndexLeavesACutLineTheReaderDrops) {
