@@ -8,7 +8,8 @@
 //   x_v = argmin Q_v(x) + α_v ‖x − x_v⁰‖²,   α_v = regularisation · trace(quadric matrix of v) / 3
 //
 // The step towards x_v is halved up to `max_halvings` times while any triangle of v would lose area, reverse
-// its orientation or leave the cone of its patch normal; otherwise the vertex stays. Since Q_v + α_v‖·‖² is
+// its orientation or leave the cone of its patch normal (InPatchCone in bayes/decimation/decimate_geometry.h: the
+// dense normals at its corners for a closed patch); otherwise the vertex stays. Since Q_v + α_v‖·‖² is
 // convex and equals Q_v at x_v⁰, every accepted step lowers Q_v: the refit never increases the quadric error.
 // Then `fit_rounds` rounds fit the kept vertices to the dense vertices themselves (each projected onto the
 // nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser of the
@@ -79,8 +80,8 @@ Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& option
 // their faces (squared distances weighted by the dense vertex areas, summed over the poses) by more than 1e-6
 // of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused
 // when the new edge exists already (so the mesh stays manifold with the same vertices, faces and patches) or
-// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal or fold onto its
-// partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
+// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold onto
+// its partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
 struct EdgeFlipInput {
   std::vector<const Vertices*> dense_poses;            // per pose, the dense positions (the samples)
   std::vector<const Vertices*> coarse_poses;           // per pose, the coarse vertices' positions; empty: dense

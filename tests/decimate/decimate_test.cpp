@@ -141,6 +141,16 @@ Mesh Torus(int nu, int nv, double R = 3.0, double r = 1.0) {
   return FromLists(V, faces);
 }
 
+// Signed volume enclosed by a closed, outward-oriented mesh.
+double Volume(const Mesh& m) {
+  double v = 0.0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
 // Per component (Euler characteristic, boundary loops), sorted; unreferenced vertices ignored.
 std::vector<std::pair<int, int>> Signature(const Mesh& mesh) {
   const Components comps = ComputeComponents(mesh);
@@ -310,6 +320,48 @@ TEST(Decimate, ClosedSphereKeepsTopologyAtSeveralLambdas) {
     EXPECT_LE(out.num_patches, previous);
     previous = out.num_patches;
     EXPECT_FALSE(summary.fell_back_to_dense);
+  }
+}
+
+// Every output face within 90° (cosine above DecimateOptions::min_cos_to_patch_normal) of the dense normal at each
+// of its corners: a closed surface neither folded nor flattened across itself.
+void ExpectFacesAlongTheDenseNormals(const Mesh& dense, const DecimatedMesh& out) {
+  const std::vector<Eigen::Vector3d> normal = DenseVertexNormals(dense.V, dense.F);
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.mesh.V.row(out.mesh.F(f, 0)), b = out.mesh.V.row(out.mesh.F(f, 1)),
+                          c = out.mesh.V.row(out.mesh.F(f, 2));
+    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_GE(cross.dot(normal[out.vertex_source[out.mesh.F(f, k)]]), 0.02 * cross.norm())
+          << "face " << f << " corner " << k;
+    }
+  }
+}
+
+// A closed surface that is one patch has no patch normal (its faces' area vectors sum to zero), so the cone of
+// that normal cannot guard its collapses: before, every collapse was refused (the cube kept all its faces) or,
+// where rounding gave the sum a direction, the side facing it collapsed into a flat disc while the rest stayed.
+// Each triangle is now held to the dense normals at its corners: the surface reduces to a small polytope that
+// still faces outward everywhere.
+TEST(Decimate, ClosedSurfaceThatIsOnePatchReducesWithoutFlattening) {
+  const Mesh sphere = Sphere(3), cube = Cube(4);
+  for (const Mesh* mesh : {&sphere, &cube}) {
+    for (const bool refit : {false, true}) {
+      DecimateOptions options;
+      options.lambda = 1e6;
+      options.refit_vertices = refit;
+      DecimateSummary summary;
+      const DecimatedMesh out = Decimate(*mesh, options, &summary);
+      SCOPED_TRACE(mesh->num_faces());
+      SCOPED_TRACE(refit);
+      ASSERT_EQ(out.num_patches, 1);
+      EXPECT_FALSE(summary.fell_back_to_dense);
+      EXPECT_LE(out.mesh.num_faces(), 8);
+      ExpectManifold(out.mesh);
+      EXPECT_EQ(Signature(out.mesh), Signature(*mesh));
+      ExpectFacesAlongTheDenseNormals(*mesh, out);
+      EXPECT_GT(Volume(out.mesh), 0.1 * Volume(*mesh));
+    }
   }
 }
 
@@ -700,15 +752,6 @@ TEST(Decimate, FandiskAtTwoAndTenPercent) {
 
 
 // Vertex refit (bayes/decimation/decimate_refit.h).
-
-double Volume(const Mesh& m) {
-  double v = 0.0;
-  for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
-    v += a.dot(b.cross(c)) / 6.0;
-  }
-  return v;
-}
 
 TEST(DecimateRefit, NeverIncreasesTheQuadricErrorAndKeepsTheGuarantees) {
   const Mesh sphere = Sphere(4);
