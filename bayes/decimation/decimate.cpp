@@ -849,6 +849,11 @@ class LambdaSearch {
     return {b, below};
   }
 
+  // Whether an attempt at l with `faces` too many would replace fewest_.
+  bool BeatsFewest(int faces, double l) const {
+    return faces < fewest_faces_ || (faces == fewest_faces_ && l > fewest_lambda_);
+  }
+
   // Records an evaluated attempt at l in the bracket. True when it fits.
   bool Apply(double l, Attempt attempt) {
     ++steps_;
@@ -860,8 +865,19 @@ class LambdaSearch {
         fits_ = std::move(attempt);
       }
     } else if (l > lo_) {
+      // The bracket's end moves up. The face count need not fall with λ (a larger patch can block more
+      // collapses), so the attempt it held is kept when it has the fewest faces of all that did not fit.
+      if (lo_ > 0.0 && FacesOf(too_many_) < FacesOf(attempt) && BeatsFewest(FacesOf(too_many_), lo_)) {
+        fewest_faces_ = FacesOf(too_many_);
+        fewest_lambda_ = lo_;
+        fewest_ = std::move(too_many_);
+      }
       lo_ = l;
       too_many_ = std::move(attempt);
+    } else if (FacesOf(attempt) < FacesOf(too_many_) && BeatsFewest(FacesOf(attempt), l)) {
+      fewest_faces_ = FacesOf(attempt);
+      fewest_lambda_ = l;
+      fewest_ = std::move(attempt);
     }
     if (options_.progress) {
       options_.progress(std::min(0.99, static_cast<double>(steps_) / options_.max_bisection_steps), "searching lambda");
@@ -988,12 +1004,18 @@ class LambdaSearch {
       best = std::move(fits_);
       if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
     } else {
-      // Even one patch per component needs more triangles than the budget: the fewest found.
+      // No λ tried fits the budget: the attempt with the fewest faces (at the largest λ among equals).
       *lambda = lo_;
-      best = std::move(too_many_);
+      if (fewest_lambda_ > 0.0 && fewest_faces_ < FacesOf(too_many_)) {
+        *lambda = fewest_lambda_;
+        best = std::move(fewest_);
+      } else {
+        best = std::move(too_many_);
+      }
       UseRecorded(prep_, options_, target_, signature_, &best);
-      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ", lo_,
-                                  " (the patches' corners and guarded vertices)"));
+      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
+                                  *lambda,
+                                  ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
     }
     return best;
   }
@@ -1008,6 +1030,11 @@ class LambdaSearch {
   const double log_budget_;
   int steps_ = 0;
   Attempt too_many_, fits_;  // the attempts at the bracket ends
+  // Of the attempts that did not fit, the one with the fewest faces when that is not too_many_ (fewest_lambda_ 0:
+  // none); ties go to the larger λ.
+  Attempt fewest_;
+  int fewest_faces_ = std::numeric_limits<int>::max();
+  double fewest_lambda_ = 0.0;
   double lo_ = 0.0, hi_ = 0.0;
   std::map<double, Attempt> climbs_;
   double base_lambda_ = 0.0;

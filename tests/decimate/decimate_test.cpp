@@ -643,6 +643,70 @@ TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
   }
 }
 
+// Two closed lenses, each a top and a bottom cap meeting at a knife edge (the caps' slope there is under a
+// degree). At moderate λ each cap is a patch and a lens needs four triangles; at large λ each lens is one patch,
+// and the faces at the knife edge, nearly perpendicular to the dense normals there, cannot move, so more triangles
+// stay. A target below what any λ gives is not reachable: the output is the attempt with the fewest faces, not
+// the one at the largest λ tried (which had 17 times as many).
+Mesh KnifeEdgeLenses() {
+  constexpr int kRings = 4, kSectors = 12;
+  constexpr double kHeight = 0.005;
+  std::vector<Eigen::Vector3d> V;
+  std::vector<std::array<int, 3>> faces;
+  for (int lens = 0; lens < 2; ++lens) {
+    std::map<std::tuple<int, int, int>, int> index;
+    auto vertex = [&](int side, int ring, int sector) {
+      sector %= kSectors;
+      const auto key = ring == 0
+                           ? std::make_tuple(side, 0, 0)
+                           : (ring == kRings ? std::make_tuple(2, ring, sector) : std::make_tuple(side, ring, sector));
+      auto [it, inserted] = index.emplace(key, static_cast<int>(V.size()));
+      if (inserted) {
+        const double r = static_cast<double>(ring) / kRings, t = 2.0 * M_PI * sector / kSectors;
+        V.emplace_back(3.0 * lens + r * std::cos(t), r * std::sin(t), (side == 0 ? 1 : -1) * kHeight * (1 - r * r));
+      }
+      return it->second;
+    };
+    for (int side = 0; side < 2; ++side) {
+      const Eigen::Vector3d outward(0, 0, side == 0 ? 1 : -1);
+      for (int ring = 0; ring < kRings; ++ring) {
+        for (int j = 0; j < kSectors; ++j) {
+          const int b = vertex(side, ring + 1, j), c = vertex(side, ring + 1, j + 1);
+          if (ring == 0) {
+            AddOriented(&faces, V, vertex(side, 0, 0), b, c, outward);
+            continue;
+          }
+          const int a = vertex(side, ring, j), d = vertex(side, ring, j + 1);
+          AddOriented(&faces, V, a, b, c, outward);
+          AddOriented(&faces, V, a, c, d, outward);
+        }
+      }
+    }
+  }
+  return FromLists(V, faces);
+}
+
+TEST(Decimate, UnreachableTargetGivesTheFewestFacesTried) {
+  const Mesh lenses = KnifeEdgeLenses();
+  DecimateOptions options;
+  options.lambda = 1e6;
+  const int one_patch_each = Decimate(lenses, options).mesh.num_faces();
+  options.target_faces = 4;
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(lenses, options, &summary);
+  ExpectManifold(out.mesh);
+  EXPECT_EQ(Signature(out.mesh), Signature(lenses));
+  EXPECT_EQ(summary.lambda_fits, 0.0);
+  EXPECT_LT(summary.lambda, summary.lambda_too_many);
+  EXPECT_LE(out.mesh.num_faces(), 8);
+  EXPECT_LT(4 * out.mesh.num_faces(), one_patch_each);
+  const std::string expected =
+      StrCat("target 4 faces not reachable: ", out.mesh.num_faces(), " faces at lambda ", summary.lambda);
+  bool noticed = false;
+  for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0;
+  EXPECT_TRUE(noticed) << expected;
+}
+
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
 TEST(Decimate, ChainReserveTradesPatchesForBoundaryDetail) {
   const Mesh sphere = Sphere(4);
