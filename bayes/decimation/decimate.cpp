@@ -1110,6 +1110,7 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   flip.representative = &best->triangulation.representative;
   flip.coarse_face_patch = &best->triangulation.face_patch;
   flip.num_patches = best->num_patches;
+  flip.locked = &prep.locked;
   EdgeFlipSummary fs;
   FlipEdgesToFit(flip, options.refit.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
   return fs.flips;

@@ -232,8 +232,9 @@ class Reducer {
     version_.assign(nv, 0);
     kept_.assign(nv, 0);
     collapsed_to_.assign(nv, -1);
+    locked_.assign(nv, 0);
     for (int v = 0; v < nv; ++v) {
-      if (!locked.empty() && locked[v]) kept_[v] = 1;
+      if (!locked.empty() && locked[v]) kept_[v] = locked_[v] = 1;
     }
     Classify();
   }
@@ -652,6 +653,7 @@ class Reducer {
     if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
     int apex_stamp = 0;
     if (!LinkConditionHolds(v, u, &apex_stamp)) return false;
+    if (locked_[u] && JoinsLockedVertices(v, u, apex_stamp)) return false;
     if (!EveryPatchKeepsAFace()) return false;
     if (!MovedFacesStayValid(v, u, apex_stamp)) return false;
     ApplyCollapse(v, u, w);
@@ -712,6 +714,18 @@ class Reducer {
             if (t[0] == u || t[1] == u || t[2] == u) return true;
           }
         }
+      }
+    }
+    return false;
+  }
+
+  // Whether moving v onto locked u makes u a neighbour of another locked vertex: with the link condition
+  // holding, v's neighbours off the edge's apexes are not u's neighbours yet. Locked vertices never collapse, so
+  // the edges between them stay those of the input.
+  bool JoinsLockedVertices(int v, int u, int apex_stamp) const {
+    for (int f : moved_) {
+      for (int x : T_[f]) {
+        if (x != v && x != u && locked_[x] && stamp_[x] != apex_stamp) return true;
       }
     }
     return false;
@@ -830,6 +844,7 @@ class Reducer {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
   std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals, where a patch has no axis
   std::vector<char> boundary_, kept_;
+  std::vector<char> locked_;  // the caller's locked vertices (a subset of kept_)
   std::vector<int> stamp_, version_;
   std::vector<int> collapsed_to_;
   std::vector<int> nb_mark_, nb_slot_;

@@ -89,7 +89,9 @@ struct PatchTriangulation {
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite
 // orientation, each vertex a single fan). face_patch: per face in [0, num_patches). locked: per vertex,
-// vertices that must stay (may be empty). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
+// vertices that must stay (may be empty); no collapse joins two of them by an edge F does not have (they are the
+// copies of vertices that a caller welds back together, where such an edge made in two sheets would be shared
+// by more than two faces). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
 // here; callers that have the edge topology already pass it to save a sort).
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,

@@ -716,6 +716,7 @@ class Flipper {
       if (C_(f2, l) != u && C_(f2, l) != v) d = C_(f2, l);
     }
     if (d < 0 || d == c || exists->count(EdgeKey(c, d))) return false;
+    if (in_.locked != nullptr && !in_.locked->empty() && (*in_.locked)[c] && (*in_.locked)[d]) return false;
     const int patch = (*in_.coarse_face_patch)[f1];
     // At the coarse positions, and at the dense ones where the refit starts (its guard then keeps the cone).
     for (size_t m = 0; m < in_.dense_poses.size(); ++m) {
@@ -802,6 +803,8 @@ void FlipEdgesToFit(const EdgeFlipInput& in, double min_cos_to_patch_normal, int
            "decimate: edge flip patch map size mismatch");
   RB_CHECK(static_cast<Eigen::Index>(in.coarse_face_patch->size()) == coarse_F->rows(),
            "decimate: edge flip coarse patch size mismatch");
+  RB_CHECK(in.locked == nullptr || in.locked->empty() || static_cast<Eigen::Index>(in.locked->size()) == nv,
+           "decimate: edge flip locked size mismatch");
   if (max_sweeps <= 0 || coarse_F->rows() == 0) return;
   Flipper flipper(in, min_cos_to_patch_normal, coarse_F);
   s.fit_rms_before = flipper.Rms();

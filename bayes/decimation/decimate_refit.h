@@ -78,10 +78,10 @@ Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& option
 // vertex is a sample of the coarse face nearest to it around its representative (in the first pose); a flip is
 // taken when the samples of the two faces, each moved to the nearer new triangle (first pose), come closer to
 // their faces (squared distances weighted by the dense vertex areas, summed over the poses) by more than 1e-6
-// of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused
-// when the new edge exists already (so the mesh stays manifold with the same vertices, faces and patches) or
-// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold onto
-// its partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
+// of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused when the new edge exists
+// already (so the mesh stays manifold with the same vertices, faces and patches) or joins two locked vertices, or
+// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold
+// onto its partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
 struct EdgeFlipInput {
   std::vector<const Vertices*> dense_poses;            // per pose, the dense positions (the samples)
   std::vector<const Vertices*> coarse_poses;           // per pose, the coarse vertices' positions; empty: dense
@@ -90,6 +90,9 @@ struct EdgeFlipInput {
   const std::vector<int>* representative = nullptr;    // per dense vertex, its kept vertex, or −1
   const std::vector<int>* coarse_face_patch = nullptr; // per coarse face, its patch
   int num_patches = 0;
+  // Per dense vertex, 1 for a vertex that is welded to others afterwards (may be null or empty): no flip makes an
+  // edge between two of them (TriangulatePatches' locked vertices).
+  const std::vector<char>* locked = nullptr;
 };
 
 struct EdgeFlipSummary {

@@ -448,6 +448,58 @@ TEST(Decimate, NonManifoldInputIsCutAndWeldedWithANotice) {
   EXPECT_TRUE(bowtie_kept);
 }
 
+// k flat sheets around the z axis, each a 2×2 grid of quads in the half-plane at angle 2πs/k, sharing their
+// corners a = (0, 0, 0) and b = (0, 0, 2); the vertex between them on each sheet's inner side sits 0.01 off the
+// axis, so a and b are not joined by an edge in any sheet.
+Mesh SheetsSharingTwoVertices(int k) {
+  std::vector<Eigen::Vector3d> V = {{0, 0, 0}, {0, 0, 2}};
+  std::vector<std::array<int, 3>> faces;
+  for (int s = 0; s < k; ++s) {
+    const double t = 2.0 * M_PI * s / k;
+    int id[3][3];
+    for (int r = 0; r < 3; ++r) {
+      for (int z = 0; z < 3; ++z) {
+        if (r == 0 && z != 1) {
+          id[r][z] = z == 0 ? 0 : 1;
+          continue;
+        }
+        const double radius = r == 0 ? 0.01 : r;
+        id[r][z] = static_cast<int>(V.size());
+        V.emplace_back(radius * std::cos(t), radius * std::sin(t), z);
+      }
+    }
+    for (int r = 0; r < 2; ++r) {
+      for (int z = 0; z < 2; ++z) {
+        faces.push_back({id[r][z], id[r + 1][z], id[r + 1][z + 1]});
+        faces.push_back({id[r][z], id[r + 1][z + 1], id[r][z + 1]});
+      }
+    }
+  }
+  return FromLists(V, faces);
+}
+
+// The copies of a non-manifold vertex are locked and welded back after the decimation. A sheet that joined its
+// copies of a and b by a new edge (removing the vertex between them) made, once welded, an edge a–b shared by
+// every sheet: more than two faces on one edge, and the sheets (apart in the input but for their shared
+// vertices) joined. No collapse or edge flip may now join two locked copies by an edge the input did not have.
+TEST(Decimate, WeldingSheetsSharingTwoVerticesAddsNoEdgeBetweenThem) {
+  for (int k : {2, 3}) {
+    const Mesh sheets = SheetsSharingTwoVertices(k);
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(sheets, {}, &summary);
+    SCOPED_TRACE(k);
+    EXPECT_EQ(out.num_patches, k);
+    EXPECT_LT(out.mesh.num_faces(), sheets.num_faces());
+    const EdgeTopology topology = ComputeEdgeTopology(out.mesh);
+    for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+      EXPECT_LE(topology.edge_faces.size(e), 2) << "edge " << topology.edges(e, 0) << "–" << topology.edges(e, 1);
+      const std::set<int> ends = {out.vertex_source[topology.edges(e, 0)], out.vertex_source[topology.edges(e, 1)]};
+      EXPECT_NE(ends, (std::set<int>{0, 1})) << "an edge between the shared vertices";
+    }
+    EXPECT_EQ(ComputeComponents(out.mesh).count, k);
+  }
+}
+
 TEST(Decimate, ZeroAreaAndRepeatedVertexFacesAreHandled) {
   Mesh grid = Grid(8);
   // Collapse one vertex onto its neighbour's position (two faces become slivers of zero area) and add a
@@ -1121,6 +1173,16 @@ TEST(DecimateRefit, EdgeFlipsTakeTheDiagonalAlongARidge) {
     const Eigen::Vector3d a = V.row(flipped(g, 0)), b = V.row(flipped(g, 1)), c = V.row(flipped(g, 2));
     EXPECT_GT((b - a).cross(c - a).z(), 0.0);
   }
+
+  // Not when the new edge joins two locked vertices (copies welded back afterwards).
+  std::vector<char> locked(n * n, 0);
+  locked[c00] = locked[c11] = 1;
+  in.locked = &locked;
+  Faces held = C;
+  FlipEdgesToFit(in, 0.02, 4, &held, &summary);
+  EXPECT_EQ(summary.flips, 0);
+  EXPECT_EQ(held, C);
+  in.locked = nullptr;
 
   // An edge between two patches is a chain: never flipped. No sweeps: nothing happens.
   coarse_patch = {0, 1};
