@@ -1076,7 +1076,7 @@ WeldedOutput WeldOutput(const Mesh& base, const Prepared& prep, const Attempt& b
 }
 
 // The vertex refit's input for pose m of the chosen attempt.
-RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, size_t m) {
+RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, const DecimateOptions& options, size_t m) {
   RefitInput in;
   in.dense_V = &prep.poses[m];
   in.dense_F = &prep.F;
@@ -1087,6 +1087,7 @@ RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, size_t m) {
   in.coarse_F = &best.triangulation.F;
   in.coarse_face_patch = &best.triangulation.face_patch;
   in.num_patches = best.num_patches;
+  in.min_cos_to_patch_normal = options.min_cos_to_patch_normal;
   return in;
 }
 
@@ -1098,8 +1099,9 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   VertexRefitOptions quadric_step = options.refit;
   quadric_step.fit_rounds = 0;
   std::vector<Vertices> quadric(prep.poses.size());
-  tbb::parallel_for(size_t{0}, prep.poses.size(),
-                    [&](size_t m) { quadric[m] = RefitVertices(RefitInputFor(prep, *best, m), quadric_step); });
+  tbb::parallel_for(size_t{0}, prep.poses.size(), [&](size_t m) {
+    quadric[m] = RefitVertices(RefitInputFor(prep, *best, options, m), quadric_step);
+  });
   EdgeFlipInput flip;
   for (size_t m = 0; m < prep.poses.size(); ++m) {
     flip.dense_poses.push_back(&prep.poses[m]);
@@ -1112,7 +1114,7 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   flip.num_patches = best->num_patches;
   flip.locked = &prep.locked;
   EdgeFlipSummary fs;
-  FlipEdgesToFit(flip, options.refit.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
+  FlipEdgesToFit(flip, options.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
   return fs.flips;
 }
 
@@ -1148,7 +1150,7 @@ class PoseOutput {
  private:
   void RefitPositions(size_t m, DecimateSummary* s, Vertices* V) const {
     VertexRefitSummary rs;
-    const Vertices moved = RefitVertices(RefitInputFor(prep_, best_, m), options_.refit, &rs);
+    const Vertices moved = RefitVertices(RefitInputFor(prep_, best_, options_, m), options_.refit, &rs);
     for (size_t i = 0; i < welded_.vertex_split.size(); ++i) {
       V->row(static_cast<Eigen::Index>(i)) = moved.row(welded_.vertex_split[i]);
     }

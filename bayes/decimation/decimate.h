@@ -63,7 +63,9 @@ struct DecimateOptions {
   int max_bisection_steps = 30;     // full decimations tried when searching λ (guided runs not counted), ≥ 2
   DecimateWeighting weighting = DecimateWeighting::kArea;
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
-  double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
+  // An output triangle's normal keeps this cosine to its patch's, [0, 1): the guard of the reduction, the edge flips
+  // and the vertex refit (a triangle moved by them; see bayes/decimation/decimate_geometry.h for closed patches).
+  double min_cos_to_patch_normal = 0.02;
   // Patch-boundary chains are simplified while removed vertices stay within this share of the bounding-box
   // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;

@@ -146,6 +146,7 @@ struct CoarseState {
   const std::vector<Eigen::Vector3d>& patch_normal;   // PatchConeAxes
   const std::vector<Eigen::Vector3d>& vertex_normal;  // DenseVertexNormals where a patch has no axis, else empty
   const VertexRefitOptions& options;
+  double min_cos;  // RefitInput::min_cos_to_patch_normal
   double area_eps;
   Vertices X;
   std::vector<std::vector<int>> star;  // per vertex, its coarse faces
@@ -174,7 +175,7 @@ struct CoarseState {
         const double len = now.norm();
         const Eigen::Vector3d& pn = patch_normal[coarse_face_patch[f]];
         const std::array<int, 3> corners = {C(f, 0), C(f, 1), C(f, 2)};
-        const double min_cos = options.min_cos_to_patch_normal;
+
         const bool cone_before = InPatchCone(before[i], pn, corners, vertex_normal, min_cos);
         ok = len > area_eps && now.dot(before[i]) > 0.0 &&
              (!cone_before || InPatchCone(now, pn, corners, vertex_normal, min_cos));
@@ -503,8 +504,6 @@ void VertexRefitOptions::Check() const {
   RB_CHECK(regularisation > 0.0 && std::isfinite(regularisation), "decimate: refit regularisation must be > 0, got ",
            regularisation);
   RB_CHECK(boundary_weight >= 0.0, "decimate: refit boundary_weight must be ≥ 0, got ", boundary_weight);
-  RB_CHECK(min_cos_to_patch_normal >= 0.0 && min_cos_to_patch_normal < 1.0,
-           "decimate: refit min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(fit_rounds >= 0, "decimate: refit fit_rounds must be ≥ 0, got ", fit_rounds);
   RB_CHECK(coverage_weight >= 0.0 && std::isfinite(coverage_weight),
            "decimate: refit coverage_weight must be ≥ 0, got ", coverage_weight);
@@ -525,6 +524,8 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   RB_CHECK(static_cast<int>(in.representative->size()) == nv, "decimate: refit representative size mismatch");
   RB_CHECK(static_cast<int>(in.dense_face_patch->size()) == nf, "decimate: refit patch map size mismatch");
   RB_CHECK(static_cast<int>(in.coarse_face_patch->size()) == C.rows(), "decimate: refit coarse patch size mismatch");
+  RB_CHECK(in.min_cos_to_patch_normal >= 0.0 && in.min_cos_to_patch_normal < 1.0,
+           "decimate: refit min_cos_to_patch_normal must be in [0, 1), got ", in.min_cos_to_patch_normal);
   const std::vector<int>& rep = *in.representative;
   const bool has_boundary = in.boundary_vertex != nullptr && static_cast<int>(in.boundary_vertex->size()) == nv;
   const bool has_fixed = in.fixed != nullptr && static_cast<int>(in.fixed->size()) == nv;
@@ -548,9 +549,16 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   AddFaceQuadrics(in, area_eps, &Q);
   if (has_boundary && options.boundary_weight > 0.0) AddBoundaryQuadrics(in, options.boundary_weight, &Qb);
 
-  CoarseState st{
-      C, *in.coarse_face_patch, patch_normal, vertex_normal, options, area_eps, V, std::vector<std::vector<int>>(nv),
-      {}};
+  CoarseState st{C,
+                 *in.coarse_face_patch,
+                 patch_normal,
+                 vertex_normal,
+                 options,
+                 in.min_cos_to_patch_normal,
+                 area_eps,
+                 V,
+                 std::vector<std::vector<int>>(nv),
+                 {}};
   for (int f = 0; f < C.rows(); ++f) {
     for (int j = 0; j < 3; ++j) st.star[C(f, j)].push_back(f);
   }

@@ -36,7 +36,6 @@ namespace rangebayes {
 struct VertexRefitOptions {
   double regularisation = 0.01;           // α_v as a share of the quadric's mean eigenvalue, > 0
   double boundary_weight = 1.0;           // weight of the boundary planes against the face planes, ≥ 0
-  double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
   int max_halvings = 4;                   // step halvings tried before a vertex stays, ≥ 0
   int fit_rounds = 2;                     // rounds of the fit to the dense vertices after the quadric step, ≥ 0
   double coverage_weight = 2.0;           // weight of the coarse points' distances to the dense faces in the fit, ≥ 0
@@ -66,10 +65,12 @@ struct RefitInput {
   const Faces* coarse_F = nullptr;                     // coarse faces over dense vertex ids
   const std::vector<int>* coarse_face_patch = nullptr;  // per coarse face, its patch
   int num_patches = 0;
+  // The flip guard's cosine to the patch normal, [0, 1): the reduction's (DecimateOptions::min_cos_to_patch_normal).
+  double min_cos_to_patch_normal = 0.02;
 };
 
 // Returns the dense vertex array with the kept vertices moved (other rows as in dense_V). Throws Error for
-// inconsistent sizes.
+// inconsistent sizes or a cosine outside [0, 1).
 Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& options = {},
                        VertexRefitSummary* summary = nullptr);
 

@@ -887,6 +887,37 @@ TEST(DecimateRefit, NeverIncreasesTheQuadricErrorAndKeepsTheGuarantees) {
   }
 }
 
+// DecimateOptions::min_cos_to_patch_normal holds for the edge flips and the vertex refit too: an output triangle
+// within the requested cone of its patch normal at its corners' dense positions stays within it where the refit
+// puts them. They used a cosine of their own (0.02) and turned such triangles out of the cone.
+TEST(DecimateRefit, KeepsTheRequestedConeToThePatchNormal) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.lambda = 8.0;
+  options.min_cos_to_patch_normal = 0.97;
+  const DecimatedMesh out = Decimate(sphere, options);
+  ExpectValidDecimation(sphere, out);
+  std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
+  for (int f = 0; f < sphere.num_faces(); ++f) {
+    const Eigen::Vector3d a = sphere.V.row(sphere.F(f, 0)), b = sphere.V.row(sphere.F(f, 1)),
+                          c = sphere.V.row(sphere.F(f, 2));
+    patch_normal[out.dense_face_patch[f]] += (b - a).cross(c - a);
+  }
+  auto cosine = [&](const Vertices& V, const std::array<int, 3>& t, int patch) {
+    const Eigen::Vector3d a = V.row(t[0]), b = V.row(t[1]), c = V.row(t[2]);
+    return (b - a).cross(c - a).normalized().dot(patch_normal[patch].normalized());
+  };
+  int in_cone = 0;
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    const std::array<int, 3> t = {out.mesh.F(f, 0), out.mesh.F(f, 1), out.mesh.F(f, 2)};
+    const std::array<int, 3> source = {out.vertex_source[t[0]], out.vertex_source[t[1]], out.vertex_source[t[2]]};
+    if (cosine(sphere.V, source, out.face_patch[f]) < 0.97) continue;
+    ++in_cone;
+    EXPECT_GE(cosine(out.mesh.V, t, out.face_patch[f]), 0.97) << "face " << f;
+  }
+  EXPECT_GT(in_cone, out.mesh.num_faces() / 5);
+}
+
 TEST(DecimateRefit, PlanarSheetsStayPlanar) {
   // A roof: two planes meeting along x = 6, with a bumpy-free boundary; every output vertex stays on the
   // plane(s) of its dense faces and inside the sheet's outline.
