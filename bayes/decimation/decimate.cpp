@@ -39,6 +39,8 @@ struct Prepared {
   EdgeTopology topology;           // of F
   std::vector<char> boundary_vertex;
   std::vector<std::string> notices;
+  // Components of the input (faces joined through shared vertices) when the cut made pieces of some; 0: none cut.
+  int input_components = 0;
 };
 
 int Find(std::vector<int>& parent, int i) {
@@ -212,6 +214,7 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     out.F = mesh.F;
     std::iota(out.split_source.begin(), out.split_source.end(), 0);
   }
+  if (split_vertices > 0) out.input_components = ComputeComponents(mesh, Connectivity::kSharedVertex).count;
   FinishSplitMesh(poses, identity, topology, &out);
   return out;
 }
@@ -430,6 +433,7 @@ void CheckTopology(const Prepared& prep, const std::vector<std::pair<int, int>>&
     a->triangulation.representative.resize(ns);
     std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
     a->triangulation.recorded.clear();
+    a->triangulation.max_chain_error_rel = 0.0;
   }
 }
 
@@ -665,11 +669,18 @@ void StartSummary(const std::vector<Mesh>& poses, const DecimateOptions& options
   s->poses = static_cast<int>(poses.size());
 }
 
-void NoteComponentsAndLoops(const std::vector<std::pair<int, int>>& signature, std::vector<std::string>* notices) {
+// signature: of the split mesh (TopologySignature), one entry per piece.
+void NoteComponentsAndLoops(const Prepared& prep, const std::vector<std::pair<int, int>>& signature,
+                            std::vector<std::string>* notices) {
   int loops = 0;
   for (const auto& c : signature) loops += c.second;
-  if (signature.size() > 1) {
-    notices->push_back(StrCat("the mesh has ", signature.size(), " components; patches never span two"));
+  const int pieces = static_cast<int>(signature.size());
+  if (prep.input_components > 0 && prep.input_components != pieces) {
+    notices->push_back(StrCat("the mesh has ", prep.input_components,
+                              prep.input_components == 1 ? " component" : " components", ", ", pieces,
+                              " pieces where cut at its non-manifold vertices; patches never span two pieces"));
+  } else if (pieces > 1) {
+    notices->push_back(StrCat("the mesh has ", pieces, " components; patches never span two"));
   }
   if (loops > 0) notices->push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
 }
@@ -1221,8 +1232,10 @@ void RecordOutcome(const Attempt& best, const WeldedOutput& welded, DecimateSumm
   s->rejected_disconnecting = best.stats.rejected_disconnecting;
   s->rounds = best.stats.rounds;
   s->converged = best.stats.converged;
-  s->kept_corner_vertices = tri.kept_corner_vertices;
-  s->blocked_vertices = tri.blocked_vertices;
+  // On the output's vertices: a welded vertex's copies are all locked, so kept unconditionally.
+  s->kept_corner_vertices = 0;
+  for (int split : welded.vertex_split) s->kept_corner_vertices += tri.unconditional[split] ? 1 : 0;
+  s->blocked_vertices = s->output_vertices - s->kept_corner_vertices;
   s->max_chain_error_rel = tri.max_chain_error_rel;
   s->fell_back_to_dense = best.fell_back;
   if (best.fell_back) {
@@ -1262,7 +1275,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
   const int ns = static_cast<int>(prep.split_source.size());
   const auto signature = TopologySignature(ns, prep.F, prep.topology);
-  NoteComponentsAndLoops(signature, &s.notices);
+  NoteComponentsAndLoops(prep, signature, &s.notices);
 
   Attempt best;
   double lambda = options.lambda;

@@ -109,8 +109,10 @@ struct DecimateSummary {
   double lambda_too_many = 0.0, lambda_fits = 0.0;
   int faces_too_many = 0, faces_fits = 0;
   double max_chain_error_rel = 0.0;  // largest chain error the budgeted chain pass accepted, share of the diagonal
-  int kept_corner_vertices = 0;  // vertices where ≥ 3 patch sides meet (and loop anchors, locked vertices)
-  int blocked_vertices = 0;      // further vertices kept because removing them would flip or break something
+  // Output vertices where ≥ 3 patch sides meet (and loop anchors, copies of a non-manifold input vertex), and the
+  // others (kept because removing them would flip or break something, or the dense fallback's).
+  int kept_corner_vertices = 0;
+  int blocked_vertices = 0;
   bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept
   double seconds_partition = 0.0;
   double seconds_geometry = 0.0;

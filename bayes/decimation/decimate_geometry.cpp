@@ -317,6 +317,7 @@ class Reducer {
       }
     }
     out.max_chain_error_rel = diag_ > 0.0 ? max_chain_error_ / diag_ : 0.0;
+    out.unconditional = kept_;
     out.representative.assign(nv, -1);
     for (int v = 0; v < nv; ++v) {
       int r = v;

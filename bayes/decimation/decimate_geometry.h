@@ -82,6 +82,8 @@ struct PatchTriangulation {
   double max_chain_error_rel = 0.0;
   // Per dense vertex, the kept vertex its star collapsed onto (itself when kept), −1 for one no face used.
   std::vector<int> representative;
+  // Per dense vertex, 1 when it is kept unconditionally (those of them that F uses are kept_corner_vertices).
+  std::vector<char> unconditional;
   // With PatchTriangulationOptions::record_faces: the triangulation at that face count (one entry; empty when
   // the pass never had that few faces).
   std::vector<PatchTriangulation> recorded;

@@ -500,6 +500,24 @@ TEST(Decimate, WeldingSheetsSharingTwoVerticesAddsNoEdgeBetweenThem) {
   }
 }
 
+// The summary speaks of the input and the output: the kept-vertex counts add up to the output's vertices (they
+// counted the cut copies: 15 for 11 output vertices here), and the components notice tells the input's one
+// component from the pieces it was cut into (it said "3 components").
+TEST(Decimate, SummaryOfACutMeshCountsOutputVerticesAndInputComponents) {
+  const Mesh sheets = SheetsSharingTwoVertices(3);
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(sheets, {}, &summary);
+  EXPECT_EQ(summary.output_vertices, out.mesh.num_vertices());
+  EXPECT_EQ(summary.kept_corner_vertices + summary.blocked_vertices, out.mesh.num_vertices());
+  EXPECT_GE(summary.kept_corner_vertices, 2);  // the two shared vertices
+  bool noticed = false;
+  for (const auto& n : summary.notices) {
+    EXPECT_EQ(n.find("3 components"), std::string::npos) << n;
+    noticed |= n.find("1 component, 3 pieces") != std::string::npos;
+  }
+  EXPECT_TRUE(noticed);
+}
+
 TEST(Decimate, ZeroAreaAndRepeatedVertexFacesAreHandled) {
   Mesh grid = Grid(8);
   // Collapse one vertex onto its neighbour's position (two faces become slivers of zero area) and add a
