@@ -19,18 +19,37 @@
 namespace rangebayes {
 namespace {
 
-// error(x) = xᵀ A x − 2 bᵀ x + c
+// A sum of weighted squared plane distances, error(x) = xᵀ A x − 2 bᵀ x + const; the minimisers solve with A and b.
+// Its value comes from the expansion about a point near the planes (`origin`, the kept vertex's dense position),
+// dᵀ A d − 2 b_originᵀ d + c_origin with d = x − origin: about the coordinate origin the terms are of the size of the
+// squared coordinates and cancel for a point near the planes, down to negative errors.
 struct Quadric {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
-  double c = 0.0;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_origin = Eigen::Vector3d::Zero();
+  double c_origin = 0.0;
 
-  void AddPlane(const Eigen::Vector3d& n, double offset, double weight) {
+  // The plane through `point` with unit normal n.
+  void AddPlane(const Eigen::Vector3d& n, const Eigen::Vector3d& point, double weight) {
     A += weight * n * n.transpose();
-    b += weight * offset * n;
-    c += weight * offset * offset;
+    b += weight * n.dot(point) * n;
+    const double offset = n.dot(point - origin);
+    b_origin += weight * offset * n;
+    c_origin += weight * offset * offset;
   }
-  double Error(const Eigen::Vector3d& x) const { return x.dot(A * x) - 2.0 * b.dot(x) + c; }
+  // q, expanded about the same origin.
+  void Add(const Quadric& q) {
+    A += q.A;
+    b += q.b;
+    b_origin += q.b_origin;
+    c_origin += q.c_origin;
+  }
+  // Clamped at 0: rounding can still take the sum of squares a hair below it.
+  double Error(const Eigen::Vector3d& x) const {
+    const Eigen::Vector3d d = x - origin;
+    return std::max(0.0, d.dot(A * d) - 2.0 * b_origin.dot(d) + c_origin);
+  }
 };
 
 Eigen::Vector3d Row(const Vertices& V, int i) { return V.row(i).transpose(); }
@@ -98,8 +117,7 @@ void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>
     if (len <= area_eps) continue;
     const Eigen::Vector3d n = cr / len;
     const double area = 0.5 * len;
-    const double offset = n.dot(a);
-    ForEachCluster(F, rep, f, [&](int r) { Q[r].AddPlane(n, offset, area); });
+    ForEachCluster(F, rep, f, [&](int r) { Q[r].AddPlane(n, a, area); });
   }
 }
 
@@ -131,10 +149,9 @@ void AddBoundaryQuadrics(const RefitInput& in, double boundary_weight, std::vect
       if (mlen <= 0.0) continue;
       m /= mlen;
       const double w = boundary_weight * e.squaredNorm();
-      const double offset = m.dot(Row(V, x));
       const int rx = rep[x], ry = rep[y];
-      if (rx >= 0) Qb[rx].AddPlane(m, offset, w);
-      if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, offset, w);
+      if (rx >= 0) Qb[rx].AddPlane(m, Row(V, x), w);
+      if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, Row(V, x), w);
     }
   }
 }
@@ -195,9 +212,7 @@ void MoveToQuadricMinimisers(const Vertices& V, const std::vector<Quadric>& Q, c
   for (int v = 0; v < nv; ++v) {
     if (!movable[v]) continue;
     Quadric q = Q[v];
-    q.A += Qb[v].A;
-    q.b += Qb[v].b;
-    q.c += Qb[v].c;
+    q.Add(Qb[v]);
     const double trace = q.A.trace();
     if (!(trace > 0.0)) continue;
     const Eigen::Vector3d x0 = Row(V, v);
@@ -534,7 +549,8 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   s = VertexRefitSummary{};
 
   // Quadrics per kept vertex, from the dense faces of its cluster, and patch normals for the cone guard.
-  std::vector<Quadric> Q(nv), Qb(nv);  // face planes of the cluster; boundary planes
+  std::vector<Quadric> Q(nv), Qb(nv);  // face planes of the cluster; boundary planes; both about the vertex
+  for (int v = 0; v < nv; ++v) Q[v].origin = Qb[v].origin = Row(V, v);
   std::vector<char> kept(nv, 0);
   for (int v = 0; v < nv; ++v) {
     if (rep[v] >= 0) kept[rep[v]] = 1;

@@ -936,6 +936,24 @@ TEST(DecimateRefit, KeepsTheRequestedConeToThePatchNormal) {
   EXPECT_GT(in_cone, out.mesh.num_faces() / 5);
 }
 
+// The quadric error is a sum of squares, so never negative, and on the dense mesh itself (every vertex on the
+// planes of its faces) it is zero up to rounding, also far from the coordinate origin. Expanded about the origin it
+// cancelled to noise of the size of the squared coordinates (fandisk far off: 5.8e-15 -> -5.6e-14).
+TEST(DecimateRefit, QuadricErrorIsNotLostToCancellationFarFromTheOrigin) {
+  Mesh sphere = Sphere(3);
+  sphere.V.rowwise() += Eigen::RowVector3d(1000.0, -2000.0, 3000.0);
+  DecimateOptions options;
+  options.target_faces = 2 * sphere.num_faces();  // the dense mesh, refitted
+  DecimateSummary summary;
+  Decimate(sphere, options, &summary);
+  ASSERT_GT(summary.refit_moved, 0);
+  EXPECT_GE(summary.refit_quadric_before, 0.0);
+  EXPECT_GE(summary.refit_quadric_after, 0.0);
+  // Unit sphere, 258 vertices: an error of 1e-20 is a distance of about 1e-11 per face.
+  EXPECT_LT(summary.refit_quadric_before, 1e-20);
+  EXPECT_LT(summary.refit_quadric_after, 1e-20);
+}
+
 TEST(DecimateRefit, PlanarSheetsStayPlanar) {
   // A roof: two planes meeting along x = 6, with a bumpy-free boundary; every output vertex stays on the
   // plane(s) of its dense faces and inside the sheet's outline.
