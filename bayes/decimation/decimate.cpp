@@ -39,6 +39,8 @@ struct Prepared {
   EdgeTopology topology;           // of F
   std::vector<char> boundary_vertex;
   std::vector<std::string> notices;
+  // Components of the input (faces joined through shared vertices) when the cut made pieces of some; 0: none cut.
+  int input_components = 0;
 };
 
 int Find(std::vector<int>& parent, int i) {
@@ -212,6 +214,7 @@ Prepared Prepare(const std::vector<Mesh>& poses) {
     out.F = mesh.F;
     std::iota(out.split_source.begin(), out.split_source.end(), 0);
   }
+  if (split_vertices > 0) out.input_components = ComputeComponents(mesh, Connectivity::kSharedVertex).count;
   FinishSplitMesh(poses, identity, topology, &out);
   return out;
 }
@@ -430,6 +433,7 @@ void CheckTopology(const Prepared& prep, const std::vector<std::pair<int, int>>&
     a->triangulation.representative.resize(ns);
     std::iota(a->triangulation.representative.begin(), a->triangulation.representative.end(), 0);
     a->triangulation.recorded.clear();
+    a->triangulation.max_chain_error_rel = 0.0;
   }
 }
 
@@ -665,11 +669,18 @@ void StartSummary(const std::vector<Mesh>& poses, const DecimateOptions& options
   s->poses = static_cast<int>(poses.size());
 }
 
-void NoteComponentsAndLoops(const std::vector<std::pair<int, int>>& signature, std::vector<std::string>* notices) {
+// signature: of the split mesh (TopologySignature), one entry per piece.
+void NoteComponentsAndLoops(const Prepared& prep, const std::vector<std::pair<int, int>>& signature,
+                            std::vector<std::string>* notices) {
   int loops = 0;
   for (const auto& c : signature) loops += c.second;
-  if (signature.size() > 1) {
-    notices->push_back(StrCat("the mesh has ", signature.size(), " components; patches never span two"));
+  const int pieces = static_cast<int>(signature.size());
+  if (prep.input_components > 0 && prep.input_components != pieces) {
+    notices->push_back(StrCat("the mesh has ", prep.input_components,
+                              prep.input_components == 1 ? " component" : " components", ", ", pieces,
+                              " pieces where cut at its non-manifold vertices; patches never span two pieces"));
+  } else if (pieces > 1) {
+    notices->push_back(StrCat("the mesh has ", pieces, " components; patches never span two"));
   }
   if (loops > 0) notices->push_back(StrCat("the mesh has ", loops, " boundary loops; they are kept"));
 }
@@ -849,6 +860,11 @@ class LambdaSearch {
     return {b, below};
   }
 
+  // Whether an attempt at l with `faces` too many would replace fewest_.
+  bool BeatsFewest(int faces, double l) const {
+    return faces < fewest_faces_ || (faces == fewest_faces_ && l > fewest_lambda_);
+  }
+
   // Records an evaluated attempt at l in the bracket. True when it fits.
   bool Apply(double l, Attempt attempt) {
     ++steps_;
@@ -860,8 +876,19 @@ class LambdaSearch {
         fits_ = std::move(attempt);
       }
     } else if (l > lo_) {
+      // The bracket's end moves up. The face count need not fall with λ (a larger patch can block more
+      // collapses), so the attempt it held is kept when it has the fewest faces of all that did not fit.
+      if (lo_ > 0.0 && FacesOf(too_many_) < FacesOf(attempt) && BeatsFewest(FacesOf(too_many_), lo_)) {
+        fewest_faces_ = FacesOf(too_many_);
+        fewest_lambda_ = lo_;
+        fewest_ = std::move(too_many_);
+      }
       lo_ = l;
       too_many_ = std::move(attempt);
+    } else if (FacesOf(attempt) < FacesOf(too_many_) && BeatsFewest(FacesOf(attempt), l)) {
+      fewest_faces_ = FacesOf(attempt);
+      fewest_lambda_ = l;
+      fewest_ = std::move(attempt);
     }
     if (options_.progress) {
       options_.progress(std::min(0.99, static_cast<double>(steps_) / options_.max_bisection_steps), "searching lambda");
@@ -988,12 +1015,18 @@ class LambdaSearch {
       best = std::move(fits_);
       if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
     } else {
-      // Even one patch per component needs more triangles than the budget: the fewest found.
+      // No λ tried fits the budget: the attempt with the fewest faces (at the largest λ among equals).
       *lambda = lo_;
-      best = std::move(too_many_);
+      if (fewest_lambda_ > 0.0 && fewest_faces_ < FacesOf(too_many_)) {
+        *lambda = fewest_lambda_;
+        best = std::move(fewest_);
+      } else {
+        best = std::move(too_many_);
+      }
       UseRecorded(prep_, options_, target_, signature_, &best);
-      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ", lo_,
-                                  " (the patches' corners and guarded vertices)"));
+      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
+                                  *lambda,
+                                  ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
     }
     return best;
   }
@@ -1008,6 +1041,11 @@ class LambdaSearch {
   const double log_budget_;
   int steps_ = 0;
   Attempt too_many_, fits_;  // the attempts at the bracket ends
+  // Of the attempts that did not fit, the one with the fewest faces when that is not too_many_ (fewest_lambda_ 0:
+  // none); ties go to the larger λ.
+  Attempt fewest_;
+  int fewest_faces_ = std::numeric_limits<int>::max();
+  double fewest_lambda_ = 0.0;
   double lo_ = 0.0, hi_ = 0.0;
   std::map<double, Attempt> climbs_;
   double base_lambda_ = 0.0;
@@ -1049,7 +1087,7 @@ WeldedOutput WeldOutput(const Mesh& base, const Prepared& prep, const Attempt& b
 }
 
 // The vertex refit's input for pose m of the chosen attempt.
-RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, size_t m) {
+RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, const DecimateOptions& options, size_t m) {
   RefitInput in;
   in.dense_V = &prep.poses[m];
   in.dense_F = &prep.F;
@@ -1060,6 +1098,7 @@ RefitInput RefitInputFor(const Prepared& prep, const Attempt& best, size_t m) {
   in.coarse_F = &best.triangulation.F;
   in.coarse_face_patch = &best.triangulation.face_patch;
   in.num_patches = best.num_patches;
+  in.min_cos_to_patch_normal = options.min_cos_to_patch_normal;
   return in;
 }
 
@@ -1071,8 +1110,9 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   VertexRefitOptions quadric_step = options.refit;
   quadric_step.fit_rounds = 0;
   std::vector<Vertices> quadric(prep.poses.size());
-  tbb::parallel_for(size_t{0}, prep.poses.size(),
-                    [&](size_t m) { quadric[m] = RefitVertices(RefitInputFor(prep, *best, m), quadric_step); });
+  tbb::parallel_for(size_t{0}, prep.poses.size(), [&](size_t m) {
+    quadric[m] = RefitVertices(RefitInputFor(prep, *best, options, m), quadric_step);
+  });
   EdgeFlipInput flip;
   for (size_t m = 0; m < prep.poses.size(); ++m) {
     flip.dense_poses.push_back(&prep.poses[m]);
@@ -1083,8 +1123,9 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   flip.representative = &best->triangulation.representative;
   flip.coarse_face_patch = &best->triangulation.face_patch;
   flip.num_patches = best->num_patches;
+  flip.locked = &prep.locked;
   EdgeFlipSummary fs;
-  FlipEdgesToFit(flip, options.refit.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
+  FlipEdgesToFit(flip, options.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
   return fs.flips;
 }
 
@@ -1120,7 +1161,7 @@ class PoseOutput {
  private:
   void RefitPositions(size_t m, DecimateSummary* s, Vertices* V) const {
     VertexRefitSummary rs;
-    const Vertices moved = RefitVertices(RefitInputFor(prep_, best_, m), options_.refit, &rs);
+    const Vertices moved = RefitVertices(RefitInputFor(prep_, best_, options_, m), options_.refit, &rs);
     for (size_t i = 0; i < welded_.vertex_split.size(); ++i) {
       V->row(static_cast<Eigen::Index>(i)) = moved.row(welded_.vertex_split[i]);
     }
@@ -1191,8 +1232,10 @@ void RecordOutcome(const Attempt& best, const WeldedOutput& welded, DecimateSumm
   s->rejected_disconnecting = best.stats.rejected_disconnecting;
   s->rounds = best.stats.rounds;
   s->converged = best.stats.converged;
-  s->kept_corner_vertices = tri.kept_corner_vertices;
-  s->blocked_vertices = tri.blocked_vertices;
+  // On the output's vertices: a welded vertex's copies are all locked, so kept unconditionally.
+  s->kept_corner_vertices = 0;
+  for (int split : welded.vertex_split) s->kept_corner_vertices += tri.unconditional[split] ? 1 : 0;
+  s->blocked_vertices = s->output_vertices - s->kept_corner_vertices;
   s->max_chain_error_rel = tri.max_chain_error_rel;
   s->fell_back_to_dense = best.fell_back;
   if (best.fell_back) {
@@ -1232,7 +1275,7 @@ std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, cons
   const Problem problem = BuildProblem(prep, options.weighting, &s.notices);
   const int ns = static_cast<int>(prep.split_source.size());
   const auto signature = TopologySignature(ns, prep.F, prep.topology);
-  NoteComponentsAndLoops(signature, &s.notices);
+  NoteComponentsAndLoops(prep, signature, &s.notices);
 
   Attempt best;
   double lambda = options.lambda;

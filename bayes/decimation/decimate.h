@@ -63,7 +63,9 @@ struct DecimateOptions {
   int max_bisection_steps = 30;     // full decimations tried when searching λ (guided runs not counted), ≥ 2
   DecimateWeighting weighting = DecimateWeighting::kArea;
   int max_rounds = 200;                   // hill-climbing rounds (fuse phase + split/swap phase), ≥ 1
-  double min_cos_to_patch_normal = 0.02;  // an output triangle's normal keeps this cosine to its patch's, [0, 1)
+  // An output triangle's normal keeps this cosine to its patch's, [0, 1): the guard of the reduction, the edge flips
+  // and the vertex refit (a triangle moved by them; see bayes/decimation/decimate_geometry.h for closed patches).
+  double min_cos_to_patch_normal = 0.02;
   // Patch-boundary chains are simplified while removed vertices stay within this share of the bounding-box
   // diagonal of the simplified chain, [0, ∞) (see bayes/decimation/decimate_geometry.h).
   double chain_tolerance_rel = 0.005;
@@ -107,8 +109,10 @@ struct DecimateSummary {
   double lambda_too_many = 0.0, lambda_fits = 0.0;
   int faces_too_many = 0, faces_fits = 0;
   double max_chain_error_rel = 0.0;  // largest chain error the budgeted chain pass accepted, share of the diagonal
-  int kept_corner_vertices = 0;  // vertices where ≥ 3 patch sides meet (and loop anchors, locked vertices)
-  int blocked_vertices = 0;      // further vertices kept because removing them would flip or break something
+  // Output vertices where ≥ 3 patch sides meet (and loop anchors, copies of a non-manifold input vertex), and the
+  // others (kept because removing them would flip or break something, or the dense fallback's).
+  int kept_corner_vertices = 0;
+  int blocked_vertices = 0;
   bool fell_back_to_dense = false;  // the reduced mesh failed the topology check; the dense faces were kept
   double seconds_partition = 0.0;
   double seconds_geometry = 0.0;

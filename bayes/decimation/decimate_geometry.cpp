@@ -191,18 +191,16 @@ class Reducer {
       }
       ++patch_count_[face_patch[f]];
     }
-    // Patch normals (area weighted) per pose, and a scale for "zero area".
+    // Patch cone axes per pose (dense corner normals where a patch has none), and a scale for "zero area".
     patch_normal_.resize(poses.size());
+    vertex_normal_.resize(poses.size());
     double diag2 = 0.0;
     for (size_t m = 0; m < poses.size(); ++m) {
       const Vertices& V = *poses[m];
-      std::vector<Eigen::Vector3d> sum(num_patches, Eigen::Vector3d::Zero());
-      for (int f = 0; f < nf; ++f) sum[face_patch[f]] += FaceCross(V, T_[f]);
-      for (auto& n : sum) {
-        const double len = n.norm();
-        n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
-      }
-      patch_normal_[m] = std::move(sum);
+      patch_normal_[m] = PatchConeAxes(V, F, face_patch, num_patches);
+      const bool every_patch_has_an_axis = std::none_of(patch_normal_[m].begin(), patch_normal_[m].end(),
+                                                        [](const Eigen::Vector3d& n) { return n.isZero(0.0); });
+      if (!every_patch_has_an_axis) vertex_normal_[m] = DenseVertexNormals(V, F);
       if (V.rows() > 0) {
         const Eigen::Vector3d lo = V.colwise().minCoeff().transpose(), hi = V.colwise().maxCoeff().transpose();
         diag2 = std::max(diag2, (hi - lo).squaredNorm());
@@ -234,8 +232,9 @@ class Reducer {
     version_.assign(nv, 0);
     kept_.assign(nv, 0);
     collapsed_to_.assign(nv, -1);
+    locked_.assign(nv, 0);
     for (int v = 0; v < nv; ++v) {
-      if (!locked.empty() && locked[v]) kept_[v] = 1;
+      if (!locked.empty() && locked[v]) kept_[v] = locked_[v] = 1;
     }
     Classify();
   }
@@ -318,6 +317,7 @@ class Reducer {
       }
     }
     out.max_chain_error_rel = diag_ > 0.0 ? max_chain_error_ / diag_ : 0.0;
+    out.unconditional = kept_;
     out.representative.assign(nv, -1);
     for (int v = 0; v < nv; ++v) {
       int r = v;
@@ -654,6 +654,7 @@ class Reducer {
     if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
     int apex_stamp = 0;
     if (!LinkConditionHolds(v, u, &apex_stamp)) return false;
+    if (locked_[u] && JoinsLockedVertices(v, u, apex_stamp)) return false;
     if (!EveryPatchKeepsAFace()) return false;
     if (!MovedFacesStayValid(v, u, apex_stamp)) return false;
     ApplyCollapse(v, u, w);
@@ -719,6 +720,18 @@ class Reducer {
     return false;
   }
 
+  // Whether moving v onto locked u makes u a neighbour of another locked vertex: with the link condition
+  // holding, v's neighbours off the edge's apexes are not u's neighbours yet. Locked vertices never collapse, so
+  // the edges between them stay those of the input.
+  bool JoinsLockedVertices(int v, int u, int apex_stamp) const {
+    for (int f : moved_) {
+      for (int x : T_[f]) {
+        if (x != v && x != u && locked_[x] && stamp_[x] != apex_stamp) return true;
+      }
+    }
+    return false;
+  }
+
   // Every patch keeps at least one face.
   bool EveryPatchKeepsAFace() const {
     for (int f : deleted_) {
@@ -767,7 +780,7 @@ class Reducer {
       const double len = now.norm();
       if (len <= area_eps_) return false;
       if (before.squaredNorm() > area_eps_ * area_eps_ && now.dot(before) <= 0.0) return false;
-      if (now.dot(patch_normal_[m][k]) < options_.min_cos_to_patch_normal * len) return false;
+      if (!InPatchCone(now, patch_normal_[m][k], t, vertex_normal_[m], options_.min_cos_to_patch_normal)) return false;
     }
     return true;
   }
@@ -829,8 +842,10 @@ class Reducer {
   std::vector<char> alive_face_;
   StarLists vf_;
   std::vector<int> patch_count_;
-  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;
+  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
+  std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals, where a patch has no axis
   std::vector<char> boundary_, kept_;
+  std::vector<char> locked_;  // the caller's locked vertices (a subset of kept_)
   std::vector<int> stamp_, version_;
   std::vector<int> collapsed_to_;
   std::vector<int> nb_mark_, nb_slot_;
@@ -856,6 +871,50 @@ class Reducer {
 };
 
 }  // namespace
+
+std::vector<Eigen::Vector3d> PatchConeAxes(const Vertices& V, const Faces& F, const std::vector<int>& face_patch,
+                                           int num_patches) {
+  std::vector<Eigen::Vector3d> sum(std::max(num_patches, 0), Eigen::Vector3d::Zero());
+  std::vector<double> area(sum.size(), 0.0);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const int k = face_patch[f];
+    if (k < 0 || k >= num_patches) continue;
+    const Eigen::Vector3d a = V.row(F(f, 0)).transpose();
+    const Eigen::Vector3d cross = (V.row(F(f, 1)).transpose() - a).cross(V.row(F(f, 2)).transpose() - a);
+    sum[k] += cross;
+    area[k] += cross.norm();
+  }
+  for (size_t k = 0; k < sum.size(); ++k) {
+    const double len = sum[k].norm();
+    sum[k] = len > 0.0 && len >= kMinPatchNormalCoherence * area[k] ? Eigen::Vector3d(sum[k] / len)
+                                                                    : Eigen::Vector3d::Zero();
+  }
+  return sum;
+}
+
+std::vector<Eigen::Vector3d> DenseVertexNormals(const Vertices& V, const Faces& F) {
+  std::vector<Eigen::Vector3d> normal(V.rows(), Eigen::Vector3d::Zero());
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = V.row(F(f, 0)).transpose();
+    const Eigen::Vector3d cross = (V.row(F(f, 1)).transpose() - a).cross(V.row(F(f, 2)).transpose() - a);
+    for (int k = 0; k < 3; ++k) normal[F(f, k)] += cross;
+  }
+  for (auto& n : normal) {
+    const double len = n.norm();
+    n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+  }
+  return normal;
+}
+
+bool InPatchCone(const Eigen::Vector3d& cross, const Eigen::Vector3d& axis, const std::array<int, 3>& corners,
+                 const std::vector<Eigen::Vector3d>& vertex_normal, double min_cos) {
+  const double len = cross.norm();
+  if (!axis.isZero(0.0)) return cross.dot(axis) >= min_cos * len;
+  for (int x : corners) {
+    if (cross.dot(vertex_normal[x]) < min_cos * len) return false;
+  }
+  return true;
+}
 
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,

@@ -13,7 +13,10 @@
 //     which is what keeps the output a manifold of the input's topology (Dey et al. 1999);
 //   - create a duplicate face, or leave a patch without faces;
 //   - flip a triangle: every moved triangle must stay within 90° of its patch normal (cosine above
-//     `min_cos_to_patch_normal`) in every pose and keep a positive area.
+//     `min_cos_to_patch_normal`) in every pose and keep a positive area. A patch that is closed or nearly so
+//     has no such normal (its faces' area vectors cancel, PatchConeAxes); there each moved triangle must stay
+//     within 90° of the dense normal at each of its corners instead (DenseVertexNormals), a reference that
+//     collapses cannot drift, so a closed surface is never folded or flattened across itself.
 // Vertices whose collapses are all refused stay: the fallback for a patch that cannot be reduced to its
 // corners is to keep more of its vertices, never to emit a broken triangle. Kept without condition: vertices
 // with three or more feature edges (where three patches meet, or two patches meet the mesh boundary, or a
@@ -24,11 +27,33 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <vector>
 
 #include "core/mesh.h"
 
 namespace rangebayes {
+
+// A patch's faces must have |Σ area vectors| ≥ this share of Σ areas for its normal to orient its triangles. A
+// closed surface sums to zero (up to rounding) and a spherical cap of half-angle θ to (1 + cos θ) / 2, so 0.1 treats
+// as closed only patches that wrap around beyond θ ≈ 143°, where the cone of the patch normal (≤ 90°) has long
+// stopped holding the patch's faces anyway.
+constexpr double kMinPatchNormalCoherence = 0.1;
+
+// Per patch of faces F in pose V: the unit sum of its faces' area vectors, the axis of the cone the guards keep
+// its triangles in; zero when that sum is shorter than kMinPatchNormalCoherence × the patch's area (or the
+// patch has none), a patch whose triangles are then oriented by the dense normals of their corners.
+std::vector<Eigen::Vector3d> PatchConeAxes(const Vertices& V, const Faces& F, const std::vector<int>& face_patch,
+                                           int num_patches);
+
+// Per vertex of F in pose V: the unit sum of the area vectors of its faces (zero where it vanishes).
+std::vector<Eigen::Vector3d> DenseVertexNormals(const Vertices& V, const Faces& F);
+
+// Whether triangle area vector `cross` lies in the guards' cone for a face of a patch with cone axis `axis`
+// (PatchConeAxes) and corners `corners`: cosine ≥ min_cos to the axis, or, where the axis is zero, to the
+// dense normal at each corner (vertex_normal, DenseVertexNormals).
+bool InPatchCone(const Eigen::Vector3d& cross, const Eigen::Vector3d& axis, const std::array<int, 3>& corners,
+                 const std::vector<Eigen::Vector3d>& vertex_normal, double min_cos);
 
 struct PatchTriangulationOptions {
   double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
@@ -57,6 +82,8 @@ struct PatchTriangulation {
   double max_chain_error_rel = 0.0;
   // Per dense vertex, the kept vertex its star collapsed onto (itself when kept), −1 for one no face used.
   std::vector<int> representative;
+  // Per dense vertex, 1 when it is kept unconditionally (those of them that F uses are kept_corner_vertices).
+  std::vector<char> unconditional;
   // With PatchTriangulationOptions::record_faces: the triangulation at that face count (one entry; empty when
   // the pass never had that few faces).
   std::vector<PatchTriangulation> recorded;
@@ -64,7 +91,9 @@ struct PatchTriangulation {
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite
 // orientation, each vertex a single fan). face_patch: per face in [0, num_patches). locked: per vertex,
-// vertices that must stay (may be empty). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
+// vertices that must stay (may be empty); no collapse joins two of them by an edge F does not have (they are the
+// copies of vertices that a caller welds back together, where such an edge made in two sheets would be shared
+// by more than two faces). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
 // here; callers that have the edge topology already pass it to save a sort).
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,

@@ -1,7 +1,10 @@
 #include "bayes/decimation/decimate_refit.h"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -10,25 +13,43 @@
 #include <unordered_set>
 #include <utility>
 
-#include <tbb/parallel_for.h>
-
+#include "bayes/decimation/decimate_geometry.h"
 #include "core/error.h"
 
 namespace rangebayes {
 namespace {
 
-// error(x) = xᵀ A x − 2 bᵀ x + c
+// A sum of weighted squared plane distances, error(x) = xᵀ A x − 2 bᵀ x + const; the minimisers solve with A and b.
+// Its value comes from the expansion about a point near the planes (`origin`, the kept vertex's dense position),
+// dᵀ A d − 2 b_originᵀ d + c_origin with d = x − origin: about the coordinate origin the terms are of the size of the
+// squared coordinates and cancel for a point near the planes, down to negative errors.
 struct Quadric {
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
-  double c = 0.0;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_origin = Eigen::Vector3d::Zero();
+  double c_origin = 0.0;
 
-  void AddPlane(const Eigen::Vector3d& n, double offset, double weight) {
+  // The plane through `point` with unit normal n.
+  void AddPlane(const Eigen::Vector3d& n, const Eigen::Vector3d& point, double weight) {
     A += weight * n * n.transpose();
-    b += weight * offset * n;
-    c += weight * offset * offset;
+    b += weight * n.dot(point) * n;
+    const double offset = n.dot(point - origin);
+    b_origin += weight * offset * n;
+    c_origin += weight * offset * offset;
   }
-  double Error(const Eigen::Vector3d& x) const { return x.dot(A * x) - 2.0 * b.dot(x) + c; }
+  // q, expanded about the same origin.
+  void Add(const Quadric& q) {
+    A += q.A;
+    b += q.b;
+    b_origin += q.b_origin;
+    c_origin += q.c_origin;
+  }
+  // Clamped at 0: rounding can still take the sum of squares a hair below it.
+  double Error(const Eigen::Vector3d& x) const {
+    const Eigen::Vector3d d = x - origin;
+    return std::max(0.0, d.dot(A * d) - 2.0 * b_origin.dot(d) + c_origin);
+  }
 };
 
 Eigen::Vector3d Row(const Vertices& V, int i) { return V.row(i).transpose(); }
@@ -82,30 +103,21 @@ void ForEachCluster(const Faces& F, const std::vector<int>& rep, int f, const Vi
 }
 
 // Adds each dense face's plane, weighted by its area, to the quadric of every distinct cluster among its
-// corners (as in Garland–Heckbert), and sums each patch's face cross products into its unit normal.
-void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>* Q_out,
-                     std::vector<Eigen::Vector3d>* patch_normal_out) {
+// corners (as in Garland–Heckbert).
+void AddFaceQuadrics(const RefitInput& in, double area_eps, std::vector<Quadric>* Q_out) {
   const Vertices& V = *in.dense_V;
   const Faces& F = *in.dense_F;
   const std::vector<int>& rep = *in.representative;
   std::vector<Quadric>& Q = *Q_out;
-  std::vector<Eigen::Vector3d>& patch_normal = *patch_normal_out;
   const int nf = static_cast<int>(F.rows());
   for (int f = 0; f < nf; ++f) {
     const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
     const Eigen::Vector3d cr = (b - a).cross(c - a);
     const double len = cr.norm();
-    const int k = (*in.dense_face_patch)[f];
-    if (k >= 0 && k < in.num_patches) patch_normal[k] += cr;
     if (len <= area_eps) continue;
     const Eigen::Vector3d n = cr / len;
     const double area = 0.5 * len;
-    const double offset = n.dot(a);
-    ForEachCluster(F, rep, f, [&](int r) { Q[r].AddPlane(n, offset, area); });
-  }
-  for (auto& n : patch_normal) {
-    const double len = n.norm();
-    n = len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+    ForEachCluster(F, rep, f, [&](int r) { Q[r].AddPlane(n, a, area); });
   }
 }
 
@@ -137,10 +149,9 @@ void AddBoundaryQuadrics(const RefitInput& in, double boundary_weight, std::vect
       if (mlen <= 0.0) continue;
       m /= mlen;
       const double w = boundary_weight * e.squaredNorm();
-      const double offset = m.dot(Row(V, x));
       const int rx = rep[x], ry = rep[y];
-      if (rx >= 0) Qb[rx].AddPlane(m, offset, w);
-      if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, offset, w);
+      if (rx >= 0) Qb[rx].AddPlane(m, Row(V, x), w);
+      if (ry >= 0 && ry != rx) Qb[ry].AddPlane(m, Row(V, x), w);
     }
   }
 }
@@ -149,8 +160,10 @@ void AddBoundaryQuadrics(const RefitInput& in, double boundary_weight, std::vect
 struct CoarseState {
   const Faces& C;
   const std::vector<int>& coarse_face_patch;
-  const std::vector<Eigen::Vector3d>& patch_normal;
+  const std::vector<Eigen::Vector3d>& patch_normal;   // PatchConeAxes
+  const std::vector<Eigen::Vector3d>& vertex_normal;  // DenseVertexNormals where a patch has no axis, else empty
   const VertexRefitOptions& options;
+  double min_cos;  // RefitInput::min_cos_to_patch_normal
   double area_eps;
   Vertices X;
   std::vector<std::vector<int>> star;  // per vertex, its coarse faces
@@ -163,7 +176,7 @@ struct CoarseState {
   }
 
   // Moves v from where it is towards `target`, halving the step while a triangle of its star would lose its
-  // area, reverse or leave its patch's cone (where it was inside before); false when v stays.
+  // area, reverse or leave its patch's cone (where it was inside before; InPatchCone); false when v stays.
   bool GuardedMove(int v, const Eigen::Vector3d& target) {
     if (!target.allFinite()) return false;
     const Eigen::Vector3d x0 = Row(X, v);
@@ -178,9 +191,11 @@ struct CoarseState {
         const Eigen::Vector3d now = CrossOf(f);
         const double len = now.norm();
         const Eigen::Vector3d& pn = patch_normal[coarse_face_patch[f]];
-        const double min_cos = options.min_cos_to_patch_normal;
-        const bool cone_before = before[i].dot(pn) >= min_cos * before[i].norm();
-        ok = len > area_eps && now.dot(before[i]) > 0.0 && (!cone_before || now.dot(pn) >= min_cos * len);
+        const std::array<int, 3> corners = {C(f, 0), C(f, 1), C(f, 2)};
+
+        const bool cone_before = InPatchCone(before[i], pn, corners, vertex_normal, min_cos);
+        ok = len > area_eps && now.dot(before[i]) > 0.0 &&
+             (!cone_before || InPatchCone(now, pn, corners, vertex_normal, min_cos));
       }
       if (ok) return true;
     }
@@ -197,9 +212,7 @@ void MoveToQuadricMinimisers(const Vertices& V, const std::vector<Quadric>& Q, c
   for (int v = 0; v < nv; ++v) {
     if (!movable[v]) continue;
     Quadric q = Q[v];
-    q.A += Qb[v].A;
-    q.b += Qb[v].b;
-    q.c += Qb[v].c;
+    q.Add(Qb[v]);
     const double trace = q.A.trace();
     if (!(trace > 0.0)) continue;
     const Eigen::Vector3d x0 = Row(V, v);
@@ -506,8 +519,6 @@ void VertexRefitOptions::Check() const {
   RB_CHECK(regularisation > 0.0 && std::isfinite(regularisation), "decimate: refit regularisation must be > 0, got ",
            regularisation);
   RB_CHECK(boundary_weight >= 0.0, "decimate: refit boundary_weight must be ≥ 0, got ", boundary_weight);
-  RB_CHECK(min_cos_to_patch_normal >= 0.0 && min_cos_to_patch_normal < 1.0,
-           "decimate: refit min_cos_to_patch_normal must be in [0, 1)");
   RB_CHECK(fit_rounds >= 0, "decimate: refit fit_rounds must be ≥ 0, got ", fit_rounds);
   RB_CHECK(coverage_weight >= 0.0 && std::isfinite(coverage_weight),
            "decimate: refit coverage_weight must be ≥ 0, got ", coverage_weight);
@@ -528,6 +539,8 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   RB_CHECK(static_cast<int>(in.representative->size()) == nv, "decimate: refit representative size mismatch");
   RB_CHECK(static_cast<int>(in.dense_face_patch->size()) == nf, "decimate: refit patch map size mismatch");
   RB_CHECK(static_cast<int>(in.coarse_face_patch->size()) == C.rows(), "decimate: refit coarse patch size mismatch");
+  RB_CHECK(in.min_cos_to_patch_normal >= 0.0 && in.min_cos_to_patch_normal < 1.0,
+           "decimate: refit min_cos_to_patch_normal must be in [0, 1), got ", in.min_cos_to_patch_normal);
   const std::vector<int>& rep = *in.representative;
   const bool has_boundary = in.boundary_vertex != nullptr && static_cast<int>(in.boundary_vertex->size()) == nv;
   const bool has_fixed = in.fixed != nullptr && static_cast<int>(in.fixed->size()) == nv;
@@ -536,18 +549,32 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
   s = VertexRefitSummary{};
 
   // Quadrics per kept vertex, from the dense faces of its cluster, and patch normals for the cone guard.
-  std::vector<Quadric> Q(nv), Qb(nv);  // face planes of the cluster; boundary planes
+  std::vector<Quadric> Q(nv), Qb(nv);  // face planes of the cluster; boundary planes; both about the vertex
+  for (int v = 0; v < nv; ++v) Q[v].origin = Qb[v].origin = Row(V, v);
   std::vector<char> kept(nv, 0);
   for (int v = 0; v < nv; ++v) {
     if (rep[v] >= 0) kept[rep[v]] = 1;
   }
-  std::vector<Eigen::Vector3d> patch_normal(std::max(in.num_patches, 0), Eigen::Vector3d::Zero());
+  const std::vector<Eigen::Vector3d> patch_normal = PatchConeAxes(V, F, *in.dense_face_patch, in.num_patches);
+  std::vector<Eigen::Vector3d> vertex_normal;
+  if (std::any_of(patch_normal.begin(), patch_normal.end(), [](const Eigen::Vector3d& n) { return n.isZero(0.0); })) {
+    vertex_normal = DenseVertexNormals(V, F);
+  }
   double diag2 = BoundingBoxExtent(V).squaredNorm();
   const double area_eps = 1e-14 * diag2;
-  AddFaceQuadrics(in, area_eps, &Q, &patch_normal);
+  AddFaceQuadrics(in, area_eps, &Q);
   if (has_boundary && options.boundary_weight > 0.0) AddBoundaryQuadrics(in, options.boundary_weight, &Qb);
 
-  CoarseState st{C, *in.coarse_face_patch, patch_normal, options, area_eps, V, std::vector<std::vector<int>>(nv), {}};
+  CoarseState st{C,
+                 *in.coarse_face_patch,
+                 patch_normal,
+                 vertex_normal,
+                 options,
+                 in.min_cos_to_patch_normal,
+                 area_eps,
+                 V,
+                 std::vector<std::vector<int>>(nv),
+                 {}};
   for (int f = 0; f < C.rows(); ++f) {
     for (int j = 0; j < 3; ++j) st.star[C(f, j)].push_back(f);
   }
@@ -578,8 +605,14 @@ class Flipper {
     weight_ = VertexAreas(V0, *in.dense_F);
     area_eps_ = 1e-14 * (V0.colwise().maxCoeff() - V0.colwise().minCoeff()).squaredNorm();
     patch_normal_.resize(in.dense_poses.size());
+    vertex_normal_.resize(in.dense_poses.size());
     for (size_t m = 0; m < in.dense_poses.size(); ++m) {
-      patch_normal_[m] = PatchNormals(*in.dense_poses[m]);
+      const Vertices& V = *in.dense_poses[m];
+      patch_normal_[m] = PatchConeAxes(V, *in.dense_F, *in.dense_face_patch, in.num_patches);
+      if (std::any_of(patch_normal_[m].begin(), patch_normal_[m].end(),
+                      [](const Eigen::Vector3d& n) { return n.isZero(0.0); })) {
+        vertex_normal_[m] = DenseVertexNormals(V, *in.dense_F);
+      }
     }
     star_.resize(nv);
     for (int f = 0; f < C_.rows(); ++f) {
@@ -663,22 +696,6 @@ class Flipper {
     return Row(in_.coarse_poses.empty() ? *in_.dense_poses[m] : *in_.coarse_poses[m], v);
   }
 
-  std::vector<Eigen::Vector3d> PatchNormals(const Vertices& V) const {
-    const Faces& F = *in_.dense_F;
-    std::vector<Eigen::Vector3d> n(std::max(in_.num_patches, 0), Eigen::Vector3d::Zero());
-    for (int f = 0; f < F.rows(); ++f) {
-      const int k = (*in_.dense_face_patch)[f];
-      if (k < 0 || k >= in_.num_patches) continue;
-      const Eigen::Vector3d a = Row(V, F(f, 0)), b = Row(V, F(f, 1)), c = Row(V, F(f, 2));
-      n[k] += (b - a).cross(c - a);
-    }
-    for (auto& x : n) {
-      const double len = x.norm();
-      x = len > 0.0 ? Eigen::Vector3d(x / len) : Eigen::Vector3d::Zero();
-    }
-    return n;
-  }
-
   double Distance2(size_t m, int j, int a, int b, int c) const {
     Eigen::Vector3d bary;
     return ClosestPointOnTriangle(At(m, j), Corner(m, a), Corner(m, b), Corner(m, c), &bary);
@@ -698,8 +715,8 @@ class Flipper {
     auto at = [&](int v) { return dense ? At(m, v) : Corner(m, v); };
     const Eigen::Vector3d pa = at(a);
     *cross = (at(b) - pa).cross(at(c) - pa);
-    const double len = cross->norm();
-    return len > area_eps_ && cross->dot(patch_normal_[m][patch]) >= min_cos_ * len;
+    return cross->norm() > area_eps_ &&
+           InPatchCone(*cross, patch_normal_[m][patch], {a, b, c}, vertex_normal_[m], min_cos_);
   }
 
   void Remove(int v, int f) {
@@ -723,6 +740,7 @@ class Flipper {
       if (C_(f2, l) != u && C_(f2, l) != v) d = C_(f2, l);
     }
     if (d < 0 || d == c || exists->count(EdgeKey(c, d))) return false;
+    if (in_.locked != nullptr && !in_.locked->empty() && (*in_.locked)[c] && (*in_.locked)[d]) return false;
     const int patch = (*in_.coarse_face_patch)[f1];
     // At the coarse positions, and at the dense ones where the refit starts (its guard then keeps the cone).
     for (size_t m = 0; m < in_.dense_poses.size(); ++m) {
@@ -777,7 +795,8 @@ class Flipper {
   Faces& C_;
   std::vector<double> weight_;
   double area_eps_ = 0.0;
-  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;  // per pose, per patch
+  std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
+  std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals where a patch has no axis
   std::vector<std::vector<int>> star_;                      // per dense vertex, its coarse faces
   std::vector<std::vector<int>> face_samples_;              // per coarse face, its dense vertices
   std::vector<std::vector<double>> d2_;                     // per pose, per dense vertex: squared distance to its face
@@ -808,6 +827,8 @@ void FlipEdgesToFit(const EdgeFlipInput& in, double min_cos_to_patch_normal, int
            "decimate: edge flip patch map size mismatch");
   RB_CHECK(static_cast<Eigen::Index>(in.coarse_face_patch->size()) == coarse_F->rows(),
            "decimate: edge flip coarse patch size mismatch");
+  RB_CHECK(in.locked == nullptr || in.locked->empty() || static_cast<Eigen::Index>(in.locked->size()) == nv,
+           "decimate: edge flip locked size mismatch");
   if (max_sweeps <= 0 || coarse_F->rows() == 0) return;
   Flipper flipper(in, min_cos_to_patch_normal, coarse_F);
   s.fit_rms_before = flipper.Rms();

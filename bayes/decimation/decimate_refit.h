@@ -8,7 +8,8 @@
 //   x_v = argmin Q_v(x) + α_v ‖x − x_v⁰‖²,   α_v = regularisation · trace(quadric matrix of v) / 3
 //
 // The step towards x_v is halved up to `max_halvings` times while any triangle of v would lose area, reverse
-// its orientation or leave the cone of its patch normal; otherwise the vertex stays. Since Q_v + α_v‖·‖² is
+// its orientation or leave the cone of its patch normal (InPatchCone in bayes/decimation/decimate_geometry.h: the
+// dense normals at its corners for a closed patch); otherwise the vertex stays. Since Q_v + α_v‖·‖² is
 // convex and equals Q_v at x_v⁰, every accepted step lowers Q_v: the refit never increases the quadric error.
 // Then `fit_rounds` rounds fit the kept vertices to the dense vertices themselves (each projected onto the
 // nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser of the
@@ -35,7 +36,6 @@ namespace rangebayes {
 struct VertexRefitOptions {
   double regularisation = 0.01;           // α_v as a share of the quadric's mean eigenvalue, > 0
   double boundary_weight = 1.0;           // weight of the boundary planes against the face planes, ≥ 0
-  double min_cos_to_patch_normal = 0.02;  // cosine a moved triangle keeps to its patch normal, [0, 1)
   int max_halvings = 4;                   // step halvings tried before a vertex stays, ≥ 0
   int fit_rounds = 2;                     // rounds of the fit to the dense vertices after the quadric step, ≥ 0
   double coverage_weight = 2.0;           // weight of the coarse points' distances to the dense faces in the fit, ≥ 0
@@ -65,10 +65,12 @@ struct RefitInput {
   const Faces* coarse_F = nullptr;                     // coarse faces over dense vertex ids
   const std::vector<int>* coarse_face_patch = nullptr;  // per coarse face, its patch
   int num_patches = 0;
+  // The flip guard's cosine to the patch normal, [0, 1): the reduction's (DecimateOptions::min_cos_to_patch_normal).
+  double min_cos_to_patch_normal = 0.02;
 };
 
 // Returns the dense vertex array with the kept vertices moved (other rows as in dense_V). Throws Error for
-// inconsistent sizes.
+// inconsistent sizes or a cosine outside [0, 1).
 Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& options = {},
                        VertexRefitSummary* summary = nullptr);
 
@@ -77,10 +79,10 @@ Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& option
 // vertex is a sample of the coarse face nearest to it around its representative (in the first pose); a flip is
 // taken when the samples of the two faces, each moved to the nearer new triangle (first pose), come closer to
 // their faces (squared distances weighted by the dense vertex areas, summed over the poses) by more than 1e-6
-// of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused
-// when the new edge exists already (so the mesh stays manifold with the same vertices, faces and patches) or
-// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal or fold onto its
-// partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
+// of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused when the new edge exists
+// already (so the mesh stays manifold with the same vertices, faces and patches) or joins two locked vertices, or
+// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold
+// onto its partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
 struct EdgeFlipInput {
   std::vector<const Vertices*> dense_poses;            // per pose, the dense positions (the samples)
   std::vector<const Vertices*> coarse_poses;           // per pose, the coarse vertices' positions; empty: dense
@@ -89,6 +91,9 @@ struct EdgeFlipInput {
   const std::vector<int>* representative = nullptr;    // per dense vertex, its kept vertex, or −1
   const std::vector<int>* coarse_face_patch = nullptr; // per coarse face, its patch
   int num_patches = 0;
+  // Per dense vertex, 1 for a vertex that is welded to others afterwards (may be null or empty): no flip makes an
+  // edge between two of them (TriangulatePatches' locked vertices).
+  const std::vector<char>* locked = nullptr;
 };
 
 struct EdgeFlipSummary {

@@ -141,6 +141,16 @@ Mesh Torus(int nu, int nv, double R = 3.0, double r = 1.0) {
   return FromLists(V, faces);
 }
 
+// Signed volume enclosed by a closed, outward-oriented mesh.
+double Volume(const Mesh& m) {
+  double v = 0.0;
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
 // Per component (Euler characteristic, boundary loops), sorted; unreferenced vertices ignored.
 std::vector<std::pair<int, int>> Signature(const Mesh& mesh) {
   const Components comps = ComputeComponents(mesh);
@@ -313,6 +323,48 @@ TEST(Decimate, ClosedSphereKeepsTopologyAtSeveralLambdas) {
   }
 }
 
+// Every output face within 90° (cosine above DecimateOptions::min_cos_to_patch_normal) of the dense normal at each
+// of its corners: a closed surface neither folded nor flattened across itself.
+void ExpectFacesAlongTheDenseNormals(const Mesh& dense, const DecimatedMesh& out) {
+  const std::vector<Eigen::Vector3d> normal = DenseVertexNormals(dense.V, dense.F);
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = out.mesh.V.row(out.mesh.F(f, 0)), b = out.mesh.V.row(out.mesh.F(f, 1)),
+                          c = out.mesh.V.row(out.mesh.F(f, 2));
+    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_GE(cross.dot(normal[out.vertex_source[out.mesh.F(f, k)]]), 0.02 * cross.norm())
+          << "face " << f << " corner " << k;
+    }
+  }
+}
+
+// A closed surface that is one patch has no patch normal (its faces' area vectors sum to zero), so the cone of
+// that normal cannot guard its collapses: before, every collapse was refused (the cube kept all its faces) or,
+// where rounding gave the sum a direction, the side facing it collapsed into a flat disc while the rest stayed.
+// Each triangle is now held to the dense normals at its corners: the surface reduces to a small polytope that
+// still faces outward everywhere.
+TEST(Decimate, ClosedSurfaceThatIsOnePatchReducesWithoutFlattening) {
+  const Mesh sphere = Sphere(3), cube = Cube(4);
+  for (const Mesh* mesh : {&sphere, &cube}) {
+    for (const bool refit : {false, true}) {
+      DecimateOptions options;
+      options.lambda = 1e6;
+      options.refit_vertices = refit;
+      DecimateSummary summary;
+      const DecimatedMesh out = Decimate(*mesh, options, &summary);
+      SCOPED_TRACE(mesh->num_faces());
+      SCOPED_TRACE(refit);
+      ASSERT_EQ(out.num_patches, 1);
+      EXPECT_FALSE(summary.fell_back_to_dense);
+      EXPECT_LE(out.mesh.num_faces(), 8);
+      ExpectManifold(out.mesh);
+      EXPECT_EQ(Signature(out.mesh), Signature(*mesh));
+      ExpectFacesAlongTheDenseNormals(*mesh, out);
+      EXPECT_GT(Volume(out.mesh), 0.1 * Volume(*mesh));
+    }
+  }
+}
+
 TEST(Decimate, TorusKeepsGenus) {
   const Mesh torus = Torus(48, 24);
   for (double lambda : {1.0, 10.0}) {
@@ -394,6 +446,76 @@ TEST(Decimate, NonManifoldInputIsCutAndWeldedWithANotice) {
   bool bowtie_kept = false;
   for (int s : out.vertex_source) bowtie_kept |= s == n1 - 1;
   EXPECT_TRUE(bowtie_kept);
+}
+
+// k flat sheets around the z axis, each a 2×2 grid of quads in the half-plane at angle 2πs/k, sharing their
+// corners a = (0, 0, 0) and b = (0, 0, 2); the vertex between them on each sheet's inner side sits 0.01 off the
+// axis, so a and b are not joined by an edge in any sheet.
+Mesh SheetsSharingTwoVertices(int k) {
+  std::vector<Eigen::Vector3d> V = {{0, 0, 0}, {0, 0, 2}};
+  std::vector<std::array<int, 3>> faces;
+  for (int s = 0; s < k; ++s) {
+    const double t = 2.0 * M_PI * s / k;
+    int id[3][3];
+    for (int r = 0; r < 3; ++r) {
+      for (int z = 0; z < 3; ++z) {
+        if (r == 0 && z != 1) {
+          id[r][z] = z == 0 ? 0 : 1;
+          continue;
+        }
+        const double radius = r == 0 ? 0.01 : r;
+        id[r][z] = static_cast<int>(V.size());
+        V.emplace_back(radius * std::cos(t), radius * std::sin(t), z);
+      }
+    }
+    for (int r = 0; r < 2; ++r) {
+      for (int z = 0; z < 2; ++z) {
+        faces.push_back({id[r][z], id[r + 1][z], id[r + 1][z + 1]});
+        faces.push_back({id[r][z], id[r + 1][z + 1], id[r][z + 1]});
+      }
+    }
+  }
+  return FromLists(V, faces);
+}
+
+// The copies of a non-manifold vertex are locked and welded back after the decimation. A sheet that joined its
+// copies of a and b by a new edge (removing the vertex between them) made, once welded, an edge a–b shared by
+// every sheet: more than two faces on one edge, and the sheets (apart in the input but for their shared
+// vertices) joined. No collapse or edge flip may now join two locked copies by an edge the input did not have.
+TEST(Decimate, WeldingSheetsSharingTwoVerticesAddsNoEdgeBetweenThem) {
+  for (int k : {2, 3}) {
+    const Mesh sheets = SheetsSharingTwoVertices(k);
+    DecimateSummary summary;
+    const DecimatedMesh out = Decimate(sheets, {}, &summary);
+    SCOPED_TRACE(k);
+    EXPECT_EQ(out.num_patches, k);
+    EXPECT_LT(out.mesh.num_faces(), sheets.num_faces());
+    const EdgeTopology topology = ComputeEdgeTopology(out.mesh);
+    for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+      EXPECT_LE(topology.edge_faces.size(e), 2) << "edge " << topology.edges(e, 0) << "–" << topology.edges(e, 1);
+      const std::set<int> ends = {out.vertex_source[topology.edges(e, 0)], out.vertex_source[topology.edges(e, 1)]};
+      EXPECT_NE(ends, (std::set<int>{0, 1})) << "an edge between the shared vertices";
+    }
+    EXPECT_EQ(ComputeComponents(out.mesh).count, k);
+  }
+}
+
+// The summary speaks of the input and the output: the kept-vertex counts add up to the output's vertices (they
+// counted the cut copies: 15 for 11 output vertices here), and the components notice tells the input's one
+// component from the pieces it was cut into (it said "3 components").
+TEST(Decimate, SummaryOfACutMeshCountsOutputVerticesAndInputComponents) {
+  const Mesh sheets = SheetsSharingTwoVertices(3);
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(sheets, {}, &summary);
+  EXPECT_EQ(summary.output_vertices, out.mesh.num_vertices());
+  EXPECT_EQ(summary.kept_corner_vertices + summary.blocked_vertices, out.mesh.num_vertices());
+  EXPECT_GE(summary.kept_corner_vertices, 2);  // the two shared vertices
+  bool noticed = false;
+  for (const auto& n : summary.notices) {
+    EXPECT_EQ(n.find("3 components"), std::string::npos) << n;
+    noticed |= n.find("1 component, 3 pieces") != std::string::npos;
+  }
+  EXPECT_TRUE(noticed);
 }
 
 TEST(Decimate, ZeroAreaAndRepeatedVertexFacesAreHandled) {
@@ -591,6 +713,70 @@ TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
   }
 }
 
+// Two closed lenses, each a top and a bottom cap meeting at a knife edge (the caps' slope there is under a
+// degree). At moderate λ each cap is a patch and a lens needs four triangles; at large λ each lens is one patch,
+// and the faces at the knife edge, nearly perpendicular to the dense normals there, cannot move, so more triangles
+// stay. A target below what any λ gives is not reachable: the output is the attempt with the fewest faces, not
+// the one at the largest λ tried (which had 17 times as many).
+Mesh KnifeEdgeLenses() {
+  constexpr int kRings = 4, kSectors = 12;
+  constexpr double kHeight = 0.005;
+  std::vector<Eigen::Vector3d> V;
+  std::vector<std::array<int, 3>> faces;
+  for (int lens = 0; lens < 2; ++lens) {
+    std::map<std::tuple<int, int, int>, int> index;
+    auto vertex = [&](int side, int ring, int sector) {
+      sector %= kSectors;
+      const auto key = ring == 0
+                           ? std::make_tuple(side, 0, 0)
+                           : (ring == kRings ? std::make_tuple(2, ring, sector) : std::make_tuple(side, ring, sector));
+      auto [it, inserted] = index.emplace(key, static_cast<int>(V.size()));
+      if (inserted) {
+        const double r = static_cast<double>(ring) / kRings, t = 2.0 * M_PI * sector / kSectors;
+        V.emplace_back(3.0 * lens + r * std::cos(t), r * std::sin(t), (side == 0 ? 1 : -1) * kHeight * (1 - r * r));
+      }
+      return it->second;
+    };
+    for (int side = 0; side < 2; ++side) {
+      const Eigen::Vector3d outward(0, 0, side == 0 ? 1 : -1);
+      for (int ring = 0; ring < kRings; ++ring) {
+        for (int j = 0; j < kSectors; ++j) {
+          const int b = vertex(side, ring + 1, j), c = vertex(side, ring + 1, j + 1);
+          if (ring == 0) {
+            AddOriented(&faces, V, vertex(side, 0, 0), b, c, outward);
+            continue;
+          }
+          const int a = vertex(side, ring, j), d = vertex(side, ring, j + 1);
+          AddOriented(&faces, V, a, b, c, outward);
+          AddOriented(&faces, V, a, c, d, outward);
+        }
+      }
+    }
+  }
+  return FromLists(V, faces);
+}
+
+TEST(Decimate, UnreachableTargetGivesTheFewestFacesTried) {
+  const Mesh lenses = KnifeEdgeLenses();
+  DecimateOptions options;
+  options.lambda = 1e6;
+  const int one_patch_each = Decimate(lenses, options).mesh.num_faces();
+  options.target_faces = 4;
+  DecimateSummary summary;
+  const DecimatedMesh out = Decimate(lenses, options, &summary);
+  ExpectManifold(out.mesh);
+  EXPECT_EQ(Signature(out.mesh), Signature(lenses));
+  EXPECT_EQ(summary.lambda_fits, 0.0);
+  EXPECT_LT(summary.lambda, summary.lambda_too_many);
+  EXPECT_LE(out.mesh.num_faces(), 8);
+  EXPECT_LT(4 * out.mesh.num_faces(), one_patch_each);
+  const std::string expected =
+      StrCat("target 4 faces not reachable: ", out.mesh.num_faces(), " faces at lambda ", summary.lambda);
+  bool noticed = false;
+  for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0;
+  EXPECT_TRUE(noticed) << expected;
+}
+
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
 TEST(Decimate, ChainReserveTradesPatchesForBoundaryDetail) {
   const Mesh sphere = Sphere(4);
@@ -701,15 +887,6 @@ TEST(Decimate, FandiskAtTwoAndTenPercent) {
 
 // Vertex refit (bayes/decimation/decimate_refit.h).
 
-double Volume(const Mesh& m) {
-  double v = 0.0;
-  for (int f = 0; f < m.num_faces(); ++f) {
-    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
-    v += a.dot(b.cross(c)) / 6.0;
-  }
-  return v;
-}
-
 TEST(DecimateRefit, NeverIncreasesTheQuadricErrorAndKeepsTheGuarantees) {
   const Mesh sphere = Sphere(4);
   const Mesh bumpy = Grid(30, 1.5);
@@ -726,6 +903,55 @@ TEST(DecimateRefit, NeverIncreasesTheQuadricErrorAndKeepsTheGuarantees) {
       EXPECT_LT(summary.refit_quadric_after, 0.9 * summary.refit_quadric_before);
     }
   }
+}
+
+// DecimateOptions::min_cos_to_patch_normal holds for the edge flips and the vertex refit too: an output triangle
+// within the requested cone of its patch normal at its corners' dense positions stays within it where the refit
+// puts them. They used a cosine of their own (0.02) and turned such triangles out of the cone.
+TEST(DecimateRefit, KeepsTheRequestedConeToThePatchNormal) {
+  const Mesh sphere = Sphere(4);
+  DecimateOptions options;
+  options.lambda = 8.0;
+  options.min_cos_to_patch_normal = 0.97;
+  const DecimatedMesh out = Decimate(sphere, options);
+  ExpectValidDecimation(sphere, out);
+  std::vector<Eigen::Vector3d> patch_normal(out.num_patches, Eigen::Vector3d::Zero());
+  for (int f = 0; f < sphere.num_faces(); ++f) {
+    const Eigen::Vector3d a = sphere.V.row(sphere.F(f, 0)), b = sphere.V.row(sphere.F(f, 1)),
+                          c = sphere.V.row(sphere.F(f, 2));
+    patch_normal[out.dense_face_patch[f]] += (b - a).cross(c - a);
+  }
+  auto cosine = [&](const Vertices& V, const std::array<int, 3>& t, int patch) {
+    const Eigen::Vector3d a = V.row(t[0]), b = V.row(t[1]), c = V.row(t[2]);
+    return (b - a).cross(c - a).normalized().dot(patch_normal[patch].normalized());
+  };
+  int in_cone = 0;
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    const std::array<int, 3> t = {out.mesh.F(f, 0), out.mesh.F(f, 1), out.mesh.F(f, 2)};
+    const std::array<int, 3> source = {out.vertex_source[t[0]], out.vertex_source[t[1]], out.vertex_source[t[2]]};
+    if (cosine(sphere.V, source, out.face_patch[f]) < 0.97) continue;
+    ++in_cone;
+    EXPECT_GE(cosine(out.mesh.V, t, out.face_patch[f]), 0.97) << "face " << f;
+  }
+  EXPECT_GT(in_cone, out.mesh.num_faces() / 5);
+}
+
+// The quadric error is a sum of squares, so never negative, and on the dense mesh itself (every vertex on the
+// planes of its faces) it is zero up to rounding, also far from the coordinate origin. Expanded about the origin it
+// cancelled to noise of the size of the squared coordinates (fandisk far off: 5.8e-15 -> -5.6e-14).
+TEST(DecimateRefit, QuadricErrorIsNotLostToCancellationFarFromTheOrigin) {
+  Mesh sphere = Sphere(3);
+  sphere.V.rowwise() += Eigen::RowVector3d(1000.0, -2000.0, 3000.0);
+  DecimateOptions options;
+  options.target_faces = 2 * sphere.num_faces();  // the dense mesh, refitted
+  DecimateSummary summary;
+  Decimate(sphere, options, &summary);
+  ASSERT_GT(summary.refit_moved, 0);
+  EXPECT_GE(summary.refit_quadric_before, 0.0);
+  EXPECT_GE(summary.refit_quadric_after, 0.0);
+  // Unit sphere, 258 vertices: an error of 1e-20 is a distance of about 1e-11 per face.
+  EXPECT_LT(summary.refit_quadric_before, 1e-20);
+  EXPECT_LT(summary.refit_quadric_after, 1e-20);
 }
 
 TEST(DecimateRefit, PlanarSheetsStayPlanar) {
@@ -1014,6 +1240,16 @@ TEST(DecimateRefit, EdgeFlipsTakeTheDiagonalAlongARidge) {
     const Eigen::Vector3d a = V.row(flipped(g, 0)), b = V.row(flipped(g, 1)), c = V.row(flipped(g, 2));
     EXPECT_GT((b - a).cross(c - a).z(), 0.0);
   }
+
+  // Not when the new edge joins two locked vertices (copies welded back afterwards).
+  std::vector<char> locked(n * n, 0);
+  locked[c00] = locked[c11] = 1;
+  in.locked = &locked;
+  Faces held = C;
+  FlipEdgesToFit(in, 0.02, 4, &held, &summary);
+  EXPECT_EQ(summary.flips, 0);
+  EXPECT_EQ(held, C);
+  in.locked = nullptr;
 
   // An edge between two patches is a chain: never flipped. No sweeps: nothing happens.
   coarse_patch = {0, 1};
