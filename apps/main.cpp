@@ -62,5 +62,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
     return 1;
   }
+  // What a command printed as its result (a report, JSON) must have reached standard output: on a full disk
+  // (`eval ... > r.json`) the file would hold less than the command printed while it exited 0.
+  if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+    std::fprintf(stderr, "%s: error: writing standard output failed\n", ParsedName(app).c_str());
+    return 1;
+  }
   return rangebayes::apps::ExitCode();
 }

@@ -19,6 +19,7 @@
 
 #include "batch/process.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/json_int.h"
 #include "core/json_text.h"
 
@@ -173,40 +174,6 @@ std::string NowUtc() {
   return buffer;
 }
 
-void WriteFileAtomically(const std::string& path, const std::string& text) {
-  const fs::path target(path);
-  const fs::path temporary =
-      target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(getpid()));
-  std::error_code ec;
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    RB_CHECK(out.good(), path, ": cannot write (", std::strerror(errno), ")");
-    out << text;
-    out.close();
-    if (!out.good()) {
-      const int error = errno;
-      fs::remove(temporary, ec);  // a full disk leaves no half-written temporary behind
-      RB_FAIL(path, ": write failed (", std::strerror(error), ")");
-    }
-  }
-  // On the disk before the rename: renamed first, a crash of the machine could leave the name on an empty file
-  // (a status that no command can read).
-  const int fd = ::open(temporary.c_str(), O_RDONLY | O_CLOEXEC);
-  const bool synced = fd >= 0 && ::fsync(fd) == 0;
-  const int sync_error = errno;
-  if (fd >= 0) ::close(fd);
-  if (!synced) {
-    fs::remove(temporary, ec);
-    RB_FAIL(path, ": write failed (", std::strerror(sync_error), ")");
-  }
-  fs::rename(temporary, target, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    RB_FAIL(path, ": cannot replace (", ec.message(), ")");
-  }
-}
-
 void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
   json j;
   j["manifest_source"] = record.manifest_source;
@@ -235,7 +202,7 @@ void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
     RB_FAIL(layout.record(), ": cannot record the batch: a path (manifest ", record.manifest_source, ", binary ",
             record.binary, ") is not UTF-8 text, which JSON cannot hold; rename it (", e.what(), ")");
   }
-  WriteFileAtomically(layout.record(), text);
+  WriteFileAtomically(layout.record(), text, /*sync=*/true);
 }
 
 BatchRecord ReadBatchRecord(const BatchLayout& layout) {
@@ -314,7 +281,7 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
 
 void WriteBatchTaskStatus(const BatchLayout& layout, const BatchTaskStatus& status) {
   fs::create_directories(fs::path(layout.status_file(status.index)).parent_path());
-  WriteFileAtomically(layout.status_file(status.index), BatchTaskStatusJson(status));
+  WriteFileAtomically(layout.status_file(status.index), BatchTaskStatusJson(status), /*sync=*/true);
 }
 
 std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, int index) {

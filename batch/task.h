@@ -83,9 +83,6 @@ void WriteBatchTaskStatus(const BatchLayout& layout, const BatchTaskStatus& stat
 // nullopt when the task has no status file yet.
 std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, int index);
 
-// Writes `text` to `path` through a temporary file in the same folder and rename(2).
-void WriteFileAtomically(const std::string& path, const std::string& text);
-
 struct RunTaskOptions {
   std::string binary;  // the rangebayes binary that runs the task's line; empty: this executable
   // Forward SIGTERM/SIGINT/SIGHUP (Slurm's cancel, preemption, requeue) to the command, then clean up the

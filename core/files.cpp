@@ -1,7 +1,9 @@
 #include "core/files.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -38,6 +40,60 @@ void CreateFolder(const std::string& path) {
   fs::create_directories(path, ec);
   RB_CHECK(!ec, path, ": cannot create folder (", ec.message(), ")");
   RB_CHECK(fs::is_directory(path, ec), path, ": exists and is not a folder");
+}
+
+namespace {
+
+// Writes all of `bytes` to `fd`; false with errno set when a write fails.
+bool WriteAllBytes(int fd, std::string_view bytes) {
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+}  // namespace
+
+void WriteFileAtomically(const std::string& path, std::string_view bytes, bool sync) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status existing = fs::symlink_status(path, ec);
+  if (fs::exists(existing) && !fs::is_regular_file(existing)) {
+    const int fd = ::open(path.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
+    RB_CHECK(fd >= 0, path, ": cannot write: ", std::strerror(errno));
+    const bool written = WriteAllBytes(fd, bytes);
+    const int error = errno;
+    const bool closed = ::close(fd) == 0;
+    RB_CHECK(written && closed, path, ": write failed: ", std::strerror(written ? errno : error));
+    return;
+  }
+  static std::atomic<unsigned> serial{0};
+  const fs::path target(path);
+  const fs::path temporary =
+      target.parent_path() / StrCat(".", target.filename().string(), ".tmp-", ::getpid(), "-", serial++);
+  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  RB_CHECK(fd >= 0, path, ": cannot create: ", std::strerror(errno));
+  bool ok = WriteAllBytes(fd, bytes);
+  const char* step = "write failed";
+  if (ok && sync && ::fsync(fd) != 0) ok = false;
+  int error = errno;
+  if (::close(fd) != 0 && ok) {
+    ok = false;
+    error = errno;
+  }
+  if (ok && ::rename(temporary.c_str(), path.c_str()) != 0) {
+    ok = false;
+    error = errno;
+    step = "cannot replace";
+  }
+  if (!ok) {
+    ::unlink(temporary.c_str());  // nothing half-written is left behind, and the old file stays
+    RB_FAIL(path, ": ", step, ": ", std::strerror(error));
+  }
 }
 
 }  // namespace rangebayes

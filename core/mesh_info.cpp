@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "core/error.h"
 #include "core/topology.h"
 
 namespace rangebayes {
@@ -31,7 +32,8 @@ MeshInfo DescribeMesh(const NoisyMesh& noisy) {
     info.box_min = lo;
     info.box_max = hi;
   }
-  info.mean_edge_length = MeanEdgeLength(mesh, topology);
+  info.mean_edge_length =
+      topology.edges.rows() > 0 ? MeanEdgeLength(mesh, topology) : std::numeric_limits<double>::quiet_NaN();
   info.components = ComputeComponents(mesh).count;
   info.boundary_loops = static_cast<int>(ComputeBoundaryLoops(mesh, topology).size());
   return info;
@@ -58,8 +60,9 @@ std::string MeshInfo::BriefReport() const {
                   box_min(0), box_min(1), box_min(2), box_max(0), box_max(1), box_max(2), size(0), size(1), size(2));
     out += line;
   }
-  std::snprintf(line, sizeof(line), "mean edge length: %.6g\ncomponents:       %d\nboundary loops:   %d\n",
-                mean_edge_length, components, boundary_loops);
+  const std::string edge_length = std::isfinite(mean_edge_length) ? StrCat(mean_edge_length) : "n/a (no edges)";
+  std::snprintf(line, sizeof(line), "mean edge length: %s\ncomponents:       %d\nboundary loops:   %d\n",
+                edge_length.c_str(), components, boundary_loops);
   out += line;
   const std::vector<std::string> findings = DescribeFindings(validation);
   if (findings.empty()) {

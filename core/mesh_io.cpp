@@ -13,6 +13,7 @@
 #include <cstring>
 #include <memory>
 
+#include "core/files.h"
 #include "core/mesh_io_internal.h"
 
 namespace rangebayes {
@@ -21,7 +22,7 @@ namespace mesh_io {
 bool TextCursor::ParseOutOfRange(const char* start, double* value) {
   const char* stop = start;
   while (stop < end_ && !IsSpace(*stop)) ++stop;
-  const std::string token(start, std::min<size_t>(static_cast<size_t>(stop - start), 512));
+  const std::string token(start, stop);  // whole: a cut token can read as another number (1e-000…0400 as 1)
   char* parsed_end = nullptr;
   const double parsed = std::strtod(token.c_str(), &parsed_end);
   if (parsed_end != token.c_str() + token.size()) return false;
@@ -95,16 +96,6 @@ std::string ReadWholeFile(const std::string& path) {
     RB_CHECK(!std::ferror(file.get()), path, ": read error: ", std::strerror(errno));
   }
   return bytes;
-}
-
-void WriteWholeFile(const std::string& path, const std::string& bytes) {
-  std::unique_ptr<FILE, FileCloser> file(std::fopen(path.c_str(), "wb"));
-  RB_CHECK(file != nullptr, path, ": cannot create: ", std::strerror(errno));
-  const size_t put = std::fwrite(bytes.data(), 1, bytes.size(), file.get());
-  RB_CHECK(put == bytes.size(), path, ": write failed after ", put, " of ", bytes.size(),
-           " bytes: ", std::strerror(errno));
-  FILE* raw = file.release();
-  RB_CHECK(std::fclose(raw) == 0, path, ": write failed: ", std::strerror(errno));
 }
 
 // Writers refuse inconsistent meshes rather than produce a file no reader accepts.
@@ -210,7 +201,7 @@ void WriteNoisyMesh(const NoisyMesh& mesh, const std::string& path, const MeshWr
                                          : mesh_io::FormatOff(mesh.mesh, options);
       break;
   }
-  WriteWholeFile(path, bytes);
+  WriteFileAtomically(path, bytes);
 }
 
 void WritePolygonMesh(const Vertices& V, const std::vector<std::vector<int>>& polygons, const std::string& path,
@@ -238,7 +229,7 @@ void WritePolygonMesh(const Vertices& V, const std::vector<std::vector<int>>& po
       bytes = mesh_io::FormatPolygonOff(V, polygons, options);
       break;
   }
-  WriteWholeFile(path, bytes);
+  WriteFileAtomically(path, bytes);
 }
 
 }  // namespace rangebayes

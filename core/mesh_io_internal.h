@@ -41,7 +41,8 @@ std::string FormatPolygonOff(const Vertices& V, const std::vector<std::vector<in
 // and token-based ones (ascii PLY) can share the number parsing.
 class TextCursor {
  public:
-  TextCursor(const char* begin, const char* end) : p_(begin), end_(end) {}
+  // first_line: the line number of `begin` in its file (a PLY body's first line follows its header).
+  TextCursor(const char* begin, const char* end, int64_t first_line = 1) : p_(begin), end_(end), line_(first_line) {}
 
   bool AtEnd() const { return p_ >= end_; }
   const char* position() const { return p_; }

@@ -29,9 +29,11 @@ class ObjParser {
       cursor_.SkipBlanks();
       const char c = cursor_.Peek();
       if (c == '\n' || c == '#' || c == '\0') {
+        if (c == '#') ++comment_lines_;
         cursor_.NextLine();
         continue;
       }
+      ++statement_lines_;
       const std::string_view keyword = cursor_.Word();
       if (keyword == "v") {
         ReadTriple(&positions_, "vertex");
@@ -123,7 +125,10 @@ class ObjParser {
 
   NoisyMesh Finish() {
     const size_t nv = positions_.size() / 3;
-    RB_CHECK(nv > 0 || !triangles_.empty(), name_, ": no vertices (empty file or not an OBJ file)");
+    // Comments alone are an empty mesh (what the writer makes of one); no line at all, or only lines that are no
+    // OBJ statement, is not an OBJ file.
+    const bool only_comments = comment_lines_ > 0 && statement_lines_ == 0;
+    RB_CHECK(nv > 0 || !triangles_.empty() || only_comments, name_, ": no vertices (empty file or not an OBJ file)");
     RB_CHECK(nv <= static_cast<size_t>(std::numeric_limits<int>::max()), name_, ": too many vertices");
     NoisyMesh result;
     Mesh& mesh = result.mesh;
@@ -230,6 +235,7 @@ class ObjParser {
   bool any_corner_normal_ = false;
   int polygons_ = 0;
   int64_t other_statements_ = 0;
+  int64_t comment_lines_ = 0, statement_lines_ = 0;
 };
 
 void AppendVertexLines(std::string* out, const char* key, const Vertices& V, int precision) {

@@ -275,7 +275,7 @@ class BodyReader {
         summary_(summary),
         p_(bytes.data() + header.body_offset),
         end_(bytes.data() + bytes.size()),
-        text_(p_, end_),
+        text_(p_, end_, 1 + std::count(bytes.data(), bytes.data() + header.body_offset, '\n')),
         swap_((header.encoding == Encoding::kBig) == (std::endian::native == std::endian::little)) {}
 
   NoisyMesh Read() {
@@ -598,6 +598,10 @@ class BodyReader {
              name_, ": 'range_grid' element must have one integer list property (its vertex indices)");
     RB_CHECK(header_.num_cols > 0 && header_.num_rows > 0, name_,
              ": 'range_grid' without its size (header lines 'obj_info num_cols N' and 'obj_info num_rows N')");
+    RB_CHECK(header_.num_cols <= std::numeric_limits<int>::max() && header_.num_rows <= std::numeric_limits<int>::max(),
+             name_, ": 'range_grid' of ", header_.num_cols, " x ", header_.num_rows, " cells is too large");
+    // Both below 2^31: their product cannot wrap in 64 bits (a wrapped product passed this check and the grid
+    // was read far outside its cells).
     RB_CHECK(static_cast<uint64_t>(header_.num_cols) * static_cast<uint64_t>(header_.num_rows) == element.count,
              name_, ": 'range_grid' has ", element.count, " cells but num_cols x num_rows is ", header_.num_cols,
              " x ", header_.num_rows);

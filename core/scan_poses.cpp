@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 
@@ -79,11 +80,7 @@ void WriteScanPoses(const std::vector<ScanPose>& poses, const std::string& path)
     out << "bmesh " << pose.file << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.x() << ' ' << q.y()
         << ' ' << q.z() << ' ' << q.w() << '\n';
   }
-  std::ofstream file(path);
-  RB_CHECK(file.good(), path, ": cannot write pose file");
-  file << out.str();
-  file.close();
-  RB_CHECK(file.good(), path, ": write failed");
+  WriteFileAtomically(path, out.str());
 }
 
 const ScanPose& FindScanPose(const std::vector<ScanPose>& poses, const std::string& file,

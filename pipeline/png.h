@@ -7,7 +7,8 @@
 
 namespace rangebayes {
 
-// Throws Error naming the path when the file cannot be written.
+// PNG whatever the path's extension; a failure leaves no partial file (WriteFileAtomically). Throws Error naming
+// the path when the file cannot be written.
 void WritePng(const RgbImage& image, const std::string& path);
 
 }  // namespace rangebayes

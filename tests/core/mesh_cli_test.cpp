@@ -1,7 +1,10 @@
 // `rangebayes info` and `rangebayes convert` as a user runs them.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -153,6 +156,63 @@ TEST_F(MeshCliTest, OutputsThatCannotBeWrittenAreRefusedBeforeTheWork) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find(dir_.string() + ": is a directory"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("%"), std::string::npos) << r.output;  // no progress: nothing was learned
+}
+
+// An output that fails half-way (here a file size limit, as a full disk) leaves the file it would replace as it
+// was and no partial file or temporary beside it: it was opened in place, truncated, and left cut.
+TEST_F(MeshCliTest, AWriteThatFailsLeavesTheOldFile) {
+  const std::string out = Path("out.ply");
+  ASSERT_EQ(RunRangebayes("convert tests/data/meshes/trim-star_gt.obj " + out).exit_code, 0);
+  std::ifstream old_in(out, std::ios::binary);
+  const std::string before((std::istreambuf_iterator<char>(old_in)), std::istreambuf_iterator<char>());
+  // The limit (ulimit -f, 512-byte blocks in sh) lets the old file be read but not a bigger one be written.
+  const std::string command = std::string("cd '") + RB_SOURCE_DIR + "' && trap '' XFSZ && ulimit -f " +
+                              std::to_string(before.size() / 512 + 1) + " && '" + RB_BINARY +
+                              "' convert tests/data/meshes/block_gt.obj " + out + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  std::array<char, 4096> buffer{};
+  for (size_t n; (n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0;) output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1) << output;
+  EXPECT_NE(output.find(out + ": write failed"), std::string::npos) << output;
+  std::ifstream new_in(out, std::ios::binary);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(new_in)), std::istreambuf_iterator<char>()), before);
+  int entries = 0;
+  for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir_)) ++entries;
+  EXPECT_EQ(entries, 1);  // out.ply alone
+}
+
+// Pictures are PNG whatever the name (the encoder was chosen by the extension, and `--png pic` failed after the
+// whole solve, its mesh written).
+TEST_F(MeshCliTest, PngWithoutTheExtensionIsAPng) {
+  const RunResult r = RunRangebayes("smooth tests/data/meshes/trim-star_gt.obj " + Path("s.ply") +
+                                    " --tolerance fast --max-iterations 3 --png " + Path("picture") + " -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(Path("picture"), std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, std::string("\x89PNG\r\n\x1a\n", 8));
+}
+
+// A result that cannot reach standard output is an error, not exit 0 with an empty or cut file.
+TEST_F(MeshCliTest, AResultThatCannotBeWrittenToStandardOutputFails) {
+  EXPECT_EQ(RunRangebayes("info tests/data/meshes/trim-star_gt.obj > /dev/full").exit_code, 1);
+  EXPECT_EQ(RunRangebayes("info tests/data/meshes/trim-star_gt.obj --json > /dev/full").exit_code, 1);
+  EXPECT_EQ(RunRangebayes("info tests/data/meshes/trim-star_gt.obj > /dev/null").exit_code, 0);
+}
+
+// A mesh without edges has no mean edge length (it said 0; JSON null as documented).
+TEST_F(MeshCliTest, InfoOfPointsHasNoMeanEdgeLength) {
+  std::ofstream(Path("points.off")) << "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n";
+  RunResult r = RunRangebayes("info " + Path("points.off"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("mean edge length: n/a (no edges)"), std::string::npos) << r.output;
+  r = RunRangebayes("info " + Path("points.off") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(nlohmann::json::parse(r.output)["mean_edge_length"].is_null()) << r.output;
 }
 
 }  // namespace

@@ -72,7 +72,7 @@ TEST_F(MalformedMeshTest, EmptyFiles) {
   ExpectError("empty.ply", "", "empty");
   ExpectError("empty.obj", "", "empty");
   ExpectError("empty.off", "", "empty");
-  ExpectError("blank.obj", "\n\n# only a comment\n", "no vertices");
+  ExpectError("text.obj", "\nnot a mesh\n", "no vertices");  // comments alone are an empty mesh: AnEmptyObjReadsBack
   ExpectError("blank.off", "  \n", "empty");
 }
 
@@ -193,6 +193,28 @@ TEST_F(MalformedMeshTest, NanCoordinatesAreRead) {
   const Mesh big = ReadMesh(Write("big.obj", "v 1e999 1e-999 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
   EXPECT_TRUE(std::isinf(big.V(0, 0)));
   EXPECT_EQ(big.V(0, 1), 0.0);
+  // A long literal is read whole: cut to 512 characters, 1e-000…0400 read as 1.
+  const Mesh tiny =
+      ReadMesh(Write("long.obj", "v 1e-" + std::string(600, '0') + "400 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+  EXPECT_EQ(tiny.V(0, 0), 0.0);
+}
+
+// An ASCII PLY's body errors name the line of the file (they counted from the line after end_header).
+TEST_F(MalformedMeshTest, AsciiPlyErrorsNameTheFileLine) {
+  // Lines 1-7 are the header, 8 and 9 the first two vertices: the bad number is on line 10.
+  ExpectError("line.ply", std::string(kPlyHead) + "end_header\n0 0 0\n1 0 0\n0 abc 0\n", ": line 10: ");
+}
+
+// An empty mesh written as OBJ (only the writer's comment line) reads back as an empty mesh, as PLY and OFF do;
+// a file without any line stays an error.
+TEST_F(MalformedMeshTest, AnEmptyObjReadsBack) {
+  const std::string path = (dir_ / "empty.obj").string();
+  WriteMesh(Mesh{}, path);
+  const Mesh back = ReadMesh(path);
+  EXPECT_EQ(back.num_vertices(), 0);
+  EXPECT_EQ(back.num_faces(), 0);
+  EXPECT_EQ(ReadMesh(Write("blank.obj", "\n\n# only a comment\n")).num_vertices(), 0);
+  ExpectError("nothing.obj", "", "empty");
 }
 
 TEST_F(MalformedMeshTest, GarbageBytes) {

@@ -108,6 +108,12 @@ TEST(RangeGrid, BadGridsNameTheFileAndCell) {
   count.replace(count.find("range_grid 6"), 12, "range_grid 5");
   EXPECT_NE(message("count.ply", count).find("count.ply: 'range_grid' has 5 cells but num_cols x num_rows is 3 x 2"),
             std::string::npos);
+  // A size whose product wraps in 64 bits to the cell count (3 × 6148914691236517206 = 2 mod 2^64) was taken for
+  // a grid of 3 × 1431655766 cells over 2 (a segfault reading them).
+  std::string wrapped = GridPly("1 0\n1 1\n");
+  wrapped.replace(wrapped.find("obj_info num_rows 2"), 19, "obj_info num_rows 6148914691236517206");
+  wrapped.replace(wrapped.find("range_grid 6"), 12, "range_grid 2");
+  EXPECT_NE(message("wrapped.ply", wrapped).find("is too large"), std::string::npos) << message("wrapped.ply", wrapped);
 }
 
 // A noise level in the wrong units (as large as the scan, or below its coordinates' precision) is refused by name
