@@ -1,16 +1,19 @@
 #include "bayes/learn_prior_io.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <vector>
 
 #include "bayes/smooth.h"
 #include "core/error.h"
+#include "core/files.h"
 
 namespace rangebayes {
 namespace {
@@ -56,8 +59,7 @@ std::string UtcNowIso8601() {
 
 void WriteLearnedPrior(const LearnedPrior& prior, const std::string& path) {
   SplinePotential(prior.spline, prior.theta);  // validates N, ε² and the clamped ends
-  std::ofstream out(path);
-  RB_CHECK(out.good(), "cannot write learned prior '", path, "'");
+  std::ostringstream out;
   out << "# rangebayes learned prior: cubic spline potential phi(d) over d = |n_s - n_t| in [0, 2] (paper section 5).\n"
       << "# phi(d) = sqrt(d^2 + epsilon_squared) + S(d), S the clamped cubic spline through theta_j - sqrt(t_j^2 + eps2)\n"
       << "# at t_j = 2 j / (num_knots - 1); theta_j is phi at knot j, the first and last are the square root's.\n"
@@ -78,8 +80,7 @@ void WriteLearnedPrior(const LearnedPrior& prior, const std::string& path) {
       << "regularizer_weight: " << Number(prior.regularizer_weight) << "\n"
       << "training_mse_le2: " << Number(prior.training_mse_le2) << "\n"
       << "date: " << Quote(prior.date) << "\n";
-  out.close();
-  RB_CHECK(!out.fail(), "cannot write learned prior '", path, "'");
+  WriteFileAtomically(path, out.str());
 }
 
 LearnedPrior ReadLearnedPrior(const std::string& path) {
@@ -146,6 +147,9 @@ LearnedPrior ReadLearnedPrior(const std::string& path) {
   std::stringstream items(theta.text.substr(1, theta.text.size() - 2));
   std::string item;
   while (std::getline(items, item, ',')) list.push_back(number_of("theta", Trim(item), theta.line));
+  // getline drops an empty last item ("[a, b,]"): as many items as commas + 1.
+  RB_CHECK(static_cast<size_t>(std::count(theta.text.begin(), theta.text.end(), ',')) + 1 == list.size(), path, ":",
+           theta.line, ": theta has an empty item");
   RB_CHECK(static_cast<int>(list.size()) == prior.spline.num_knots, path, ":", theta.line, ": theta has ", list.size(),
            " values, num_knots is ", prior.spline.num_knots);
   prior.theta = Eigen::Map<const Eigen::VectorXd>(list.data(), static_cast<Eigen::Index>(list.size()));
@@ -157,13 +161,25 @@ LearnedPrior ReadLearnedPrior(const std::string& path) {
   if (values.count("prior_weight")) prior.prior_weight = real("prior_weight");
   RB_CHECK(prior.prior_weight >= 0 && std::isfinite(prior.prior_weight), path, ": prior_weight must be finite and non-negative");
   prior.noise_kind = text("noise_kind");
-  if (values.count("noise_k")) prior.noise_k = real("noise_k");
-  if (values.count("noise_k_max")) prior.noise_k_max = real("noise_k_max");
+  // The record's numbers: finite and non-negative, or .nan where the writer records "unknown".
+  auto record = [&](const std::string& key, bool nan_allowed) {
+    const double v = real(key);
+    RB_CHECK((nan_allowed && std::isnan(v)) || (std::isfinite(v) && v >= 0), path, ":", get(key).line, ": '", key,
+             "' must be finite and non-negative", nan_allowed ? " (or .nan)" : "", ", not ", get(key).text);
+    return v;
+  };
+  if (values.count("noise_k")) prior.noise_k = record("noise_k", true);
+  if (values.count("noise_k_max")) prior.noise_k_max = record("noise_k_max", true);
   prior.training_set = text("training_set");
-  if (values.count("training_pairs")) prior.training_pairs = static_cast<int>(real("training_pairs"));
+  if (values.count("training_pairs")) {
+    const double pairs = record("training_pairs", false);
+    RB_CHECK(pairs == std::floor(pairs) && pairs <= std::numeric_limits<int>::max(), path, ":",
+             get("training_pairs").line, ": 'training_pairs' must be a whole number");
+    prior.training_pairs = static_cast<int>(pairs);
+  }
   prior.method = text("method");
-  if (values.count("regularizer_weight")) prior.regularizer_weight = real("regularizer_weight");
-  if (values.count("training_mse_le2")) prior.training_mse_le2 = real("training_mse_le2");
+  if (values.count("regularizer_weight")) prior.regularizer_weight = record("regularizer_weight", false);
+  if (values.count("training_mse_le2")) prior.training_mse_le2 = record("training_mse_le2", true);
   prior.date = text("date");
   return prior;
 }

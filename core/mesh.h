@@ -34,6 +34,12 @@ struct NoisyMesh {
   }
 };
 
+// Same vertex count and the same faces, in order (the face counts compared first: Eigen's == compares only the
+// right-hand side's rows, reading past a shorter left-hand side).
+inline bool SameConnectivity(const Mesh& a, const Mesh& b) {
+  return a.num_vertices() == b.num_vertices() && a.F.rows() == b.F.rows() && a.F == b.F;
+}
+
 // The extent of the axis-aligned bounding box of V (max − min per axis; zero when V has no rows): .norm() is the
 // bounding-box diagonal that scales tolerances and reports.
 inline Eigen::RowVector3d BoundingBoxExtent(const Vertices& V) {

@@ -51,10 +51,6 @@ SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth)
   return errors;
 }
 
-bool SameConnectivity(const Mesh& a, const Mesh& b) {
-  return a.num_vertices() == b.num_vertices() && a.F.rows() == b.F.rows() && a.F == b.F;
-}
-
 int CountNonFiniteVertices(const Mesh& mesh) {
   return static_cast<int>((!mesh.V.array().isFinite()).rowwise().any().count());
 }

@@ -29,9 +29,6 @@ struct SurfaceErrors {
 // Connectivity-independent surface errors (works for decimated results too).
 SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth);
 
-// Same vertex count and the same faces in the same order: what a per-face comparison of normals needs.
-bool SameConnectivity(const Mesh& a, const Mesh& b);
-
 // Vertices with a NaN or infinite coordinate.
 int CountNonFiniteVertices(const Mesh& mesh);
 

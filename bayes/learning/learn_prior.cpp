@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <string_view>
 
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
@@ -42,8 +43,8 @@ std::vector<PairProblem> Prepare(const std::vector<TrainingPair>& pairs, const L
   for (size_t p = 0; p < pairs.size(); ++p) {
     const TrainingPair& pair = pairs[p];
     RB_CHECK(pair.noisy.has_covariance(), "learn prior: pair '", pair.name, "' has no per-vertex covariance");
-    RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F,
-             "learn prior: pair '", pair.name, "': the ground truth and the noisy mesh differ in connectivity");
+    RB_CHECK(SameConnectivity(pair.truth, pair.noisy.mesh), "learn prior: pair '", pair.name,
+             "': the ground truth and the noisy mesh differ in connectivity");
     std::vector<Eigen::Matrix3d> information(pair.noisy.covariance.size());
     for (size_t i = 0; i < information.size(); ++i)
       information[i] = InformationFromCovariance(pair.noisy.covariance[i]);
@@ -117,13 +118,16 @@ CgState CgStep(const SmoothingEnergy& energy, const CgState& state) {
 }
 
 // Smooths every pair under the spline's current θ (a cold Smooth() from the measurements, as at run time);
-// returns D.
+// returns D. After each pair it reports (fraction, stage) to options.progress, so that a caller hears from within
+// a bump sweep (one sweep smooths every pair 2·bumps + 4 times; Python's Ctrl-C waited for the whole sweep).
 double SmoothAll(const std::vector<TrainingPair>& pairs, const std::vector<PairProblem>& problems,
-                 const SplinePotential& spline, const LearnPriorOptions& options) {
+                 const SplinePotential& spline, const LearnPriorOptions& options, double fraction = 0.0,
+                 std::string_view stage = "smoothing the training pairs") {
   const SmoothOptions smooth = SmoothOptionsFor(options, spline);
   double loss = 0;
   for (size_t p = 0; p < pairs.size(); ++p) {
     loss += PairDataLoss(problems[p], Flatten(Smooth(pairs[p].noisy, smooth).V));
+    if (options.progress) options.progress(fraction, stage);
   }
   return loss;
 }
@@ -225,9 +229,14 @@ Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPr
     Eigen::VectorXd best;
     double best_data = 0, best_loss = loss;
     // Smooths every pair at `candidate`, keeps it if it is the best so far; returns its L.
+    int trial = 0;
+    const int stencil_trials = static_cast<int>(2 * count);
     auto consider = [&](const Eigen::VectorXd& candidate) {
       spline->SetTheta(candidate);
-      const double candidate_data = SmoothAll(pairs, problems, *spline, options);
+      ++trial;
+      const double candidate_data =
+          SmoothAll(pairs, problems, *spline, options, std::min(1.0, static_cast<double>(trial) / stencil_trials),
+                    StrCat("bump sweep ", sweep + 1, ": trial ", trial, " of ", stencil_trials, "+"));
       ++summary->smoothing_runs;
       const double candidate_loss = candidate_data + CurvatureRegularizer(candidate, options.regularizer_weight);
       if (candidate_loss < best_loss) {
@@ -237,10 +246,24 @@ Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPr
       }
       return candidate_loss;
     };
-    for (size_t c = 0; c < count; ++c) {
+    // The time limit is checked per trial: a stencil cut short keeps the best trial it measured (a lower L
+    // measured is a lower L), with no line search on its partial gradient.
+    bool cut = false;
+    for (size_t c = 0; c < count && !cut; ++c) {
       const double plus = consider(theta + h * bumps[c]);
       const double minus = consider(theta - h * bumps[c]);
       gradient[static_cast<Eigen::Index>(c)] = (plus - minus) / (2 * h);
+      cut = report->OutOfTime();
+    }
+    if (cut) {
+      if (best.size() > 0) {
+        theta = best;
+        data_loss = best_data;
+        loss = best_loss;
+        ++summary->bump_search_moves;
+      }
+      report->Record(data_loss, loss);
+      break;
     }
     const bool stencil_failure = best.size() == 0;
     const double largest = gradient.cwiseAbs().maxCoeff();
@@ -248,7 +271,7 @@ Eigen::VectorXd BumpSearch(const std::vector<TrainingPair>& pairs, const LearnPr
       // Line search along −g, the largest bump moving by 2h first, then halving (down to h/4).
       Eigen::VectorXd direction = Eigen::VectorXd::Zero(n);
       for (size_t c = 0; c < count; ++c) direction -= gradient[static_cast<Eigen::Index>(c)] / largest * bumps[c];
-      for (double t = 2 * h; t >= 0.25 * h - 1e-15; t *= 0.5) {
+      for (double t = 2 * h; t >= 0.25 * h - 1e-15 && !report->OutOfTime(); t *= 0.5) {
         const double before = best_loss;
         consider(theta + t * direction);
         if (best_loss < before && best_loss < loss) break;

@@ -28,8 +28,8 @@ TrainingSet ReadTrainingSet(const std::string& pairs_list_path, const TrainingSe
     pair.name = list.noisy[i];
     pair.noisy = ReadNoisyMesh(list.noisy[i]);
     pair.truth = ReadMesh(list.truth[i]);
-    RB_CHECK(pair.truth.num_vertices() == pair.noisy.mesh.num_vertices() && pair.truth.F == pair.noisy.mesh.F, "pair ",
-             i + 1, ": '", list.noisy[i], "' and '", list.truth[i], "' differ in vertices or faces");
+    RB_CHECK(SameConnectivity(pair.truth, pair.noisy.mesh), "pair ", i + 1, ": '", list.noisy[i], "' and '",
+             list.truth[i], "' differ in vertices or faces");
     if (!pair.noisy.has_covariance()) {
       GenericNoiseOptions noise;
       if (!std::isnan(k)) noise.noise_edge_multiple = k;  // else estimated from the mesh

@@ -121,6 +121,7 @@ class LearnedPrior:
     training_pairs: int
     method: str
     regularizer_weight: float
+    training_mse_le2: float
     date: str
     def __init__(self) -> None: ...
 

@@ -303,15 +303,15 @@ or with a vertex that is not finite is refused. GIL released.)");
   m.attr("DECIMATE_OPTIONS") = FieldsToDict(DecimateOptionFields(), DecimateOptions{});
 
   // Learned priors.
-  py::class_<LearnedPrior>(m, "LearnedPrior", "A learned spline potential (prior.yaml).")
-      .def(py::init<>())
+  py::class_<LearnedPrior> learned_prior(m, "LearnedPrior", "A learned spline potential (prior.yaml).");
+  EigenCopyField(learned_prior, "theta", &LearnedPrior::theta, "N knot values φ(t_j), t_j = 2j/(N−1)");
+  learned_prior.def(py::init<>())
       .def_property(
           "num_knots", [](const LearnedPrior& p) { return p.spline.num_knots; },
           [](LearnedPrior& p, int n) { p.spline.num_knots = n; })
       .def_property(
           "epsilon_squared", [](const LearnedPrior& p) { return p.spline.epsilon_squared; },
           [](LearnedPrior& p, double e) { p.spline.epsilon_squared = e; })
-      .def_readwrite("theta", &LearnedPrior::theta, "N knot values φ(t_j), t_j = 2j/(N−1)")
       .def_readwrite("prior_weight", &LearnedPrior::prior_weight, "β it was trained with")
       .def_readwrite("noise_kind", &LearnedPrior::noise_kind)
       .def_readwrite("noise_k", &LearnedPrior::noise_k)
@@ -319,6 +319,8 @@ or with a vertex that is not finite is refused. GIL released.)");
       .def_readwrite("training_pairs", &LearnedPrior::training_pairs)
       .def_readwrite("method", &LearnedPrior::method)
       .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
+      .def_readwrite("training_mse_le2", &LearnedPrior::training_mse_le2,
+                     "the data loss per vertex at the end of training, in units of the mean edge length squared")
       .def_readwrite("date", &LearnedPrior::date);
   m.def(
       "read_learned_prior", [](const PathArg& path) { return ReadLearnedPrior(path.string()); }, py::arg("path"));
@@ -353,14 +355,10 @@ or with a vertex that is not finite is refused. GIL released.)");
           py::gil_scoped_release nogil;
           theta = LearnPrior(training, options, start, &summary);
         }
-        LearnedPrior prior;
-        prior.spline = options.spline;
-        prior.theta = theta;
-        prior.prior_weight = options.prior_weight;
-        prior.training_pairs = static_cast<int>(training.size());
-        prior.method = LearnMethodName(options.method);
-        prior.regularizer_weight = options.regularizer_weight;
-        prior.date = UtcNowIso8601();
+        // The record `learn-prior` writes (it recorded the method's bare name and no training error).
+        TrainingSet set;
+        set.pairs = std::move(training);
+        const LearnedPrior prior = MakeLearnedPrior(set, options, theta, summary);
         py::dict s;
         s["loss"] = summary.loss;
         s["iterations"] = summary.iterations;

@@ -79,26 +79,26 @@ void BindStereo(py::module_& m) {
       .def_readwrite("width", &CameraIntrinsics::width)
       .def_readwrite("height", &CameraIntrinsics::height);
 
-  py::class_<StereoRig>(m, "StereoRig", R"(A calibrated stereo rig (calibration/stereo_rig.h). Matrices are numpy
-arrays (copies on read; assign a whole array to change one). Translations in metres.)")
-      .def(py::init<>())
+  py::class_<StereoRig> rig(m, "StereoRig", R"(A calibrated stereo rig (calibration/stereo_rig.h). Matrices are
+numpy arrays (copies on read; assign a whole array to change one). Translations in metres.)");
+  rig.def(py::init<>())
       .def_readwrite("width", &StereoRig::width)
       .def_readwrite("height", &StereoRig::height)
-      .def_readwrite("K_left", &StereoRig::K_left)
-      .def_readwrite("K_right", &StereoRig::K_right)
-      .def_readwrite("distortion_left", &StereoRig::distortion_left)
-      .def_readwrite("distortion_right", &StereoRig::distortion_right)
-      .def_readwrite("R_right_from_left", &StereoRig::R_right_from_left)
-      .def_readwrite("t_right_from_left_m", &StereoRig::t_right_from_left_m)
       .def_readwrite("is_rectified", &StereoRig::is_rectified)
-      .def_readwrite("R1", &StereoRig::R1)
-      .def_readwrite("R2", &StereoRig::R2)
-      .def_readwrite("P1", &StereoRig::P1)
-      .def_readwrite("P2", &StereoRig::P2)
-      .def_readwrite("Q", &StereoRig::Q)
       .def_readwrite("doffs_px", &StereoRig::doffs_px)
       .def("rectified_left", &StereoRig::RectifiedLeft, "the rectified left camera")
       .def("baseline_m", &StereoRig::baseline_m);
+  EigenCopyField(rig, "K_left", &StereoRig::K_left);
+  EigenCopyField(rig, "K_right", &StereoRig::K_right);
+  EigenCopyField(rig, "distortion_left", &StereoRig::distortion_left);
+  EigenCopyField(rig, "distortion_right", &StereoRig::distortion_right);
+  EigenCopyField(rig, "R_right_from_left", &StereoRig::R_right_from_left);
+  EigenCopyField(rig, "t_right_from_left_m", &StereoRig::t_right_from_left_m);
+  EigenCopyField(rig, "R1", &StereoRig::R1);
+  EigenCopyField(rig, "R2", &StereoRig::R2);
+  EigenCopyField(rig, "P1", &StereoRig::P1);
+  EigenCopyField(rig, "P2", &StereoRig::P2);
+  EigenCopyField(rig, "Q", &StereoRig::Q);
   m.def(
       "read_rig", [](const PathArg& path) { return ReadStereoRig(path.string()); }, py::arg("path"),
       "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");

@@ -1,6 +1,7 @@
 // The parts of the _rangebayes extension, one function per layer (python/src/bind_*.cpp).
 #pragma once
 
+#include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl/filesystem.h>
 
@@ -49,5 +50,15 @@ void WarnNotices(const std::vector<std::string>& notices, const std::string& wha
 
 // True for an os.PathLike (pathlib.Path); a str is not one.
 bool IsPathLike(py::handle value);
+
+// An Eigen member of a bound class as a property read as a copy and set from any array of its shape.
+// def_readwrite returns a view into the object's buffer, which an assignment of another size (a VectorXd)
+// frees under the view: an array read earlier then showed freed memory.
+template <typename Class, typename Matrix, typename... Extra>
+void EigenCopyField(py::class_<Class>& cls, const char* name, Matrix Class::*member, const Extra&... extra) {
+  cls.def_property(
+      name, [member](const Class& object) { return Matrix(object.*member); },
+      [member](Class& object, const Matrix& value) { object.*member = value; }, extra...);
+}
 
 }  // namespace rangebayes::python

@@ -5,6 +5,7 @@
 #include "bayes/decimation/decimate.h"
 #include "bayes/learn_prior_io.h"
 #include "bayes/learning/learn_prior.h"
+#include "bayes/learning/training_set.h"
 #include "bayes/noise_model.h"
 #include "bayes/potential.h"
 #include "bayes/smooth.h"

@@ -152,6 +152,34 @@ def test_learn_prior_runs(trim_star):
     for bad in (5, None, "ab", (noisy,), (noisy, truth, truth)):  # 5 and None raised "'int' object is not iterable"
         with pytest.raises(ValueError, match=r"each pair is \(noisy NoisyMesh, truth Mesh\)"):
             rb.learn_prior([bad])
+    # The record is the CLI's: the method with its search, and the training error (it said the bare method, nan).
+    assert prior.method.startswith("interleaved") and np.isfinite(prior.training_mse_le2)
+    # A noisy mesh with fewer faces than its truth (the first ones the same) was accepted as the same connectivity.
+    fewer = rb.NoisyMesh(noisy.V, noisy.F[:10], noisy.covariances)
+    with pytest.raises(rb.Error, match="differ in connectivity"):
+        rb.learn_prior([(fewer, truth)], bump_search_sweeps=0, tolerance="fast")
+
+
+def test_array_fields_are_copies():
+    # An array read from a field stays valid after the field is given an array of another size (it was a view of
+    # the C++ buffer, which the assignment freed: it then showed other data).
+    p = rb.LearnedPrior()
+    p.theta = np.arange(16.0)
+    theta = p.theta
+    p.theta = np.zeros(4000)
+    junk = [np.full(16, 7.0) for _ in range(100)]
+    np.testing.assert_array_equal(theta, np.arange(16.0))
+    r = rb.StereoRig()
+    r.distortion_left = np.arange(5.0)
+    d = r.distortion_left
+    r.distortion_left = np.zeros(100000)
+    junk += [np.full(5, 42.0) for _ in range(100)]
+    np.testing.assert_array_equal(d, np.arange(5.0))
+    k = r.K_left
+    r.K_left = np.eye(3) * 5
+    assert k[0, 0] == 1.0 and r.K_left[0, 0] == 5.0  # copies on read, as documented
+    with pytest.raises(TypeError):
+        r.K_left = np.eye(4)
 
 
 def write_test_prior(path, prior_weight):

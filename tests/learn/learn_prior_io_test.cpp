@@ -6,6 +6,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
+#include <tuple>
+#include <vector>
 
 #include "bayes/smooth.h"
 #include "core/error.h"
@@ -61,6 +65,47 @@ TEST(LearnPriorIo, RejectsBrokenFiles) {
   }
   EXPECT_THROW(ReadLearnedPrior(path), Error);
   EXPECT_THROW(ReadLearnedPrior(TempPath("does_not_exist.yaml")), Error);
+  // The record's numbers: a count that is not a whole number in range (NaN was cast to int), weights that are not
+  // finite, an empty item at the end of theta; each refused naming its key.
+  LearnedPrior good;
+  good.spline.num_knots = 4;
+  good.theta = SplinePotential::SquareRootTheta(good.spline);
+  WriteLearnedPrior(good, path);
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  ASSERT_NO_THROW(ReadLearnedPrior(path));
+  const auto with = [&](const std::string& key, const std::string& value) {
+    std::string edited = text;
+    const size_t at = edited.find("\n" + key + ": ");
+    EXPECT_NE(at, std::string::npos) << key;
+    const size_t end = edited.find('\n', at + 1);
+    edited.replace(at + 1, end - at - 1, key + ": " + value);
+    std::ofstream(path, std::ios::trunc) << edited;
+  };
+  for (const auto& [key, value, what] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"training_pairs", ".nan", "'training_pairs' must be finite"},
+           {"training_pairs", "1e30", "'training_pairs' must be a whole number"},
+           {"training_pairs", "-3.7", "'training_pairs' must be finite and non-negative"},
+           {"regularizer_weight", "nan", "'regularizer_weight' must be finite"},
+           {"noise_k", "-inf", "'noise_k' must be finite and non-negative (or .nan)"}}) {
+    with(key, value);
+    try {
+      ReadLearnedPrior(path);
+      ADD_FAILURE() << key << ": " << value << " accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  }
+  std::string trailing = text;
+  trailing.replace(trailing.find("]\n"), 2, ",]\n");
+  std::ofstream(path, std::ios::trunc) << trailing;
+  try {
+    ReadLearnedPrior(path);
+    ADD_FAILURE() << "a trailing comma in theta accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("theta has an empty item"), std::string::npos) << e.what();
+  }
   std::remove(path.c_str());
 }
 
