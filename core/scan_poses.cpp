@@ -69,8 +69,10 @@ void WriteScanPoses(const std::vector<ScanPose>& poses, const std::string& path)
   for (const ScanPose& pose : poses) {
     const Eigen::Matrix3d R = pose.world_from_scan.linear();
     const Eigen::Vector3d t = pose.world_from_scan.translation();
-    RB_CHECK(R.allFinite() && t.allFinite() && (R * R.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6,
-             path, ": pose of scan ", pose.file, " is not a finite rotation and translation");
+    RB_CHECK(R.allFinite() && t.allFinite() && (R * R.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 &&
+                 R.determinant() > 0,
+             path, ": pose of scan ", pose.file,
+             " is not a finite rotation and translation");  // a mirror has no quaternion
     RB_CHECK(!pose.file.empty() && pose.file.find_first_of(" \t\n") == std::string::npos, path,
              ": scan file name '", pose.file, "' is empty or has blanks");
     // p_world = R(q)ᵀ p + t: the file's q is the conjugate of the rotation world_from_scan.

@@ -46,6 +46,10 @@ TEST(ScanPoses, ReadsTheStanfordConventionAndRoundTrips) {
   EXPECT_EQ(read[1].file, "bun045.ply");
   EXPECT_TRUE(read[1].world_from_scan.isApprox(poses[1].world_from_scan, 1e-14));
   EXPECT_EQ(FindScanPose(read, "some/folder/bun045.ply", again).file, "bun045.ply");
+  // A mirror (orthogonal, determinant −1) has no quaternion: it was written as some other rotation.
+  std::vector<ScanPose> mirrored = poses;
+  mirrored[1].world_from_scan.linear() = Eigen::Vector3d(1, 1, -1).asDiagonal();
+  EXPECT_THROW(WriteScanPoses(mirrored, TempPath("mirror.conf")), Error);
 }
 
 TEST(ScanPoses, BadFilesNameTheScan) {
