@@ -9,6 +9,9 @@ import * as THREE from '/three/build/three.module.js';
 import { OrbitControls } from '/three/examples/jsm/controls/OrbitControls.js';
 
 const $ = (id) => document.getElementById(id);
+// Text from the server (paths, error lines: a file name may hold any character) as HTML text, never markup.
+const esc = (text) => String(text).replace(/&/g, '&amp;').replace(/</g, '&lt;').replace(/>/g, '&gt;')
+  .replace(/"/g, '&quot;');
 const state = {
   images: { left: 0, depth: 0, sigma: 0 },
   meshes: 0,
@@ -222,9 +225,9 @@ function onStatus(s) {
     `<div class="queue">queue ${i + 1} <div class="fill" style="width:${Math.round(60 * f / Math.max(1, s.queue_capacity))}px"></div> ${f}/${s.queue_capacity}</div>`).join('');
   const r = s.recording;
   $('recording').innerHTML = r.active
-    ? `<b>recording</b> into ${r.folder}: ${r.frames_written} frames written, ${r.frames_dropped} dropped${r.error ? ', error: ' + r.error : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`
-    : `not recording${r.last && r.last.name ? ` (last: ${r.last.folder}, ${r.last.frames_written} frames)` : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`;
-  $('errors').innerHTML = s.errors.map((e) => `<li>${e.replace(/</g, '&lt;')}</li>`).join('');
+    ? `<b>recording</b> into ${esc(r.folder)}: ${r.frames_written} frames written, ${r.frames_dropped} dropped${r.error ? ', error: ' + esc(r.error) : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`
+    : `not recording${r.last && r.last.name ? ` (last: ${esc(r.last.folder)}, ${r.last.frames_written} frames)` : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`;
+  $('errors').innerHTML = s.errors.map((e) => `<li>${esc(e)}</li>`).join('');
   if (document.activeElement !== $('budget')) $('budget').value = s.settings.smooth_budget_ms;
   if (document.activeElement !== $('ds')) $('ds').value = String(s.settings.stereo_downsample);
   if (document.activeElement !== $('matcher')) $('matcher').value = s.settings.matcher;
@@ -234,11 +237,13 @@ function onStatus(s) {
   for (const cap of s.captures) addCapture(cap);
 }
 
+state.showStatus = onStatus;  // for the test that feeds it text with markup in it
+
 function addCapture(cap) {
   if (state.captures.includes(cap.id)) return;
   state.captures.push(cap.id);
   const li = document.createElement('li');
-  li.innerHTML = `<a href="${cap.url}" download>capture ${cap.id}</a> (frame ${cap.frame}, ${cap.faces} faces, PLY)`;
+  li.innerHTML = `<a href="${esc(cap.url)}" download>capture ${cap.id}</a> (frame ${cap.frame}, ${cap.faces} faces, PLY)`;
   $('captures').appendChild(li);
 }
 

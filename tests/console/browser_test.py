@@ -286,6 +286,20 @@ def main():
         with open(os.path.join(out, "console_screenshot.png"), "wb") as f:
             f.write(base64.b64decode(shot["data"]))
 
+        # Text from the server is shown as text: an error line or a recording folder may hold any character (a
+        # file name of a recording), and markup in them was inserted as HTML.
+        shown = cdp.evaluate(
+            "(() => { const s = JSON.parse(JSON.stringify(rbConsole.lastStatus));"
+            " const markup = '<img src=x onerror=\"window.rbInjected = 1\">';"
+            " s.errors = [markup]; s.recording.active = true; s.recording.folder = markup; s.recording.error = markup;"
+            " rbConsole.showStatus(s);"
+            " return { img: document.querySelectorAll('#errors img, #recording img').length,"
+            " text: document.getElementById('errors').textContent + '|' + document.getElementById('recording')"
+            ".textContent }; })()")
+        assert shown["img"] == 0 and shown["text"].count("<img src=x") == 3, f"server text shown as markup: {shown}"
+        time.sleep(0.3)
+        assert cdp.evaluate("window.rbInjected === undefined"), "markup from the server ran on the page"
+
         errors = cdp.console_errors()
         assert not errors, "console errors on the page:\n  " + "\n  ".join(errors)
 
