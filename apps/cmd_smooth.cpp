@@ -190,8 +190,9 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   sub->add_option("--noise", args->noise,
                   "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
                   "else estimated from the mesh")
-      ->check(NotNaN());
-  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")->check(NotNaN());
+      ->check(PositiveReal())
+      ->check(RealRange(0.0, 10.0));
+  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")->check(PositiveReal());
   sub->add_option("--prior", args->prior,
                   "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
                   "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")
@@ -202,7 +203,9 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       });
   AddToleranceOption(sub, &args->tolerance);
   AddPriorWeightOption(sub, &args->prior_weight);
-  sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]");
+  sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]")
+      ->check(PositiveReal())
+      ->check(RealRange(0.0, 4.0));
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
                 "on by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
                 "(scans), the global --eps2 on piecewise-flat ones (CAD); costs a pre-pass of 40-80 fast "
@@ -240,7 +243,8 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")
       ->check(CLI::Range(-1, 6));
   sub->add_option("--across-ratio", args->across_ratio,
-                  "generic noise model: sigma along the normal / sigma across it, [1, 100]");
+                  "generic noise model: sigma along the normal / sigma across it, [1, 100]")
+      ->check(RealRange(1.0, 100.0));
   AddThreadsOption(sub, &args->threads);
   sub->add_option("--png", args->png, "write a before|after shaded picture (PNG) to this file");
   sub->add_option("--view", args->view,

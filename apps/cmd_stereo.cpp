@@ -1,6 +1,7 @@
 // Subcommands stereo, spacetime, synth and eval-depth: from image pairs and sequences to disparity, depth,
 // σ and meshes, and scoring disparities against ground truth.
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
@@ -220,9 +221,18 @@ void AddStereo(CLI::App& app) {
       ->check(CLI::IsMember({"sgbm", "block"}));
   AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
-  sub->callback([o] {
-    if (o->matcher == "sgbm" && o->m.max_sigma_px > 0 && o->m.noise_model.empty()) {
-      UsageError("--max-sigma needs a sigma_d: SGBM has none; give --noise-model or use --matcher block");
+  sub->callback([o, sub] {
+    if (o->m.window_px > 0 && o->m.window_px % 2 == 0) UsageError("--window must be odd");
+    if (o->matcher == "sgbm") {
+      if (o->m.max_sigma_px > 0 && o->m.noise_model.empty()) {
+        UsageError("--max-sigma needs a sigma_d: SGBM has none; give --noise-model or use --matcher block");
+      }
+      // Options of our block matcher: OpenCV's SGBM has no such setting (they were read and ignored).
+      for (const char* block_only : {"--cost", "--image-noise", "--sigma-floor", "--sigma-scale",
+                                     "--subpixel-iterations", "--edge-reject", "--doubtful-jump"}) {
+        if (sub->count(block_only) > 0) UsageError(std::string(block_only) + " applies to --matcher block, not sgbm");
+      }
+      if (o->m.window_px > 11) UsageError("--window: sgbm takes at most 11 px");
     }
     cv::Mat left = ReadStereoImage(o->left), right = ReadStereoImage(o->right);
     RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
@@ -278,8 +288,9 @@ void AddSpaceTime(CLI::App& app) {
     RB_CHECK(rec.num_frames() > o->first, o->recording, ": --first ", o->first, " but the recording has ",
              rec.num_frames(), " frames");
     const int T = o->frames > 0 ? o->frames : rec.num_frames() - o->first;
-    RB_CHECK(o->first + T <= rec.num_frames(), o->recording, ": frames ", o->first, "..", o->first + T - 1,
-             " requested but the recording has ", rec.num_frames());
+    // Without the sum first + T, which passes INT_MAX for --frames 2147483647.
+    RB_CHECK(T <= rec.num_frames() - o->first, o->recording, ": frames ", o->first, "..",
+             static_cast<std::int64_t>(o->first) + T - 1, " requested but the recording has ", rec.num_frames());
     std::optional<Rectifier> rectifier;
     rectifier.emplace(*rec.rig);
     std::vector<cv::Mat> left, right;
@@ -359,11 +370,13 @@ void AddEvalDepth(CLI::App& app) {
                   "Ground-truth disparity (PFM, or PNG/PGM with --gt-scale), or a Middlebury scene folder");
   sub->add_option("--scene", o->scene, "Middlebury scene folder: ground truth, scale and non-occluded mask from it");
   sub->add_option("--scale", o->scale, "Estimate PNG: disparity = value / scale");
-  sub->add_option("--gt-scale", o->gt_scale, "Ground-truth PNG: disparity = value / scale (0: 1 for PFM)");
+  sub->add_option("--gt-scale", o->gt_scale, "Ground-truth PNG: disparity = value / scale (0: 1 for PFM)")
+      ->check(RealRange(0.0, 1e6));
   sub->add_option("--estimate-scale", o->estimate_scale,
                   "Multiply the estimate by this before scoring (e.g. 0.25 for full-size vs quarter-size)");
   sub->add_option("--mask", o->mask, "Mask image: only pixels equal to --mask-value are scored");
-  sub->add_option("--mask-value", o->mask_value, "Mask value of the pixels to score");
+  sub->add_option("--mask-value", o->mask_value, "Mask value of the pixels to score (0-65535)")
+      ->check(CLI::Range(0, 65535));
   sub->add_flag("--json", o->json, "Print JSON instead of text");
   sub->callback([o] {
     std::string scene_folder = o->scene;
@@ -371,6 +384,9 @@ void AddEvalDepth(CLI::App& app) {
       scene_folder = o->ground_truth;
     }
     RB_CHECK(!scene_folder.empty() || !o->ground_truth.empty(), "give GROUND_TRUTH or --scene");
+    if (!o->scene.empty() && !o->ground_truth.empty()) {
+      UsageError("give GROUND_TRUTH or --scene, not both (the scene's ground truth would replace the file)");
+    }
     const cv::Mat estimate = ReadDisparityMap(o->estimate, o->scale);
     cv::Mat gt, mask;
     if (!scene_folder.empty()) {

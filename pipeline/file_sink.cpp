@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <system_error>
+#include <vector>
 
 #include "core/error.h"
 #include "core/files.h"
@@ -92,55 +94,71 @@ void FileSink::Finish() {
 void FileSink::Consume(const PipelineResult& result) {
   const fs::path root(folder_);
   std::string raw, smoothed, decimated, depth, shaded;
-  if (options_.raw_ply) {
-    raw = "raw/" + Name(result.index, "ply");
-    WriteNoisyMesh(result.raw_mesh, (root / raw).string());
+  // The frame's files are listed in results.csv only once all are written; when one fails, those written before
+  // it are removed, so that no file is left that results.csv does not list.
+  std::vector<std::string> written;
+  const auto wrote = [&](const std::string& relative) {
+    written.push_back(relative);
     ++files_written_;
-  }
-  if (options_.smoothed_ply && result.smoothed.has_value()) {
-    smoothed = "smoothed/" + Name(result.index, "ply");
-    WriteMesh(*result.smoothed, (root / smoothed).string());
-    ++files_written_;
-  }
-  if (options_.decimated_obj && result.decimated.has_value()) {
-    decimated = "decimated/" + Name(result.index, "obj");
-    MeshWriteOptions w;
-    w.corner_normals = result.decimated->corner_normals;
-    WriteMesh(result.decimated->mesh, (root / decimated).string(), w);
-    ++files_written_;
-  }
-  if (options_.depth_png && !result.depth.empty()) {
-    depth = "depth/" + Name(result.index, "png");
-    ColorMapOptions c;
-    c.reverse = true;
-    WritePng(ColorMap(result.depth.depth_m, c), (root / depth).string());
-    ++files_written_;
-  }
-  if (options_.shaded_png) {
-    const int width = options_.preview_width_px > 0 ? options_.preview_width_px : std::max(16, result.depth.width());
-    const int height =
-        std::max(16, result.depth.width() > 0 ? width * result.depth.height() / result.depth.width() : width * 3 / 4);
-    std::vector<RgbImage> panels;
-    RenderOptions view = PreviewView(result.raw_mesh, width, height);
-    panels.push_back(RenderMesh(result.raw_mesh.mesh, view));
-    if (result.smoothed.has_value()) panels.push_back(RenderMesh(*result.smoothed, view));
-    if (result.decimated.has_value()) {
-      const DecimatedMesh& d = *result.decimated;
-      RenderOptions smooth_view = view;
-      if (!d.corner_normals.empty()) {
-        smooth_view.shading = Shading::kSmooth;
-        smooth_view.corner_normals = CornerNormalRows(d.corner_normals);
-      }
-      panels.push_back(RenderMesh(d.mesh, smooth_view));
+  };
+  try {
+    if (options_.raw_ply) {
+      raw = "raw/" + Name(result.index, "ply");
+      WriteNoisyMesh(result.raw_mesh, (root / raw).string());
+      wrote(raw);
     }
-    shaded = "shaded/" + Name(result.index, "png");
-    WritePng(SideBySide(panels), (root / shaded).string());
-    ++files_written_;
+    if (options_.smoothed_ply && result.smoothed.has_value()) {
+      smoothed = "smoothed/" + Name(result.index, "ply");
+      WriteMesh(*result.smoothed, (root / smoothed).string());
+      wrote(smoothed);
+    }
+    if (options_.decimated_obj && result.decimated.has_value()) {
+      decimated = "decimated/" + Name(result.index, "obj");
+      MeshWriteOptions w;
+      w.corner_normals = result.decimated->corner_normals;
+      WriteMesh(result.decimated->mesh, (root / decimated).string(), w);
+      wrote(decimated);
+    }
+    if (options_.depth_png && !result.depth.empty()) {
+      depth = "depth/" + Name(result.index, "png");
+      ColorMapOptions c;
+      c.reverse = true;
+      WritePng(ColorMap(result.depth.depth_m, c), (root / depth).string());
+      wrote(depth);
+    }
+    if (options_.shaded_png) {
+      const int width = options_.preview_width_px > 0 ? options_.preview_width_px : std::max(16, result.depth.width());
+      const int height =
+          std::max(16, result.depth.width() > 0 ? width * result.depth.height() / result.depth.width() : width * 3 / 4);
+      std::vector<RgbImage> panels;
+      RenderOptions view = PreviewView(result.raw_mesh, width, height);
+      panels.push_back(RenderMesh(result.raw_mesh.mesh, view));
+      if (result.smoothed.has_value()) panels.push_back(RenderMesh(*result.smoothed, view));
+      if (result.decimated.has_value()) {
+        const DecimatedMesh& d = *result.decimated;
+        RenderOptions smooth_view = view;
+        if (!d.corner_normals.empty()) {
+          smooth_view.shading = Shading::kSmooth;
+          smooth_view.corner_normals = CornerNormalRows(d.corner_normals);
+        }
+        panels.push_back(RenderMesh(d.mesh, smooth_view));
+      }
+      shaded = "shaded/" + Name(result.index, "png");
+      WritePng(SideBySide(panels), (root / shaded).string());
+      wrote(shaded);
+    }
+    AppendLine(index_fd_, StrCat(result.index, ',', result.last_index, ',', result.timestamp_ns, ',', result.frames,
+                                 ',', result.raw_mesh.mesh.num_vertices(), ',', result.raw_mesh.mesh.num_faces(), ',',
+                                 result.decimated.has_value() ? result.decimated->mesh.num_faces() : 0, ',', raw, ',',
+                                 smoothed, ',', decimated, ',', depth, ',', shaded, '\n'));
+  } catch (...) {
+    for (const std::string& relative : written) {
+      std::error_code ec;
+      fs::remove(root / relative, ec);
+      --files_written_;
+    }
+    throw;
   }
-  AppendLine(index_fd_, StrCat(result.index, ',', result.last_index, ',', result.timestamp_ns, ',', result.frames, ',',
-                               result.raw_mesh.mesh.num_vertices(), ',', result.raw_mesh.mesh.num_faces(), ',',
-                               result.decimated.has_value() ? result.decimated->mesh.num_faces() : 0, ',', raw, ',',
-                               smoothed, ',', decimated, ',', depth, ',', shaded, '\n'));
 }
 
 }  // namespace rangebayes

@@ -17,6 +17,7 @@ void TriangulateOptions::Check() const {
   RB_CHECK(max_jump_sigma > 0.0, "max_jump_sigma ", max_jump_sigma, " must be positive");
   RB_CHECK(max_slope_deg >= 0.0 && max_slope_deg < 89.95, "max_slope_deg ", max_slope_deg, " is outside 0–89.9");
   RB_CHECK(default_sigma_disparity_px > 0.0, "default_sigma_disparity_px must be positive");
+  RB_CHECK(sigma_pixel_px != 0.0, "sigma_pixel_px 0 gives no lateral covariance (> 0; < 0: the frame's)");
 }
 
 void ApplyDisparityNoiseModel(const DisparityNoiseModel& model, TriangulateOptions* options) {
@@ -54,10 +55,11 @@ DepthGrid SampleDepthGrid(const DepthFrame& frame, const TriangulateOptions& opt
     for (int gx = 0; gx < gw; ++gx) {
       const float d = depth[gx * s];
       float sd = sigma[gx * s];
-      if (std::isfinite(d) && !std::isfinite(sd) && fb > 0.0) {
+      // A σ_Z that is missing, or zero (no uncertainty is no covariance: rank-deficient Σ), takes the default σ_d.
+      if (std::isfinite(d) && !(std::isfinite(sd) && sd > 0.0f) && fb > 0.0) {
         sd = static_cast<float>(static_cast<double>(d) * d / fb * options.default_sigma_disparity_px);
       }
-      const bool ok = std::isfinite(d) && d > 0.0f && std::isfinite(sd);
+      const bool ok = std::isfinite(d) && d > 0.0f && std::isfinite(sd) && sd > 0.0f;
       z[static_cast<size_t>(gy) * gw + gx] = ok ? d : NAN;
       sz[static_cast<size_t>(gy) * gw + gx] = ok ? sd : NAN;
       count += ok;
@@ -290,7 +292,9 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
   RB_CHECK(K.width == frame.width() && K.height == frame.height(), "depth frame ", frame.frame_id,
            ": intrinsics do not match the ", frame.width(), "x", frame.height(), " image");
   const int s = options.downsample;
-  const double sigma_px = options.sigma_pixel_px >= 0.0 ? options.sigma_pixel_px : frame.sigma_pixel_px;
+  const double sigma_px = options.sigma_pixel_px > 0.0 ? options.sigma_pixel_px : frame.sigma_pixel_px;
+  RB_CHECK(sigma_px > 0.0 && std::isfinite(sigma_px), "depth frame ", frame.frame_id, ": sigma_pixel_px ", sigma_px,
+           " must be positive (a zero lateral σ makes every covariance singular)");
   const double slope = std::tan(options.max_slope_deg * M_PI / 180.0) * s / K.fx_px;
   const double k2 = options.max_jump_sigma * options.max_jump_sigma;
 

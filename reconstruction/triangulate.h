@@ -23,7 +23,7 @@ struct TriangulateOptions {
   double max_jump_sigma = 6.0;      // > 0
   double max_slope_deg = 80.0;      // 0–89.9
   double default_sigma_disparity_px = 0.5;  // > 0: σ_d for pixels whose σ is NaN (matchers without σ)
-  double sigma_pixel_px = -1.0;     // lateral pixel σ; < 0: the frame's sigma_pixel_px
+  double sigma_pixel_px = -1.0;             // lateral pixel σ, > 0; < 0: the frame's sigma_pixel_px (0 is refused)
   void Check() const;
 };
 

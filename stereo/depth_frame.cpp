@@ -10,7 +10,7 @@ namespace rangebayes {
 void DepthFromDisparityOptions::Check() const {
   RB_CHECK(min_depth_m >= 0.0 && max_depth_m > min_depth_m, "depth range [", min_depth_m, ", ", max_depth_m,
            "] m is empty or negative");
-  RB_CHECK(sigma_pixel_px >= 0.0, "sigma_pixel_px ", sigma_pixel_px, " is negative");
+  RB_CHECK(sigma_pixel_px > 0.0, "sigma_pixel_px ", sigma_pixel_px, " must be positive");
 }
 
 DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_disparity_px,

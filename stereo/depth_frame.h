@@ -33,7 +33,7 @@ struct DepthFrame {
 struct DepthFromDisparityOptions {
   double min_depth_m = 0.0;       // ≥ 0: depths below become NaN
   double max_depth_m = 1e9;       // > min_depth_m: depths above become NaN
-  double sigma_pixel_px = 0.2;    // ≥ 0: lateral pixel localisation σ stored in the frame
+  double sigma_pixel_px = 0.2;    // > 0: lateral pixel localisation σ stored in the frame
   void Check() const;
 };
 

@@ -52,6 +52,8 @@ DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& gr
       }
     }
   }
+  // No pixel scored would read as a perfect score (every bad-x 0%).
+  RB_CHECK(ev.evaluated_pixels > 0, "no pixel to score: the ground truth has no value where the mask selects");
   ev.thresholds_px = options.bad_thresholds_px;
   ev.bad_with_holes.resize(n);
   ev.bad_valid_only.resize(n);

@@ -34,7 +34,7 @@ struct DisparityEvaluation {
 };
 
 // estimate, ground_truth: CV_32F of one size, NaN unknown. mask: empty or CV_8U of the same size. Throws
-// Error on mismatched sizes or types.
+// Error on mismatched sizes or types, and when no pixel has ground truth where the mask selects.
 DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& ground_truth, const cv::Mat& mask,
                                       const DisparityEvaluationOptions& options = {});
 

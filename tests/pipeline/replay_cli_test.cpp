@@ -101,6 +101,23 @@ TEST(ReplayCli, AFolderWithEarlierResultsIsRefusedUnlessOverwrite) {
   EXPECT_EQ(lines, 2);  // header and the one new frame
 }
 
+// A frame whose last file cannot be written (here a folder stands where its shaded PNG goes) leaves none of its
+// files: its raw mesh and depth picture were left on disk, listed nowhere in results.csv.
+TEST(ReplayCli, AFrameThatFailsToWriteLeavesNoFilesUnlisted) {
+  const TempDir dir("cli_replay_partial");
+  const std::string out = dir.path() + "/out";
+  fs::create_directories(out + "/shaded/000000.png");
+  const RunResult r = RunRangebayes(std::string("replay ") + kBundled +
+                                    " --count 1 --downsample 4 --no-smooth --no-decimate -q --out " + out);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/raw/000000.ply"));
+  EXPECT_FALSE(fs::exists(out + "/depth/000000.png"));
+  std::ifstream index(out + "/results.csv");
+  int lines = 0;
+  for (std::string line; std::getline(index, line);) ++lines;
+  EXPECT_EQ(lines, 1);  // the header alone
+}
+
 TEST(ReplayCli, MissingRecordingIsOneLineExitOne) {
   const RunResult r = RunRangebayes("replay /nonexistent/rec --out /tmp/never");
   EXPECT_EQ(r.exit_code, 1);

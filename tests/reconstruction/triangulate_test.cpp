@@ -96,6 +96,22 @@ TEST(Triangulate, CovarianceIsRayAlignedAndPositiveDefinite) {
   }
 }
 
+// A σ of zero is no covariance: a zero disparity σ (allowed by DepthFromDisparity) gave Σ no extent along the
+// ray, a zero pixel σ none across it; the first takes the default σ_d like a missing one, the second is refused.
+TEST(Triangulate, ZeroSigmasGiveNoSingularCovariance) {
+  const NoisyMesh m = TriangulateDepth(PlaneFrame(6, 5, 1.5, 0.0));
+  ASSERT_GT(m.mesh.num_vertices(), 0);
+  for (const Eigen::Matrix3d& c : m.covariance) {
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c).eigenvalues()(0), 0.0);
+  }
+  TriangulateOptions o;
+  o.sigma_pixel_px = 0.0;
+  EXPECT_THROW(TriangulateDepth(PlaneFrame(6, 5, 1.5), o), Error);
+  DepthFrame f = PlaneFrame(6, 5, 1.5);
+  f.sigma_pixel_px = 0.0;
+  EXPECT_THROW(TriangulateDepth(f), Error);
+}
+
 TEST(Triangulate, BadInputThrows) {
   DepthFrame empty;
   EXPECT_THROW(TriangulateDepth(empty), Error);

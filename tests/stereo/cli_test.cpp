@@ -124,6 +124,10 @@ TEST(StereoCli, SynthSpaceTimeEvalDepth) {
   }
   const cv::Mat d = ReadPfm(out + "/disparity.pfm");
   EXPECT_EQ(d.cols, 160);
+  // A window whose end passes INT_MAX (first + T wrapped, and the check let it through).
+  r = RunRangebayes("spacetime " + rec + " --first 1 --frames 2147483647 --no-mesh --out " + out + "/huge");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("frames 1..2147483647 requested but the recording has 6"), std::string::npos) << r.output;
   r = RunRangebayes("eval-depth " + out + "/disparity.pfm " + rec + "/ground_truth/disparity_left_px.pfm --json");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("bad_1"), std::string::npos) << r.output;

@@ -108,6 +108,8 @@ TEST(Evaluate, CountsHolesBothWays) {
   EXPECT_DOUBLE_EQ(ev.bad_valid_only[1], 1.0 / 3.0);  // one wrong of three estimated
   EXPECT_DOUBLE_EQ(ev.bad_with_holes[3], 0.25);       // bad-4: only the hole
   EXPECT_THROW(EvaluateDisparity(est, cv::Mat(2, 4, CV_32F), {}), Error);
+  // A mask that selects no pixel scored nothing and reported every bad-x as 0%, a perfect score.
+  EXPECT_THROW(EvaluateDisparity(est, gt, cv::Mat::zeros(est.size(), CV_8U)), Error);
 }
 
 // A slanted plane stored in steps of 1/3 px (as Middlebury's third-size maps are) beside another plane 6 px nearer:
