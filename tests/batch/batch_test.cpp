@@ -364,16 +364,26 @@ TEST(RunTask, KilledMidTaskLeavesNoResultAndAResubmitCompletes) {
   EXPECT_EQ(CollectBatchReport(out).succeeded, 1);
 }
 
+// Options of a local batch with one worker, and the batch of two converts it has run in DIR/out.
+BatchSubmitOptions OneLocalWorker() {
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.local_workers = 1;
+  return options;
+}
+std::string RunTwoConverts(const TempDir& dir) {
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\n");
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, OneLocalWorker());
+  return out;
+}
+
 // A local batch whose run-task was killed (SIGKILL: its status still says running, with the pid of a
 // process that is gone): resubmit takes the task again and completes it.
 TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   const TempDir dir("local_killed");
-  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\n");
-  BatchSubmitOptions options;
-  options.binary = RB_BINARY;
-  options.local_workers = 1;
-  const std::string out = dir.path() + "/out";
-  SubmitBatch(manifest, out, options);
+  const BatchSubmitOptions options = OneLocalWorker();
+  const std::string out = RunTwoConverts(dir);
   fs::remove_all(out + "/tasks/1");
   BatchTaskStatus killed = *ReadBatchTaskStatus(BatchLayout(out), 1);
   killed.state = "running";
@@ -414,12 +424,8 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
 // that task again, whose new status replaces it.
 TEST(LocalRunner, ADamagedStatusCountsAsFailedAndIsRunAgain) {
   const TempDir dir("damaged_status");
-  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\n");
-  BatchSubmitOptions options;
-  options.binary = RB_BINARY;
-  options.local_workers = 1;
-  const std::string out = dir.path() + "/out";
-  SubmitBatch(manifest, out, options);
+  const BatchSubmitOptions options = OneLocalWorker();
+  const std::string out = RunTwoConverts(dir);
   const std::string status_file = BatchLayout(out).status_file(1);
   std::ofstream(status_file, std::ios::trunc) << "{\"index\": 1, \"sta";
   const BatchReport damaged = CollectBatchReport(out);
