@@ -124,27 +124,27 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
 
 // --noise-model: refuses a model of another matcher or (learned form) resolution; a learned model replaces the
 // disparity's σ_d by its own, from the frames and the disparity; a constant one gives SGBM (which has none) its
-// σ_d, so that sigma_disparity.pfm and sigma_depth.pfm hold what the mesh uses. Then --max-sigma on the σ_d the
-// outputs carry (the block matcher applied it to its own σ_d only; SGBM never did).
+// σ_d, so that sigma_disparity.pfm and sigma_depth.pfm hold what the mesh uses. --max-sigma is applied to a σ_d
+// given here (the block matcher applies it to its own while matching; SGBM has none until a model gives one).
 void ApplyNoiseModelAfterMatch(const MatchCliOptions& o, const std::string& matcher, const std::vector<cv::Mat>& left,
                                const std::vector<cv::Mat>& right, DisparityResult* result) {
+  bool given_here = false;
   if (!o.noise_model.empty()) {
     const DisparityNoiseModel model = ReadDisparityNoiseModel(o.noise_model);
     model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
     if (model.form == NoiseForm::kLearned) {
       result->sigma_disparity_px =
           LearnedDisparitySigma(model, matcher, left, right, result->disparity_px, o.noise_model);
+      given_here = true;
     } else if (model.form == NoiseForm::kConstant && result->sigma_disparity_px.empty()) {
       const cv::Mat valid = result->disparity_px == result->disparity_px;
       result->sigma_disparity_px =
           cv::Mat(result->disparity_px.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
       result->sigma_disparity_px.setTo(model.sigma_px, valid);
+      given_here = true;
     }
   }
-  if (o.max_sigma_px > 0) {
-    RB_CHECK(!result->sigma_disparity_px.empty(), "--max-sigma: the ", matcher, " matcher gave no sigma_d");
-    DropAboveSigma(o.max_sigma_px, result);
-  }
+  if (o.max_sigma_px > 0 && given_here) DropAboveSigma(o.max_sigma_px, result);
 }
 
 void WritePicture(const cv::Mat& image, const fs::path& path, bool reverse) {

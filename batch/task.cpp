@@ -1,6 +1,5 @@
 #include "batch/task.h"
 
-#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 

@@ -422,12 +422,18 @@ TEST(Smooth, ContinuationAskedForRunsOrIsReported) {
   EXPECT_NE(summary.notices[0].find("no epsilon continuation"), std::string::npos) << summary.notices[0];
 }
 
+// W_i = ½ Σ_i⁻¹ of every vertex, as Smooth() builds its energy.
+std::vector<Eigen::Matrix3d> InformationOf(const NoisyMesh& noisy) {
+  std::vector<Eigen::Matrix3d> information;
+  for (const Eigen::Matrix3d& c : noisy.covariance) information.push_back(InformationFromCovariance(c));
+  return information;
+}
+
 // The ray preconditioner is a fixed symmetric positive definite operator between updates, as CG needs: by
 // factorisation (small meshes) and by the V-cycle over the grid hierarchy (forced here on a small grid).
 TEST(RayPreconditioner, IsSymmetricPositiveDefinite) {
   const NoisyMesh input = testing::RangeGrid(60, 50, 0.03, 0.001, 6);
-  std::vector<Eigen::Matrix3d> information;
-  for (const Eigen::Matrix3d& c : input.covariance) information.push_back(InformationFromCovariance(c));
+  const std::vector<Eigen::Matrix3d> information = InformationOf(input);
   const SqrtPotential potential(1e-4);
   const SmoothingEnergy energy(input.mesh, information, 2.4, potential);
   const std::vector<GridLevel> levels = BuildGridHierarchy(input, GridHierarchyOptions{.min_vertices = 100});
@@ -462,8 +468,7 @@ TEST(RayPreconditioner, IsSymmetricPositiveDefinite) {
 // preconditioner after both updates must equal one made at the second state alone.
 TEST(RayPreconditioner, FollowsACoarsePatternThatChanges) {
   const NoisyMesh input = testing::RangeGrid(60, 50, 0.03, 0.001, 6);
-  std::vector<Eigen::Matrix3d> information;
-  for (const Eigen::Matrix3d& c : input.covariance) information.push_back(InformationFromCovariance(c));
+  const std::vector<Eigen::Matrix3d> information = InformationOf(input);
   SplinePotentialOptions spline;
   Eigen::VectorXd theta(spline.num_knots);  // rises to 1 at d = 0.4, falls to 0.3 at d = 1.2, then to b(2)
   for (int j = 0; j < spline.num_knots; ++j) {

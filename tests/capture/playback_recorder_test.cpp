@@ -109,12 +109,9 @@ TEST(Playback, RandomAccessStepAndRecordedSpeed) {
   EXPECT_NE(ErrorOf([&] { PlaybackSource s(rec, none); }).find("plays no frame"), std::string::npos);
 }
 
-// At the recorded speed, a stop request ends the wait for the next frame: a damaged timestamp (or a gap of hours)
-// kept the process asleep, deaf to Ctrl-C and SIGTERM.
-TEST(Playback, StopEndsTheWaitForAFarTimestamp) {
-  const TempDir dir("far");
-  Recording rec = OpenRecording(MakeRecording(dir, 3));
-  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = 9'000'000'000'000'000'000;
+// Plays `rec` at the recorded speed: its first frame comes, and the wait for its second ends with the end of the
+// stream when a stop is requested 100 ms in.
+void ExpectAStopEndsTheWaitForTheSecondFrame(const Recording& rec) {
   std::atomic<bool> stop{false};
   PlaybackOptions o;
   o.speed = PlaybackSpeed::kRecorded;
@@ -127,6 +124,15 @@ TEST(Playback, StopEndsTheWaitForAFarTimestamp) {
   });
   EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
   stopper.join();
+}
+
+// At the recorded speed, a stop request ends the wait for the next frame: a damaged timestamp (or a gap of hours)
+// kept the process asleep, deaf to Ctrl-C and SIGTERM.
+TEST(Playback, StopEndsTheWaitForAFarTimestamp) {
+  const TempDir dir("far");
+  Recording rec = OpenRecording(MakeRecording(dir, 3));
+  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = 9'000'000'000'000'000'000;
+  ExpectAStopEndsTheWaitForTheSecondFrame(rec);
 }
 
 TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
@@ -194,18 +200,7 @@ TEST(Playback, RecordedSpeedWaitsForTimestampsOfOppositeSign) {
   Recording rec = OpenRecording(MakeRecording(dir, 2));
   rec.frames[0].timestamp_left_ns = rec.frames[0].timestamp_right_ns = std::numeric_limits<std::int64_t>::min();
   rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = std::numeric_limits<std::int64_t>::max();
-  std::atomic<bool> stop{false};
-  PlaybackOptions o;
-  o.speed = PlaybackSpeed::kRecorded;
-  o.stop = &stop;
-  PlaybackSource source(rec, o);
-  EXPECT_EQ(source.Next().status, FrameStatus::kFrame);
-  std::thread stopper([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    stop = true;
-  });
-  EXPECT_EQ(source.Next().status, FrameStatus::kEndOfStream);
-  stopper.join();
+  ExpectAStopEndsTheWaitForTheSecondFrame(rec);
 }
 
 TEST(Playback, LoopKeepsIndicesIncreasing) {
