@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -56,7 +57,13 @@ struct MatchCliOptions {
   bool no_mesh = false;
   bool quiet = false;
   std::string noise_model;  // noise.yaml from `rangebayes calibrate noise`
+  std::optional<DisparityNoiseModel> model;  // noise_model as read once by ReadNoiseModelOption
 };
+
+// Reads --noise-model once, before any image is read (a broken file fails first).
+void ReadNoiseModelOption(MatchCliOptions* o) {
+  if (!o->noise_model.empty()) o->model = ReadDisparityNoiseModel(o->noise_model);
+}
 
 // by_frames: the defaults are SpaceTimeStaticSceneOptions(T) (spacetime), else SpaceTimeMatcherOptions{}.
 void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
@@ -118,7 +125,7 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
   m.max_sigma_disparity_px = o.max_sigma_px;
   if (o.edge_reject_px >= 0.0) m.edge_reject_jump_px = o.edge_reject_px;
   if (std::isfinite(o.doubtful_jump_px)) m.doubtful_jump_px = o.doubtful_jump_px;
-  if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &m);
+  if (o.model) ApplyDisparityNoiseModel(*o.model, &m);
   return m;
 }
 
@@ -129,8 +136,8 @@ SpaceTimeMatcherOptions BlockOptions(const MatchCliOptions& o, const SpaceTimeMa
 void ApplyNoiseModelAfterMatch(const MatchCliOptions& o, const std::string& matcher, const std::vector<cv::Mat>& left,
                                const std::vector<cv::Mat>& right, DisparityResult* result) {
   bool given_here = false;
-  if (!o.noise_model.empty()) {
-    const DisparityNoiseModel model = ReadDisparityNoiseModel(o.noise_model);
+  if (o.model) {
+    const DisparityNoiseModel& model = *o.model;
     model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
     if (model.form == NoiseForm::kLearned) {
       result->sigma_disparity_px =
@@ -192,7 +199,7 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
   TriangulateOptions t;
   t.downsample = o.downsample;
   t.max_jump_sigma = o.max_jump_sigma;
-  if (!o.noise_model.empty()) ApplyDisparityNoiseModel(ReadDisparityNoiseModel(o.noise_model), &t);
+  if (o.model) ApplyDisparityNoiseModel(*o.model, &t);
   TriangulateSummary ts;
   const NoisyMesh mesh = TriangulateDepth(frame, t, &ts);
   WriteNoisyMesh(mesh, (out / "mesh.ply").string());
@@ -234,6 +241,7 @@ void AddStereo(CLI::App& app) {
       }
       if (o->m.window_px > 11) UsageError("--window: sgbm takes at most 11 px");
     }
+    ReadNoiseModelOption(&o->m);
     cv::Mat left = ReadStereoImage(o->left), right = ReadStereoImage(o->right);
     RB_CHECK(left.size() == right.size(), o->left, " is ", left.cols, "x", left.rows, " but ", o->right, " is ",
              right.cols, "x", right.rows);
@@ -282,6 +290,7 @@ void AddSpaceTime(CLI::App& app) {
   AddMatchOptions(sub, &o->m, true);
   sub->add_option("--cost", o->m.cost, "Matching cost: auto (zncc over time for T >= 3, else ssd), ssd, zncc or zncc-space");
   sub->callback([o] {
+    ReadNoiseModelOption(&o->m);
     RecordingReadSummary rs;
     const Recording rec = OpenRecording(o->recording, &rs);
     RB_CHECK(rec.rig.has_value(), o->recording, ": recording has no rig.yaml (needed for rectification and depth)");

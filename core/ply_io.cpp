@@ -41,6 +41,32 @@ int SizeOf(PlyType type) {
 
 bool IsInteger(PlyType type) { return type != PlyType::kFloat32 && type != PlyType::kFloat64; }
 
+// Whether `value` is one that `type` can hold (non-finite values pass for the float types).
+bool FitsType(double value, PlyType type) {
+  const auto integer_in = [value](double lo, double hi) {
+    return value == std::floor(value) && value >= lo && value <= hi;
+  };
+  switch (type) {
+    case PlyType::kInt8:
+      return integer_in(-128.0, 127.0);
+    case PlyType::kUint8:
+      return integer_in(0.0, 255.0);
+    case PlyType::kInt16:
+      return integer_in(-32768.0, 32767.0);
+    case PlyType::kUint16:
+      return integer_in(0.0, 65535.0);
+    case PlyType::kInt32:
+      return integer_in(-2147483648.0, 2147483647.0);
+    case PlyType::kUint32:
+      return integer_in(0.0, 4294967295.0);
+    case PlyType::kFloat32:
+      return !std::isfinite(value) || std::abs(value) <= std::numeric_limits<float>::max();
+    case PlyType::kFloat64:
+      return true;
+  }
+  return true;
+}
+
 bool ParseType(std::string_view word, PlyType* type) {
   struct Name {
     std::string_view name;
@@ -60,6 +86,29 @@ bool ParseType(std::string_view word, PlyType* type) {
     }
   }
   return false;
+}
+
+// The header's name of `type` (the first of its two spellings).
+const char* TypeName(PlyType type) {
+  switch (type) {
+    case PlyType::kInt8:
+      return "char";
+    case PlyType::kUint8:
+      return "uchar";
+    case PlyType::kInt16:
+      return "short";
+    case PlyType::kUint16:
+      return "ushort";
+    case PlyType::kInt32:
+      return "int";
+    case PlyType::kUint32:
+      return "uint";
+    case PlyType::kFloat32:
+      return "float";
+    case PlyType::kFloat64:
+      return "double";
+  }
+  return "?";
 }
 
 struct PlyProperty {
@@ -364,19 +413,23 @@ class BodyReader {
     return at;
   }
 
-  double TextDouble(const PlyElement& element, uint64_t index, const PlyProperty& property) {
+  // A value of the declared `type`: one that the type cannot hold (300 for a uchar, 1.5 for an int, 1e39 for a
+  // float) is refused, since every reader that honours the header would read another number.
+  double TextDouble(const PlyElement& element, uint64_t index, const PlyProperty& property, PlyType type) {
     text_.SkipWhitespace();
     if (text_.AtEnd()) Truncated(element, index);
     double value = 0;
     if (!text_.ParseDouble(&value)) BadText(element, index, property, "a number");
+    if (!FitsType(value, type)) BadValue(element, index, property, type);
     return value;
   }
 
-  int64_t TextInt(const PlyElement& element, uint64_t index, const PlyProperty& property) {
+  int64_t TextInt(const PlyElement& element, uint64_t index, const PlyProperty& property, PlyType type) {
     text_.SkipWhitespace();
     if (text_.AtEnd()) Truncated(element, index);
     int64_t value = 0;
     if (!text_.ParseInt(&value)) BadText(element, index, property, "an integer");
+    if (!FitsType(static_cast<double>(value), type)) BadValue(element, index, property, type);
     return value;
   }
 
@@ -387,16 +440,22 @@ class BodyReader {
             property.name, "': expected ", expected, ", found '", word.substr(0, 40), "'");
   }
 
+  // The value just read (the word before the text position) does not fit `type`.
+  [[noreturn]] void BadValue(const PlyElement& element, uint64_t index, const PlyProperty& property, PlyType type) {
+    RB_FAIL(name_, ": line ", text_.line(), ": '", element.name, "' element ", index, " property '", property.name,
+            "': value out of range for its declared type ", TypeName(type));
+  }
+
   // A scalar value of any type as a double.
   double ScalarDouble(const PlyElement& element, uint64_t index, const PlyProperty& property) {
-    if (ascii()) return TextDouble(element, index, property);
+    if (ascii()) return TextDouble(element, index, property, property.type);
     return LoadDouble(property.type, Take(SizeOf(property.type), element, index), swap_);
   }
 
   int64_t ListCount(const PlyElement& element, uint64_t index, const PlyProperty& property) {
     int64_t count = 0;
     if (ascii()) {
-      count = TextInt(element, index, property);
+      count = TextInt(element, index, property, property.count_type);
     } else {
       count = LoadInt(property.count_type, Take(SizeOf(property.count_type), element, index), swap_);
     }
@@ -407,7 +466,7 @@ class BodyReader {
 
   void SkipValue(const PlyElement& element, uint64_t index, const PlyProperty& property, PlyType type) {
     if (ascii()) {
-      TextDouble(element, index, property);
+      TextDouble(element, index, property, type);
     } else {
       Take(SizeOf(type), element, index);
     }
@@ -515,7 +574,7 @@ class BodyReader {
   int64_t FaceIndex(const PlyElement& element, uint64_t index, const PlyProperty& property) {
     int64_t value = 0;
     if (ascii()) {
-      value = TextInt(element, index, property);
+      value = TextInt(element, index, property, property.type);
     } else {
       value = LoadInt(property.type, Take(SizeOf(property.type), element, index), swap_);
     }

@@ -103,6 +103,29 @@ TEST_F(MalformedMeshTest, BadPlyHeaders) {
               "lacks a 'vertex_indices'");
 }
 
+TEST_F(MalformedMeshTest, AsciiValuesMustFitTheirDeclaredType) {
+  // A binary file could not hold these values: readers that honour the header would read other numbers.
+  const std::string faces = "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  ExpectError("float.ply", std::string(kPlyHead) + faces + "0 0 0\n1e39 0 0\n0 1 0\n3 0 1 2\n",
+              "value out of range for its declared type float");
+  ExpectError("count.ply", std::string(kPlyHead) + faces + "0 0 0\n1 0 0\n0 1 0\n300 0 1 2\n",
+              "value out of range for its declared type uchar");
+  ExpectError("colour.ply",
+              std::string(kPlyHead) + "property uchar red\nend_header\n0 0 0 255\n1 0 0 256\n0 1 0 0\n",
+              "'vertex' element 1 property 'red': value out of range for its declared type uchar");
+  ExpectError("fraction.ply",
+              std::string(kPlyHead) + "property int flags\nend_header\n0 0 0 1\n1 0 0 1.5\n0 1 0 0\n",
+              "out of range for its declared type int");
+  // The same values where they fit read as before (a double coordinate, a whole number written with a point).
+  const std::string fits = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty float y\n"
+                           "property float z\nproperty uchar red\n" + faces +
+                           "1e39 0 0 255.0\n1 0 0 0\n0 1 0 7\n3 0 1 2\n";
+  std::ofstream(dir_ / "fits.ply") << fits;
+  const Mesh mesh = ReadMesh((dir_ / "fits.ply").string());
+  EXPECT_EQ(mesh.V(0, 0), 1e39);
+  EXPECT_EQ(mesh.num_faces(), 1);
+}
+
 TEST_F(MalformedMeshTest, AbsurdDeclaredCountsAreRejectedBeforeAllocating) {
   // 10^12 vertices, or 10^12 faces, in files of a few hundred bytes.
   const std::string huge_v =
