@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "bayes/learning/synth_meshes.h"
 #include "bayes/noise_model.h"
@@ -129,6 +133,38 @@ TEST(LearnPrior, DefaultBumpSearchLearnsASecondWellOnAToySet) {
   // The knots below the bumps keep the square root's values.
   const Eigen::VectorXd root = SplinePotential::SquareRootTheta(options.spline);
   EXPECT_NEAR((theta - root).head(5).cwiseAbs().maxCoeff(), 0.0, 1e-3);
+}
+
+// The progress callback is called after every pair's smoothing, so a caller (Python's Ctrl-C, which raises from the
+// callback) is heard from within a bump sweep, not only at its end; what the callback throws ends the training.
+TEST(LearnPrior, ProgressIsHeardAfterEveryPairWithinASweep) {
+  const std::vector<TrainingPair> pairs = TinyBoxes(3, 0.2);
+  LearnPriorOptions options;
+  options.bump_search_sweeps = 1;
+  options.num_threads = 1;
+  std::vector<std::string> stages;
+  options.progress = [&stages](double fraction, std::string_view stage) {
+    EXPECT_GE(fraction, 0.0);
+    EXPECT_LE(fraction, 1.0);
+    stages.emplace_back(stage);
+  };
+  LearnPrior(pairs, options);
+  const auto sweep_end = std::find_if(stages.begin(), stages.end(),
+                                      [](const std::string& s) { return s.rfind("bump sweep 1: loss", 0) == 0; });
+  ASSERT_NE(sweep_end, stages.end());
+  // Within the sweep (after the start's smoothing of each pair) every trial reports once per pair.
+  const auto trials = std::count_if(stages.begin() + static_cast<std::ptrdiff_t>(pairs.size()), sweep_end,
+                                    [](const std::string& s) { return s.rfind("bump sweep 1: trial ", 0) == 0; });
+  EXPECT_GE(trials, static_cast<std::ptrdiff_t>(2 * pairs.size()));
+  EXPECT_EQ(trials % static_cast<std::ptrdiff_t>(pairs.size()), 0);
+
+  struct Stop {};
+  int calls = 0;
+  options.progress = [&calls](double, std::string_view) {
+    if (++calls == 2) throw Stop{};
+  };
+  EXPECT_THROW(LearnPrior(pairs, options), Stop);
+  EXPECT_EQ(calls, 2);
 }
 
 // On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
