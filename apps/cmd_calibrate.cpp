@@ -265,7 +265,9 @@ void AddNoise(CLI::App* calibrate) {
                   "default: the matcher's command's, block 5, spacetime 7 below 16 frames else 5, sgbm 5; sgbm uses "
                   "at most 11",
                   1);
-  sub->add_option("--image-noise", a->image_noise_gray, "image noise sigma_n for the predicted sigma_d (grey levels)");
+  sub->add_option("--image-noise", a->image_noise_gray,
+                  "image noise sigma_n for the predicted sigma_d (grey levels, > 0)")
+      ->check(PositiveReal());
   sub->add_option("--roi", a->roi, "region of the target in the rectified left image: x y width height (px)")
       ->expected(4);
   sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));

@@ -83,7 +83,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
       ->check(CLI::Range(0, 256));
   sub->add_option("--num-disparities", o->num_disparities, "Disparities searched (px)")->check(CLI::Range(3, 1024));
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
-  AddWindowOption(sub, &o->window_px, "default 5", 1);
+  AddWindowOption(sub, &o->window_px, "default 5; sgbm 1-11", 1);
   sub->add_option("--downsample", o->downsample, "Triangulate every n-th pixel (1-64, full-resolution pixels)")
       ->check(CLI::Range(1, 64));
   sub->add_option("--stereo-downsample", o->stereo_downsample,
@@ -140,6 +140,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.window_step_frames = o.window_step_frames;
   p.sgbm.num_disparities = o.num_disparities;
   p.sgbm.min_disparity_px = o.min_disparity_px;
+  if (p.matcher == PipelineMatcher::kSgbm && o.window_px > 11) UsageError("--window: sgbm takes at most 11 px");
   p.sgbm.block_size_px = o.window_px;
   p.spacetime.num_disparities = o.num_disparities;
   p.spacetime.min_disparity_px = o.min_disparity_px;
@@ -187,6 +188,7 @@ void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool qui
 // summary.json, sets the exit code.
 void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions options, const PipelineCli& cli,
                  const std::string& out_dir) {
+  options.Check();  // before the console or the output folder is made
   std::unique_ptr<PipelineControl> control;
   std::unique_ptr<Console> console;
   if (!cli.ui.empty()) {
@@ -451,7 +453,7 @@ void AddReplay(CLI::App& app) {
   auto o = std::make_shared<Options>();
   auto* sub = app.add_subcommand(
       "replay", "Run a recording through rectify, stereo, triangulation, smoothing and decimation into a folder");
-  sub->add_option("recording", o->recording, "Recording folder (rig.yaml, frames.csv, left/, right/)")->required();
+  sub->add_option("RECORDING", o->recording, "Recording folder (rig.yaml, frames.csv, left/, right/)")->required();
   sub->add_option("--out,-o", o->out, "Output folder (created)")->required();
   sub->add_option("--rig", o->rig, "Rig file to use instead of the recording's rig.yaml");
   sub->add_option("--speed", o->speed, "fastest, recorded (at the recorded frame times) or step (Enter per frame)")

@@ -180,8 +180,10 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
                 "leave misaligned are an error; report.txt is written either way)");
   sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")
       ->check(NonNegativeReal());
-  sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)");
-  sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray (> 0)");
+  sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)")
+      ->check(PositiveReal());
+  sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray, model units (> 0)")
+      ->check(PositiveReal());
   AddThreadsOption(sub, &args->threads);
   sub->add_option("--view", args->view, "view direction x y z of the pictures (world frame)")->expected(3);
   AddQuietFlag(sub, &args->quiet);

@@ -67,34 +67,46 @@ void ReadNoiseModelOption(MatchCliOptions* o) {
 
 // by_frames: the defaults are SpaceTimeStaticSceneOptions(T) (spacetime), else SpaceTimeMatcherOptions{}.
 void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
+  // stereo: these options set our block matcher (--matcher block); OpenCV's SGBM has no such setting.
+  const std::string block = by_frames ? "" : "--matcher block: ";
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
   sub->add_option("--num-disparities", o->num_disparities,
-                  "Number of disparities searched (px, 3-1024; sgbm searches the next multiple of 16)")
+                  by_frames ? "Number of disparities searched (px, 3-1024)"
+                            : "Number of disparities searched (px, 3-1024; sgbm searches the next multiple of 16)")
       ->check(CLI::Range(3, 1024));
   AddWindowOption(sub, &o->window_px,
-                  by_frames ? "0: the default, 7 for T < 16 frames, 5 for T >= 16" : "0: the default, 5", 0);
-  sub->add_option("--image-noise", o->image_noise_gray, "Image noise sigma_n for the disparity sigma (grey levels)");
-  sub->add_option("--sigma-floor", o->sigma_floor_px,
-                  "Disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: fitted default 0.03 (0.01 "
-                  "with Gauss-Newton steps, spacetime)");
-  sub->add_option("--sigma-scale", o->sigma_scale,
-                  "Disparity sigma scale k (unitless); < 0: fitted default 1.7 (1.8 with Gauss-Newton steps, spacetime)");
+                  by_frames ? "0: the default, 7 for T < 16 frames, 5 for T >= 16" : "0: the default, 5; sgbm 1-11", 0);
+  sub->add_option("--image-noise", o->image_noise_gray,
+                  block + "image noise sigma_n for the disparity sigma (grey levels, > 0)")
+      ->check(PositiveReal());
+  sub->add_option(
+         "--sigma-floor", o->sigma_floor_px,
+         block + "disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: the fitted default " +
+             (by_frames ? "0.01 (0.03 with --subpixel-iterations 0)" : "0.03 (0.01 with --subpixel-iterations > 0)"))
+      ->default_str(by_frames ? "0.01" : "0.03");
+  sub->add_option(
+         "--sigma-scale", o->sigma_scale,
+         block + "disparity sigma scale k (unitless); < 0: the fitted default " +
+             (by_frames ? "1.8 (1.7 with --subpixel-iterations 0)" : "1.7 (1.8 with --subpixel-iterations > 0)"))
+      ->default_str(by_frames ? "1.8" : "1.7");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--subpixel-iterations", o->subpixel_iterations,
-                  std::string("Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest; "
-                              "default ") + (by_frames ? "1)" : "0)"))
-      ->check(CLI::Range(0, 5));
+                  block + "Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)")
+      ->check(CLI::Range(0, 5))
+      ->default_str(by_frames ? "1" : "0");
   sub->add_option("--edge-reject", o->edge_reject_px,
-                  "Drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of distance "
-                  "(px/px; < 0: off, the default)");
+                  block +
+                      "drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of "
+                      "distance (px/px; < 0: off, the default)");
   sub->add_option("--doubtful-jump", o->doubtful_jump_px,
-                  std::string("Keep such pixels instead where a small window confirms them (3x3; spacetime: "
-                              "5x5xT, 3x3xT at T >= 16), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off; "
-                              "default ") +
-                      (by_frames ? "1)" : "off)"));
+                  block + "keep such pixels instead where a small window confirms them (" +
+                      (by_frames ? "5x5xT, 3x3xT at T >= 16" : "3x3") +
+                      "), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off" + (by_frames ? ")" : ", the default)"))
+      ->default_str(by_frames ? "1" : "");
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,
-                  "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance)");
+                  "Mesh: cut edges whose depth jump exceeds this many depth sigmas (plus a slope allowance; > 0)")
+      ->check(PositiveReal());
   sub->add_flag("--no-mesh", o->no_mesh, "Do not write mesh.ply");
   sub->add_option("--noise-model", o->noise_model,
                   "noise.yaml from 'rangebayes calibrate noise': replaces --sigma-floor/--sigma-scale (and the sigma_d "
@@ -229,7 +241,6 @@ void AddStereo(CLI::App& app) {
   AddMatchOptions(sub, &o->m, false);
   sub->add_option("--cost", o->m.cost, "Block matcher cost: auto (ssd for one frame), ssd, zncc (over time) or zncc-space (local normalisation)");
   sub->callback([o, sub] {
-    if (o->m.window_px > 0 && o->m.window_px % 2 == 0) UsageError("--window must be odd");
     if (o->matcher == "sgbm") {
       if (o->m.max_sigma_px > 0 && o->m.noise_model.empty()) {
         UsageError("--max-sigma needs a sigma_d: SGBM has none; give --noise-model or use --matcher block");
@@ -339,9 +350,10 @@ void AddSynth(CLI::App& app) {
   sub->add_option("--seed", o->s.seed, "Random seed (patterns and noise)");
   sub->add_option("--width", o->s.width, "Image width (px)")->check(CLI::Range(16, 4096));
   sub->add_option("--height", o->s.height, "Image height (px)")->check(CLI::Range(16, 4096));
-  sub->add_option("--focal", o->s.focal_px, "Focal length (px; 0: the image width)");
-  sub->add_option("--baseline", o->s.baseline_m, "Baseline (m)");
-  sub->add_option("--cell", o->s.pattern_cell_px, "Projector pixel size at the image centre (camera px)");
+  sub->add_option("--focal", o->s.focal_px, "Focal length (px; 0: the image width)")->check(NonNegativeReal());
+  sub->add_option("--baseline", o->s.baseline_m, "Baseline (m, > 0)")->check(PositiveReal());
+  sub->add_option("--cell", o->s.pattern_cell_px, "Projector pixel size at the image centre (camera px, 0.5-64)")
+      ->check(RealRange(0.5, 64.0));
   sub->add_option("--supersample", o->s.supersample, "Samples per pixel side (1-8)")->check(CLI::Range(1, 8));
   sub->add_option("--pixel-jitter", o->s.pixel_jitter_px,
                   "Pixel localisation error sigma (px, 0-2; 0: off): each left pixel's ray is offset by a smooth "

@@ -28,11 +28,6 @@ void AddThreadsOption(CLI::App* sub, int* threads) {
       ->check(CLI::Range(0, 1024));
 }
 
-void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px) {
-  sub->add_option("--window", *window_px, "Matching window side (px, odd, 1-31; " + default_note + ")")
-      ->check(CLI::Range(min_px, 31));
-}
-
 namespace {
 
 // A check of one value of type T (double or long long): empty string when it passes, else the message; text that
@@ -58,6 +53,14 @@ CLI::Validator IntegerCheck(const std::string& description, const std::function<
 }
 
 }  // namespace
+
+void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px) {
+  sub->add_option("--window", *window_px, "Matching window side (px, odd, 1-31; " + default_note + ")")
+      ->check(CLI::Range(min_px, 31))
+      ->check(IntegerCheck("", [](long long w) {
+        return w == 0 || w % 2 == 1 ? std::string() : "must be odd, got " + std::to_string(w);
+      }));
+}
 
 CLI::Validator PositiveReal() {
   return RealCheck("POSITIVE", [](double v) {

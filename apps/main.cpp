@@ -1,8 +1,8 @@
 // rangebayes: one binary, subcommands registered by apps/cmd_*.cpp.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <exception>
+#include <memory>
 #include <string>
 
 #include "apps/command.h"
@@ -24,6 +24,19 @@ std::string ParsedName(const CLI::App& app) {
   return name;
 }
 
+// CLI11 lists a negated flag as "--no-x{false}", which reads as "the default is false"; the descriptions say
+// which of the pair is the default.
+class Formatter : public CLI::Formatter {
+ public:
+  std::string make_option_name(const CLI::Option* option, bool is_positional) const override {
+    std::string name = CLI::Formatter::make_option_name(option, is_positional);
+    for (const std::string value : {"{false}", "{true}"}) {
+      for (size_t at = name.find(value); at != std::string::npos; at = name.find(value)) name.erase(at, value.size());
+    }
+    return name;
+  }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -35,6 +48,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "rangebayes 0.1.0");
   app.option_defaults()->always_capture_default();
+  app.formatter(std::make_shared<Formatter>());
   rangebayes::apps::AddRegisteredCommands(app);
   try {
     app.parse(argc, argv);

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 #include <vector>
 
@@ -53,6 +54,18 @@ RenderOptions PreviewView(const NoisyMesh& raw, int width, int height) {
   return r;
 }
 
+// Whether a results.csv lists a result: a line after its header.
+bool ListsAnyResult(const fs::path& index) {
+  std::ifstream in(index);
+  if (!in) return true;  // unreadable: kept as if it listed results
+  std::string line;
+  int lines = 0;
+  while (lines < 2 && std::getline(in, line)) {
+    if (!line.empty()) ++lines;
+  }
+  return lines >= 2;
+}
+
 }  // namespace
 
 void FileSinkOptions::Check() const {
@@ -63,8 +76,10 @@ void FileSinkOptions::Check() const {
 FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
   options_.Check();
   std::error_code ec;
-  if (fs::exists(fs::path(folder_) / "results.csv", ec)) {
-    RB_CHECK(options_.overwrite, folder_,
+  const fs::path earlier_index = fs::path(folder_) / "results.csv";
+  if (fs::exists(earlier_index, ec)) {
+    // A results.csv of its header alone (a run that stopped before its first result) holds nothing to keep.
+    RB_CHECK(options_.overwrite || !ListsAnyResult(earlier_index), folder_,
              ": holds the results of an earlier run (results.csv); choose another folder, or --overwrite to replace "
              "them");
     // What a run writes here (summary.json by the commands at the end); the console's captures and recordings stay.

@@ -56,7 +56,21 @@ TEST(Cli, BadNumericValuesAreOnePlainLine) {
        "--cost applies to --matcher block, not sgbm"},
       {"stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --out /tmp/rb_cli_never "
        "--window 4",
-       "--window must be odd"},
+       "--window: must be odd, got 4"},
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --window 4", "--window: must be odd, got 4"},
+      // The library's limits, checked as usage with the flag named (they failed naming its fields: block_size_px).
+      {"replay recordings/synth_planes_320x240 --out /tmp/rb_cli_never --window 13",
+       "--window: sgbm takes at most 11 px"},
+      {"stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --out /tmp/rb_cli_never "
+       "--matcher block --image-noise -5",
+       "--image-noise: must be a finite number > 0, got -5"},
+      {"stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png --out /tmp/rb_cli_never "
+       "--max-jump-sigma -5",
+       "--max-jump-sigma: must be a finite number > 0, got -5"},
+      {"synth --out /tmp/rb_cli_never --baseline -1", "--baseline: must be a finite number > 0, got -1"},
+      {"synth --out /tmp/rb_cli_never --cell 100", "--cell: must be a number in [0.5, 64], got 100"},
+      {"fuse " + mesh + " " + mesh + " --out /tmp/rb_cli_never --sigma-range -1",
+       "--sigma-range: must be a finite number > 0, got -1"},
       {"eval-depth a.pfm tests/data/stereo/tsukuba --gt-scale -3",
        "--gt-scale: must be a number in [0, 1e+06], got -3"},
       {"eval-depth a.pfm tests/data/stereo/tsukuba --mask-value 70000", "--mask-value: Value 70000 not in range"},

@@ -118,6 +118,22 @@ TEST(ReplayCli, AFrameThatFailsToWriteLeavesNoFilesUnlisted) {
   EXPECT_EQ(lines, 1);  // the header alone
 }
 
+// A results.csv of its header alone holds no result: the folder of a run that stopped before its first result
+// takes the next run without --overwrite (it was refused as holding "the results of an earlier run").
+TEST(ReplayCli, AFolderWithoutResultsTakesTheNextRun) {
+  const TempDir dir("cli_replay_no_results");
+  const std::string out = dir.path() + "/out";
+  fs::create_directories(out + "/shaded/000000.png");
+  const std::string args =
+      std::string("replay ") + kBundled + " --count 1 --downsample 4 --no-smooth --no-decimate -q --out " + out;
+  ASSERT_EQ(RunRangebayes(args).exit_code, 1);
+  ASSERT_TRUE(fs::exists(out + "/results.csv"));
+  const RunResult r = RunRangebayes(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/raw/000000.ply"));
+  EXPECT_TRUE(fs::is_regular_file(out + "/shaded/000000.png"));
+}
+
 TEST(ReplayCli, MissingRecordingIsOneLineExitOne) {
   const RunResult r = RunRangebayes("replay /nonexistent/rec --out /tmp/never");
   EXPECT_EQ(r.exit_code, 1);
