@@ -4,6 +4,7 @@
 
 #include <sys/stat.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -12,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <vector>
 
 #include "core/files.h"
 #include "core/mesh_io_internal.h"
@@ -48,6 +50,106 @@ void AppendInt(std::string* out, int64_t value) {
   char buffer[24];
   const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
   out->append(buffer, result.ptr);
+}
+
+namespace {
+
+// Triangulates a simple polygon (corner indices into V) by ear clipping in the plane of its Newell normal; the
+// triangles keep the polygon's winding. Returns false (and leaves `out` alone) when the polygon is convex (its
+// fan is as good), degenerate, or not simple (no ear found): the fan stays. `out` gets n − 2 triangles as
+// positions in `corners` (0..n-1).
+bool EarClip(const Vertices& V, const int* corners, size_t n, std::vector<size_t>* out) {
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero(), centre = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = V.row(corners[i]), b = V.row(corners[(i + 1) % n]);
+    normal += a.cross(b);
+    centre += a;
+  }
+  const double area2 = normal.norm();  // twice the polygon's area
+  if (!(area2 > 0) || !std::isfinite(area2)) return false;
+  normal /= area2;
+  centre /= static_cast<double>(n);
+  const Eigen::Vector3d u = normal.unitOrthogonal(), w = normal.cross(u);
+  std::vector<Eigen::Vector2d> p(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d d = V.row(corners[i]).transpose() - centre;
+    p[i] = {d.dot(u), d.dot(w)};  // counter-clockwise: (u, w, normal) is right-handed
+  }
+  const auto turn = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+    return (b - a).x() * (c - b).y() - (b - a).y() * (c - b).x();
+  };
+  const double tolerance = 1e-12 * area2;
+  bool convex = true;
+  for (size_t i = 0; i < n && convex; ++i) convex = turn(p[(i + n - 1) % n], p[i], p[(i + 1) % n]) >= -tolerance;
+  if (convex) return false;
+  std::vector<size_t> ring(n);
+  for (size_t i = 0; i < n; ++i) ring[i] = i;
+  std::vector<size_t> triangles;
+  triangles.reserve(3 * (n - 2));
+  while (ring.size() > 3) {
+    bool clipped = false;
+    for (size_t k = 0; k < ring.size() && !clipped; ++k) {
+      const size_t a = ring[(k + ring.size() - 1) % ring.size()], b = ring[k], c = ring[(k + 1) % ring.size()];
+      if (turn(p[a], p[b], p[c]) <= tolerance) continue;  // reflex or flat corner: no ear
+      bool empty = true;
+      for (const size_t q : ring) {
+        if (q == a || q == b || q == c) continue;
+        if (turn(p[a], p[b], p[q]) >= 0 && turn(p[b], p[c], p[q]) >= 0 && turn(p[c], p[a], p[q]) >= 0) {
+          empty = false;
+          break;
+        }
+      }
+      if (!empty) continue;
+      triangles.insert(triangles.end(), {a, b, c});
+      ring.erase(ring.begin() + static_cast<std::ptrdiff_t>(k));
+      clipped = true;
+    }
+    if (!clipped) return false;
+  }
+  triangles.insert(triangles.end(), {ring[0], ring[1], ring[2]});
+  *out = std::move(triangles);
+  return true;
+}
+
+}  // namespace
+
+void PolygonSplitter::Add(const int* corners, const int* corner_attributes, size_t n, std::vector<int>* triangles,
+                          std::vector<int>* attributes) {
+  first_triangle_.push_back(triangles->size() / 3);
+  corners_.insert(corners_.end(), corners, corners + n);
+  if (corner_attributes != nullptr)
+    corner_attributes_.insert(corner_attributes_.end(), corner_attributes, corner_attributes + n);
+  corner_start_.push_back(corners_.size());
+  for (size_t c = 1; c + 1 < n; ++c) {
+    for (const size_t k : {size_t{0}, c, c + 1}) {
+      triangles->push_back(corners[k]);
+      if (attributes != nullptr) attributes->push_back(corner_attributes[k]);
+    }
+  }
+}
+
+void PolygonSplitter::Finish(const Vertices& V, std::vector<int>* triangles, std::vector<int>* attributes,
+                             MeshReadSummary* summary) const {
+  if (first_triangle_.empty()) return;
+  int concave = 0;
+  std::vector<size_t> clipped;
+  for (size_t p = 0; p < first_triangle_.size(); ++p) {
+    const size_t start = corner_start_[p], n = corner_start_[p + 1] - start;
+    const int* corners = corners_.data() + start;
+    // Out-of-range corners are the caller's error to report (CheckFaceIndices).
+    if (std::any_of(corners, corners + n, [&V](int v) { return v < 0 || v >= V.rows(); })) continue;
+    if (!EarClip(V, corners, n, &clipped)) continue;
+    for (size_t k = 0; k < clipped.size(); ++k) {
+      (*triangles)[3 * first_triangle_[p] + k] = corners[clipped[k]];
+      if (attributes != nullptr) (*attributes)[3 * first_triangle_[p] + k] = corner_attributes_[start + clipped[k]];
+    }
+    ++concave;
+  }
+  summary->polygons_triangulated = count();
+  summary->notices.push_back(concave == 0
+                                 ? StrCat(count(), " polygons with more than 3 vertices were fan-triangulated")
+                                 : StrCat(count(), " polygons with more than 3 vertices were triangulated (", concave,
+                                          " concave ones by ear clipping in their plane, the others as fans)"));
 }
 
 void CheckFaceIndices(const Faces& F, int64_t num_vertices, const char* what) {

@@ -39,7 +39,8 @@ struct MeshWriteOptions {
 MeshFormat MeshFormatFromPath(const std::string& path);
 
 // Reads a mesh. Throws Error with one line naming the file and what is wrong on any malformed input.
-// Polygons are fan-triangulated (counted in the summary). Never allocates more than the file size justifies.
+// Polygons are triangulated (fans; concave ones by ear clipping in their plane; counted in the summary). Never
+// allocates more than the file size justifies.
 Mesh ReadMesh(const std::string& path, MeshReadSummary* summary = nullptr);
 
 // Reads a mesh and, from PLY vertex properties cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz, its per-vertex

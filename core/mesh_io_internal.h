@@ -141,4 +141,26 @@ void AppendInt(std::string* out, int64_t value);
 // Throws Error unless every face index lies in [0, num_vertices).
 void CheckFaceIndices(const Faces& F, int64_t num_vertices, const char* what);
 
+// The polygons (more than 3 corners) a reader splits into triangles. Add() appends a polygon's fan (n − 2
+// triangles, so face numbers follow the file) and keeps its corners; Finish(), once every vertex position is known
+// (OBJ may use a vertex before it lists it), replaces the fan of each polygon that is not convex in its plane by
+// an ear-clipping triangulation of as many triangles (a fan folds a concave polygon over itself), and writes the
+// summary's count and notice.
+// `attributes` (OBJ's corner normals) run parallel to `triangles`, one value per triangle corner, and follow the
+// corners they belong to; null where a reader has none.
+class PolygonSplitter {
+ public:
+  void Add(const int* corners, const int* corner_attributes, size_t n, std::vector<int>* triangles,
+           std::vector<int>* attributes);
+  void Finish(const Vertices& V, std::vector<int>* triangles, std::vector<int>* attributes,
+              MeshReadSummary* summary) const;
+  int count() const { return static_cast<int>(first_triangle_.size()); }
+
+ private:
+  std::vector<size_t> first_triangle_;
+  std::vector<size_t> corner_start_{0};  // polygon p's corners: corners_[corner_start_[p] .. corner_start_[p + 1])
+  std::vector<int> corners_;
+  std::vector<int> corner_attributes_;  // parallel to corners_ when attributes are given
+};
+
 }  // namespace rangebayes::mesh_io

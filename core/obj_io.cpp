@@ -1,5 +1,6 @@
 // Wavefront OBJ reader and writer: `v`, `vn` and `f` statements (v, v/vt, v//vn, v/vt/vn corners, negative
-// relative indices, polygons); everything else (vt, groups, materials, lines) is skipped.
+// relative indices, polygons); everything else (vt, groups, materials, lines) is skipped, with a notice for what
+// carries data (vertex colours, vt, materials).
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -37,13 +38,17 @@ class ObjParser {
       const std::string_view keyword = cursor_.Word();
       if (keyword == "v") {
         ReadTriple(&positions_, "vertex");
+        if (!cursor_.AtLineEnd() && cursor_.Peek() != '#') ++vertex_extras_;
       } else if (keyword == "vn") {
         ReadTriple(&normals_, "normal");
       } else if (keyword == "f") {
         ReadFace();
-      } else if (keyword == "vt" || keyword == "g" || keyword == "o" || keyword == "s" || keyword == "usemtl" ||
-                 keyword == "mtllib" || keyword == "vp") {
-        // Texture coordinates, grouping and materials carry nothing a Mesh holds.
+      } else if (keyword == "vt") {
+        ++texture_coordinates_;  // a Mesh holds none
+      } else if (keyword == "usemtl" || keyword == "mtllib") {
+        ++material_statements_;  // nor materials
+      } else if (keyword == "g" || keyword == "o" || keyword == "s" || keyword == "vp") {
+        // Grouping and smoothing groups carry nothing for the geometry.
       } else {
         RB_CHECK(IsText(keyword), name_, ": line ", cursor_.line(), ": not OBJ text (binary data?)");
         ++other_statements_;
@@ -85,7 +90,7 @@ class ObjParser {
   void ReadFace() {
     corner_vertex_.clear();
     corner_normal_.clear();
-    while (!cursor_.AtLineEnd()) {
+    while (!cursor_.AtLineEnd() && cursor_.Peek() != '#') {  // a comment may end the line
       int64_t v = 0;
       if (!ParseIndex(&v)) Fail(StrCat("face corner '", cursor_.Word().substr(0, 40), "' is not v, v/vt, v//vn or v/vt/vn"));
       int normal = -1;
@@ -112,15 +117,14 @@ class ObjParser {
     }
     const size_t n = corner_vertex_.size();
     if (n < 3) Fail(StrCat("face has ", n, " vertices (at least 3 needed)"));
-    if (n > 3) ++polygons_;
     if (triangles_.size() / 3 + n > static_cast<size_t>(std::numeric_limits<int>::max() / 3)) Fail("too many faces");
-    for (size_t c = 1; c + 1 < n; ++c) {
-      for (const size_t k : {size_t{0}, c, c + 1}) {
-        triangles_.push_back(corner_vertex_[k]);
-        triangle_normals_.push_back(corner_normal_[k]);
-        any_corner_normal_ = any_corner_normal_ || corner_normal_[k] >= 0;
-      }
+    for (const int normal : corner_normal_) any_corner_normal_ = any_corner_normal_ || normal >= 0;
+    if (n > 3) {
+      splitter_.Add(corner_vertex_.data(), corner_normal_.data(), n, &triangles_, &triangle_normals_);
+      return;
     }
+    triangles_.insert(triangles_.end(), corner_vertex_.begin(), corner_vertex_.end());
+    triangle_normals_.insert(triangle_normals_.end(), corner_normal_.begin(), corner_normal_.end());
   }
 
   NoisyMesh Finish() {
@@ -133,11 +137,12 @@ class ObjParser {
     NoisyMesh result;
     Mesh& mesh = result.mesh;
     mesh.V = Eigen::Map<const Vertices>(positions_.data(), static_cast<Eigen::Index>(nv), 3);
+    splitter_.Finish(mesh.V, &triangles_, &triangle_normals_, summary_);
     mesh.F = Eigen::Map<const Faces>(triangles_.data(), static_cast<Eigen::Index>(triangles_.size() / 3), 3);
     try {
       CheckFaceIndices(mesh.F, static_cast<int64_t>(nv), "face");
     } catch (const Error& e) {
-      RB_FAIL(name_, ": ", e.what(), polygons_ > 0 ? " (counting triangles after splitting polygons)" : "");
+      RB_FAIL(name_, ": ", e.what(), splitter_.count() > 0 ? " (counting triangles after splitting polygons)" : "");
     }
     const size_t nn = normals_.size() / 3;
     for (const int n : triangle_normals_) {
@@ -145,9 +150,16 @@ class ObjParser {
                " normals");
     }
     AssignVertexNormals(&mesh);
-    if (polygons_ > 0) {
-      summary_->polygons_triangulated = polygons_;
-      summary_->notices.push_back(StrCat(polygons_, " polygons with more than 3 vertices were fan-triangulated"));
+    if (vertex_extras_ > 0) {
+      summary_->notices.push_back(
+          StrCat("ignored the values after x y z (colours or w) of ", vertex_extras_, " vertices"));
+    }
+    if (texture_coordinates_ > 0) {
+      summary_->notices.push_back(StrCat("ignored ", texture_coordinates_, " texture coordinates (vt)"));
+    }
+    if (material_statements_ > 0) {
+      summary_->notices.push_back(
+          StrCat("ignored the materials (", material_statements_, " usemtl/mtllib statements)"));
     }
     if (other_statements_ > 0) {
       summary_->notices.push_back(StrCat("skipped ", other_statements_, " unsupported OBJ statements"));
@@ -233,7 +245,10 @@ class ObjParser {
   std::vector<int> corner_vertex_;
   std::vector<int> corner_normal_;
   bool any_corner_normal_ = false;
-  int polygons_ = 0;
+  PolygonSplitter splitter_;
+  int64_t vertex_extras_ = 0;
+  int64_t texture_coordinates_ = 0;
+  int64_t material_statements_ = 0;
   int64_t other_statements_ = 0;
   int64_t comment_lines_ = 0, statement_lines_ = 0;
 };

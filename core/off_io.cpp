@@ -49,6 +49,7 @@ class OffParser {
 
     NoisyMesh result;
     Mesh& mesh = result.mesh;
+    int64_t vertex_extras = 0;
     mesh.V.resize(nv, 3);
     if (normals) mesh.N.resize(nv, 3);
     for (int64_t i = 0; i < nv; ++i) {
@@ -57,12 +58,14 @@ class OffParser {
       if (normals) {
         for (int d = 0; d < 3; ++d) mesh.N(i, d) = Number("vertex normal", i);
       }
-      cursor_.NextLine();  // colours, texture coordinates
+      if (!cursor_.AtLineEnd() && cursor_.Peek() != '#') ++vertex_extras;  // colours, texture coordinates
+      cursor_.NextLine();
     }
     std::vector<int> triangles;
     triangles.reserve(static_cast<size_t>(3 * nf));
     std::vector<int> polygon;
-    int polygons = 0;
+    PolygonSplitter splitter;
+    int64_t face_extras = 0;
     for (int64_t f = 0; f < nf; ++f) {
       SkipSpaceAndComments();
       if (cursor_.AtEnd()) Fail(StrCat("truncated: file ends in face ", f, " of ", nf));
@@ -81,24 +84,26 @@ class OffParser {
         if (v < 0 || v >= nv) Fail(StrCat("face ", f, " uses vertex ", v, " but there are ", nv, " vertices"));
         polygon[static_cast<size_t>(c)] = static_cast<int>(v);
       }
-      if (n > 3) ++polygons;
       if (triangles.size() / 3 + static_cast<size_t>(n) > static_cast<size_t>(std::numeric_limits<int>::max() / 3)) {
         Fail("too many faces");
       }
-      for (int64_t c = 1; c + 1 < n; ++c) {
-        triangles.push_back(polygon[0]);
-        triangles.push_back(polygon[static_cast<size_t>(c)]);
-        triangles.push_back(polygon[static_cast<size_t>(c + 1)]);
+      if (n > 3) {
+        splitter.Add(polygon.data(), nullptr, polygon.size(), &triangles, nullptr);
+      } else {
+        triangles.insert(triangles.end(), polygon.begin(), polygon.end());
       }
-      cursor_.NextLine();  // face colours
+      if (!cursor_.AtLineEnd() && cursor_.Peek() != '#') ++face_extras;  // face colours
+      cursor_.NextLine();
     }
     SkipSpaceAndComments();
     if (!cursor_.AtEnd()) summary_->notices.push_back(StrCat("ignored data after the last face (line ", cursor_.line(), ")"));
-    mesh.F = Eigen::Map<const Faces>(triangles.data(), static_cast<Eigen::Index>(triangles.size() / 3), 3);
-    if (polygons > 0) {
-      summary_->polygons_triangulated = polygons;
-      summary_->notices.push_back(StrCat(polygons, " polygons with more than 3 vertices were fan-triangulated"));
+    splitter.Finish(mesh.V, &triangles, nullptr, summary_);
+    if (vertex_extras > 0) {
+      summary_->notices.push_back(StrCat("ignored the values after the position", normals ? " and normal" : "",
+                                         " (colours, texture coordinates) of ", vertex_extras, " vertices"));
     }
+    if (face_extras > 0) summary_->notices.push_back(StrCat("ignored the colours of ", face_extras, " faces"));
+    mesh.F = Eigen::Map<const Faces>(triangles.data(), static_cast<Eigen::Index>(triangles.size() / 3), 3);
     return result;
   }
 

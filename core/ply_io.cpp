@@ -354,17 +354,14 @@ class BodyReader {
     } else if (p_ < end_) {
       summary_->notices.push_back(StrCat("ignored ", end_ - p_, " bytes after the last element"));
     }
+    splitter_.Finish(mesh_.mesh.V, &triangles_, nullptr, summary_);
     mesh_.mesh.F = Faces(static_cast<Eigen::Index>(triangles_.size() / 3), 3);
     if (!triangles_.empty()) std::memcpy(mesh_.mesh.F.data(), triangles_.data(), triangles_.size() * sizeof(int));
     try {
       CheckFaceIndices(mesh_.mesh.F, mesh_.mesh.V.rows(), "face");
     } catch (const Error& e) {
       // Triangle numbers differ from file face numbers only when polygons were split.
-      RB_FAIL(name_, ": ", e.what(), polygons_ > 0 ? " (counting triangles after splitting polygons)" : "");
-    }
-    if (polygons_ > 0) {
-      summary_->polygons_triangulated = polygons_;
-      summary_->notices.push_back(StrCat(polygons_, " polygons with more than 3 vertices were fan-triangulated"));
+      RB_FAIL(name_, ": ", e.what(), splitter_.count() > 0 ? " (counting triangles after splitting polygons)" : "");
     }
     return std::move(mesh_);
   }
@@ -636,15 +633,15 @@ class BodyReader {
           Truncated(element, f);
         }
         polygon.resize(static_cast<size_t>(count));
-        for (int64_t c = 0; c < count; ++c) polygon[static_cast<size_t>(c)] = static_cast<int>(FaceIndex(element, f, property));
-        if (count > 3) ++polygons_;
+        for (int64_t c = 0; c < count; ++c)
+          polygon[static_cast<size_t>(c)] = static_cast<int>(FaceIndex(element, f, property));
         RB_CHECK(triangles_.size() / 3 + static_cast<size_t>(count - 2) <=
                      static_cast<size_t>(std::numeric_limits<int>::max() / 3),
                  name_, ": too many triangles");
-        for (int64_t c = 1; c + 1 < count; ++c) {
-          triangles_.push_back(polygon[0]);
-          triangles_.push_back(polygon[static_cast<size_t>(c)]);
-          triangles_.push_back(polygon[static_cast<size_t>(c + 1)]);
+        if (count > 3) {
+          splitter_.Add(polygon.data(), nullptr, polygon.size(), &triangles_, nullptr);
+        } else {
+          triangles_.insert(triangles_.end(), polygon.begin(), polygon.end());
         }
       }
     }
@@ -690,7 +687,7 @@ class BodyReader {
   bool swap_;
   NoisyMesh mesh_;
   std::vector<int> triangles_;
-  int polygons_ = 0;
+  PolygonSplitter splitter_;
 };
 
 // Output with the byte order of the file.

@@ -253,7 +253,7 @@ writable views of the C++ storage (no copy); assignment copies.)")
       R"(Reads a PLY / OBJ / OFF mesh (by extension). Returns a NoisyMesh when the file has per-vertex covariances
 (PLY cov_xx..cov_zz), else a Mesh. A PLY range-grid scan without faces (the Stanford scans) is triangulated as the
 CLI reads it, with the scanner's covariances: a NoisyMesh. Raises rangebayes.Error naming the file and line on
-bad input; what the reader left out or changed (polygons fan-triangulated, normals ignored) is a UserWarning, as
+bad input; what the reader left out or changed (polygons triangulated, normals, colours or texture coordinates ignored) is a UserWarning, as
 the CLI prints it.)");
   m.def(
       "read_noisy_mesh",

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -250,6 +252,73 @@ TEST_F(MeshIoTest, PolygonMeshesAreFanTriangulated) {
   EXPECT_EQ(ReadMesh(Path("ring.ply")).num_faces(), 298);
   EXPECT_THROW(WritePolygonMesh(V, {{0, 1}}, Path("bad.obj")), Error);
   EXPECT_THROW(WritePolygonMesh(V, {{0, 1, 6}}, Path("bad.obj")), Error);
+}
+
+// A fan from a corner next to a reflex one folds a concave polygon over itself (a triangle of the wrong
+// orientation, the area counted twice): such polygons are ear-clipped in their plane instead, into as many
+// triangles, all of the polygon's orientation and together of its area; a convex one keeps its fan.
+TEST_F(MeshIoTest, ConcavePolygonsAreTriangulatedInTheirPlane) {
+  // An L of area 3 in the plane z = 0, listed counter-clockwise from (2, 1), then tilted and moved.
+  const double l_shape[6][2] = {{2, 1}, {1, 1}, {1, 2}, {0, 2}, {0, 0}, {2, 0}};
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())).toRotationMatrix();
+  const double square[2][2] = {{3, 0}, {3, 1}};  // with (2, 0) and (2, 1): a convex quad beside it
+  Vertices V(8, 3);
+  for (int i = 0; i < 8; ++i) {
+    const double* p = i < 6 ? l_shape[i] : square[i - 6];
+    V.row(i) = (tilt * Eigen::Vector3d(p[0], p[1], 0) + Eigen::Vector3d(5, -2, 1)).transpose();
+  }
+  const Eigen::Vector3d up = tilt * Eigen::Vector3d::UnitZ();
+  const std::vector<std::vector<int>> polygons = {{0, 1, 2, 3, 4, 5}, {5, 6, 7, 0}};
+  for (const std::string file : {"l.ply", "l.obj", "l.off"}) {
+    SCOPED_TRACE(file);
+    WritePolygonMesh(V, polygons, Path(file));
+    MeshReadSummary summary;
+    const Mesh back = ReadMesh(Path(file), &summary);
+    ASSERT_EQ(back.num_faces(), 6);
+    double area = 0;
+    for (int f = 0; f < 4; ++f) {
+      const Eigen::Vector3d a = back.V.row(back.F(f, 0)), b = back.V.row(back.F(f, 1)), c = back.V.row(back.F(f, 2));
+      const Eigen::Vector3d n = (b - a).cross(c - a);
+      EXPECT_GT(n.dot(up), 1e-9) << "triangle " << f << " is folded or flat";
+      area += 0.5 * n.norm();
+    }
+    EXPECT_NEAR(area, 3.0, 1e-12);
+    // The convex quad keeps its fan (the reader's output unchanged for such files).
+    EXPECT_EQ(back.F.row(4), Eigen::RowVector3i(5, 6, 7));
+    EXPECT_EQ(back.F.row(5), Eigen::RowVector3i(5, 7, 0));
+    EXPECT_EQ(summary.polygons_triangulated, 2);
+    ASSERT_FALSE(summary.notices.empty());
+    EXPECT_NE(summary.notices[0].find("(1 concave ones by ear clipping in their plane"), std::string::npos)
+        << summary.notices[0];
+  }
+}
+
+// What OBJ and OFF readers leave out is said (PLY names the properties it skips); a comment may end an OBJ face.
+TEST_F(MeshIoTest, ObjAndOffSayWhatTheyLeaveOut) {
+  MeshReadSummary obj;
+  const Mesh from_obj = ReadMesh(WriteBytes("c.obj",
+                                            "mtllib m.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\n"
+                                            "vt 0 0\nusemtl red\nf 1/1 2/1 3/1 # the only face\n"),
+                                 &obj);
+  EXPECT_EQ(from_obj.num_faces(), 1);
+  const auto has = [](const MeshReadSummary& s, const std::string& text) {
+    return std::any_of(s.notices.begin(), s.notices.end(),
+                       [&text](const std::string& n) { return n.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(has(obj, "ignored the values after x y z (colours or w) of 3 vertices"));
+  EXPECT_TRUE(has(obj, "ignored 1 texture coordinates (vt)"));
+  EXPECT_TRUE(has(obj, "ignored the materials (2 usemtl/mtllib statements)"));
+  MeshReadSummary off;
+  const Mesh from_off = ReadMesh(WriteBytes("c.off",
+                                            "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n"
+                                            "3 0 1 2 200 200 200\n"),
+                                 &off);
+  EXPECT_EQ(from_off.num_faces(), 1);
+  EXPECT_TRUE(has(off, "ignored the values after the position (colours, texture coordinates) of 3 vertices"));
+  EXPECT_TRUE(has(off, "ignored the colours of 1 faces"));
+  MeshReadSummary plain;
+  ReadMesh(WriteBytes("p.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"), &plain);
+  EXPECT_TRUE(plain.notices.empty());
 }
 
 TEST_F(MeshIoTest, PlyVariants) {
