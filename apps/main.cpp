@@ -64,15 +64,19 @@ int main(int argc, char** argv) {
     for (char& c : message) {
       if (c == '\n') c = ' ';
     }
+    std::fflush(stdout);  // what the command printed comes before its error, also in one file (2>&1)
     std::fprintf(stderr, "%s: error: %s (see --help)\n", ParsedName(app).c_str(), message.c_str());
     return 2;
   } catch (const rangebayes::Error& e) {
+    std::fflush(stdout);
     std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
     return 1;
   } catch (const std::bad_alloc&) {
+    std::fflush(stdout);
     std::fprintf(stderr, "%s: error: out of memory\n", ParsedName(app).c_str());
     return 1;
   } catch (const std::exception& e) {
+    std::fflush(stdout);
     std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
     return 1;
   }

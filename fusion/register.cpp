@@ -10,10 +10,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <memory>
 #include <numeric>
 #include <random>
-#include <cstdio>
 #include <sstream>
 
 #include "core/error.h"
@@ -257,11 +258,44 @@ NormalEquations Assemble(const std::vector<std::pair<int, int>>& pairs, const st
   return eq;
 }
 
+// For the error of a scan that overlaps no other: when its size is far from the others' (a scan in millimetres
+// among scans in metres), say so, since no pose makes it overlap.
+std::string SizeHint(const std::vector<Scan>& scans, size_t s) {
+  const auto diagonal = [](const Scan& scan) {
+    const Vertices& V = scan.noisy.mesh.V;
+    return V.rows() == 0 ? 0.0 : (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
+  };
+  std::vector<double> sizes;
+  for (const Scan& scan : scans) sizes.push_back(diagonal(scan));
+  std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2), sizes.end());
+  const double median = sizes[sizes.size() / 2], ratio = diagonal(scans[s]) / median;
+  if (!(median > 0) || (ratio <= 10 && ratio >= 0.1)) return "";
+  char text[160];
+  std::snprintf(text, sizeof(text),
+                "; it is %.3g times the size of the median scan (bounding-box diagonal %.4g "
+                "against %.4g): are its units those of the others?",
+                ratio, diagonal(scans[s]), median);
+  return text;
+}
+
 void CheckEveryScanOverlaps(const std::vector<Scan>& scans, const NormalEquations& eq, double max_distance) {
   for (int s = 1; s < static_cast<int>(scans.size()); ++s) {
     const double info = eq.H.block<6, 6>(6 * (s - 1), 6 * (s - 1)).trace();
     RB_CHECK(info > 0, scans[s].name, ": overlaps no other scan (no correspondence within ", max_distance,
-             " model units); check its initial pose");
+             " model units); check its initial pose", SizeHint(scans, static_cast<size_t>(s)));
+  }
+}
+
+// A scan given twice (the same file, or a copy under another name: the same vertices) would count its
+// measurements twice in the fused model.
+void CheckDistinctScans(const std::vector<Scan>& scans) {
+  for (size_t j = 1; j < scans.size(); ++j) {
+    for (size_t i = 0; i < j; ++i) {
+      const Vertices& a = scans[i].noisy.mesh.V;
+      const Vertices& b = scans[j].noisy.mesh.V;
+      RB_CHECK(a.rows() != b.rows() || a != b, scans[j].name, " is the same scan as ", scans[i].name,
+               " (the same vertices): give each scan once");
+    }
   }
 }
 
@@ -293,14 +327,21 @@ struct PairSystems {
   std::vector<PairSystem> systems;
 };
 
+// done(fraction of the pairs) is called from this thread after each eighth of them (an iteration of the finest
+// level takes seconds on the Stanford scans).
 PairSystems LinearizeAll(const AlignmentProblem& problem, const std::vector<Eigen::Isometry3d>& pose,
-                         double max_distance, int samples) {
+                         double max_distance, int samples, const std::function<void(double)>& done) {
   PairSystems out;
   out.pairs = OverlappingPairs(problem.index, pose, max_distance);
   out.systems.resize(out.pairs.size());
-  tbb::parallel_for(0, static_cast<int>(out.pairs.size()), [&](int k) {
-    LinearizePair(problem, pose, out.pairs[k], max_distance, samples, &out.systems[k]);
-  });
+  const int count = static_cast<int>(out.pairs.size());
+  constexpr int kParts = 8;
+  for (int part = 0; part < kParts; ++part) {
+    tbb::parallel_for(count * part / kParts, count * (part + 1) / kParts, [&](int k) {
+      LinearizePair(problem, pose, out.pairs[k], max_distance, samples, &out.systems[k]);
+    });
+    done(static_cast<double>(part + 1) / kParts);
+  }
   return out;
 }
 
@@ -311,12 +352,24 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
   const int n = static_cast<int>(problem.scans.size());
   const int levels = static_cast<int>(options.max_distance_edges.size());
   std::vector<PairSystem> last;
+  // Progress counts the work of an iteration as its samples per scan (the last level takes more).
+  const auto level_samples = [&options, levels](int level) {
+    return static_cast<double>(level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan);
+  };
+  double total_work = 0;
+  for (int level = 0; level < levels; ++level) total_work += level_samples(level) * options.iterations_per_level;
+  double work_before = 0;  // levels done
   for (int level = 0; level < levels; ++level) {
     const double max_distance = options.max_distance_edges[level] * problem.edge;
     const int samples = level + 1 == levels ? options.final_samples_per_scan : options.samples_per_scan;
     if (level + 1 == levels) local->finest_level_start = static_cast<int>(local->cost.size());
+    const auto report = [&](double iterations_done) {
+      if (options.progress) {
+        options.progress((work_before + level_samples(level) * iterations_done) / total_work, "alignment");
+      }
+    };
     for (int it = 0; it < options.iterations_per_level; ++it) {
-      PairSystems linear = LinearizeAll(problem, *pose, max_distance, samples);
+      PairSystems linear = LinearizeAll(problem, *pose, max_distance, samples, [&](double part) { report(it + part); });
       // Assemble the 6n system (scan 0 fixed) and take one damped Gauss–Newton step.
       NormalEquations eq = Assemble(linear.pairs, linear.systems, n);
       local->cost.push_back(eq.cost);
@@ -324,12 +377,10 @@ std::vector<PairSystem> Align(const AlignmentProblem& problem, std::vector<Eigen
       last = std::move(linear.systems);
       CheckEveryScanOverlaps(problem.scans, eq, max_distance);
       const bool converged = TakeDampedStep(problem.edge, &eq, pose) < options.converged_step;
-      if (options.progress) {
-        const int done = converged ? options.iterations_per_level : it + 1;
-        options.progress((level + static_cast<double>(done) / options.iterations_per_level) / levels, "alignment");
-      }
+      report(converged ? options.iterations_per_level : it + 1);
       if (converged) break;
     }
+    work_before += level_samples(level) * options.iterations_per_level;
     ++local->levels;
   }
   return last;
@@ -433,7 +484,7 @@ void ReportPairs(const AlignmentProblem& problem, std::vector<PairSystem>* last,
     RB_CHECK(best_overlap[s] >= options.min_overlap, scans[s].name, ": overlaps no other scan after alignment (",
              100.0 * best_overlap[s], "% of its samples found a partner",
              best_partner[s] >= 0 ? ", best " + scans[best_partner[s]].name : std::string(), "; at least ",
-             100.0 * options.min_overlap, "% needed): check its pose or leave it out");
+             100.0 * options.min_overlap, "% needed): check its pose or leave it out", SizeHint(scans, s));
   }
   CheckEveryScanAligned(problem, *last);
 }
@@ -474,6 +525,7 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
   RB_CHECK(n >= 2, "alignment needs at least two scans, got ", n);
   RB_CHECK(static_cast<int>(initial.size()) == n, "alignment: ", initial.size(), " initial poses for ", n,
            " scans");
+  CheckDistinctScans(scans);
   const std::unique_ptr<tbb::global_control> threads = LimitThreads(options.num_threads);
   std::vector<ScanIndex> index;
   const AlignmentProblem problem = MakeAlignmentProblem(scans, options, &index);
@@ -491,6 +543,7 @@ std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::
   options.Check();
   const int n = static_cast<int>(scans.size());
   RB_CHECK(static_cast<int>(poses.size()) == n, "pose check: ", poses.size(), " poses for ", n, " scans");
+  CheckDistinctScans(scans);
   RegisterSummary local;
   if (n < 2) {
     if (summary) *summary = local;
@@ -500,7 +553,9 @@ std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::
   std::vector<ScanIndex> index;
   const AlignmentProblem problem = MakeAlignmentProblem(scans, options, &index);
   PairSystems linear = LinearizeAll(problem, poses, options.max_distance_edges.back() * problem.edge,
-                                    options.final_samples_per_scan);
+                                    options.final_samples_per_scan, [&options](double part) {
+                                      if (options.progress) options.progress(part, "checking the poses");
+                                    });
   FillPairReports(problem, &linear.systems, &local);
   std::string worst;
   const std::vector<int> misaligned = FindMisaligned(problem, linear.systems, &worst);

@@ -40,7 +40,8 @@ TEST(Model, PlacesThenSmoothsFusesAndDecimates) {
   EXPECT_LT(error.rotation_deg, 0.2);
   EXPECT_GT(summary.registration.iterations, 0);
   EXPECT_NE(summary.pair_report.find("view0 view1 "), std::string::npos) << summary.pair_report;
-  ASSERT_EQ(static_cast<int>(alignment.size()), summary.registration.iterations);  // one report per step
+  // Eight reports within each step's linearisation (the finest level's take seconds on real scans), one after it.
+  ASSERT_EQ(static_cast<int>(alignment.size()), 9 * summary.registration.iterations);
   EXPECT_TRUE(std::is_sorted(alignment.begin(), alignment.end()));
   EXPECT_GT(alignment.front(), 0.0);
   EXPECT_EQ(alignment.back(), 1.0);

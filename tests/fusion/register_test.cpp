@@ -64,6 +64,49 @@ TEST(Register, NonOverlappingScanIsNamed) {
   }
 }
 
+// A scan given twice (or a copy of it) would count its measurements twice in the fused model: refused, in the
+// alignment and in the check of given poses alike.
+TEST(Register, AScanGivenTwiceIsRefused) {
+  const Mesh truth = testing::MakeBlob();
+  const std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0), testing::ViewPose(60), testing::ViewPose(0)};
+  std::vector<Scan> scans = testing::RenderViews(truth, {poses[0], poses[1]}, 5e-5);
+  scans.push_back(scans[0]);
+  scans[2].name = "copy";
+  for (const bool align : {true, false}) {
+    try {
+      if (align) {
+        RegisterScans(scans, poses);
+      } else {
+        CheckPoses(scans, poses);
+      }
+      ADD_FAILURE() << "no error, align " << align;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("copy is the same scan as view0 (the same vertices): give each scan once"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+// A scan in other units (here millimetres among metres) overlaps nothing at any pose: the error says so.
+TEST(Register, AScanInOtherUnitsIsNamedWithItsSize) {
+  const Mesh truth = testing::MakeBlob();
+  const std::vector<Eigen::Isometry3d> poses = {testing::ViewPose(0), testing::ViewPose(60), testing::ViewPose(-60)};
+  std::vector<Scan> scans = testing::RenderViews(truth, poses, 5e-5);
+  scans[2].noisy.mesh.V *= 1000.0;
+  for (Eigen::Matrix3d& c : scans[2].noisy.covariance) c *= 1e6;
+  scans[2].mean_edge *= 1000.0;
+  try {
+    RegisterScans(scans, poses);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("view2: overlaps no other scan"), std::string::npos) << what;
+    EXPECT_NE(what.find("times the size of the median scan"), std::string::npos) << what;
+    EXPECT_NE(what.find("are its units those of the others?"), std::string::npos) << what;
+  }
+}
+
 // A scan whose every vertex lies on or beside its boundary has nothing to align with: named as too small, not as
 // a scan that overlaps nothing (what it was told before, with advice about its pose).
 TEST(Register, ScanWithoutInteriorVerticesIsTooSmall) {
