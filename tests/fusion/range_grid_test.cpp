@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -143,6 +144,23 @@ TEST(RangeGrid, EmptyScanIsAnError) {
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("empty.ply: empty scan"), std::string::npos) << e.what();
+  }
+}
+
+// A scan with non-finite vertices is refused, saying how many and which first (it said "not all finite").
+TEST(RangeGrid, NonFiniteVerticesAreCountedAndNamed) {
+  NoisyMesh mesh;
+  mesh.mesh.V.resize(4, 3);
+  mesh.mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, std::nan(""), 0, 0;
+  mesh.mesh.F.resize(1, 3);
+  mesh.mesh.F << 0, 1, 2;
+  try {
+    MakeScanFromMesh(mesh, "nan.ply");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nan.ply: 1 of 4 vertices have non-finite coordinates (the first: vertex 3)"),
+              std::string::npos)
+        << e.what();
   }
 }
 
