@@ -339,6 +339,9 @@ class BodyReader {
         have_faces = true;
       } else if (element.name == "range_grid" && grid_ != nullptr && grid_->cell_vertex.empty()) {
         ReadRangeGrid(element);
+      } else if (element.name == "tristrips" && element.properties.size() == 1 && element.properties[0].is_list &&
+                 element.properties[0].name == "vertex_indices" && IsInteger(element.properties[0].type)) {
+        ReadTriangleStrips(element);
       } else {
         SkipElement(element);
         if (element.count > 0) {
@@ -645,6 +648,51 @@ class BodyReader {
         }
       }
     }
+  }
+
+  // element tristrips (as the Stanford repository's and Open Inventor's exporters write): each list holds strips
+  // separated by -1; triangle k of a strip is (v_k, v_k+1, v_k+2), its first two swapped at odd k so that all
+  // keep one orientation; triangles with a repeated vertex (the joins of strips) are left out. They follow the
+  // file's faces.
+  void ReadTriangleStrips(const PlyElement& element) {
+    const PlyProperty& property = element.properties[0];
+    CheckCount(element, MinBytes(element));
+    std::vector<int64_t> strip;
+    int64_t strips = 0;
+    const size_t before = triangles_.size();
+    const auto flush = [&] {
+      for (size_t k = 0; k + 2 < strip.size(); ++k) {
+        int64_t a = strip[k], b = strip[k + 1];
+        const int64_t c = strip[k + 2];
+        if (a == b || b == c || a == c) continue;
+        if (k % 2 == 1) std::swap(a, b);
+        RB_CHECK(triangles_.size() / 3 < static_cast<size_t>(std::numeric_limits<int>::max() / 3), name_,
+                 ": too many triangles");
+        triangles_.insert(triangles_.end(), {static_cast<int>(a), static_cast<int>(b), static_cast<int>(c)});
+      }
+      if (strip.size() >= 3) ++strips;
+      strip.clear();
+    };
+    for (uint64_t e = 0; e < element.count; ++e) {
+      const int64_t count = ListCount(element, e, property);
+      if (!ascii() && static_cast<uint64_t>(count) * SizeOf(property.type) > static_cast<uint64_t>(end_ - p_)) {
+        Truncated(element, e);
+      }
+      for (int64_t i = 0; i < count; ++i) {
+        const int64_t v = ascii() ? TextInt(element, e, property, property.type)
+                                  : LoadInt(property.type, Take(SizeOf(property.type), element, e), swap_);
+        if (v == -1 || (property.type == PlyType::kUint32 && v == 0xffffffffLL)) {
+          flush();
+          continue;
+        }
+        RB_CHECK(v >= 0 && v < std::numeric_limits<int>::max(), name_, ": tristrips element ", e, " has vertex index ",
+                 v, " (out of range)");
+        strip.push_back(v);
+      }
+      flush();
+    }
+    summary_->notices.push_back(StrCat("read ", (triangles_.size() - before) / 3, " triangles from ", strips,
+                                       " triangle strips ('tristrips')"));
   }
 
   // element range_grid: one list of 0 or 1 vertex indices per cell, row by row (num_cols cells a row).

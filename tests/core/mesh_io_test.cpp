@@ -321,6 +321,28 @@ TEST_F(MeshIoTest, ObjAndOffSayWhatTheyLeaveOut) {
   EXPECT_TRUE(plain.notices.empty());
 }
 
+// Triangle strips (element tristrips, -1 between strips): every other triangle's first two corners swapped so
+// that all keep the strip's orientation; a strip's degenerate join triangles are left out.
+TEST_F(MeshIoTest, PlyTriangleStripsAreRead) {
+  const std::string path =
+      WriteBytes("strips.ply",
+                 "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+                 "element tristrips 1\nproperty list int int vertex_indices\nend_header\n"
+                 "0 0 0\n0 1 0\n1 0 0\n1 1 0\n2 0 0\n5 5 5\n"
+                 "9 0 1 2 3 4 4 -1 3 4\n");
+  MeshReadSummary summary;
+  const Mesh mesh = ReadMesh(path, &summary);
+  Faces expected(3, 3);
+  expected << 0, 1, 2, 2, 1, 3, 2, 3, 4;
+  EXPECT_TRUE(Same(mesh.F, expected)) << mesh.F;
+  for (int f = 0; f < 3; ++f) {  // one orientation: every normal along -z
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    EXPECT_LT((b - a).cross(c - a).z(), 0) << f;
+  }
+  ASSERT_EQ(summary.notices.size(), 1u);
+  EXPECT_EQ(summary.notices[0], "read 3 triangles from 1 triangle strips ('tristrips')");
+}
+
 TEST_F(MeshIoTest, PlyVariants) {
   // Float coordinates, uint list counts with short indices, extra properties and elements to skip, and a
   // face element before the vertices.
