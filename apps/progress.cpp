@@ -2,10 +2,17 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 namespace rangebayes::apps {
+namespace {
+
+// Longest silence of the line-per-decile form (s).
+constexpr double kLogHeartbeatS = 5.0;
+
+}  // namespace
 
 ProgressPrinter::ProgressPrinter(bool quiet)
     : quiet_(quiet),
@@ -47,8 +54,10 @@ void ProgressPrinter::Update(double fraction, std::string_view stage) {
     shown_ = true;
   } else {
     const int decile = static_cast<int>(fraction * 10.0);
-    if (decile <= last_decile_) return;
-    last_decile_ = decile;
+    const bool quiet_for_long = std::chrono::duration<double>(now - last_print_).count() >= kLogHeartbeatS;
+    if (decile <= last_decile_ && !quiet_for_long) return;
+    last_decile_ = std::max(decile, last_decile_);
+    last_print_ = now;
     std::fprintf(stderr, "%.*s: %3.0f%% after %.1f s%s\n", static_cast<int>(stage.size()), stage.data(),
                  fraction * 100.0, elapsed_s, eta);
   }

@@ -1,5 +1,6 @@
 // Progress on stderr for long runs: silent for the first second and when quiet, a single updating line on a
-// terminal, and a line per 10% otherwise (logs stay short). Within a stage the fraction shown never decreases.
+// terminal, and a line per 10% otherwise (logs stay short), or after 5 s without one (a log shows the run is
+// alive while an estimate stands still). Within a stage the fraction shown never decreases.
 #pragma once
 
 #include <chrono>
