@@ -1,5 +1,6 @@
 // Subcommands stereo, spacetime, synth and eval-depth: from image pairs and sequences to disparity, depth,
 // σ and meshes, and scoring disparities against ground truth.
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -7,9 +8,9 @@
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -68,7 +69,13 @@ void ReadNoiseModelOption(MatchCliOptions* o) {
 // by_frames: the defaults are SpaceTimeStaticSceneOptions(T) (spacetime), else SpaceTimeMatcherOptions{}.
 void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   // stereo: these options set our block matcher (--matcher block); OpenCV's SGBM has no such setting.
-  const std::string block = by_frames ? "" : "--matcher block: ";
+  const auto block = [by_frames](std::string text) {
+    if (by_frames) {
+      text[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(text[0])));
+      return text;
+    }
+    return "--matcher block: " + text;
+  };
   sub->add_option("--min-disparity", o->min_disparity_px, "Smallest disparity searched (px)");
   sub->add_option("--num-disparities", o->num_disparities,
                   by_frames ? "Number of disparities searched (px, 3-1024)"
@@ -77,31 +84,31 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
   AddWindowOption(sub, &o->window_px,
                   by_frames ? "0: the default, 7 for T < 16 frames, 5 for T >= 16" : "0: the default, 5; sgbm 1-11", 0);
   sub->add_option("--image-noise", o->image_noise_gray,
-                  block + "image noise sigma_n for the disparity sigma (grey levels, > 0)")
+                  block("image noise sigma_n for the disparity sigma (grey levels, > 0)"))
       ->check(PositiveReal());
   sub->add_option(
          "--sigma-floor", o->sigma_floor_px,
-         block + "disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: the fitted default " +
-             (by_frames ? "0.01 (0.03 with --subpixel-iterations 0)" : "0.03 (0.01 with --subpixel-iterations > 0)"))
+         block(std::string("disparity sigma floor (px): sigma = sqrt(floor^2 + (k*pred)^2); < 0: the fitted default ") +
+               (by_frames ? "0.01 (0.03 with --subpixel-iterations 0)" : "0.03 (0.01 with --subpixel-iterations > 0)")))
       ->default_str(by_frames ? "0.01" : "0.03");
   sub->add_option(
          "--sigma-scale", o->sigma_scale,
-         block + "disparity sigma scale k (unitless); < 0: the fitted default " +
-             (by_frames ? "1.8 (1.7 with --subpixel-iterations 0)" : "1.7 (1.8 with --subpixel-iterations > 0)"))
+         block(std::string("disparity sigma scale k (unitless); < 0: the fitted default ") +
+               (by_frames ? "1.8 (1.7 with --subpixel-iterations 0)" : "1.7 (1.8 with --subpixel-iterations > 0)")))
       ->default_str(by_frames ? "1.8" : "1.7");
   sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
   sub->add_option("--subpixel-iterations", o->subpixel_iterations,
-                  block + "Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)")
+                  block("Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)"))
       ->check(CLI::Range(0, 5))
       ->default_str(by_frames ? "1" : "0");
   sub->add_option("--edge-reject", o->edge_reject_px,
-                  block +
-                      "drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of "
-                      "distance (px/px; < 0: off, the default)");
-  sub->add_option("--doubtful-jump", o->doubtful_jump_px,
-                  block + "keep such pixels instead where a small window confirms them (" +
-                      (by_frames ? "5x5xT, 3x3xT at T >= 16" : "3x3") +
-                      "), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off" + (by_frames ? ")" : ", the default)"))
+                  block("drop pixels within w/2+1 px of a hole or of a disparity jump larger than this per px of "
+                        "distance (px/px; < 0: off, the default)"));
+  sub->add_option(
+         "--doubtful-jump", o->doubtful_jump_px,
+         block(std::string("keep such pixels instead where a small window confirms them (") +
+               (by_frames ? "5x5xT, 3x3xT at T >= 16" : "3x3") +
+               "), with sigma_d^2 + 1 px^2 + the jump^2 (px/px; < 0: off" + (by_frames ? ")" : ", the default)")))
       ->default_str(by_frames ? "1" : "");
   sub->add_option("--downsample", o->downsample, "Mesh: use every n-th pixel (1-64)")->check(CLI::Range(1, 64));
   sub->add_option("--max-jump-sigma", o->max_jump_sigma,
