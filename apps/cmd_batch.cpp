@@ -72,7 +72,7 @@ void AddBatch(CLI::App& app) {
         "prints the job id. Inputs are paths relative to the manifest's folder, outputs relative to the task's "
         "folder DIR/tasks/<index>/ (README, Batch processing)");
     sub->add_option("MANIFEST", a->manifest, "manifest file")->required()->check(CLI::ExistingFile);
-    sub->add_option("--out", a->out, "batch folder DIR (created; must not hold a batch yet)")->required();
+    sub->add_option("--out,-o", a->out, "batch folder DIR (created; must not hold a batch yet)")->required();
     AddSchedulingOptions(sub, a.get());
     sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;

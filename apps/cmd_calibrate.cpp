@@ -133,7 +133,7 @@ void AddRig(CLI::App* calibrate) {
                 "recalibrate without the flagged views (stereo RMS above max(median + 3 x 1.4826 x MAD, 1.5 x "
                 "median))");
   sub->add_flag("--rational", a->rational, "8-coefficient rational distortion model (needs many views)");
-  sub->add_option("--out", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--out,-o", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
   sub->add_option("--png", a->png, "write the first used pair, rectified, with horizontal epipolar lines");
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { RunRig(*a); });
@@ -246,7 +246,7 @@ void AddNoise(CLI::App* calibrate) {
                   "plane (a recording of one plane) or ground-truth (scenes with ground-truth disparity: fits "
                   "sigma_d from cost curvature and neighbour jump, plus the outlier share, for sgbm or block)")
       ->check(CLI::IsMember({"plane", "ground-truth"}));
-  sub->add_option("--out", a->out, "output noise model (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--out,-o", a->out, "output noise model (OpenCV FileStorage YAML)")->required();
   sub->add_option("--matcher", a->matcher,
                   "block (single frame, predicts sigma_d), spacetime (all frames from --frame, predicts sigma_d) or "
                   "sgbm (single frame, no prediction); default: block for a plane, sgbm (the matcher of `stereo`) for "
@@ -311,7 +311,7 @@ void AddImportMiddlebury(CLI::App* calibrate) {
   CLI::App* sub = calibrate->add_subcommand(
       "import-middlebury", "Turn a Middlebury 2014 calib.txt (rectified views) into a rig.yaml");
   sub->add_option("CALIB_TXT", a->calib, "Middlebury calib.txt")->required();
-  sub->add_option("--out", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--out,-o", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
   sub->callback([a] {
     const MiddleburyCalib calib = ReadMiddleburyCalib(a->calib);
     const StereoRig rig = StereoRigFromMiddlebury(calib);

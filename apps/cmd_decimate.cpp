@@ -181,7 +181,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
       "  rangebayes decimate IN OUT [--lambda L | --target-faces N] [--png FILE] [--polygons]\n"
       "  rangebayes decimate POSE1 POSE2 ... --out DIR   (animated: one patch map shared by all poses)");
   sub->add_option("FILES", a->files, "IN OUT (PLY/OBJ/OFF), or the poses of one connectivity with --out")->required();
-  sub->add_option("--out", a->out_dir, "animated mode: write one decimated OBJ per pose into this folder");
+  sub->add_option("--out,-o", a->out_dir, "animated mode: write one decimated OBJ per pose into this folder");
   auto* lambda = sub->add_option("--lambda", a->lambda,
                                  "energy cost of one patch (normal difference squared x faces, area weights "
                                  "normalised to mean 1): larger gives fewer patches")

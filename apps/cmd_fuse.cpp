@@ -169,7 +169,7 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
   sub->add_option("--poses", args->poses,
                   "initial poses, bun.conf format 'bmesh FILE tx ty tz qx qy qz qw' (default: identity, i.e. "
                   "the scans are taken as roughly pre-aligned)");
-  sub->add_option("--out", args->out_dir, "output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
+  sub->add_option("--out,-o", args->out_dir, "output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
       ->required();
   sub->add_flag("--smooth", args->smooth,
                "Bayesian smoothing (bayes/smooth.h defaults) of each scan with its own ray covariance, after "

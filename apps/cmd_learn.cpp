@@ -175,7 +175,8 @@ void AddCommands(CLI::App& app) {
     auto* sub = app.add_subcommand("synth-meshes",
                                    "Write synthetic right-angled training meshes (boxes, stairs, L-shapes, slotted "
                                    "blocks) and noisy copies, with train/test pairs lists");
-    sub->add_option("--out", args->out, "Output folder (train/, test/, train_pairs.txt, test_pairs.txt)")->required();
+    sub->add_option("--out,-o", args->out, "Output folder (train/, test/, train_pairs.txt, test_pairs.txt)")
+        ->required();
     sub->add_option("--seed", args->seed, "Random seed: the same seed writes the same meshes");
     sub->add_option("--noise", args->k, "Noise sigma in units of the mean edge length l_e (k), [0, 5]")
         ->check(RealRange(0.0, 5.0));
@@ -210,7 +211,7 @@ void AddCommands(CLI::App& app) {
                     "Pairs list: one 'NOISY GROUND_TRUTH' per line, paths relative to the list (synth-meshes "
                     "writes one)")
         ->required();
-    sub->add_option("--out", args->out, "Output prior (YAML), for 'rangebayes smooth --prior'")->required();
+    sub->add_option("--out,-o", args->out, "Output prior (YAML), for 'rangebayes smooth --prior'")->required();
     sub->add_option("--plot", args->plot,
                     "PNG plot of the learned potential beside the square root (default: --out "
                     "with .png)");

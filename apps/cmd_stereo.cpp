@@ -242,7 +242,7 @@ void AddStereo(CLI::App& app) {
   sub->add_option("LEFT", o->left, "Left image")->required();
   sub->add_option("RIGHT", o->right, "Right image")->required();
   sub->add_option("--rig", o->rig, "Rig YAML (rangebayes calibrate); without it only the disparity is written");
-  sub->add_option("--out", o->out, "Output folder")->required();
+  sub->add_option("--out,-o", o->out, "Output folder")->required();
   sub->add_option("--matcher", o->matcher, "sgbm (OpenCV SGBM 3-way) or block (our block matcher with sigma)")
       ->check(CLI::IsMember({"sgbm", "block"}));
   AddMatchOptions(sub, &o->m, false);
@@ -300,7 +300,7 @@ void AddSpaceTime(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "spacetime", "Space-time stereo of a recording of a static scene: disparity, depth, sigma, pictures and mesh");
   sub->add_option("RECORDING", o->recording, "Recording folder (frames.csv, rig.yaml, left/, right/)")->required();
-  sub->add_option("--out", o->out, "Output folder")->required();
+  sub->add_option("--out,-o", o->out, "Output folder")->required();
   sub->add_option("--frames", o->frames, "Temporal window T (frames; 0: all from --first)")
       ->check(NonNegativeInteger());
   sub->add_option("--first", o->first, "First frame of the window (index into frames.csv)")
@@ -369,7 +369,7 @@ void AddSynth(CLI::App& app) {
   sub->add_option("--pixel-jitter-cell", o->s.pixel_jitter_cell_px,
                   "Correlation length of the pixel jitter field (px, 1-256)")
       ->check(RealRange(1.0, 256.0));
-  sub->add_option("--out", o->out, "Output recording folder")->required();
+  sub->add_option("--out,-o", o->out, "Output recording folder")->required();
   sub->add_flag("--overwrite", o->overwrite, "Replace a recording already in the folder");
   AddQuietFlag(sub, &o->quiet);
   sub->callback([o] {
