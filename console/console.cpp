@@ -112,6 +112,8 @@ Console::Console(const ConsoleOptions& options, PipelineControl* control, std::o
     : options_(options), control_(control), rig_(std::move(rig)), meta_(std::move(meta)) {
   options_.Check();
   token_ = options_.token.empty() ? MakeConsoleToken() : options_.token;
+  instance_ = MakeConsoleToken().substr(0, 12);  // drawn apart from the token, which the status must not reveal
+  started_unix_ms_ = UnixMs();
   assets_ = LoadConsoleAssets(options_.three_dir);
   {
     cv::Mat ramp(1, 256, CV_32F);
@@ -167,9 +169,16 @@ void Console::Consume(const PipelineResult& result) {
 
 void Console::Finish() {
   StopRecording();
+  const std::int64_t failed = control_ != nullptr ? control_->Snapshot().full_quality_failed : 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     finished_ = true;
+    // Every result has been consumed: a capture still pending, with no full-quality result waiting to be saved
+    // and no failure counted, will never come.
+    if (capture_pending_ && full_quality_.empty() && failed == capture_failed_before_) {
+      capture_pending_ = false;
+      last_capture_error_ = "the run ended before a frame was taken at full quality: no capture";
+    }
   }
   wake_.notify_one();
 }
@@ -285,6 +294,7 @@ void Console::SaveCapture(const PipelineResult& r) {
   } catch (const std::exception& e) {
     std::lock_guard<std::mutex> lock(mutex_);
     last_capture_error_ = e.what();
+    capture_pending_ = false;
     return;
   }
   nlohmann::json msg = {{"type", "capture"},  {"id", c.id},         {"frame", c.frame},
@@ -293,6 +303,7 @@ void Console::SaveCapture(const PipelineResult& r) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     captures_.push_back(c);
+    capture_pending_ = false;
   }
   server_->Broadcast(std::make_shared<const std::string>(JsonText(msg)), /*binary=*/false, "capture");
 }
@@ -375,7 +386,12 @@ nlohmann::json Console::Status() const {
                           {"url", StrCat("/api/capture/", c.id, ".ply")}});
     }
     j["captures"] = captures;
-    j["capture_error"] = last_capture_error_;
+    const bool capture_failed = capture_pending_ && snap.full_quality_failed > capture_failed_before_;
+    j["capture_pending"] = capture_pending_ && !capture_failed;
+    j["capture_error"] = capture_failed ? StrCat("the full-quality frame failed, no capture: ", snap.full_quality_error)
+                                        : last_capture_error_;
+    j["instance"] = instance_;
+    j["started_unix_ms"] = started_unix_ms_;
     j["console"] = {{"clients", server.clients},
                     {"results_in", results_in_},
                     {"results_published", published_},
@@ -441,17 +457,29 @@ HttpReply Console::Control(const HttpRequest& request) {
     return ErrorReply(400, "malformed command: expected a JSON object with a string \"cmd\"");
   }
   const std::string cmd = j["cmd"].get<std::string>();
+  if (cmd == "record_stop") return StopRecording();
+  bool finished = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished = finished_;
+  }
+  // A finished run takes no more frames: a pause, a capture or a recording would wait for one forever.
+  if (finished) return ErrorReply(409, StrCat(cmd, ": the run has finished; restart the process to go on"));
   if (cmd == "record_start") {
     if (!j.contains("name") || !j["name"].is_string()) return ErrorReply(400, "record_start needs a \"name\"");
     return StartRecording(j["name"].get<std::string>());
   }
-  if (cmd == "record_stop") return StopRecording();
   if (control_ == nullptr) return ErrorReply(409, "this run takes no pipeline controls");
   try {
     if (cmd == "pause" || cmd == "resume") {
       control_->SetPaused(cmd == "pause");
     } else if (cmd == "capture_now") {
+      const std::int64_t failed = control_->Snapshot().full_quality_failed;
       control_->RequestFullQuality();
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!capture_pending_ || failed > capture_failed_before_) capture_failed_before_ = failed;
+      capture_pending_ = true;
+      last_capture_error_.clear();
     } else if (cmd == "set") {
       if (j.contains("smooth_budget_ms")) {
         if (!j["smooth_budget_ms"].is_number()) return ErrorReply(400, "smooth_budget_ms must be a number");

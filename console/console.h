@@ -68,12 +68,15 @@ class Console : public PipelineSink {
 
   // PipelineSink: never waits for clients or encoding.
   void Consume(const PipelineResult& result) override;
-  // Stops a recording in progress and tells the clients that the run ended; the page stays served.
+  // Stops a recording in progress and tells the clients that the run ended; the page stays served. Controls
+  // that act on the run (pause, resume, capture_now, set, record_start) are refused from then on (409).
   void Finish() override;
   // For PipelineOptions::on_frame: queues the frame for the recording in progress, if any.
   void OnFrame(const StereoFrame& frame);
 
-  // What GET /api/status answers.
+  // What GET /api/status answers. Besides the run's counters: `instance` and `started_unix_ms` (another value:
+  // another process, whose token differs), `capture_pending` and `capture_error` (why the last "capture now"
+  // gave no mesh: its frame failed, the run ended first, or its file could not be written).
   nlohmann::json Status() const;
   ConsoleServerStats server_stats() const { return server_->stats(); }
   // The server's request handler (public so that tests can call it without a socket).
@@ -122,6 +125,10 @@ class Console : public PipelineSink {
   std::vector<Capture> captures_;
   int next_capture_id_ = 1;
   std::string last_capture_error_;
+  bool capture_pending_ = false;            // "capture now" accepted, its mesh not saved yet
+  std::int64_t capture_failed_before_ = 0;  // PipelineSnapshot::full_quality_failed when it was accepted
+  std::string instance_;                    // tells a page that the process it talks to was restarted
+  std::int64_t started_unix_ms_ = 0;
 
   mutable std::mutex record_mutex_;
   std::unique_ptr<Recording> recording_;

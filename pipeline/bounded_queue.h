@@ -1,12 +1,14 @@
 // A bounded multi-producer multi-consumer queue between pipeline stages. Replay blocks the producer when
 // the queue is full (no frame is ever dropped); live drops the oldest waiting item and counts it, so that a
-// slow stage always works on the newest frame.
+// slow stage always works on the newest frame. Items the queue's `keep` predicate holds (a frame an operator asked
+// for) are never dropped: the oldest other item goes instead, or the new one when every waiting item is kept.
 #pragma once
 
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <utility>
@@ -18,11 +20,13 @@ enum class QueueFullPolicy { kBlock, kDropOldest };
 template <typename T>
 class BoundedQueue {
  public:
-  // capacity ≥ 1.
-  BoundedQueue(size_t capacity, QueueFullPolicy policy) : capacity_(capacity < 1 ? 1 : capacity), policy_(policy) {}
+  // capacity ≥ 1. `keep` (may be empty: none kept) says which items kDropOldest must not drop.
+  BoundedQueue(size_t capacity, QueueFullPolicy policy, std::function<bool(const T&)> keep = nullptr)
+      : capacity_(capacity < 1 ? 1 : capacity), policy_(policy), keep_(std::move(keep)) {}
 
-  // Adds an item. kBlock: waits for space. kDropOldest: discards the oldest item when full. Returns false
-  // (and drops `item`) when the queue is closed.
+  // Adds an item. kBlock: waits for space. kDropOldest: when full, discards the oldest item that is not kept,
+  // or else `item` itself when it is not kept (counted either way); kept items may exceed the capacity. Returns
+  // false (and drops `item`) when the queue is closed.
   bool Push(T item) {
     std::unique_lock<std::mutex> lock(mutex_);
     if (policy_ == QueueFullPolicy::kBlock) {
@@ -30,8 +34,16 @@ class BoundedQueue {
     }
     if (closed_) return false;
     if (items_.size() >= capacity_) {
-      items_.pop_front();
-      ++dropped_;
+      auto victim = items_.begin();
+      while (keep_ && victim != items_.end() && keep_(*victim)) ++victim;
+      if (victim == items_.end() && !keep_(item)) {
+        ++dropped_;
+        return true;
+      }
+      if (victim != items_.end()) {
+        items_.erase(victim);
+        ++dropped_;
+      }
     }
     items_.push_back(std::move(item));
     lock.unlock();
@@ -73,6 +85,7 @@ class BoundedQueue {
  private:
   const size_t capacity_;
   const QueueFullPolicy policy_;
+  const std::function<bool(const T&)> keep_;
   mutable std::mutex mutex_;
   std::condition_variable not_empty_;
   std::condition_variable not_full_;

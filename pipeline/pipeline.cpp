@@ -105,11 +105,20 @@ class Run {
     out.Close();
   }
 
-  void AddFullQualityDone() {
+  // Counts a full-quality result, done or failed (with its reason).
+  void AddFullQuality(const PipelineResult& result) {
     std::lock_guard<std::mutex> lock(mutex_);
-    ++full_quality_done_;
+    if (result.error.empty()) {
+      ++full_quality_done_;
+    } else {
+      ++full_quality_failed_;
+      full_quality_error_ = StrCat("frame ", result.index, ": ", result.error);
+    }
   }
-  std::int64_t full_quality_done() const { return full_quality_done_; }  // under mutex()
+  // Under mutex().
+  std::int64_t full_quality_done() const { return full_quality_done_; }
+  std::int64_t full_quality_failed() const { return full_quality_failed_; }
+  const std::string& full_quality_error() const { return full_quality_error_; }
 
   PipelineSummary& summary() { return summary_; }
   std::mutex& mutex() { return mutex_; }
@@ -123,6 +132,8 @@ class Run {
   std::mutex mutex_;
   PipelineSummary summary_;
   std::int64_t full_quality_done_ = 0;
+  std::int64_t full_quality_failed_ = 0;
+  std::string full_quality_error_;
 };
 
 // Matcher, camera and triangulation settings for stereo at 1/ds resolution.
@@ -328,10 +339,13 @@ class Stages {
     // frame that would be thrown away, so the pipeline runs at the pace of its slowest stage and no CPU time
     // goes to frames that never come out. A source that is not real time (a recording played as fast as
     // possible) is never dropped from: it is simply asked for the next frame when there is room.
+    // A frame a control asked to see at full quality is never dropped (PipelineControl::RequestFullQuality).
     const bool drop_at_capture = options.queue_policy == QueueFullPolicy::kDropOldest && source.realtime();
+    const auto requested = [](const ItemPtr& item) { return item->settings.full_quality; };
     for (int i = 0; i < 6; ++i) {
       queues.push_back(std::make_unique<ItemQueue>(
-          options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock));
+          options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock,
+          requested));
     }
     if (options.queue_policy == QueueFullPolicy::kDropOldest && !source.realtime()) {
       summary.notices.push_back(
@@ -356,6 +370,8 @@ class Stages {
     snap.results = summary.results;
     snap.failed = summary.failed;
     snap.full_quality_done = run.full_quality_done();
+    snap.full_quality_failed = run.full_quality_failed();
+    snap.full_quality_error = run.full_quality_error();
     snap.stages = summary.stages;
     const size_t n = summary.errors.size();
     snap.errors.assign(summary.errors.begin() + static_cast<std::ptrdiff_t>(n > 20 ? n - 20 : 0),
@@ -663,7 +679,7 @@ class Stages {
         });
       }
       const bool ok = item.result.error.empty();
-      if (ok && item.settings.full_quality) run.AddFullQualityDone();
+      if (item.settings.full_quality) run.AddFullQuality(item.result);
       {
         std::lock_guard<std::mutex> lock(run.mutex());
         ++(ok ? summary.results : summary.failed);

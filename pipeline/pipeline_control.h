@@ -34,6 +34,8 @@ struct PipelineSnapshot {
   std::int64_t failed = 0;
   std::int64_t dropped = 0;          // all queues
   std::int64_t full_quality_done = 0;  // results that went through the full-quality path
+  std::int64_t full_quality_failed = 0;  // full-quality frames that failed in a stage
+  std::string full_quality_error;        // the last one's "frame N: <stage>: <reason>"
   double wall_s = 0.0;
   std::vector<StageTiming> stages;
   std::vector<int> queue_fill;       // items waiting in each queue between two stages
@@ -50,7 +52,8 @@ class PipelineControl {
   void SetStereoDownsample(int factor);
   void SetMatcher(PipelineMatcher matcher, int window_frames);
   // The next frame that enters goes alone through the full-quality path (PipelineOptions::full_quality);
-  // its result has PipelineResult::full_quality set. Requests made before it is taken count once.
+  // its result has PipelineResult::full_quality set. Requests made before it is taken count once. That frame is
+  // never dropped by a live queue; it ends as a result (full_quality_done) or a failure (full_quality_failed).
   void RequestFullQuality();
 
   PipelineSnapshot Snapshot() const;

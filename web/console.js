@@ -13,7 +13,7 @@ const $ = (id) => document.getElementById(id);
 const esc = (text) => String(text).replace(/&/g, '&amp;').replace(/</g, '&lt;').replace(/>/g, '&gt;')
   .replace(/"/g, '&quot;');
 const state = {
-  images: { left: 0, depth: 0, sigma: 0 },
+  images: {left: 0, depth: 0, sigma: 0},
   meshes: 0,
   meshKind: 'smoothed',
   statusMessages: 0,
@@ -22,6 +22,11 @@ const state = {
   toPage: [],
   captures: [],
   webgl: false,
+  connected: false,
+  instance: null,  // the server process's id (status.instance): another one means a restart, a new token
+  reconnects: 0,
+  depthSinceSigma: 0,  // depth maps received since the last σ map
+  lastMeshMs: 0,
 };
 window.rbConsole = state;  // for tests and the benchmark
 
@@ -140,7 +145,13 @@ function meshDrawn(header) {
   if (state.latencies.length > 1000) { state.latencies.shift(); state.toPage.shift(); }
   const recent = state.latencies.slice(-20);
   $('latency').textContent = (recent.reduce((a, b) => a + b, 0) / recent.length).toFixed(0);
+  state.lastMeshMs = Date.now();
 }
+// The latency is that of the last meshes: with none for a while (a stall, a pause, the end of the run) it is
+// no longer the rig's, so it is blanked.
+setInterval(() => {
+  if (Date.now() - state.lastMeshMs > 3000) $('latency').textContent = '-';
+}, 1000);
 
 for (const b of document.querySelectorAll('#mesh-kinds button')) {
   b.onclick = () => selectKind(b.dataset.kind);
@@ -179,16 +190,35 @@ function showImage(header, payload) {
   if (imageUrls[header.kind]) URL.revokeObjectURL(imageUrls[header.kind]);
   imageUrls[header.kind] = url;
   el.src = url;
+  if (header.kind === 'sigma') sigmaShown();
   el.decode().catch(() => {}).then(() => ack('image/' + header.kind));
   state.images[header.kind] = (state.images[header.kind] || 0) + 1;
   if (header.kind === 'depth') { $('depth-near').textContent = header.min.toFixed(2) + ' m'; $('depth-far').textContent = header.max.toFixed(2) + ' m'; }
   if (header.kind === 'sigma') { $('sigma-lo').textContent = (header.min * 1000).toFixed(1) + ' mm'; $('sigma-hi').textContent = (header.max * 1000).toFixed(1) + ' mm'; }
   $('frame').textContent = header.frame;
-  $('sigma-note').textContent = state.images.depth > 3 && !state.images.sigma
-    ? '- none from this matcher (SGBM): choose space-time' : '';
+  // σ maps come only from the space-time matcher: when depth maps keep coming without one (SGBM chosen again),
+  // the last σ map is no longer the run's and is taken away.
+  if (header.kind === 'sigma') state.depthSinceSigma = 0;
+  if (header.kind === 'depth') state.depthSinceSigma++;
+  if (state.depthSinceSigma > 3) clearSigma();
+}
+function clearSigma() {
+  const img = $('img-sigma');
+  if (img.getAttribute('src')) img.removeAttribute('src');
+  if (imageUrls.sigma) {
+    URL.revokeObjectURL(imageUrls.sigma);
+    delete imageUrls.sigma;
+  }
+  $('sigma-lo').textContent = '-';
+  $('sigma-hi').textContent = '-';
+  $('sigma-note').textContent = '- none from this matcher (SGBM): choose space-time';
+}
+function sigmaShown() {
+  $('sigma-note').textContent = '';
 }
 
 function onBinary(buf) {
+  if (buf.byteLength < 8) throw new Error('binary message of ' + buf.byteLength + ' bytes');
   const dv = new DataView(buf);
   const type = dv.getUint8(0);
   const n = dv.getUint32(4, true);
@@ -205,34 +235,121 @@ function onBinary(buf) {
 }
 
 const fmtBytes = (b) => b < 0 ? '?' : b > 1e9 ? (b / 1e9).toFixed(1) + ' GB' : (b / 1e6).toFixed(0) + ' MB';
+// Settings fields the operator has changed and not yet sent: status updates leave them as the operator set them.
+const settingFields = ['budget', 'ds', 'matcher', 'window'];
+const dirty = new Set();
+for (const id of settingFields) {
+  const mark = () => {
+    dirty.add(id);
+    $(id).classList.add('dirty');
+  };
+  $(id).addEventListener('input', mark);
+  $(id).addEventListener('change', mark);
+}
+function clean(ids) {
+  for (const id of ids) {
+    dirty.delete(id);
+    $(id).classList.remove('dirty');
+  }
+}
+state.dirty = dirty;
+function showSetting(id, value) {
+  if (dirty.has(id) || document.activeElement === $(id)) return;
+  $(id).value = value;
+}
+
+// A new process on the same address (restarted): its captures, token and run are not the old ones.
+function onNewInstance(s) {
+  const restarted = state.instance !== null;
+  state.instance = s.instance;
+  if (!restarted) return;
+  state.captures = [];
+  $('captures').innerHTML = '';
+  state.latencies.length = 0;
+  state.toPage.length = 0;
+  $('latency').textContent = '-';
+  state.depthSinceSigma = 0;
+  framed = false;
+  state.restarted = true;
+  showBanner(
+      'the rig process restarted (new run, started ' + new Date(s.started_unix_ms).toLocaleTimeString() +
+          '): its controls need the new token it printed',
+      'bad');
+}
+
 function onStatus(s) {
   state.statusMessages++;
   state.lastStatus = s;
+  if (s.instance !== undefined && s.instance !== state.instance) onNewInstance(s);
   if (document.hidden) return;  // drawn when the tab is shown again
   $('fps').textContent = s.fps.toFixed(1);
   const run = $('run');
   run.textContent = s.settings.paused ? 'paused' : s.running ? 'running' : s.finished ? 'finished' : 'waiting';
   run.className = 'pill ' + (s.settings.paused ? 'warn' : s.running ? 'ok' : '');
   const c = s.console;
-  $('counters').innerHTML = [
-    ['frames in', s.frames_in], ['results', s.results], ['dropped', s.dropped], ['failed', s.failed],
-    ['skipped', s.skipped], ['to pages: dropped', c.messages_dropped], ['to pages: replaced by newer', c.messages_coalesced],
-    ['console skipped', c.results_skipped],
-  ].map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
+  $('counters').innerHTML =
+      [
+        ['frames in', s.frames_in],
+        ['results', s.results],
+        ['dropped', s.dropped],
+        ['failed', s.failed],
+        ['skipped', s.skipped],
+        ['camera timeouts', s.timeouts],
+        ['to pages: dropped', c.messages_dropped],
+        ['to pages: replaced by newer', c.messages_coalesced],
+        ['console skipped', c.results_skipped],
+      ].map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`)
+          .join('');
   $('stages').querySelector('tbody').innerHTML = s.stages.map((t) =>
     `<tr><td>${t.name}</td><td>${t.mean_ms.toFixed(1)}</td><td>${t.items}</td><td>${t.errors}</td></tr>`).join('');
-  $('queues').innerHTML = s.queue_fill.map((f, i) =>
-    `<div class="queue">queue ${i + 1} <div class="fill" style="width:${Math.round(60 * f / Math.max(1, s.queue_capacity))}px"></div> ${f}/${s.queue_capacity}</div>`).join('');
+  // Queue i lies between stage i and stage i + 1.
+  const stageName = (i) => (s.stages[i] ? esc(s.stages[i].name) : '?');
+  $('queues').innerHTML =
+      s.queue_fill
+          .map(
+              (f, i) => `<div class="queue">${stageName(i)}&rarr;${stageName(i + 1)} <div class="fill" style="width:${
+                  Math.round(60 * f / Math.max(1, s.queue_capacity))}px"></div> ${f}/${s.queue_capacity}</div>`)
+          .join('');
   const r = s.recording;
   $('recording').innerHTML = r.active
     ? `<b>recording</b> into ${esc(r.folder)}: ${r.frames_written} frames written, ${r.frames_dropped} dropped${r.error ? ', error: ' + esc(r.error) : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`
     : `not recording${r.last && r.last.name ? ` (last: ${esc(r.last.folder)}, ${r.last.frames_written} frames)` : ''}; disk left ${fmtBytes(r.disk_free_bytes)}`;
   $('errors').innerHTML = s.errors.map((e) => `<li>${esc(e)}</li>`).join('');
-  if (document.activeElement !== $('budget')) $('budget').value = s.settings.smooth_budget_ms;
-  if (document.activeElement !== $('ds')) $('ds').value = String(s.settings.stereo_downsample);
-  if (document.activeElement !== $('matcher')) $('matcher').value = s.settings.matcher;
-  if (document.activeElement !== $('window')) $('window').value = s.settings.window_frames;
-  for (const b of document.querySelectorAll('#mesh-kinds button')) b.disabled = !s.mesh_kinds.includes(b.dataset.kind);
+  showSetting('budget', s.settings.smooth_budget_ms);
+  showSetting('ds', String(s.settings.stereo_downsample));
+  showSetting('matcher', s.settings.matcher);
+  showSetting('window', s.settings.window_frames);
+  for (const b of document.querySelectorAll('#mesh-kinds button')) {
+    b.disabled = !s.mesh_kinds.includes(b.dataset.kind);
+    b.title = b.disabled ?
+        (b.dataset.kind === 'decimated' ? 'no decimated mesh in this run (decimation off: --decimate)' :
+                                          'no such mesh in this run') :
+        '';
+  }
+  const controls = s.controls !== false;
+  $('controls').hidden = !controls;
+  $('no-controls').hidden = controls;
+  const over = s.finished ? 'the run has finished' : '';
+  for (const id of ['pause', 'resume', 'capture', 'rec-start', 'budget-set', 'budget-none', 'ds-set', 'matcher-set']) {
+    $(id).disabled = !!over;
+    $(id).title = over;
+  }
+  $('pause').disabled = !!over || s.settings.paused;
+  $('resume').disabled = !!over || !s.settings.paused;
+  $('rec-start').disabled = !!over || s.recording.active;
+  $('rec-stop').disabled = !s.recording.active;
+  const cs = $('capture-state');
+  if (s.capture_pending) {
+    cs.className = 'pending';
+    cs.textContent = s.settings.paused ? 'capture pending: resume the run to take the frame' :
+                                         'capturing a full-quality frame… (the live view waits for it)';
+  } else if (s.capture_error) {
+    cs.className = 'err';
+    cs.textContent = 'capture failed: ' + s.capture_error + ' - try again';
+  } else {
+    cs.className = '';
+    cs.textContent = '';
+  }
   if (s.mesh_kinds.length && !s.mesh_kinds.includes(state.meshKind)) selectKind(s.mesh_kinds[s.mesh_kinds.length > 1 ? 1 : 0]);
   for (const cap of s.captures) addCapture(cap);
 }
@@ -247,57 +364,140 @@ function addCapture(cap) {
   $('captures').appendChild(li);
 }
 
+function showBanner(text, kind) {
+  const b = $('banner');
+  b.hidden = !text;
+  b.textContent = text || '';
+  b.className = kind || '';
+}
+
 let ws = null;
+let retryS = 1;  // the wait before the next attempt: 1, 2, 4, 8, then 10 s
+let lastDataMs = 0;
+let retryTimer = null;
 function connect() {
+  retryTimer = null;
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = 'arraybuffer';
   ws.onopen = () => {
-    $('conn').textContent = 'connected'; $('conn').className = 'pill ok';
+    state.connected = true;
+    retryS = 1;
+    document.body.classList.remove('disconnected');
+    if (!state.restarted) showBanner('');
+    $('conn').textContent = 'connected';
+    $('conn').className = 'pill ok';
     ws.send(JSON.stringify({ subscribe: { mesh: state.meshKind }, flow: 'credit' }));
   };
   ws.onmessage = (ev) => {
-    if (typeof ev.data === 'string') {
-      const m = JSON.parse(ev.data);
-      if (m.type === 'status') onStatus(m);
-      else if (m.type === 'capture') addCapture(m);
-    } else {
-      onBinary(ev.data);
+    lastDataMs = Date.now();
+    // A message the page cannot read is counted and shown, and the stream goes on.
+    try {
+      if (typeof ev.data === 'string') {
+        const m = JSON.parse(ev.data);
+        if (m.type === 'status')
+          onStatus(m);
+        else if (m.type === 'capture')
+          addCapture(m);
+      } else {
+        onBinary(ev.data);
+      }
+    } catch (e) {
+      state.badMessages = (state.badMessages || 0) + 1;
+      console.warn('unreadable message from the rig process:', e);
     }
   };
   ws.onclose = () => {
+    const was = state.connected;
+    state.connected = false;
     heldAcks.clear();
     pendingMesh = null;
-    $('conn').textContent = 'disconnected'; $('conn').className = 'pill bad';
-    setTimeout(connect, 1000);
+    if (was) state.reconnects++;
+    // What the page shows is now only the last it heard: marked so, and the run's state is unknown.
+    document.body.classList.add('disconnected');
+    $('conn').textContent = 'disconnected';
+    $('conn').className = 'pill bad';
+    $('run').textContent = 'state unknown';
+    $('run').className = 'pill';
+    $('fps').textContent = '-';
+    $('latency').textContent = '-';
+    const seen = lastDataMs ? ` (last data ${new Date(lastDataMs).toLocaleTimeString()})` : '';
+    showBanner(`lost connection to the rig process${seen}: retrying in ${retryS} s`, 'bad');
+    retryTimer = setTimeout(connect, retryS * 1000);
+    retryS = Math.min(10, retryS * 2);
   };
 }
 connect();
 
 // --- controls ------------------------------------------------------------------------------------
-async function control(body) {
+// The feedback line sits under the header, so that it is seen without scrolling.
+function feedback(text, ok) {
   const fb = $('feedback');
-  let reply;
+  fb.className = ok ? '' : 'err';
+  fb.textContent = text;
+}
+async function control(body) {
+  let r;
   try {
-    const r = await fetch('/api/control', {
+    r = await fetch('/api/control', {
       method: 'POST',
-      headers: { 'Content-Type': 'application/json', 'X-Rangebayes-Token': $('token').value.trim() },
+      headers: {'Content-Type': 'application/json', 'X-Rangebayes-Token': $('token').value.trim()},
       body: JSON.stringify(body),
     });
-    reply = { status: r.status, body: await r.json() };
   } catch (e) {
-    reply = { status: 0, body: { error: String(e) } };
+    feedback(`${body.cmd}: not sent: no connection to the rig process (${e.message || e})`, false);
+    return {status: 0, body: {error: String(e)}};
   }
-  fb.className = reply.status === 200 ? '' : 'err';
-  fb.textContent = reply.status === 200 ? `${body.cmd}: ok${reply.body.folder ? ' (' + reply.body.folder + ')' : ''}`
-                                        : `${body.cmd}: refused (${reply.status}): ${reply.body.error}`;
-  return reply;
+  let answer = null;
+  try {
+    answer = await r.json();
+  } catch (e) {
+    feedback(`${body.cmd}: the rig process answered ${r.status} without a readable reply`, false);
+    return {status: r.status, body: {error: 'unreadable reply'}};
+  }
+  if (r.status === 200) {
+    if (state.restarted) {
+      state.restarted = false;
+      showBanner('');
+    }
+    feedback(`${body.cmd}: ok${answer.folder ? ' (' + answer.folder + ')' : ''}`, true);
+  } else {
+    const hint =
+        r.status === 403 && state.restarted ? ' - the rig process restarted: enter the token it printed now' : '';
+    feedback(`${body.cmd}: refused (${r.status}): ${answer.error}${hint}`, false);
+  }
+  return {status: r.status, body: answer};
 }
 state.control = control;
+// Sends a "set" for the given fields; they keep the operator's value (dirty) until it is accepted.
+async function set(fields, values) {
+  const reply = await control(Object.assign({cmd: 'set'}, values));
+  if (reply.status === 200) clean(fields);
+  return reply;
+}
 $('pause').onclick = () => control({ cmd: 'pause' });
 $('resume').onclick = () => control({ cmd: 'resume' });
 $('capture').onclick = () => control({ cmd: 'capture_now' });
 $('rec-start').onclick = () => control({ cmd: 'record_start', name: $('rec-name').value.trim() });
 $('rec-stop').onclick = () => control({ cmd: 'record_stop' });
-$('budget-set').onclick = () => control({ cmd: 'set', smooth_budget_ms: Number($('budget').value) });
-$('ds-set').onclick = () => control({ cmd: 'set', stereo_downsample: Number($('ds').value) });
-$('matcher-set').onclick = () => control({ cmd: 'set', matcher: $('matcher').value, window_frames: Number($('window').value) });
+$('budget-set').onclick = () => {
+  const text = $('budget').value.trim();
+  const ms = Number(text);
+  if (text === '' || !Number.isFinite(ms) || ms < 0) {
+    feedback('set: not sent: the smoothing budget must be a number of ms ≥ 0 (0 or "no budget": none)', false);
+    return;
+  }
+  set(['budget'], {smooth_budget_ms: ms});
+};
+$('budget-none').onclick = () => {
+  $('budget').value = 0;
+  set(['budget'], {smooth_budget_ms: 0});
+};
+$('ds-set').onclick = () => set(['ds'], {stereo_downsample: Number($('ds').value)});
+$('matcher-set').onclick = () => {
+  const w = Number($('window').value);
+  if (!Number.isInteger(w) || w < 1 || w > 256) {
+    feedback('set: not sent: the window must be a whole number of frames from 1 to 256', false);
+    return;
+  }
+  set(['matcher', 'window'], {matcher: $('matcher').value, window_frames: w});
+};

@@ -4,7 +4,12 @@
 
 Checks: the page loads with no console errors, receives depth frames and at least one mesh, the 3D canvas is
 not blank (its pixels are read), start/stop recording through the page writes a recording that `rangebayes
-replay` reads, and a wrong token is refused. Keeps a screenshot in OUT/console_screenshot.png.
+replay` reads, and a wrong token is refused where the operator sees it (1280x800). Then: a settings field the
+operator changed is not overwritten by status updates and "set" sends it, an empty budget is not sent, the
+phone layout (390x844) keeps every panel visible without sideways scrolling, switching back to SGBM takes the σ
+map away, "capture now" on the live path gives a capture, and when the process stops the page says it is
+disconnected and retrying (the live values marked stale), then, with a restarted process on the same port, that
+it restarted and needs the new token (its old captures gone). Keeps a screenshot in OUT/console_screenshot.png.
 
 Chromium is driven through the DevTools protocol over --remote-debugging-pipe (fds 3 and 4, messages ended
 by NUL), so the driver needs only the Python standard library. Every process is started here and stopped in
@@ -157,23 +162,23 @@ def fcntl_dup_high(fd):
     return high
 
 
-def start_replay(binary, out, extra):
-    log = open(os.path.join(out, "replay.log"), "wb")
-    args = [binary, "replay", RECORDING, "--out", os.path.join(out, "run"), "--speed", "recorded",
-            "--repeat", "100000", "--ui", "127.0.0.1:0"] + extra
+def start_replay(binary, out, extra, ui="127.0.0.1:0", name="run"):
+    log_path = os.path.join(out, name + ".log")
+    log = open(log_path, "wb")
+    args = [binary, "replay", RECORDING, "--out", os.path.join(out, name), "--speed", "recorded",
+            "--repeat", "100000", "--ui", ui] + extra
     proc = subprocess.Popen(args, cwd=REPO, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
     deadline = time.time() + 60 * TIMEOUT_FACTOR
     pattern = re.compile(r"console at (http://\S+/) \(control token ([0-9a-f]+)")
     while time.time() < deadline:
-        with open(os.path.join(out, "replay.log"), "r", errors="replace") as f:
+        with open(log_path, "r", errors="replace") as f:
             m = pattern.search(f.read())
         if m:
             return proc, log, m.group(1), m.group(2)
         if proc.poll() is not None:
             break
         time.sleep(0.1)
-    raise AssertionError("rangebayes replay --ui did not print its console address; see " +
-                         os.path.join(out, "replay.log"))
+    raise AssertionError("rangebayes replay --ui did not print its console address; see " + log_path)
 
 
 def stop_process(proc, sig=signal.SIGINT, timeout=20):
@@ -225,7 +230,7 @@ def main():
     out = os.path.abspath(a.out)
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
-    replay = log = cdp = None
+    replay = log = cdp = replay2 = log2 = None
     user_data = tempfile.mkdtemp(prefix="rb-chromium-")
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     try:
@@ -303,26 +308,142 @@ def main():
         errors = cdp.console_errors()
         assert not errors, "console errors on the page:\n  " + "\n  ".join(errors)
 
-        # A wrong token is refused and changes nothing.
+        # A wrong token is refused and changes nothing, and the refusal is on screen at 1280x800 (it was below
+        # the fold, in the side panel).
+        set_viewport(cdp, 1280, 800)
         cdp.evaluate("document.getElementById('token').value = 'not-the-token'; "
                      "document.getElementById('pause').click(); true")
         cdp.wait_for("document.getElementById('feedback').textContent.includes('refused (403)')", 10,
                      "the refusal of a wrong token")
+        box = cdp.evaluate("(() => { const r = document.getElementById('feedback').getBoundingClientRect();"
+                           " return [r.top, r.bottom, r.height, window.innerHeight]; })()")
+        assert box[2] > 0 and box[0] >= 0 and box[1] <= box[3], f"the refusal is not on screen at 1280x800: {box}"
         time.sleep(1.0)
         assert cdp.evaluate("rbConsole.lastStatus.settings.paused") is False, "a wrong token paused the run"
         # The one error the browser logs now is the 403 of that request; nothing else may appear.
         late = [e for e in cdp.console_errors()[len(errors):] if "403" not in e]
         assert not late, "console errors after the wrong token:\n  " + "\n  ".join(late)
-        print("browser_test: wrong token refused; screenshot in " + os.path.join(out, "console_screenshot.png"))
+        print("browser_test: wrong token refused, on screen at 1280x800; screenshot in " +
+              os.path.join(out, "console_screenshot.png"))
+        cdp.evaluate(f"document.getElementById('token').value = '{token}'; true")
+        set_viewport(cdp, 1440, 1000)
+
+        check_settings_fields(cdp)
+        check_phone_layout(cdp)
+        check_sigma_after_sgbm(cdp)
+
+        # "capture now" on the live path: the full-quality frame was dropped by the queue after capture.
+        cdp.evaluate("document.getElementById('capture').click(); true")
+        cdp.wait_for("document.getElementById('feedback').textContent.startsWith('capture_now: ok')", 10,
+                     "capture_now to be accepted")
+        cdp.wait_for("document.querySelectorAll('#captures li').length >= 1", 180, "the capture to arrive")
+        assert cdp.evaluate("rbConsole.lastStatus.capture_error") == "", "the capture reported an error"
+        print("browser_test: capture now on the live path arrived")
+
+        # The process stops: the page says so, marks what it shows as stale and retries.
+        port = re.search(r":(\d+)/$", url).group(1)
+        stop_process(replay)
+        cdp.wait_for("document.body.classList.contains('disconnected')"
+                     " && document.getElementById('run').textContent !== 'running'"
+                     " && document.getElementById('fps').textContent === '-'"
+                     " && /retrying/.test(document.getElementById('banner').textContent)", 20,
+                     "the page to show that it lost the connection")
+        cdp.evaluate("document.getElementById('pause').click(); true")
+        cdp.wait_for("document.getElementById('feedback').textContent.includes('not sent: no connection')", 10,
+                     "a control without connection to be named a network failure")
+        print("browser_test: disconnection shown: " + cdp.evaluate("document.getElementById('banner').textContent"))
+
+        # A new process on the same port has a new token and no captures: the page says that it restarted.
+        replay2, log2, _, token2 = start_replay(a.binary, out, extra, ui=f"127.0.0.1:{port}", name="run2")
+        assert token2 != token
+        cdp.wait_for("!document.body.classList.contains('disconnected')"
+                     " && /restarted/.test(document.getElementById('banner').textContent)", 60,
+                     "the page to reconnect and tell the restart")
+        assert cdp.evaluate("document.querySelectorAll('#captures li').length") == 0, "captures of the old run kept"
+        cdp.evaluate("document.getElementById('pause').click(); true")
+        cdp.wait_for("/refused \\(403\\).*restarted/.test(document.getElementById('feedback').textContent)", 10,
+                     "the old token's refusal to name the restart")
+        print("browser_test: restart told: " + cdp.evaluate("document.getElementById('banner').textContent"))
         print("browser_test: passed")
         return 0
     finally:
         for cleanup in (lambda: cdp and cdp.close(), lambda: stop_process(replay), lambda: log and log.close(),
+                        lambda: stop_process(replay2), lambda: log2 and log2.close(),
                         lambda: shutil.rmtree(user_data, ignore_errors=True)):
             try:
                 cleanup()
             except Exception as e:  # every process is stopped even when one cleanup fails
                 print(f"browser_test: cleanup: {e}", file=sys.stderr)
+
+
+def set_viewport(cdp, width, height, mobile=False):
+    cdp.call("Emulation.setDeviceMetricsOverride",
+             {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": mobile})
+    cdp.evaluate("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+
+
+def statuses_after(cdp, n):
+    """An expression true once n more status messages have come than now."""
+    return f"rbConsole.statusMessages >= {cdp.evaluate('rbConsole.statusMessages') + n}"
+
+
+def check_settings_fields(cdp):
+    """A field the operator changed keeps its value through status updates until it is sent; an empty budget is
+    not sent."""
+    cdp.evaluate("(() => { const b = document.getElementById('budget'); b.focus(); b.value = '30';"
+                 " b.dispatchEvent(new Event('input', { bubbles: true })); b.blur(); return true; })()")
+    cdp.wait_for(statuses_after(cdp, 3), 10, "three status messages")
+    shown = cdp.evaluate("document.getElementById('budget').value")
+    assert shown == "30", f"a status update overwrote the budget the operator typed (shows {shown!r})"
+    cdp.evaluate("document.getElementById('budget-set').click(); true")
+    cdp.wait_for("rbConsole.lastStatus.settings.smooth_budget_ms === 30", 10, "the budget to be set to 30")
+    cdp.wait_for(statuses_after(cdp, 2), 10, "two status messages")
+    assert cdp.evaluate("document.getElementById('budget').classList.contains('dirty')") is False
+    cdp.evaluate("document.getElementById('budget').value = ''; document.getElementById('budget')"
+                 ".dispatchEvent(new Event('input')); document.getElementById('budget-set').click(); true")
+    cdp.wait_for("document.getElementById('feedback').textContent.includes('not sent')", 10,
+                 "an empty budget to be refused in the page")
+    cdp.wait_for(statuses_after(cdp, 2), 10, "two status messages")
+    assert cdp.evaluate("rbConsole.lastStatus.settings.smooth_budget_ms") == 30, "an empty budget was sent"
+    cdp.evaluate("document.getElementById('budget-none').click(); true")
+    cdp.wait_for("rbConsole.lastStatus.settings.smooth_budget_ms === 0", 10, "no budget")
+    cdp.evaluate("document.getElementById('budget').value = '80'; document.getElementById('budget')"
+                 ".dispatchEvent(new Event('input')); document.getElementById('budget-set').click(); true")
+    cdp.wait_for("rbConsole.lastStatus.settings.smooth_budget_ms === 80", 10, "the live path's budget again")
+    print("browser_test: a changed field is kept until sent; an empty budget is not sent")
+
+
+def check_phone_layout(cdp):
+    """At 390x844 every panel keeps a width and the page does not scroll sideways."""
+    set_viewport(cdp, 390, 844, mobile=True)
+    sizes = cdp.evaluate("(() => { const w = (id) => document.getElementById(id).getBoundingClientRect().width;"
+                         " return { left: w('img-left'), depth: w('img-depth'), sigma: w('img-sigma'),"
+                         " mesh: w('view3d'), side: w('side'), scroll: document.documentElement.scrollWidth,"
+                         " inner: window.innerWidth }; })()")
+    set_viewport(cdp, 1440, 1000)
+    for k in ("left", "depth", "sigma", "mesh", "side"):
+        assert sizes[k] > 200, f"at 390x844 the {k} panel is {sizes[k]} px wide: {sizes}"
+    assert sizes["scroll"] <= sizes["inner"], f"at 390x844 the page scrolls sideways: {sizes}"
+    print(f"browser_test: phone layout: {sizes}")
+
+
+def check_sigma_after_sgbm(cdp):
+    """Space-time gives σ maps; SGBM again takes the last one away and says why."""
+    def matcher(name):
+        cdp.evaluate(f"(() => {{ const m = document.getElementById('matcher'); m.value = '{name}';"
+                     " m.dispatchEvent(new Event('change')); document.getElementById('matcher-set').click();"
+                     " return true; })()")
+        cdp.wait_for(f"rbConsole.lastStatus.settings.matcher === '{name}'", 10, f"the matcher {name}")
+    sigma = cdp.evaluate("rbConsole.images.sigma")
+    matcher("spacetime")
+    cdp.wait_for(f"rbConsole.images.sigma > {sigma} && document.getElementById('img-sigma').getAttribute('src')",
+                 90, "a σ map from space-time")
+    assert cdp.evaluate("document.getElementById('sigma-note').textContent") == ""
+    matcher("sgbm")
+    cdp.wait_for("!document.getElementById('img-sigma').getAttribute('src')"
+                 " && document.getElementById('sigma-note').textContent.includes('none from this matcher')", 60,
+                 "the σ map to go with SGBM")
+    print("browser_test: σ map shown with space-time, taken away with SGBM")
 
 
 def proc_cpu_s(pid):

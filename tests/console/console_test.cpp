@@ -282,6 +282,67 @@ TEST_F(ConsoleTest, ControlNeedsTheTokenAndWellFormedCommands) {
   EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"record_stop"})", token)), 409);  // not recording
 }
 
+// After the run finished, a pause, a capture or a recording was answered "ok" and then nothing happened (a
+// recording of no frame that replay refuses); a capture still pending then was never reported.
+TEST_F(ConsoleTest, ControlsAfterTheRunFinishedAreRefusedAndAPendingCaptureIsReported) {
+  const int port = console_->port();
+  const std::string token = TestOptions(dir_).token;
+  ASSERT_EQ(StatusOf(Post(port, R"({"cmd":"capture_now"})", token)), 200);
+  EXPECT_TRUE(console_->Status()["capture_pending"]);
+  EXPECT_EQ(console_->Status()["capture_error"], "");
+  console_->Finish();  // the run ended before any frame took the request
+  const nlohmann::json j = nlohmann::json::parse(BodyOf(Get(port, "/api/status")));
+  EXPECT_FALSE(j["capture_pending"]);
+  EXPECT_NE(j["capture_error"].get<std::string>().find("the run ended before"), std::string::npos)
+      << j["capture_error"];
+  for (const std::string cmd : {R"({"cmd":"pause"})", R"({"cmd":"resume"})", R"({"cmd":"capture_now"})",
+                                R"({"cmd":"record_start","name":"late"})", R"({"cmd":"set","stereo_downsample":2})"}) {
+    const std::string reply = Post(port, cmd, token);
+    EXPECT_EQ(StatusOf(reply), 409) << cmd;
+    EXPECT_NE(BodyOf(reply).find("the run has finished"), std::string::npos) << BodyOf(reply);
+  }
+  EXPECT_FALSE(control_.settings().paused);
+  EXPECT_EQ(control_.settings().stereo_downsample, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir_.path() + "/recordings/late"));
+  EXPECT_EQ(StatusOf(Post(port, R"({"cmd":"pause"})", "")), 403);  // the token is still checked first
+}
+
+// A page tells a restarted process (whose token is new) by the status's instance: it differs between two
+// consoles and is not the token.
+TEST_F(ConsoleTest, StatusNamesTheProcessInstance) {
+  const nlohmann::json a = console_->Status();
+  ConsoleOptions o = TestOptions(dir_);
+  Console other(o, &control_, recording_.rig, RecordingMeta{});
+  const nlohmann::json b = other.Status();
+  ASSERT_TRUE(a["instance"].is_string());
+  EXPECT_FALSE(a["instance"].get<std::string>().empty());
+  EXPECT_NE(a["instance"], b["instance"]);
+  EXPECT_EQ(o.token.find(a["instance"].get<std::string>()), std::string::npos);
+  EXPECT_GT(a["started_unix_ms"].get<std::int64_t>(), 0);
+}
+
+// On the live path the frame "capture now" took could be dropped by the queue after capture, and the page waited
+// for a capture that never came (PipelineControl.AFullQualityFrameIsNeverDroppedOnTheLivePath tests the queue):
+// through the console, a request on a live-path replay gives a capture and clears the pending state.
+TEST_F(ConsoleTest, CaptureNowOnTheLivePathArrives) {
+  ASSERT_EQ(StatusOf(Post(console_->port(), R"({"cmd":"capture_now"})", TestOptions(dir_).token)), 200);
+  PlaybackOptions playback;
+  playback.speed = PlaybackSpeed::kRecorded;
+  playback.speed_factor = 1000.0;  // frames come far faster than the stages take them: the queue drops
+  playback.repeats = 2;
+  PlaybackSource source(recording_, playback);
+  PipelineOptions options = FastOptions();
+  ApplyLivePathPreset(&options);
+  options.full_quality_triangulate_downsample = 4;
+  options.control = &control_;
+  const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
+  EXPECT_GE(s.results, 1);
+  EXPECT_EQ(control_.Snapshot().full_quality_done, 1);
+  ASSERT_TRUE(WaitFor([&] { return console_->Status()["captures"].size() == 1; }));
+  EXPECT_FALSE(console_->Status()["capture_pending"]);
+  EXPECT_EQ(console_->Status()["capture_error"], "");
+}
+
 TEST_F(ConsoleTest, OversizedRequestsAreRefused) {
   const int port = console_->port();
   // The body is announced but not sent: the limit is checked against Content-Length first.

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <thread>
 
@@ -97,6 +98,89 @@ TEST(PipelineControl, PauseHoldsCaptureUntilResumed) {
   control.SetPaused(false);
   run.join();
   EXPECT_EQ(s.results, 3);
+}
+
+// A sink that holds its first result until released, so that every queue and stage before it fills up.
+class GateSink : public PipelineSink {
+ public:
+  void Consume(const PipelineResult& r) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    open_.wait(lock, [&] { return released_; });
+    full_quality_seen_ |= r.full_quality;
+  }
+  void Release() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      released_ = true;
+    }
+    open_.notify_all();
+  }
+  bool full_quality_seen() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return full_quality_seen_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable open_;
+  bool released_ = false;
+  bool full_quality_seen_ = false;
+};
+
+std::int64_t StageItems(const PipelineSnapshot& snap, const std::string& name) {
+  for (const StageTiming& t : snap.stages) {
+    if (t.name == name) return t.items;
+  }
+  return -1;
+}
+
+// On the live path the queue after capture drops its oldest frame: the frame a "capture now" took was dropped by
+// the next one whenever the pipeline was busy, and the operator's capture never came. Here the pipeline is held
+// full (the sink waits), the request is taken by a frame that then waits in that queue, and two more frames
+// arrive behind it before the sink lets go.
+TEST(PipelineControl, AFullQualityFrameIsNeverDroppedOnTheLivePath) {
+  TempDir dir("control_full_quality_live");
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 24));
+  PlaybackOptions camera_like;
+  camera_like.speed = PlaybackSpeed::kRecorded;  // real time: the queue after capture drops
+  camera_like.speed_factor = 1000.0;
+  PlaybackSource source(rec, camera_like);
+  PipelineControl control;
+  PipelineOptions options = SmallOptions();
+  ApplyLivePathPreset(&options);
+  options.control = &control;
+  GateSink sink;
+  // With the sink holding the first result, rectify has taken its last frame once it has handled one for the
+  // sink, and one for each of the five queues and the five stages (it included) after it.
+  constexpr std::int64_t kRectifiedWhenFull = 11;
+  int requested_at = -1;
+  options.on_frame = [&](const StereoFrame& f) {
+    // Until the pipeline is full, each frame waits for the one before to be taken, so that none is dropped.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    for (;;) {
+      const PipelineSnapshot snap = control.Snapshot();
+      if (StageItems(snap, "rectify") >= kRectifiedWhenFull) break;
+      if (!snap.queue_fill.empty() && snap.queue_fill[0] == 0) return;
+      if (std::chrono::steady_clock::now() > deadline) {
+        sink.Release();
+        throw Error("the pipeline did not fill up");
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    if (requested_at < 0) {
+      control.RequestFullQuality();  // taken by this frame, which then waits in the full queue
+      requested_at = static_cast<int>(f.index);
+    } else if (f.index >= requested_at + 2) {
+      sink.Release();  // two frames came after it while it waited
+    }
+  };
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  sink.Release();
+  ASSERT_GE(requested_at, 0);
+  EXPECT_GT(s.dropped, 0);  // frames did wait behind it and were dropped
+  EXPECT_TRUE(sink.full_quality_seen()) << "the requested frame " << requested_at << " never came out";
+  EXPECT_EQ(control.Snapshot().full_quality_done, 1);
+  EXPECT_EQ(control.Snapshot().full_quality_failed, 0);
 }
 
 TEST(PipelineControl, RefusesSettingsOutOfRange) {

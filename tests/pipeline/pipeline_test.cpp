@@ -60,6 +60,27 @@ TEST(BoundedQueue, BlockNeverDropsDropOldestCounts) {
   EXPECT_FALSE(drop.Push(9));
 }
 
+// An item the queue's predicate keeps (a full-quality frame an operator asked for) is never the one dropped: the
+// oldest other item goes, or the new one when only kept items wait.
+TEST(BoundedQueue, DropOldestNeverDropsAKeptItem) {
+  BoundedQueue<int> q(2, QueueFullPolicy::kDropOldest, [](const int& v) { return v < 0; });
+  q.Push(-1);
+  q.Push(1);
+  q.Push(2);  // drops 1, not the older -1
+  EXPECT_EQ(q.dropped(), 1);
+  EXPECT_EQ(*q.Pop(), -1);
+  EXPECT_EQ(*q.Pop(), 2);
+
+  BoundedQueue<int> one(1, QueueFullPolicy::kDropOldest, [](const int& v) { return v < 0; });
+  one.Push(-1);
+  one.Push(1);   // only a kept item waits: the new one is dropped
+  one.Push(-2);  // kept too: the queue holds both
+  EXPECT_EQ(one.dropped(), 1);
+  EXPECT_EQ(*one.Pop(), -1);
+  EXPECT_EQ(*one.Pop(), -2);
+  EXPECT_EQ(one.size(), 0u);
+}
+
 TEST(Pipeline, ReplayDeliversEveryFrameThroughAllStages) {
   const TempDir dir("pipe_all");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
