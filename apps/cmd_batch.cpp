@@ -22,12 +22,12 @@ struct SubmitArgs {
 void AddSchedulingOptions(CLI::App* sub, SubmitArgs* a) {
   sub->add_option("--partition", a->options.partition, "Slurm partition (sbatch --partition); default: the cluster's");
   sub->add_option("--max-parallel", a->options.max_parallel,
-                  "at most N tasks of the array at once (--array=...%N); 0: no limit")
+                  "At most N tasks of the array at once (--array=...%N); 0: no limit")
       ->check(CLI::Range(0, 100000));
   sub->add_option("--slurm-arg", a->options.slurm_args,
-                  "extra sbatch argument, repeatable; write --slurm-arg=--time=1:00:00 for one that starts with -");
+                  "Extra sbatch argument, repeatable; write --slurm-arg=--time=1:00:00 for one that starts with -");
   sub->add_option("--local", a->options.local_workers,
-                  "run here with N worker processes instead of Slurm; returns when every task has ended")
+                  "Run here with N worker processes instead of Slurm; returns when every task has ended")
       ->check(CLI::Range(1, 1024));
 }
 
@@ -71,8 +71,8 @@ void AddBatch(CLI::App& app) {
         "Submit every line of MANIFEST (one rangebayes subcommand per line, # comments) as one Slurm job array; "
         "prints the job id. Inputs are paths relative to the manifest's folder, outputs relative to the task's "
         "folder DIR/tasks/<index>/ (README, Batch processing)");
-    sub->add_option("MANIFEST", a->manifest, "manifest file")->required()->check(CLI::ExistingFile);
-    sub->add_option("--out,-o", a->out, "batch folder DIR (created; must not hold a batch yet)")->required();
+    sub->add_option("MANIFEST", a->manifest, "Manifest file")->required()->check(CLI::ExistingFile);
+    sub->add_option("--out,-o", a->out, "Batch folder DIR (created; must not hold a batch yet)")->required();
     AddSchedulingOptions(sub, a.get());
     sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
@@ -86,7 +86,7 @@ void AddBatch(CLI::App& app) {
     auto a = std::make_shared<SubmitArgs>();
     CLI::App* sub = batch->add_subcommand(
         "resubmit", "Submit exactly the missing and failed tasks of DIR again, as a new job array (or --local N)");
-    sub->add_option("DIR", a->dir, "batch folder")->required();
+    sub->add_option("DIR", a->dir, "Batch folder")->required();
     AddSchedulingOptions(sub, a.get());
     sub->callback([a] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
@@ -103,8 +103,8 @@ void AddBatch(CLI::App& app) {
         "run-task",
         "Run task I of DIR (what each array task runs): in a temporary folder renamed to DIR/tasks/I/ only on "
         "success; writes DIR/status/I.json; exits with the task's exit code");
-    sub->add_option("DIR", a->dir, "batch folder")->required();
-    sub->add_option("I", a->index, "task index (0-based, manifest order)")->required()->check(NonNegativeInteger());
+    sub->add_option("DIR", a->dir, "Batch folder")->required();
+    sub->add_option("I", a->index, "Task index (0-based, manifest order)")->required()->check(NonNegativeInteger());
     sub->callback([a] {
       const BatchTaskStatus s = RunBatchTask(a->dir, a->index);
       PrintTaskEnd(s);
@@ -120,8 +120,8 @@ void AddBatch(CLI::App& app) {
     CLI::App* sub = batch->add_subcommand(
         "status",
         "Counts of succeeded, failed, running, interrupted and missing tasks of DIR, and each failure's error line");
-    sub->add_option("DIR", a->dir, "batch folder")->required();
-    sub->add_flag("--json", a->json, "print JSON (every task with its status file)");
+    sub->add_option("DIR", a->dir, "Batch folder")->required();
+    sub->add_flag("--json", a->json, "Print JSON (every task with its status file)");
     sub->callback([a] {
       const BatchReport report = CollectBatchReport(a->dir);
       std::printf("%s", a->json ? report.Json().c_str() : report.BriefReport().c_str());

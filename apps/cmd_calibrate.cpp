@@ -111,30 +111,30 @@ void AddRig(CLI::App* calibrate) {
   CLI::App* sub = calibrate->add_subcommand(
       "rig", "Calibrate a stereo rig from board image pairs: intrinsics, extrinsics, rectification -> rig.yaml");
   sub->add_option("--left", a->left,
-                  "left images: glob pattern(s) such as 'DIR/left*.jpg' (quote them) or file names; paired with "
+                  "Left images: glob pattern(s) such as 'DIR/left*.jpg' (quote them) or file names; paired with "
                   "--right by the last number in the file name, else by sorted order")
       ->required();
-  sub->add_option("--right", a->right, "right images: glob pattern(s) or file names")->required();
+  sub->add_option("--right", a->right, "Right images: glob pattern(s) or file names")->required();
   sub->add_option("--board", a->board,
-                  "board size COLSxROWS: inner corners for a chessboard, squares for a ChArUco board");
-  sub->add_option("--square", a->square_m, "board square side in metres (sets the unit of the baseline)")
+                  "Board size COLSxROWS: inner corners for a chessboard, squares for a ChArUco board");
+  sub->add_option("--square", a->square_m, "Board square side in metres (sets the unit of the baseline)")
       ->check(PositiveReal());
-  sub->add_flag("--charuco", a->charuco, "the board is a ChArUco board (needs OpenCV's aruco module)");
+  sub->add_flag("--charuco", a->charuco, "The board is a ChArUco board (needs OpenCV's aruco module)");
   sub->add_option("--marker", a->marker_m, "ChArUco marker side in metres; 0 = 0.75 x square");
   sub->add_option("--dictionary", a->dictionary, "ChArUco dictionary (OpenCV name)");
   sub->add_option("--detector", a->detector,
-                  "chessboard corner detector: best (calibrate with both, keep the lower stereo RMS), sb "
+                  "Chessboard corner detector: best (calibrate with both, keep the lower stereo RMS), sb "
                   "(findChessboardCornersSB) or classic (findChessboardCorners + cornerSubPix)")
       ->check(CLI::IsMember({"best", "sb", "classic"}));
-  sub->add_flag("--accurate", a->accurate, "sector-based detector with CALIB_CB_ACCURACY (about 4x slower)");
-  sub->add_option("--min-pairs", a->min_pairs, "fewest usable pairs (board found in both images)")
+  sub->add_flag("--accurate", a->accurate, "Sector-based detector with CALIB_CB_ACCURACY (about 4x slower)");
+  sub->add_option("--min-pairs", a->min_pairs, "Fewest usable pairs (board found in both images)")
       ->check(CLI::Range(3, 10000));
   sub->add_flag("--drop-outliers", a->drop_outliers,
-                "recalibrate without the flagged views (stereo RMS above max(median + 3 x 1.4826 x MAD, 1.5 x "
+                "Recalibrate without the flagged views (stereo RMS above max(median + 3 x 1.4826 x MAD, 1.5 x "
                 "median))");
   sub->add_flag("--rational", a->rational, "8-coefficient rational distortion model (needs many views)");
-  sub->add_option("--out,-o", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
-  sub->add_option("--png", a->png, "write the first used pair, rectified, with horizontal epipolar lines");
+  sub->add_option("--out,-o", a->out, "Output rig file (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--png", a->png, "Write the first used pair, rectified, with horizontal epipolar lines");
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { RunRig(*a); });
 }
@@ -241,37 +241,38 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("INPUT", a->inputs,
                   "plane: the recording folder (frames.csv, rig.yaml); ground-truth: Middlebury scene folders")
       ->required();
-  sub->add_option("--rig", a->rig, "rig file; default: the recording's rig.yaml");
+  sub->add_option("--rig", a->rig, "Rig file; default: the recording's rig.yaml");
   sub->add_option("--target", a->target,
                   "plane (a recording of one plane) or ground-truth (scenes with ground-truth disparity: fits "
                   "sigma_d from cost curvature and neighbour jump, plus the outlier share, for sgbm or block)")
       ->check(CLI::IsMember({"plane", "ground-truth"}));
-  sub->add_option("--out,-o", a->out, "output noise model (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--out,-o", a->out, "Output noise model (OpenCV FileStorage YAML)")->required();
   sub->add_option("--matcher", a->matcher,
                   "block (single frame, predicts sigma_d), spacetime (all frames from --frame, predicts sigma_d) or "
                   "sgbm (single frame, no prediction); default: block for a plane, sgbm (the matcher of `stereo`) for "
                   "ground truth")
       ->check(CLI::IsMember({"block", "spacetime", "sgbm"}));
-  sub->add_option("--form", a->form,
-                  "model form: auto (plane: floor-plus-scale when the matcher predicts sigma_d; ground-truth: learned), "
-                  "constant, floor-plus-scale, learned")
+  sub->add_option(
+         "--form", a->form,
+         "Model form: auto (plane: floor-plus-scale when the matcher predicts sigma_d; ground-truth: learned), "
+         "constant, floor-plus-scale, learned")
       ->check(CLI::IsMember({"auto", "constant", "floor-plus-scale", "learned"}));
-  sub->add_option("--frame", a->frame, "first frame used (index into frames.csv)")->check(NonNegativeInteger());
+  sub->add_option("--frame", a->frame, "First frame used (index into frames.csv)")->check(NonNegativeInteger());
   sub->add_option("--frames", a->frames, "spacetime: frames used from --frame (0: all)")->check(NonNegativeInteger());
-  sub->add_option("--min-disparity", a->min_disparity_px, "smallest disparity searched (px)");
-  sub->add_option("--num-disparities", a->num_disparities, "disparities searched (px, 3-1024)")
+  sub->add_option("--min-disparity", a->min_disparity_px, "Smallest disparity searched (px)");
+  sub->add_option("--num-disparities", a->num_disparities, "Disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
   AddWindowOption(sub, &a->window_px,
                   "default: the matcher's command's, block 5, spacetime 7 below 16 frames else 5, sgbm 5; sgbm uses "
                   "at most 11",
                   1);
   sub->add_option("--image-noise", a->image_noise_gray,
-                  "image noise sigma_n for the predicted sigma_d (grey levels, > 0)")
+                  "Image noise sigma_n for the predicted sigma_d (grey levels, > 0)")
       ->check(PositiveReal());
-  sub->add_option("--roi", a->roi, "region of the target in the rectified left image: x y width height (px)")
+  sub->add_option("--roi", a->roi, "Region of the target in the rectified left image: x y width height (px)")
       ->expected(4);
-  sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
-  sub->add_option("--png", a->png, "report picture: residual histogram against the model, sigma_d against depth");
+  sub->add_option("--stride", a->stride_px, "Use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--png", a->png, "Report picture: residual histogram against the model, sigma_d against depth");
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a, sub] { RunNoise(*a, *sub); });
 }
@@ -291,7 +292,7 @@ void AddCheckNoise(CLI::App* calibrate) {
   sub->add_option("SCENE", a->scenes, "Middlebury scene folders (held out from the fit)")->required();
   sub->add_option("--noise-model", a->model, "noise.yaml of form learned (rangebayes calibrate noise --target "
                   "ground-truth)")->required();
-  sub->add_option("--stride", a->stride_px, "use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
+  sub->add_option("--stride", a->stride_px, "Use every n-th pixel in x and y (1-64)")->check(CLI::Range(1, 64));
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a] {
     const DisparityNoiseModel model = ReadDisparityNoiseModel(a->model);
@@ -311,7 +312,7 @@ void AddImportMiddlebury(CLI::App* calibrate) {
   CLI::App* sub = calibrate->add_subcommand(
       "import-middlebury", "Turn a Middlebury 2014 calib.txt (rectified views) into a rig.yaml");
   sub->add_option("CALIB_TXT", a->calib, "Middlebury calib.txt")->required();
-  sub->add_option("--out,-o", a->out, "output rig file (OpenCV FileStorage YAML)")->required();
+  sub->add_option("--out,-o", a->out, "Output rig file (OpenCV FileStorage YAML)")->required();
   sub->callback([a] {
     const MiddleburyCalib calib = ReadMiddleburyCalib(a->calib);
     const StereoRig rig = StereoRigFromMiddlebury(calib);

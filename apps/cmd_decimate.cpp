@@ -181,30 +181,30 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
       "  rangebayes decimate IN OUT [--lambda L | --target-faces N] [--png FILE] [--polygons]\n"
       "  rangebayes decimate POSE1 POSE2 ... --out DIR   (animated: one patch map shared by all poses)");
   sub->add_option("FILES", a->files, "IN OUT (PLY/OBJ/OFF), or the poses of one connectivity with --out")->required();
-  sub->add_option("--out,-o", a->out_dir, "animated mode: write one decimated OBJ per pose into this folder");
+  sub->add_option("--out,-o", a->out_dir, "Animated mode: write one decimated OBJ per pose into this folder");
   auto* lambda = sub->add_option("--lambda", a->lambda,
-                                 "energy cost of one patch (normal difference squared x faces, area weights "
+                                 "Energy cost of one patch (normal difference squared x faces, area weights "
                                  "normalised to mean 1): larger gives fewer patches")
                      ->check(PositiveReal());
   auto* target_faces =
       sub->add_option("--target-faces", a->target_faces,
-                      "find lambda by a search for this many output triangles (normally the output has N or N-1; "
+                      "Find lambda by a search for this many output triangles (normally the output has N or N-1; "
                       "more when N is below what one patch per component needs, with a notice)")
           ->check(PositiveInteger())
           ->excludes(lambda);
   sub->add_option("--chain-tolerance", a->chain_tolerance,
-                  "patch-boundary chains are straightened while removed vertices stay within this share of the "
+                  "Patch-boundary chains are straightened while removed vertices stay within this share of the "
                   "bounding-box diagonal (with --target-faces the budget decides instead)")
       ->check(NonNegativeReal());
   sub->add_option("--chain-reserve", a->chain_reserve,
-                  "with --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
+                  "With --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
       ->check(RealRange(0.0, 0.99))
       ->needs(target_faces);  // without a budget there is nothing to reserve (it was accepted and did nothing)
-  sub->add_flag("--uniform-weights", a->uniform, "weight every face 1 (the paper) instead of by its area");
+  sub->add_flag("--uniform-weights", a->uniform, "Weight every face 1 (the paper) instead of by its area");
   sub->add_flag("--no-refit", a->no_refit,
-                "keep the kept vertices where they are in the input (no refit of their positions, no edge flips)");
-  sub->add_flag("--polygons", a->polygons, "write one polygon per patch instead of triangles (no normals)");
-  sub->add_option("--png", a->png, "picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
+                "Keep the kept vertices where they are in the input (no refit of their positions, no edge flips)");
+  sub->add_flag("--polygons", a->polygons, "Write one polygon per patch instead of triangles (no normals)");
+  sub->add_option("--png", a->png, "Picture: dense mesh | patches in colours | decimated mesh, smooth-shaded");
   AddQuietFlag(sub, &a->quiet);
   sub->callback([a] { Run(*a); });
 });

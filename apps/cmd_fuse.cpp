@@ -162,30 +162,30 @@ RB_REGISTER_COMMANDS(35, [](CLI::App& app) {
                                  "Align range scans with their covariances (multi-scan GICP) and fuse them into one "
                                  "mesh (TSDF weighted by 1/sigma_ray^2, marching cubes)");
   sub->add_option("SCAN", args->scans,
-                  "scans: PLY range grids (Stanford/Cyberware 'range_grid'), or meshes such as 'replay' writes "
+                  "Scans: PLY range grids (Stanford/Cyberware 'range_grid'), or meshes such as 'replay' writes "
                   "(PLY with covariances; plain meshes get the generic noise model)")
       ->required()
       ->check(CLI::ExistingFile);
   sub->add_option("--poses", args->poses,
-                  "initial poses, bun.conf format 'bmesh FILE tx ty tz qx qy qz qw' (default: identity, i.e. "
+                  "Initial poses, bun.conf format 'bmesh FILE tx ty tz qx qy qz qw' (default: identity, i.e. "
                   "the scans are taken as roughly pre-aligned)");
-  sub->add_option("--out,-o", args->out_dir, "output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
+  sub->add_option("--out,-o", args->out_dir, "Output folder: poses.conf, fused.ply, report.txt, aligned.png, fused.png")
       ->required();
   sub->add_flag("--smooth", args->smooth,
                "Bayesian smoothing (bayes/smooth.h defaults) of each scan with its own ray covariance, after "
                "alignment and before fusion");
   sub->add_flag("--decimate", args->decimate, "Bayesian decimation of the (smoothed) fused mesh (defaults)");
   sub->add_flag("--no-align", args->no_align,
-                "fuse with the given poses as they are (after the test registration's result passes: scans they "
+                "Fuse with the given poses as they are (after the test registration's result passes: scans they "
                 "leave misaligned are an error; report.txt is written either way)");
-  sub->add_option("--voxel", args->voxel, "voxel size in model units (default: the scans' mean edge length)")
+  sub->add_option("--voxel", args->voxel, "Voxel size in model units (default: the scans' mean edge length)")
       ->check(NonNegativeReal());
-  sub->add_option("--sigma-range", args->sigma_range, "range-grid scans: noise along the ray, model units (> 0)")
+  sub->add_option("--sigma-range", args->sigma_range, "Range-grid scans: noise along the ray, model units (> 0)")
       ->check(PositiveReal());
-  sub->add_option("--sigma-lateral", args->sigma_lateral, "range-grid scans: noise across the ray, model units (> 0)")
+  sub->add_option("--sigma-lateral", args->sigma_lateral, "Range-grid scans: noise across the ray, model units (> 0)")
       ->check(PositiveReal());
   AddThreadsOption(sub, &args->threads);
-  sub->add_option("--view", args->view, "view direction x y z of the pictures (world frame)")->expected(3);
+  sub->add_option("--view", args->view, "View direction x y z of the pictures (world frame)")->expected(3);
   AddQuietFlag(sub, &args->quiet);
   sub->callback([args] { RunFuse(*args); });
 });

@@ -106,20 +106,21 @@ void AddCommands(CLI::App& app) {
     auto args = std::make_shared<InfoArgs>();
     auto* sub = app.add_subcommand("info", "Print counts, bounding box, mean edge length, components, "
                                            "boundary loops and validation findings of a mesh (.ply/.obj/.off)");
-    sub->add_option("MESH", args->mesh_path, "mesh file to describe (.ply, .obj or .off)")->required();
-    sub->add_flag("--json", args->json, "print one JSON object instead of text");
+    sub->add_option("MESH", args->mesh_path, "Mesh file to describe (.ply, .obj or .off)")->required();
+    sub->add_flag("--json", args->json, "Print one JSON object instead of text");
     sub->callback([args] { RunInfo(*args); });
   }
   {
     auto args = std::make_shared<ConvertArgs>();
     auto* sub = app.add_subcommand("convert", "Convert a mesh between PLY, OBJ and OFF (format from the "
                                               "extensions); vertex order and faces are kept exactly");
-    sub->add_option("IN", args->in_path, "input mesh (.ply, .obj or .off)")->required();
-    sub->add_option("OUT", args->out_path, "output mesh (.ply, .obj or .off); PLY is binary little endian "
-                                           "unless --ascii or --big-endian")
+    sub->add_option("IN", args->in_path, "Input mesh (.ply, .obj or .off)")->required();
+    sub->add_option("OUT", args->out_path,
+                    "Output mesh (.ply, .obj or .off); PLY is binary little endian "
+                    "unless --ascii or --big-endian")
         ->required();
-    sub->add_flag("--ascii", args->ascii, "write ascii PLY (17 significant digits, exact)");
-    sub->add_flag("--big-endian", args->big_endian, "write binary big-endian PLY");
+    sub->add_flag("--ascii", args->ascii, "Write ascii PLY (17 significant digits, exact)");
+    sub->add_flag("--big-endian", args->big_endian, "Write binary big-endian PLY");
     AddQuietFlag(sub, &args->quiet);
     sub->callback([args] { RunConvert(*args); });
   }

@@ -184,17 +184,17 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
   auto args = std::make_shared<SmoothArgs>();
   auto* sub = app.add_subcommand(
       "smooth", "Bayesian smoothing of a noisy mesh (MAP of paper §3-4): keeps vertex order and faces");
-  sub->add_option("IN", args->input, "noisy mesh (.ply/.obj/.off); PLY cov_xx..cov_zz vertex properties are used")
+  sub->add_option("IN", args->input, "Noisy mesh (.ply/.obj/.off); PLY cov_xx..cov_zz vertex properties are used")
       ->required();
-  sub->add_option("OUT", args->output, "smoothed mesh (.ply/.obj/.off)")->required();
+  sub->add_option("OUT", args->output, "Smoothed mesh (.ply/.obj/.off)")->required();
   sub->add_option("--noise", args->noise,
-                  "noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
+                  "Noise std as a multiple k of the mean edge length, (0, 10]; default: the file's covariances, "
                   "else estimated from the mesh")
       ->check(PositiveReal())
       ->check(RealRange(0.0, 10.0));
-  sub->add_option("--sigma", args->sigma, "noise std in model units (> 0); instead of --noise")->check(PositiveReal());
+  sub->add_option("--sigma", args->sigma, "Noise std in model units (> 0); instead of --noise")->check(PositiveReal());
   sub->add_option("--prior", args->prior,
-                  "pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
+                  "Pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
                   "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")
       ->check([](const std::string& v) {
         return (v == "sqrt" || v == "quadratic" || v == "cauchy" || IsPriorFile(v))
@@ -207,35 +207,35 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       ->check(PositiveReal())
       ->check(RealRange(0.0, 4.0));
   sub->add_flag("--adaptive-eps,!--no-adaptive-eps", args->adaptive_epsilon,
-                "on by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
+                "On by default; sqrt prior: per-face epsilon^2 read from a fast pre-pass on curved meshes "
                 "(scans), the global --eps2 on piecewise-flat ones (CAD); costs a pre-pass of 40-80 fast "
                 "iterations, from which a curved mesh's final solve starts (BENCHMARKS.md 'Adaptive eps'). "
                 "--no-adaptive-eps: the global --eps2 everywhere, no pre-pass");
   sub->add_flag("--stride-weight,!--no-stride-weight", args->prior_weight_per_stride,
-                "on by default; meshes with pixel positions and covariances (stereo): the prior weight beta divided "
+                "On by default; meshes with pixel positions and covariances (stereo): the prior weight beta divided "
                 "by the pixel grid's step (1 at every pixel, 4 at --downsample 4; at most 4). --no-stride-weight: "
                 "beta at every stride");
   sub->add_flag("--multilevel,!--no-multilevel", args->multilevel,
-                "on by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
+                "On by default; meshes with pixel positions (from rangebayes stereo/replay): solve coarse-to-fine "
                 "over the pixel grid. --no-multilevel: one level");
   sub->add_flag("--precondition-rays,!--no-precondition-rays", args->precondition_rays,
-                "on by default; meshes with anisotropic covariances (stereo, range scans): CG preconditioned by the "
+                "On by default; meshes with anisotropic covariances (stereo, range scans): CG preconditioned by the "
                 "Gauss-Newton matrix of the depths along the rays (multigrid on the pixel grid above 40,000 "
                 "vertices). --no-precondition-rays: by the data term alone");
   sub->add_option("--max-iterations", args->max_iterations,
-                  "iteration cap per solve (each continuation stage and grid level has its own), [0, 1e7]; 0: the "
+                  "Iteration cap per solve (each continuation stage and grid level has its own), [0, 1e7]; 0: the "
                   "--tolerance preset's (fast 300, default 2000, tight 20000)")
       ->check(CLI::Range(0, 10000000));
   sub->add_option("--time-limit", args->time_limit_s,
-                  "seconds for the whole solve, continuation stages and grid levels included; the summary's distance "
+                  "Seconds for the whole solve, continuation stages and grid levels included; the summary's distance "
                   "says how far from converged it stopped; 0: no limit")
       ->check(RealRange(0.0, kMaxSmoothTimeLimitS));
   sub->add_option("--gap-tolerance", args->gap_tolerance,
-                  "stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
+                  "Stop when the estimated distance to the optimum is below this fraction of the energy, [0, 1); "
                   "0: the --tolerance preset's")
       ->check(RealRange(0.0, 0.999999));
   sub->add_option("--robust-data", args->robust_data_nu,
-                  "heavy-tailed data term: Student-t with this many degrees of freedom nu on the Mahalanobis distance "
+                  "Heavy-tailed data term: Student-t with this many degrees of freedom nu on the Mahalanobis distance "
                   "(gross mismatches stop pulling), (0, 1e6]; 0: Gaussian (the default)")
       ->check(RealRange(0.0, 1e6));
   sub->add_option("--continuation", args->continuation,
@@ -243,26 +243,26 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
                   "-1: 3 on meshes with pixel positions and covariances (stereo), 0 on others")
       ->check(CLI::Range(-1, 6));
   sub->add_option("--across-ratio", args->across_ratio,
-                  "generic noise model: sigma along the normal / sigma across it, [1, 100]")
+                  "Generic noise model: sigma along the normal / sigma across it, [1, 100]")
       ->check(RealRange(1.0, 100.0));
   AddThreadsOption(sub, &args->threads);
-  sub->add_option("--png", args->png, "write a before|after shaded picture (PNG) to this file");
+  sub->add_option("--png", args->png, "Write a before|after shaded picture (PNG) to this file");
   sub->add_option("--view", args->view,
-                  "view direction x y z for --png (model coordinates); default: a depth image's mesh as its camera "
+                  "View direction x y z for --png (model coordinates); default: a depth image's mesh as its camera "
                   "saw it, any other along -z")
       ->expected(3);
   sub->add_flag("--ignore-covariance", args->ignore_covariance,
-                "use the generic noise model even when the file has covariances");
+                "Use the generic noise model even when the file has covariances");
   AddQuietFlag(sub, &args->quiet);
   sub->callback([args] { RunSmooth(*args); });
 
   auto eval_args = std::make_shared<EvalArgs>();
   auto* eval = app.add_subcommand(
       "eval", "Compare a result mesh with ground truth: one JSON line {mae_deg, ev, hausdorff_rel_bbox, ...}");
-  eval->add_option("GT", eval_args->ground_truth, "ground-truth mesh")->required();
-  eval->add_option("RESULT", eval_args->result, "result mesh (same connectivity for mae_deg)")->required();
+  eval->add_option("GT", eval_args->ground_truth, "Ground-truth mesh")->required();
+  eval->add_option("RESULT", eval_args->result, "Result mesh (same connectivity for mae_deg)")->required();
   eval->add_flag("--surface-only", eval_args->surface_only,
-                 "skip mae_deg (for results with other connectivity, e.g. decimated meshes)");
+                 "Skip mae_deg (for results with other connectivity, e.g. decimated meshes)");
   eval->callback([eval_args] { RunEval(*eval_args); });
 });
 
