@@ -263,9 +263,9 @@ void AddNoise(CLI::App* calibrate) {
   sub->add_option("--num-disparities", a->num_disparities, "Disparities searched (px, 3-1024)")
       ->check(CLI::Range(3, 1024));
   AddWindowOption(sub, &a->window_px,
-                  "default: the matcher's command's, block 5, spacetime 7 below 16 frames else 5, sgbm 5; sgbm uses "
-                  "at most 11",
-                  1);
+                  "0: the matcher's command's default, block 5, spacetime 7 below 16 frames else 5, sgbm 5; sgbm "
+                  "uses at most 11",
+                  0);
   sub->add_option("--image-noise", a->image_noise_gray,
                   "Image noise sigma_n for the predicted sigma_d (grey levels, > 0)")
       ->check(PositiveReal());
