@@ -54,14 +54,15 @@ void AppendInt(std::string* out, int64_t value) {
 
 namespace {
 
-// Triangulates a simple polygon (corner indices into V) by ear clipping in the plane of its Newell normal; the
-// triangles keep the polygon's winding. Returns false (and leaves `out` alone) when the polygon is convex (its
-// fan is as good), degenerate, or not simple (no ear found): the fan stays. `out` gets n − 2 triangles as
-// positions in `corners` (0..n-1).
-bool EarClip(const Vertices& V, const int* corners, size_t n, std::vector<size_t>* out) {
+// Triangulates a simple polygon (corner indices into xyz, three doubles a vertex) by ear clipping in the plane of
+// its Newell normal; the triangles keep the polygon's winding. Returns false (and leaves `out` alone) when the
+// polygon is convex (its fan is as good), degenerate, or not simple (no ear found): the fan stays. `out` gets
+// n − 2 triangles as positions in `corners` (0..n-1).
+bool EarClip(const double* xyz, const int* corners, size_t n, std::vector<size_t>* out) {
+  const auto V = [xyz](int v) { return Eigen::Map<const Eigen::Vector3d>(xyz + 3 * static_cast<size_t>(v)); };
   Eigen::Vector3d normal = Eigen::Vector3d::Zero(), centre = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d a = V.row(corners[i]), b = V.row(corners[(i + 1) % n]);
+    const Eigen::Vector3d a = V(corners[i]), b = V(corners[(i + 1) % n]);
     normal += a.cross(b);
     centre += a;
   }
@@ -72,7 +73,7 @@ bool EarClip(const Vertices& V, const int* corners, size_t n, std::vector<size_t
   const Eigen::Vector3d u = normal.unitOrthogonal(), w = normal.cross(u);
   std::vector<Eigen::Vector2d> p(n);
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d d = V.row(corners[i]).transpose() - centre;
+    const Eigen::Vector3d d = V(corners[i]) - centre;
     p[i] = {d.dot(u), d.dot(w)};  // counter-clockwise: (u, w, normal) is right-handed
   }
   const auto turn = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
@@ -114,41 +115,54 @@ bool EarClip(const Vertices& V, const int* corners, size_t n, std::vector<size_t
 }  // namespace
 
 void PolygonSplitter::Add(const int* corners, const int* corner_attributes, size_t n, std::vector<int>* triangles,
-                          std::vector<int>* attributes) {
-  first_triangle_.push_back(triangles->size() / 3);
-  corners_.insert(corners_.end(), corners, corners + n);
-  if (corner_attributes != nullptr)
-    corner_attributes_.insert(corner_attributes_.end(), corner_attributes, corner_attributes + n);
-  corner_start_.push_back(corners_.size());
+                          std::vector<int>* attributes, const double* xyz, size_t num_vertices) {
+  const size_t first = triangles->size() / 3;
+  ++count_;
   for (size_t c = 1; c + 1 < n; ++c) {
     for (const size_t k : {size_t{0}, c, c + 1}) {
       triangles->push_back(corners[k]);
       if (attributes != nullptr) attributes->push_back(corner_attributes[k]);
     }
   }
+  if (std::all_of(corners, corners + n,
+                  [num_vertices](int v) { return v >= 0 && static_cast<size_t>(v) < num_vertices; })) {
+    Replace(xyz, corners, corner_attributes, n, first, triangles, attributes);
+    return;
+  }
+  // A corner not read yet (OBJ's forward references, a PLY face element before its vertices): decided in Finish.
+  first_triangle_.push_back(first);
+  corners_.insert(corners_.end(), corners, corners + n);
+  if (corner_attributes != nullptr) {
+    corner_attributes_.insert(corner_attributes_.end(), corner_attributes, corner_attributes + n);
+  }
+  corner_start_.push_back(corners_.size());
+}
+
+void PolygonSplitter::Replace(const double* xyz, const int* corners, const int* corner_attributes, size_t n,
+                              size_t first, std::vector<int>* triangles, std::vector<int>* attributes) {
+  if (!EarClip(xyz, corners, n, &clipped_)) return;
+  for (size_t k = 0; k < clipped_.size(); ++k) {
+    (*triangles)[3 * first + k] = corners[clipped_[k]];
+    if (attributes != nullptr) (*attributes)[3 * first + k] = corner_attributes[clipped_[k]];
+  }
+  ++concave_;
 }
 
 void PolygonSplitter::Finish(const Vertices& V, std::vector<int>* triangles, std::vector<int>* attributes,
-                             MeshReadSummary* summary) const {
-  if (first_triangle_.empty()) return;
-  int concave = 0;
-  std::vector<size_t> clipped;
+                             MeshReadSummary* summary) {
+  if (count_ == 0) return;
   for (size_t p = 0; p < first_triangle_.size(); ++p) {
     const size_t start = corner_start_[p], n = corner_start_[p + 1] - start;
     const int* corners = corners_.data() + start;
     // Out-of-range corners are the caller's error to report (CheckFaceIndices).
     if (std::any_of(corners, corners + n, [&V](int v) { return v < 0 || v >= V.rows(); })) continue;
-    if (!EarClip(V, corners, n, &clipped)) continue;
-    for (size_t k = 0; k < clipped.size(); ++k) {
-      (*triangles)[3 * first_triangle_[p] + k] = corners[clipped[k]];
-      if (attributes != nullptr) (*attributes)[3 * first_triangle_[p] + k] = corner_attributes_[start + clipped[k]];
-    }
-    ++concave;
+    Replace(V.data(), corners, attributes != nullptr ? corner_attributes_.data() + start : nullptr, n,
+            first_triangle_[p], triangles, attributes);
   }
-  summary->polygons_triangulated = count();
-  summary->notices.push_back(concave == 0
-                                 ? StrCat(count(), " polygons with more than 3 vertices were fan-triangulated")
-                                 : StrCat(count(), " polygons with more than 3 vertices were triangulated (", concave,
+  summary->polygons_triangulated = count_;
+  summary->notices.push_back(concave_ == 0
+                                 ? StrCat(count_, " polygons with more than 3 vertices were fan-triangulated")
+                                 : StrCat(count_, " polygons with more than 3 vertices were triangulated (", concave_,
                                           " concave ones by ear clipping in their plane, the others as fans)"));
 }
 

@@ -142,21 +142,29 @@ void AppendInt(std::string* out, int64_t value);
 void CheckFaceIndices(const Faces& F, int64_t num_vertices, const char* what);
 
 // The polygons (more than 3 corners) a reader splits into triangles. Add() appends a polygon's fan (n − 2
-// triangles, so face numbers follow the file) and keeps its corners; Finish(), once every vertex position is known
-// (OBJ may use a vertex before it lists it), replaces the fan of each polygon that is not convex in its plane by
-// an ear-clipping triangulation of as many triangles (a fan folds a concave polygon over itself), and writes the
-// summary's count and notice.
+// triangles, so face numbers follow the file) and, when the polygon is not convex in its plane, replaces it by an
+// ear-clipping triangulation of as many triangles (a fan folds a concave polygon over itself); a polygon with a
+// corner beyond the `num_vertices` positions read so far (OBJ may use a vertex before it lists it) is kept and
+// decided in Finish(), which also writes the summary's count and notice.
 // `attributes` (OBJ's corner normals) run parallel to `triangles`, one value per triangle corner, and follow the
 // corners they belong to; null where a reader has none.
 class PolygonSplitter {
  public:
+  // xyz: the positions read so far, three doubles a vertex (may be null when num_vertices is 0).
   void Add(const int* corners, const int* corner_attributes, size_t n, std::vector<int>* triangles,
-           std::vector<int>* attributes);
-  void Finish(const Vertices& V, std::vector<int>* triangles, std::vector<int>* attributes,
-              MeshReadSummary* summary) const;
-  int count() const { return static_cast<int>(first_triangle_.size()); }
+           std::vector<int>* attributes, const double* xyz, size_t num_vertices);
+  void Finish(const Vertices& V, std::vector<int>* triangles, std::vector<int>* attributes, MeshReadSummary* summary);
+  int count() const { return count_; }
 
  private:
+  // Ear-clips the polygon whose fan starts at triangle `first` when it is not convex.
+  void Replace(const double* xyz, const int* corners, const int* corner_attributes, size_t n, size_t first,
+               std::vector<int>* triangles, std::vector<int>* attributes);
+
+  int count_ = 0;
+  int concave_ = 0;
+  std::vector<size_t> clipped_;  // scratch
+  // Polygons left for Finish():
   std::vector<size_t> first_triangle_;
   std::vector<size_t> corner_start_{0};  // polygon p's corners: corners_[corner_start_[p] .. corner_start_[p + 1])
   std::vector<int> corners_;

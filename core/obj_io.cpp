@@ -120,7 +120,8 @@ class ObjParser {
     if (triangles_.size() / 3 + n > static_cast<size_t>(std::numeric_limits<int>::max() / 3)) Fail("too many faces");
     for (const int normal : corner_normal_) any_corner_normal_ = any_corner_normal_ || normal >= 0;
     if (n > 3) {
-      splitter_.Add(corner_vertex_.data(), corner_normal_.data(), n, &triangles_, &triangle_normals_);
+      splitter_.Add(corner_vertex_.data(), corner_normal_.data(), n, &triangles_, &triangle_normals_, positions_.data(),
+                    positions_.size() / 3);
       return;
     }
     triangles_.insert(triangles_.end(), corner_vertex_.begin(), corner_vertex_.end());

@@ -88,7 +88,8 @@ class OffParser {
         Fail("too many faces");
       }
       if (n > 3) {
-        splitter.Add(polygon.data(), nullptr, polygon.size(), &triangles, nullptr);
+        splitter.Add(polygon.data(), nullptr, polygon.size(), &triangles, nullptr, mesh.V.data(),
+                     static_cast<size_t>(mesh.V.rows()));
       } else {
         triangles.insert(triangles.end(), polygon.begin(), polygon.end());
       }

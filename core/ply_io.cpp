@@ -642,7 +642,8 @@ class BodyReader {
                      static_cast<size_t>(std::numeric_limits<int>::max() / 3),
                  name_, ": too many triangles");
         if (count > 3) {
-          splitter_.Add(polygon.data(), nullptr, polygon.size(), &triangles_, nullptr);
+          splitter_.Add(polygon.data(), nullptr, polygon.size(), &triangles_, nullptr, mesh_.mesh.V.data(),
+                        static_cast<size_t>(mesh_.mesh.V.rows()));
         } else {
           triangles_.insert(triangles_.end(), polygon.begin(), polygon.end());
         }

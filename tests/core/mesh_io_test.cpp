@@ -291,6 +291,17 @@ TEST_F(MeshIoTest, ConcavePolygonsAreTriangulatedInTheirPlane) {
     EXPECT_NE(summary.notices[0].find("(1 concave ones by ear clipping in their plane"), std::string::npos)
         << summary.notices[0];
   }
+  // An OBJ may name its vertices after the face that uses them: the polygon is decided once they are read.
+  std::string forward = "f 1 2 3 4 5 6\n";
+  for (int i = 0; i < 6; ++i) forward += StrCat("v ", l_shape[i][0], " ", l_shape[i][1], " 0\n");
+  MeshReadSummary summary;
+  const Mesh back = ReadMesh(WriteBytes("forward.obj", forward), &summary);
+  ASSERT_EQ(back.num_faces(), 4);
+  for (int f = 0; f < 4; ++f) {
+    const Eigen::Vector3d a = back.V.row(back.F(f, 0)), b = back.V.row(back.F(f, 1)), c = back.V.row(back.F(f, 2));
+    EXPECT_GT((b - a).cross(c - a).z(), 1e-9) << "triangle " << f << " is folded or flat";
+  }
+  EXPECT_NE(summary.notices[0].find("(1 concave ones"), std::string::npos) << summary.notices[0];
 }
 
 // What OBJ and OFF readers leave out is said (PLY names the properties it skips); a comment may end an OBJ face.
