@@ -1,6 +1,6 @@
 # Type stub of the rangebayes module (for editors; the docstrings at run time hold units and contracts).
 import os
-from typing import Any, Callable, Iterator, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Iterator, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -31,7 +31,10 @@ class NoisyMesh:
     N: npt.NDArray[np.float64]
     covariances: npt.NDArray[np.float64]  # (n, 3, 3), model units²
     pixel: npt.NDArray[np.float32]  # (n, 2) or (0, 2)
-    def __init__(self, V: Union[ArrayLike, Mesh], F: Optional[ArrayLike] = ..., covariances: Optional[ArrayLike] = ...) -> None: ...
+    @overload
+    def __init__(self, mesh: Mesh, covariances: Optional[ArrayLike] = ...) -> None: ...
+    @overload
+    def __init__(self, V: ArrayLike, F: ArrayLike, covariances: Optional[ArrayLike] = ...) -> None: ...
     @property
     def has_covariance(self) -> bool: ...
     @property

@@ -20,6 +20,12 @@ def to_open3d(mesh):
         mesh = mesh.mesh
     if not isinstance(mesh, (Mesh, NoisyMesh)):
         raise TypeError(f"to_open3d: expected a Mesh, NoisyMesh or DecimatedMesh, got {type(mesh)}")
+    F = np.asarray(mesh.F)
+    n = mesh.V.shape[0]
+    if F.size and (F.min() < 0 or F.max() >= n):
+        # Open3D does not check its triangles: a bad index crashes the interpreter in its first computation.
+        bad = int(np.argmax((F < 0).any(axis=1) | (F >= n).any(axis=1)))
+        raise ValueError(f"to_open3d: face {bad} uses vertex {F[bad].tolist()} but there are {n} vertices")
     o3d = _o3d()
     out = o3d.geometry.TriangleMesh()
     out.vertices = o3d.utility.Vector3dVector(np.ascontiguousarray(mesh.V, dtype=np.float64))
@@ -31,8 +37,8 @@ def to_open3d(mesh):
 
 def from_open3d(o3d_mesh):
     """A rangebayes.Mesh from an open3d.geometry.TriangleMesh (copies vertices, triangles, vertex normals)."""
-    from ._rangebayes import Mesh
-
+    if not all(hasattr(o3d_mesh, a) for a in ("vertices", "triangles", "has_vertex_normals")):
+        raise TypeError(f"from_open3d: expected an open3d.geometry.TriangleMesh, got {type(o3d_mesh)}")
     V = np.asarray(o3d_mesh.vertices)
     F = np.asarray(o3d_mesh.triangles)
     N = np.asarray(o3d_mesh.vertex_normals) if o3d_mesh.has_vertex_normals() else None

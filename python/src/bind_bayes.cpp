@@ -272,6 +272,10 @@ or with a vertex that is not finite is refused. GIL released.)");
         py::dict kw = py::dict(kwargs);
         DecimateOptions options;
         options.progress = PythonProgress(PopKeyword(kw, "progress"));
+        // As the CLI: a λ given with a face budget would be replaced by the budget's search without a word.
+        if (kw.contains("lambda") && kw.contains("target_faces")) {
+          throw py::value_error("decimate: give lambda or target_faces, not both (target_faces searches lambda)");
+        }
         ApplyKeywords(DecimateOptionFields(), kw, &options, "decimate", "progress");
         options.Check();
         const Mesh input = ToMesh(mesh, "decimate");
@@ -282,7 +286,9 @@ or with a vertex that is not finite is refused. GIL released.)");
       },
       py::arg("mesh"),
       "Bayesian decimation into planar patches: (DecimatedMesh, DecimateSummary). Keywords: the DecimateOptions "
-      "fields (rangebayes.DECIMATE_OPTIONS), progress. GIL released.");
+      "fields (rangebayes.DECIMATE_OPTIONS, with their defaults), progress; lambda (the energy of one patch, unitless: "
+      "squared normal difference x faces) or target_faces (faces wanted; lambda is then searched), not both. GIL "
+      "released.");
   m.def(
       "decimate_animated",
       [](const py::sequence& poses, py::kwargs kwargs) {
@@ -323,10 +329,14 @@ or with a vertex that is not finite is refused. GIL released.)");
                      "the data loss per vertex at the end of training, in units of the mean edge length squared")
       .def_readwrite("date", &LearnedPrior::date);
   m.def(
-      "read_learned_prior", [](const PathArg& path) { return ReadLearnedPrior(path.string()); }, py::arg("path"));
+      "read_learned_prior", [](const PathArg& path) { return ReadLearnedPrior(path.string()); }, py::arg("path"),
+      "A LearnedPrior from the YAML file `rangebayes learn-prior` writes (for smooth(potential=...)); "
+      "rangebayes.Error names the file and field when it is malformed.");
   m.def(
       "write_learned_prior", [](const PathArg& path, const LearnedPrior& p) { WriteLearnedPrior(p, path.string()); },
-      py::arg("path"), py::arg("prior"));
+      py::arg("path"), py::arg("prior"),
+      "Writes a LearnedPrior as the YAML file `rangebayes smooth --prior` reads (replaced whole, never left half "
+      "written).");
   m.def(
       "learn_prior",
       [](const py::sequence& pairs, py::handle initial_theta, py::kwargs kwargs) {

@@ -26,7 +26,8 @@ std::vector<cv::Mat> Mats(const std::vector<ImageIn>& images) {
   return out;
 }
 
-// Runs the matcher named `matcher` ("sgbm", "spacetime") with keyword options on rectified images.
+// Runs the matcher named `matcher` ("sgbm", "spacetime", or "block": the CLI's and a noise model's name of the
+// space-time matcher on one frame) with keyword options on rectified images.
 DisparityResult MatchImages(const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
                             const std::string& matcher, py::dict& kw, const std::string& what,
                             const std::string& extra) {
@@ -38,7 +39,7 @@ DisparityResult MatchImages(const std::vector<cv::Mat>& left, const std::vector<
     SgbmMatcher m(options);
     return m.Match(left, right);
   }
-  if (matcher == "spacetime") {
+  if (matcher == "spacetime" || matcher == "block") {
     SpaceTimeMatcherOptions options;
     ApplyKeywords(SpaceTimeOptionFields(), kw, &options, what, extra);
     options.Check();
@@ -46,7 +47,8 @@ DisparityResult MatchImages(const std::vector<cv::Mat>& left, const std::vector<
     SpaceTimeMatcher m(options);
     return m.Match(left, right);
   }
-  throw py::value_error(what + ": matcher must be 'sgbm' or 'spacetime', got '" + matcher + "'");
+  throw py::value_error(what + ": matcher must be 'sgbm', 'spacetime' or 'block' (spacetime on one image pair), got '" +
+                        matcher + "'");
 }
 
 py::dict DisparityDict(const DisparityResult& r) {
@@ -104,7 +106,9 @@ numpy arrays (copies on read; assign a whole array to change one). Translations 
       "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");
   m.def(
       "write_rig", [](const PathArg& path, const StereoRig& rig) { WriteStereoRig(rig, path.string()); },
-      py::arg("path"), py::arg("rig"));
+      py::arg("path"), py::arg("rig"),
+      "Writes a StereoRig as the rig.yaml (OpenCV FileStorage) that `rangebayes calibrate rig` writes and --rig "
+      "reads.");
 
   py::class_<DisparityNoiseModel>(m, "DisparityNoiseModel", "σ_d model fitted by `rangebayes calibrate noise`.")
       .def(py::init<>())
@@ -133,11 +137,14 @@ numpy arrays (copies on read; assign a whole array to change one). Translations 
           "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px); raises Error for a "
           "model with fields out of range");
   m.def(
-      "read_noise_model", [](const PathArg& path) { return ReadDisparityNoiseModel(path.string()); }, py::arg("path"));
+      "read_noise_model", [](const PathArg& path) { return ReadDisparityNoiseModel(path.string()); }, py::arg("path"),
+      "A DisparityNoiseModel from the noise.yaml `rangebayes calibrate noise` writes (σ_d in px; for "
+      "stereo/replay noise_model=...); rangebayes.Error names the file and field when it is malformed.");
   m.def(
       "write_noise_model",
       [](const PathArg& path, const DisparityNoiseModel& model) { WriteDisparityNoiseModel(model, path.string()); },
-      py::arg("path"), py::arg("model"));
+      py::arg("path"), py::arg("model"),
+      "Writes a DisparityNoiseModel as the noise.yaml the CLI's --noise-model reads.");
 
   py::class_<DepthFrame>(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres), sigma_depth_m,
 disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where invalid.)")
@@ -182,8 +189,8 @@ disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (
       },
       py::arg("left"), py::arg("right"), py::arg("matcher") = "sgbm",
       R"(Stereo matching on rectified images (an array, or a list of arrays for a space-time sequence; read in
-place when C-contiguous, uint8/uint16/float, 1 or 3 channels). matcher 'sgbm' (OpenCV SGBM) or 'spacetime'
-(ours, with σ_d); keywords: rangebayes.SGBM_OPTIONS / SPACETIME_OPTIONS. Returns a dict: disparity_px,
+place when C-contiguous, uint8 or uint16, 1 or 3 channels). matcher 'sgbm' (OpenCV SGBM) or 'spacetime'
+(ours, with σ_d; 'block' is the same on one pair, as the CLI and noise models name it); keywords: rangebayes.SGBM_OPTIONS / SPACETIME_OPTIONS. Returns a dict: disparity_px,
 sigma_disparity_px (float32 (h, w), NaN invalid; σ None for sgbm), match_ms, frames_used, valid_fraction,
 range_end_fraction (share of pixels matched best at an end of the search range: the range may be too short),
 num_disparities_searched (when other than asked: SGBM searches a multiple of 16; else 0). GIL released.)");
@@ -226,10 +233,13 @@ DepthFromDisparityOptions (min_depth_m, max_depth_m, sigma_pixel_px). GIL releas
         DepthFromDisparityOptions options;
         ApplyKeywords(DepthOptionFields(), kw, &options, "depth_from_disparity");
         std::vector<ImageIn> keep;
-        const cv::Mat d = MatOrEmpty(disparity, "disparity", &keep);
-        const cv::Mat s = MatOrEmpty(sigma, "sigma", &keep);
+        cv::Mat d = MatOrEmpty(disparity, "disparity", &keep);
+        cv::Mat s = MatOrEmpty(sigma, "sigma", &keep);
+        // numpy's default float64 is taken as float32 (the library's type; disparities need no more).
+        if (d.type() == CV_64F) d.convertTo(d, CV_32F);
+        if (s.type() == CV_64F) s.convertTo(s, CV_32F);
         RB_CHECK(d.type() == CV_32F && (s.empty() || s.type() == CV_32F),
-                 "depth_from_disparity: disparity and sigma must be float32 (h, w) images");
+                 "depth_from_disparity: disparity and sigma must be float32 or float64 (h, w) images");
         py::gil_scoped_release nogil;
         DepthFrame f = DepthFromDisparity(d, s, intrinsics, baseline_m, doffs_px, options);
         f.depth_m = f.depth_m.clone();  // the result must not point into the caller's arrays
@@ -311,7 +321,12 @@ non-occluded mask (uint8, 255 = evaluate; None when absent), the search range an
         } else {
           gt = MatOrEmpty(ground_truth, "ground_truth", &keep);
         }
-        if (!mask.is_none()) m_in = MatOrEmpty(mask, "mask", &keep);
+        py::object mask_in = py::reinterpret_borrow<py::object>(mask);
+        // A boolean mask (numpy's own comparison result) is scored as uint8.
+        if (py::isinstance<py::array>(mask) && py::array::ensure(mask).dtype().kind() == 'b') {
+          mask_in = mask_in.attr("astype")("uint8");
+        }
+        if (!mask.is_none()) m_in = MatOrEmpty(mask_in, "mask", &keep);
         // float64 maps are scored as float32 (the library's type; NaN stays NaN).
         for (cv::Mat* d : {&e, &gt}) {
           if (d->type() == CV_64F) d->convertTo(*d, CV_32F);
@@ -322,7 +337,7 @@ non-occluded mask (uint8, 255 = evaluate; None when absent), the search range an
               "disparities");
         }
         if (!m_in.empty() && m_in.type() != CV_8U)
-          throw py::type_error("evaluate_disparity: mask must be uint8 (h, w)");
+          throw py::type_error("evaluate_disparity: mask must be uint8 or bool (h, w)");
         if (e.size() != gt.size() || (!m_in.empty() && m_in.size() != gt.size())) {
           throw py::value_error("evaluate_disparity: estimate, ground truth and mask differ in size");
         }
@@ -332,7 +347,7 @@ non-occluded mask (uint8, 255 = evaluate; None when absent), the search range an
       py::arg("estimate"), py::arg("ground_truth"), py::arg("mask") = py::none(),
       R"(Scores a disparity map (float32 or float64 (h, w), NaN missing) as `rangebayes eval-depth` does: a DisparityEvaluation.
 ground_truth: a MiddleburyScene (its ground truth and non-occluded mask) or a float32 array; mask (uint8, non-zero =
-score) replaces the scene's. Keywords: bad_thresholds_px, estimate_scale. GIL released.)");
+score; or bool) replaces the scene's. Keywords: bad_thresholds_px, estimate_scale. GIL released.)");
   m.def(
       "read_disparity",
       [](const PathArg& path, double scale) {
@@ -344,8 +359,8 @@ score) replaces the scene's. Keywords: bad_thresholds_px, estimate_scale. GIL re
         return ArrayFromMat(d);
       },
       py::arg("path"), py::arg("scale") = 1.0,
-      "A disparity map file (PFM as `stereo` writes disparity.pfm, or PNG/PGM × scale) as float32 (h, w), NaN "
-      "unknown.");
+      "A disparity map file (PFM as `stereo` writes disparity.pfm, or PNG/PGM: disparity = value / scale, as "
+      "`eval-depth --scale`) as float32 (h, w), NaN unknown.");
   m.attr("DISPARITY_EVALUATION_OPTIONS") =
       FieldsToDict(DisparityEvaluationOptionFields(), DisparityEvaluationOptions{});
 
