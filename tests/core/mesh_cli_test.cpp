@@ -10,6 +10,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 
 #include "core/mesh_io.h"
 #include "tests/apps/run_binary.h"
@@ -95,9 +96,20 @@ TEST_F(MeshCliTest, ConvertRoundTripIsExact) {
 }
 
 TEST_F(MeshCliTest, ConvertUsageErrors) {
-  EXPECT_EQ(RunRangebayes(std::string("convert --ascii ") + kAngel + " " + Path("x.obj")).exit_code, 2);
-  EXPECT_EQ(RunRangebayes(std::string("convert --ascii --big-endian ") + kAngel + " " + Path("x.ply")).exit_code, 2);
-  EXPECT_EQ(RunRangebayes(std::string("convert ") + kAngel).exit_code, 2);
+  // Usage errors: exit 2, one line that says what is wrong, and nothing written.
+  const std::pair<std::string, std::string> usage[] = {
+      {std::string("convert --ascii ") + kAngel + " " + Path("x.obj"),
+       "--ascii and --big-endian apply to .ply output only"},
+      {std::string("convert --ascii --big-endian ") + kAngel + " " + Path("x.ply"),
+       "--ascii and --big-endian exclude each other"},
+      {std::string("convert ") + kAngel, "OUT is required"}};
+  for (const auto& [arguments, message] : usage) {
+    const RunResult r = RunRangebayes(arguments);
+    EXPECT_EQ(r.exit_code, 2) << arguments;
+    EXPECT_EQ(r.output, "rangebayes convert: error: " + message + " (see --help)\n") << arguments;
+  }
+  EXPECT_FALSE(std::filesystem::exists(Path("x.obj")));
+  EXPECT_FALSE(std::filesystem::exists(Path("x.ply")));
   const RunResult r = RunRangebayes(std::string("convert ") + kAngel + " " + Path("x.stl"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("unknown mesh format"), std::string::npos) << r.output;
