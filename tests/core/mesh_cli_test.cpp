@@ -8,12 +8,14 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 
 #include "core/mesh_io.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -25,13 +27,13 @@ const char kAngel[] = "tests/data/meshes/real_angel_scan.obj";
 class MeshCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() / (std::string("rb_mesh_cli_") + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    temp_ = std::make_unique<TempDir>(std::string("mesh_cli_") +
+                                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = temp_->path();
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override { temp_.reset(); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::unique_ptr<TempDir> temp_;
   fs::path dir_;
 };
 
