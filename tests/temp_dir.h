@@ -8,6 +8,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <string>
@@ -47,6 +48,13 @@ inline std::string TempPath(const std::string& name) {
   const std::string path =
       (std::filesystem::temp_directory_path() / ("rb_" + std::to_string(::getpid()) + "_" + name)).string();
   temp_dir_internal::TheRegistry().Add(path);
+  return path;
+}
+
+// Writes `text` to the file TempPath(name) and returns its path; it stays until the process exits (see above).
+inline std::string WriteTempFile(const std::string& name, const std::string& text) {
+  const std::string path = TempPath(name);
+  std::ofstream(path) << text;
   return path;
 }
 

@@ -2,6 +2,7 @@
 
 import json
 import math
+import os
 import subprocess
 
 import numpy as np
@@ -133,19 +134,30 @@ sys.exit(0)
 """
 
 
+def cpu_seconds(pid):
+    """User + system CPU time of process `pid` (all its threads), from /proc."""
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def test_ctrl_c_stops_smooth_without_a_progress_function():
     # SIGINT (Ctrl-C) to a process inside smooth() with no progress function: KeyboardInterrupt from inside the
     # call. Before the fix the signal waited for the solve to end (600 s here), so the 120 s guard would fail.
-    import os
+    # The signal goes once the child has spent 0.3 s of CPU after printing "smoothing": the one thing it does after
+    # that line is the call, so it is inside smooth() then (a signal before the call would also exit 3, from the
+    # Python code, without testing anything).
     import signal
     import sys
+    import time
 
     child = subprocess.Popen([sys.executable, "-c", CTRL_C_CHILD], stdout=subprocess.PIPE, text=True,
                              env=dict(os.environ))
     try:
         assert child.stdout.readline().strip() == "smoothing"
-        import time
-        time.sleep(0.5)  # inside the solve
+        start, deadline = cpu_seconds(child.pid), time.monotonic() + 60
+        while cpu_seconds(child.pid) - start < 0.3:
+            assert time.monotonic() < deadline and child.poll() is None
+            time.sleep(0.01)
         child.send_signal(signal.SIGINT)
         assert child.wait(timeout=120) == 3
     finally:

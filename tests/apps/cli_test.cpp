@@ -13,10 +13,20 @@
 namespace rangebayes {
 namespace {
 
+// Every subcommand that apps/cmd_*.cpp registers, on a line of its own under "Subcommands:" (the word "rangebayes"
+// alone is also in the error line a help that failed would print).
 TEST(Cli, HelpExitsZeroAndListsSubcommands) {
   const RunResult r = RunRangebayes("--help");
   EXPECT_EQ(r.exit_code, 0);
-  EXPECT_NE(r.output.find("rangebayes"), std::string::npos);
+  const size_t list = r.output.find("\nSubcommands:\n");
+  ASSERT_NE(list, std::string::npos) << r.output;
+  const std::string subcommands = r.output.substr(list);
+  for (const char* name :
+       {"info", "convert", "smooth", "eval", "stereo", "spacetime", "synth", "eval-depth", "fuse", "decimate",
+        "cameras", "record", "live", "replay", "calibrate", "synth-meshes", "learn-prior", "batch"}) {
+    EXPECT_NE(subcommands.find("\n  " + std::string(name) + " "), std::string::npos) << name << "\n" << r.output;
+  }
+  EXPECT_EQ(r.output.find("error"), std::string::npos) << r.output;
 }
 
 TEST(Cli, UnknownSubcommandIsOneLineExitTwo) {
@@ -29,6 +39,7 @@ TEST(Cli, UnknownSubcommandIsOneLineExitTwo) {
 TEST(Cli, NoSubcommandIsUsageError) {
   const RunResult r = RunRangebayes("");
   EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output, "rangebayes: error: A subcommand is required (see --help)\n");
 }
 
 // Numeric options: one plain line and exit 2 for a value out of range or NaN (CLI11's own checks printed the

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -114,10 +115,33 @@ TEST(AdaptiveEpsilon, RejectsBadOptionsAndIndices) {
   EXPECT_THROW(AdaptiveEpsilonSquared(bad), Error);
 }
 
-// End to end: the rule's ε² plugs into Smooth() (SmoothOptions::face_epsilon_squared) on a noisy roof, the
-// result is finite and its crease stays sharp (the two halves' mean normals stay 2·atan(0.5) = 53.13° apart).
+// The mean angular error (degrees) of the faces within one unit of the crease at x = cols/2 of a NoisyRoof,
+// against the clean roof's normals (slope ±0.5 on either side).
+double CreaseMaeDeg(const Mesh& mesh, int cols) {
+  const double crease_x = cols / 2.0;
+  double sum = 0;
+  int n = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const double x = FaceCentroidX(mesh, f);
+    if (std::abs(x - crease_x) > 1.0) continue;
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d normal = (b - a).cross(c - a);
+    const Eigen::Vector3d truth = Eigen::Vector3d(x < crease_x ? -0.5 : 0.5, 0.0, 1.0);
+    sum += std::atan2(normal.cross(truth).norm(), normal.dot(truth)) * 180 / M_PI;
+    ++n;
+  }
+  return sum / n;
+}
+
+// End to end: the rule's ε² plugs into Smooth() (SmoothOptions::face_epsilon_squared) on a noisy roof: the
+// result differs from the plain solve (the per-face values were read), and the crease stays sharp where it
+// matters, on the faces beside it. Against the clean roof those faces' normals err (measured, seed 3) 1.67°
+// with the rule's crease-protected ε², 3.7° with the same rule unprotected, 5.1° with ε² = 0.2 (the rule's
+// upper clamp) on every face, 6.4° with the quadratic prior, 8.6° in the noisy input. The bound (2.5°) sits
+// between the protected result and every rounded one.
 TEST(AdaptiveEpsilon, PlugsIntoSmooth) {
-  const Mesh noisy = testing::NoisyRoof(16, 16, 0.1, 3);
+  const int cols = 16;
+  const Mesh noisy = testing::NoisyRoof(16, cols, 0.1, 3);
   GenericNoiseOptions noise;
   noise.noise_edge_multiple = 0.1;
   const NoisyMesh input = MakeGenericNoisyMesh(noisy, noise);
@@ -130,18 +154,21 @@ TEST(AdaptiveEpsilon, PlugsIntoSmooth) {
   options.face_epsilon_squared = AdaptiveEpsilonSquared(smoothed);
   const Mesh result = Smooth(input, options);
   ASSERT_TRUE(result.V.allFinite());
-  Eigen::Vector3d left = Eigen::Vector3d::Zero(), right = Eigen::Vector3d::Zero();
-  for (int f = 0; f < result.num_faces(); ++f) {
-    const Eigen::Vector3d a = result.V.row(result.F(f, 0)), b = result.V.row(result.F(f, 1)),
-                          c = result.V.row(result.F(f, 2));
-    const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
-    const double x = FaceCentroidX(result, f);
-    if (x < 6) left += n;
-    if (x > 10) right += n;
-  }
-  const double angle = std::acos(left.normalized().dot(right.normalized())) * 180 / M_PI;
-  // Measured 53.06°; 1° allows for the noise left, a rounded crease would tilt the mean normals far more.
-  EXPECT_NEAR(angle, 2 * std::atan(0.5) * 180 / M_PI, 1.0);
+  SmoothOptions plain_options;
+  plain_options.adaptive_epsilon = false;
+  const Mesh plain = Smooth(input, plain_options);
+  // The rule gives more than the minimum to some faces (the roof's noise left after the fast pre-pass), so a
+  // solve that reads them cannot land on the plain solve's vertices.
+  ASSERT_GT(*std::max_element(options.face_epsilon_squared.begin(), options.face_epsilon_squared.end()), 1e-3);
+  EXPECT_GT((result.V - plain.V).cwiseAbs().maxCoeff(), 1e-3);
+
+  SmoothOptions rounded = plain_options;
+  rounded.face_epsilon_squared.assign(static_cast<size_t>(noisy.num_faces()), 0.2);
+  const double mae = CreaseMaeDeg(result, cols), mae_rounded = CreaseMaeDeg(Smooth(input, rounded), cols);
+  std::printf("crease MAE: adaptive %.3f°, eps2 0.2 everywhere %.3f°, noisy %.3f°\n", mae, mae_rounded,
+              CreaseMaeDeg(noisy, cols));
+  EXPECT_LT(mae, 2.5);
+  EXPECT_GT(mae_rounded, 2.5);  // the bound tells a rounded crease
 }
 
 // The pre-pass helper: one value per face within the clamps; a potential other than the built-in square root is

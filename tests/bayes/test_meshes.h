@@ -8,27 +8,9 @@
 
 #include "bayes/smooth.h"
 #include "core/mesh.h"
+#include "tests/test_meshes.h"  // Grid, Tetrahedron
 
 namespace rangebayes::testing {
-
-// A (rows+1)×(cols+1) vertex grid in the z = 0 plane, spacing 1, two triangles per cell (CCW from +z).
-inline Mesh Grid(int rows, int cols) {
-  Mesh mesh;
-  mesh.V.resize((rows + 1) * (cols + 1), 3);
-  for (int r = 0; r <= rows; ++r) {
-    for (int c = 0; c <= cols; ++c) mesh.V.row(r * (cols + 1) + c) << c, r, 0;
-  }
-  mesh.F.resize(2 * rows * cols, 3);
-  int f = 0;
-  for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < cols; ++c) {
-      const int a = r * (cols + 1) + c, b = a + 1, d = a + cols + 1, e = d + 1;
-      mesh.F.row(f++) << a, b, e;
-      mesh.F.row(f++) << a, e, d;
-    }
-  }
-  return mesh;
-}
 
 // The grid folded along x = cols/2 into a roof (a sharp edge), plus seeded Gaussian noise of std `noise`.
 inline Mesh NoisyRoof(int rows, int cols, double noise, unsigned seed) {

@@ -5,6 +5,8 @@
 #include "console/console.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/time.h>
 
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
@@ -165,8 +167,17 @@ TEST_F(ConsoleTest, StatusHasTheIssuesFieldsAndFollowsTheRun) {
 
 // A frame skipped for a file whose name is not UTF-8 (a valid Linux name) puts that name in the status's errors;
 // the status is sent with U+FFFD for the byte. json::dump threw there: /api/status answered 500, and the periodic
-// status broadcast ended the process (an exception out of the console's thread).
+// status broadcast ended the process (an exception out of the console's thread). A WebSocket client waits for a
+// broadcast status that carries the error: the broadcast ran with the name in it.
 TEST_F(ConsoleTest, StatusWithAFileNameThatIsNotUtf8) {
+  net::io_context ioc;
+  websocket::stream<tcp::socket> ws(ioc);
+  ws.next_layer().connect(Local(console_->port()));
+  ws.handshake("127.0.0.1", "/ws");
+  // A read that waits longer than the test's bound ends with an error instead of hanging.
+  const timeval read_timeout{static_cast<time_t>(20 * RB_TEST_TIMEOUT_FACTOR), 0};
+  ASSERT_EQ(setsockopt(ws.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &read_timeout, sizeof read_timeout),
+            0);
   Recording rec = recording_;
   rec.frames[1].left = "left/\xff.png";
   PlaybackOptions playback;
@@ -176,8 +187,21 @@ TEST_F(ConsoleTest, StatusWithAFileNameThatIsNotUtf8) {
   options.control = &control_;
   const PipelineSummary s = RunPipeline(source, *rec.rig, options, {console_.get()});
   ASSERT_EQ(s.frames_skipped, 1);
-  // Ten status periods, each a broadcast of the status with the error in it.
-  std::this_thread::sleep_for(std::chrono::duration<double>(10 * TestOptions(dir_).status_period_s));
+  const std::string expected = "frame 1: left/\xEF\xBF\xBD.png is missing";
+  bool broadcast = false;
+  beast::flat_buffer buffer;
+  beast::error_code ec;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(20.0 * RB_TEST_TIMEOUT_FACTOR);
+  while (!broadcast && !ec && std::chrono::steady_clock::now() < end) {
+    ws.read(buffer, ec);
+    if (!ec && ws.got_text()) {
+      const nlohmann::json m = nlohmann::json::parse(beast::buffers_to_string(buffer.data()));
+      broadcast = m.value("type", "") == "status" && m["errors"].size() == 1 &&
+                  m["errors"][0].get<std::string>().find(expected) != std::string::npos;
+    }
+    buffer.consume(buffer.size());
+  }
+  EXPECT_TRUE(broadcast) << ec.message();
   const std::string reply = Get(console_->port(), "/api/status");
   ASSERT_EQ(StatusOf(reply), 200) << reply;
   const nlohmann::json j = nlohmann::json::parse(BodyOf(reply));

@@ -11,25 +11,16 @@
 
 #include "console/server.h"
 #include "core/error.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
 
-Mesh Grid(int n) {  // an n×n vertex grid on the plane z = 1, two triangles per cell
-  Mesh m;
-  m.V.resize(n * n, 3);
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) m.V.row(y * n + x) << x * 0.01, y * 0.01, 1.0;
-  }
-  m.F.resize(2 * (n - 1) * (n - 1), 3);
-  int f = 0;
-  for (int y = 0; y + 1 < n; ++y) {
-    for (int x = 0; x + 1 < n; ++x) {
-      const int a = y * n + x;
-      m.F.row(f++) << a, a + 1, a + n;
-      m.F.row(f++) << a + 1, a + n + 1, a + n;
-    }
-  }
+// An n×n vertex grid of spacing 0.01 on the plane z = 1, two triangles per cell.
+Mesh Grid(int n) {
+  Mesh m = testing::Grid(n - 1, n - 1);
+  m.V.leftCols(2) *= 0.01;
+  m.V.col(2).setOnes();
   return m;
 }
 

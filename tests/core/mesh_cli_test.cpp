@@ -8,11 +8,14 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 
 #include "core/mesh_io.h"
 #include "tests/apps/run_binary.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -24,13 +27,13 @@ const char kAngel[] = "tests/data/meshes/real_angel_scan.obj";
 class MeshCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() / (std::string("rb_mesh_cli_") + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    temp_ = std::make_unique<TempDir>(std::string("mesh_cli_") +
+                                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = temp_->path();
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override { temp_.reset(); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::unique_ptr<TempDir> temp_;
   fs::path dir_;
 };
 
@@ -95,9 +98,20 @@ TEST_F(MeshCliTest, ConvertRoundTripIsExact) {
 }
 
 TEST_F(MeshCliTest, ConvertUsageErrors) {
-  EXPECT_EQ(RunRangebayes(std::string("convert --ascii ") + kAngel + " " + Path("x.obj")).exit_code, 2);
-  EXPECT_EQ(RunRangebayes(std::string("convert --ascii --big-endian ") + kAngel + " " + Path("x.ply")).exit_code, 2);
-  EXPECT_EQ(RunRangebayes(std::string("convert ") + kAngel).exit_code, 2);
+  // Usage errors: exit 2, one line that says what is wrong, and nothing written.
+  const std::pair<std::string, std::string> usage[] = {
+      {std::string("convert --ascii ") + kAngel + " " + Path("x.obj"),
+       "--ascii and --big-endian apply to .ply output only"},
+      {std::string("convert --ascii --big-endian ") + kAngel + " " + Path("x.ply"),
+       "--ascii and --big-endian exclude each other"},
+      {std::string("convert ") + kAngel, "OUT is required"}};
+  for (const auto& [arguments, message] : usage) {
+    const RunResult r = RunRangebayes(arguments);
+    EXPECT_EQ(r.exit_code, 2) << arguments;
+    EXPECT_EQ(r.output, "rangebayes convert: error: " + message + " (see --help)\n") << arguments;
+  }
+  EXPECT_FALSE(std::filesystem::exists(Path("x.obj")));
+  EXPECT_FALSE(std::filesystem::exists(Path("x.ply")));
   const RunResult r = RunRangebayes(std::string("convert ") + kAngel + " " + Path("x.stl"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("unknown mesh format"), std::string::npos) << r.output;

@@ -5,11 +5,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <string>
 
 #include "core/error.h"
 #include "core/mesh_io.h"
+#include "tests/temp_dir.h"
 
 namespace rangebayes {
 namespace {
@@ -19,13 +21,11 @@ namespace fs = std::filesystem;
 class MalformedMeshTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("rb_malformed_") + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    temp_ = std::make_unique<TempDir>(std::string("malformed_") +
+                                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = temp_->path();
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override { temp_.reset(); }
 
   std::string Write(const std::string& name, const std::string& bytes) const {
     const std::string path = (dir_ / name).string();
@@ -54,6 +54,7 @@ class MalformedMeshTest : public ::testing::Test {
     }
   }
 
+  std::unique_ptr<TempDir> temp_;
   fs::path dir_;
 };
 

@@ -10,27 +10,28 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 
 #include "core/error.h"
+#include "tests/temp_dir.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh folder per test under the system temp dir, removed afterwards.
+// A fresh folder per test (tests/temp_dir.h), removed afterwards.
 class MeshIoTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("rb_mesh_io_") + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    temp_ = std::make_unique<TempDir>(std::string("mesh_io_") +
+                                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = temp_->path();
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override { temp_.reset(); }
 
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
 
@@ -41,6 +42,7 @@ class MeshIoTest : public ::testing::Test {
     return path;
   }
 
+  std::unique_ptr<TempDir> temp_;
   fs::path dir_;
 };
 
@@ -57,14 +59,7 @@ Mesh RandomMesh(int num_vertices, int num_faces, unsigned seed) {
   return mesh;
 }
 
-Mesh Tetrahedron() {
-  Mesh mesh;
-  mesh.V.resize(4, 3);
-  mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  mesh.F.resize(4, 3);
-  mesh.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
-  return mesh;
-}
+using testing::Tetrahedron;
 
 // Eigen's == asserts equal sizes only in debug builds: check them first.
 template <typename A, typename B>

@@ -5,37 +5,15 @@
 #include <vector>
 
 #include "core/error.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
 
-Mesh Tetrahedron() {
-  Mesh mesh;
-  mesh.V.resize(4, 3);
-  mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  mesh.F.resize(4, 3);
-  mesh.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
-  return mesh;
-}
+using testing::Tetrahedron;
 
 // An open n×n grid of vertices (2(n−1)² triangles) in the z = 0 plane.
-Mesh Grid(int n) {
-  Mesh mesh;
-  mesh.V.resize(n * n, 3);
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) mesh.V.row(y * n + x) << x, y, 0;
-  }
-  mesh.F.resize(2 * (n - 1) * (n - 1), 3);
-  int f = 0;
-  for (int y = 0; y + 1 < n; ++y) {
-    for (int x = 0; x + 1 < n; ++x) {
-      const int a = y * n + x, b = a + 1, c = a + n, d = c + 1;
-      mesh.F.row(f++) << a, b, d;
-      mesh.F.row(f++) << a, d, c;
-    }
-  }
-  return mesh;
-}
+Mesh Grid(int n) { return testing::Grid(n - 1, n - 1); }
 
 TEST(Topology, TetrahedronIsClosed) {
   const Mesh mesh = Tetrahedron();

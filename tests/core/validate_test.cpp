@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
@@ -18,25 +19,10 @@ Mesh MakeMesh(const std::vector<Eigen::RowVector3d>& points, const std::vector<E
   return mesh;
 }
 
-Mesh Tetrahedron() {
-  return MakeMesh({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}});
-}
+using testing::Tetrahedron;
 
-Mesh Grid(int n) {
-  std::vector<Eigen::RowVector3d> points;
-  std::vector<Eigen::RowVector3i> faces;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) points.emplace_back(x, y, 0);
-  }
-  for (int y = 0; y + 1 < n; ++y) {
-    for (int x = 0; x + 1 < n; ++x) {
-      const int a = y * n + x, b = a + 1, c = a + n, d = c + 1;
-      faces.emplace_back(a, b, d);
-      faces.emplace_back(a, d, c);
-    }
-  }
-  return MakeMesh(points, faces);
-}
+// An n×n grid of vertices in the z = 0 plane.
+Mesh Grid(int n) { return testing::Grid(n - 1, n - 1); }
 
 void ExpectClean(const MeshValidation& v) {
   EXPECT_TRUE(v.clean());

@@ -18,27 +18,16 @@
 #include "core/mesh_io.h"
 #include "core/topology.h"
 #include "pipeline/mesh_metrics.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
 
+// An n×n-cell grid (testing::Grid) with heights z_bump · sin(0.7 x) · cos(0.5 y).
 Mesh Grid(int n, double z_bump = 0.0) {
-  Mesh mesh;
-  mesh.V.resize((n + 1) * (n + 1), 3);
-  for (int y = 0; y <= n; ++y) {
-    for (int x = 0; x <= n; ++x) {
-      const double z = z_bump * std::sin(0.7 * x) * std::cos(0.5 * y);
-      mesh.V.row(y * (n + 1) + x) << x, y, z;
-    }
-  }
-  mesh.F.resize(2 * n * n, 3);
-  int f = 0;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
-      const int a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
-      mesh.F.row(f++) << a, b, d;
-      mesh.F.row(f++) << a, d, c;
-    }
+  Mesh mesh = testing::Grid(n, n);
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    mesh.V(v, 2) = z_bump * std::sin(0.7 * mesh.V(v, 0)) * std::cos(0.5 * mesh.V(v, 1));
   }
   return mesh;
 }

@@ -13,12 +13,6 @@
 namespace rangebayes {
 namespace {
 
-std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = TempPath(name);
-  std::ofstream(path) << text;
-  return path;
-}
-
 // A 3×2 grid with five vertices on the plane z = 1 (cell (2, 1) empty), as the Stanford scans store it.
 std::string GridPly(const std::string& cells, int rows = 2) {
   return "ply\nformat ascii 1.0\nobj_info num_cols 3\nobj_info num_rows " + std::to_string(rows) +
@@ -28,7 +22,7 @@ std::string GridPly(const std::string& cells, int rows = 2) {
 }
 
 TEST(RangeGrid, ReadsCellsRowByRow) {
-  const std::string path = WriteTemp("grid.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
+  const std::string path = WriteTempFile("grid.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
   const RangeGridScan scan = ReadRangeGridScan(path);
   ASSERT_TRUE(scan.has_grid());
   EXPECT_EQ(scan.width, 3);
@@ -42,7 +36,7 @@ TEST(RangeGrid, ReadsCellsRowByRow) {
 }
 
 TEST(RangeGrid, TriangulatesAsAnOrganizedGrid) {
-  const RangeGridScan grid = ReadRangeGridScan(WriteTemp("grid2.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n")));
+  const RangeGridScan grid = ReadRangeGridScan(WriteTempFile("grid2.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n")));
   RangeGridScanSummary summary;
   const Scan scan = MakeRangeGridScan(grid, "grid2.ply", {}, &summary);
   // Block (0,0) has four vertices: two triangles; block (1,0) three: one triangle.
@@ -62,7 +56,7 @@ TEST(RangeGrid, CutsDepthJumps) {
   // The last vertex 5 cm behind the plane: every edge to it is cut.
   std::string text = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
   text.replace(text.find("0.001 0.001 1\n"), 14, "0.001 0.001 0.95\n");
-  const Scan scan = MakeRangeGridScan(ReadRangeGridScan(WriteTemp("jump.ply", text)), "jump.ply");
+  const Scan scan = MakeRangeGridScan(ReadRangeGridScan(WriteTempFile("jump.ply", text)), "jump.ply");
   EXPECT_EQ(scan.noisy.mesh.num_faces(), 1);  // only (0, 1, 3) remains
 }
 
@@ -81,11 +75,11 @@ TEST(RangeGrid, FacesInTheFileWinOverItsGridInBothReaders) {
   std::string text = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
   text.replace(text.find("end_header"), 10, "element face 1\nproperty list uchar int vertex_indices\nend_header");
   text += "3 0 1 4\n";
-  const std::string path = WriteTemp("grid_faces.ply", text);
+  const std::string path = WriteTempFile("grid_faces.ply", text);
   EXPECT_EQ(ReadMeshOrRangeGrid(path).mesh.num_faces(), 1);
   EXPECT_EQ(ReadScan(path).noisy.mesh.num_faces(), 1);
   // Without the face list both triangulate the grid.
-  const std::string grid_only = WriteTemp("grid_only.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
+  const std::string grid_only = WriteTempFile("grid_only.ply", GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n"));
   EXPECT_EQ(ReadMeshOrRangeGrid(grid_only).mesh.num_faces(), 3);
   EXPECT_EQ(ReadScan(grid_only).noisy.mesh.num_faces(), 3);
 }
@@ -93,7 +87,7 @@ TEST(RangeGrid, FacesInTheFileWinOverItsGridInBothReaders) {
 TEST(RangeGrid, BadGridsNameTheFileAndCell) {
   const auto message = [](const std::string& name, const std::string& text) {
     try {
-      ReadRangeGridScan(WriteTemp(name, text));
+      ReadRangeGridScan(WriteTempFile(name, text));
     } catch (const Error& e) {
       return std::string(e.what());
     }
@@ -138,7 +132,7 @@ TEST(RangeGrid, NoiseInTheWrongUnitsIsRefused) {
 }
 
 TEST(RangeGrid, EmptyScanIsAnError) {
-  const std::string path = WriteTemp("empty.ply", GridPly("0\n0\n0\n0\n0\n0\n"));
+  const std::string path = WriteTempFile("empty.ply", GridPly("0\n0\n0\n0\n0\n0\n"));
   try {
     ReadScan(path);
     FAIL() << "no error";

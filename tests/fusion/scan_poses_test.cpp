@@ -11,15 +11,9 @@
 namespace rangebayes {
 namespace {
 
-std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = TempPath(name);
-  std::ofstream(path) << text;
-  return path;
-}
-
 std::string ErrorOf(const std::string& name, const std::string& text) {
   try {
-    ReadScanPoses(WriteTemp(name, text));
+    ReadScanPoses(WriteTempFile(name, text));
   } catch (const Error& e) {
     return e.what();
   }
@@ -28,11 +22,11 @@ std::string ErrorOf(const std::string& name, const std::string& text) {
 
 TEST(ScanPoses, ReadsTheStanfordConventionAndRoundTrips) {
   // Two lines of bun.conf: p_world = R(q)ᵀ p + t.
-  const std::string path = WriteTemp("bun.conf",
-                                     "camera -0.0172 -0.0936 -0.734  -0.0461723 0.970603 -0.235889 0.0124573\n"
-                                     "bmesh bun000.ply 0 0 0 0 0 0 1\n"
-                                     "bmesh bun045.ply -0.0520211 -0.000383981 -0.0109223 0.00548449 -0.294635 "
-                                     "-0.0038555 0.955586\n");
+  const std::string path = WriteTempFile("bun.conf",
+                                         "camera -0.0172 -0.0936 -0.734  -0.0461723 0.970603 -0.235889 0.0124573\n"
+                                         "bmesh bun000.ply 0 0 0 0 0 0 1\n"
+                                         "bmesh bun045.ply -0.0520211 -0.000383981 -0.0109223 0.00548449 -0.294635 "
+                                         "-0.0038555 0.955586\n");
   const std::vector<ScanPose> poses = ReadScanPoses(path);
   ASSERT_EQ(poses.size(), 2u);
   EXPECT_TRUE(poses[0].world_from_scan.isApprox(Eigen::Isometry3d::Identity()));
@@ -61,7 +55,7 @@ TEST(ScanPoses, BadFilesNameTheScan) {
             std::string::npos);
   EXPECT_NE(ErrorOf("key.conf", "mesh f.ply 0 0 0 0 0 0 1\n").find("unknown keyword 'mesh'"), std::string::npos);
   EXPECT_NE(ErrorOf("none.conf", "camera 0 0 0 0 0 0 1\n").find("no 'bmesh"), std::string::npos);
-  const std::vector<ScanPose> poses = ReadScanPoses(WriteTemp("one.conf", "bmesh g.ply 0 0 0 0 0 0 1\n"));
+  const std::vector<ScanPose> poses = ReadScanPoses(WriteTempFile("one.conf", "bmesh g.ply 0 0 0 0 0 0 1\n"));
   try {
     FindScanPose(poses, "h.ply", "one.conf");
     FAIL();

@@ -1,10 +1,13 @@
 // End to end: synth-meshes writes a tiny training set, learn-prior learns from it and writes prior.yaml + PNG.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 
 #include "bayes/learn_prior_io.h"
 #include "bayes/learning/training_set.h"
+#include "core/mesh_io.h"
+#include "core/normal_error.h"
 #include "tests/apps/run_binary.h"
 #include "tests/temp_dir.h"
 
@@ -37,12 +40,26 @@ TEST(LearnCli, SynthThenLearn) {
   EXPECT_FALSE(read.date.empty());
   EXPECT_NE(read.method.find("interleaved + bump search (filtering"), std::string::npos) << read.method;
 
-  // The learned prior plugs into the smoother.
+  // The learned prior plugs into the smoother: the same mesh smoothed with the square-root prior comes out
+  // different (else --prior was read and ignored), and the learned one still denoises. Measured mean angular
+  // error against the ground truth: noisy 29.9°, learned prior 8.2°, square root 9.8°; the bound asks for half
+  // the noisy mesh's.
   const RunResult smooth = RunRangebayes("smooth '" + list.noisy[0] + "' '" + (dir / "smoothed.ply").string() +
                                          "' --noise 0.3 --prior '" + prior + "' --threads 1 --quiet");
   ASSERT_EQ(smooth.exit_code, 0) << smooth.output;
   EXPECT_NE(smooth.output.find("prior.yaml"), std::string::npos) << smooth.output;
-  EXPECT_TRUE(std::filesystem::exists(dir / "smoothed.ply"));
+  const RunResult square_root = RunRangebayes(
+      "smooth '" + list.noisy[0] + "' '" + (dir / "smoothed_sqrt.ply").string() + "' --noise 0.3 --threads 1 --quiet");
+  ASSERT_EQ(square_root.exit_code, 0) << square_root.output;
+  const Mesh noisy = ReadMesh(list.noisy[0]), truth = ReadMesh(list.truth[0]);
+  const Mesh learned = ReadMesh((dir / "smoothed.ply").string());
+  const Mesh sqrt_prior = ReadMesh((dir / "smoothed_sqrt.ply").string());
+  ASSERT_EQ(learned.num_vertices(), sqrt_prior.num_vertices());
+  EXPECT_GT((learned.V - sqrt_prior.V).cwiseAbs().maxCoeff(), 1e-6);
+  const double mae_noisy = MeanAngularErrorDeg(noisy, truth), mae_learned = MeanAngularErrorDeg(learned, truth);
+  std::printf("mean angular error: noisy %.2f°, learned prior %.2f°, square root %.2f°\n", mae_noisy, mae_learned,
+              MeanAngularErrorDeg(sqrt_prior, truth));
+  EXPECT_LT(mae_learned, 0.5 * mae_noisy);
   const RunResult not_a_prior =
       RunRangebayes("smooth '" + list.noisy[0] + "' x.ply --prior '" + (dir / "train_pairs.txt").string() + "'");
   EXPECT_EQ(not_a_prior.exit_code, 2) << not_a_prior.output;

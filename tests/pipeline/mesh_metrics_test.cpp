@@ -45,6 +45,46 @@ TEST(EvaluateMesh, AParallelCopyIsItsOffsetAwayWithTheSameNormals) {
   EXPECT_FALSE(EvaluateMesh(Square(0.25), Square(0), /*normals=*/false).has_normal_error);
 }
 
+// The unit square tilted about the y axis: z = slope · x, both faces' normals turned by atan(slope).
+Mesh TiltedSquare(double slope) {
+  Mesh m = Square(0);
+  for (int v = 0; v < 4; ++v) m.V(v, 2) = slope * m.V(v, 0);
+  return m;
+}
+
+// Known non-zero answers. Tilting both faces by atan(0.1) = 5.711° gives that angle; tilting one face only
+// gives half of it (a mean over faces, not area weighted: both faces have the same area anyway); a face of
+// repeated indices is left out and counted. Surfaces: the tilted square's corners lie 0, 0.1, 0.1, 0 above the
+// flat one (mean 0.05, largest 0.1); the flat corners lie at most 0.1/√1.01 from the tilted plane; Ev is
+// sqrt(Σ_f A Σ_(i∈f) d_i² / (3 · 2A)) = sqrt((0.02 + 0.01) / 6) for faces (0,1,2) and (0,2,3).
+TEST(EvaluateMesh, ATiltedCopyHasItsAngleAndDistances) {
+  const double tilt_deg = std::atan(0.1) * 180.0 / M_PI;  // 5.7106°
+  const MeshEvaluation e = EvaluateMesh(TiltedSquare(0.1), Square(0), /*normals=*/true);
+  EXPECT_NEAR(e.mae_deg, tilt_deg, 1e-9);
+  EXPECT_EQ(e.mae_skipped_faces, 0);
+  EXPECT_NEAR(e.surface.mean_distance, 0.05, 1e-12);
+  EXPECT_NEAR(e.surface.hausdorff, 0.1, 1e-12);
+  EXPECT_NEAR(e.surface.ev, std::sqrt(0.03 / 6.0), 1e-12);
+  EXPECT_GT(e.surface.hausdorff, 1.5 * e.surface.mean_distance);
+
+  // One face tilted (corner 1 is only in face (0, 1, 2)): raised by h its normal turns by atan(h·√2).
+  Mesh one = Square(0);
+  one.V(1, 2) = 0.1 / std::sqrt(2.0);
+  int skipped = -1;
+  EXPECT_NEAR(MeanAngularErrorDeg(one, Square(0), &skipped), tilt_deg / 2, 1e-9);
+  EXPECT_EQ(skipped, 0);
+
+  // A degenerate third face in both meshes: skipped and counted, the mean over the other two unchanged.
+  Mesh result = TiltedSquare(0.1), truth = Square(0);
+  for (Mesh* m : {&result, &truth}) {
+    m->F.conservativeResize(3, 3);
+    m->F.row(2) << 0, 0, 1;
+  }
+  const MeshEvaluation d = EvaluateMesh(result, truth, /*normals=*/true);
+  EXPECT_NEAR(d.mae_deg, tilt_deg, 1e-9);
+  EXPECT_EQ(d.mae_skipped_faces, 1);
+}
+
 TEST(EvaluateMesh, MeshesItCannotCompareAreRefused) {
   Mesh other = Square(0);
   other.F.row(1) << 0, 3, 2;  // same vertices, another face

@@ -80,6 +80,22 @@ TEST(PipelineControl, ChangesApplyToLaterFramesAndFullQualityRunsOnce) {
   EXPECT_EQ(control.settings().stereo_downsample, 2);
 }
 
+// Polls `done` until it holds or `seconds` pass; returns whether it held.
+template <typename Predicate>
+bool WaitFor(Predicate done, double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return done();
+}
+
+// A paused run takes no frame: each frame that enters is checked, as it enters, for a pause in force (the capture
+// thread's observer), so a frame taken while paused fails the test whenever it comes. Once the run has started,
+// it is held paused for a second (an unpaused run takes its first frame within milliseconds; the wait ends
+// early only on a frame taken, so a working pause gives the same result on a slow machine), then resumed:
+// every frame comes.
 TEST(PipelineControl, PauseHoldsCaptureUntilResumed) {
   TempDir dir("control_pause");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
@@ -88,15 +104,23 @@ TEST(PipelineControl, PauseHoldsCaptureUntilResumed) {
   control.SetPaused(true);  // kept by RunPipeline
   PipelineOptions options = SmallOptions();
   options.control = &control;
+  std::atomic<int> taken{0}, taken_while_paused{0};
+  options.on_frame = [&](const StereoFrame&) {
+    ++taken;
+    if (control.settings().paused) ++taken_while_paused;
+  };
   PipelineSummary s;
   std::thread run([&] { s = RunPipeline(source, *rec.rig, options, {}); });
-  // Whatever the wait, a paused run takes no frame (the first is read before the stages start).
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_TRUE(WaitFor([&] { return control.Snapshot().running; }, 60.0));
+  EXPECT_FALSE(WaitFor([&] { return taken.load() > 0; }, 1.0));
   const PipelineSnapshot paused = control.Snapshot();
   EXPECT_TRUE(paused.running);
   EXPECT_EQ(paused.frames_captured, 0);
   control.SetPaused(false);
   run.join();
+  EXPECT_EQ(taken_while_paused.load(), 0);
+  EXPECT_EQ(taken.load(), 3);
+  EXPECT_EQ(s.frames_captured, 3);
   EXPECT_EQ(s.results, 3);
 }
 

@@ -1,14 +1,20 @@
 // The stereo commands as a user runs them: synth → spacetime → eval-depth, stereo on Middlebury, errors.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include "core/mesh_io.h"
 #include "stereo/pfm.h"
 #include "tests/apps/run_binary.h"
 #include "tests/temp_dir.h"
@@ -130,13 +136,25 @@ TEST(StereoCli, SynthSpaceTimeEvalDepth) {
   EXPECT_NE(r.output.find("frames 1..2147483647 requested but the recording has 6"), std::string::npos) << r.output;
   r = RunRangebayes("eval-depth " + out + "/disparity.pfm " + rec + "/ground_truth/disparity_left_px.pfm --json");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("bad_1"), std::string::npos) << r.output;
+  // Measured: bad-1 0.84% (holes excluded), coverage 90.7%. The space-time tests find under 1% of the pixels
+  // off by more than 1 px for this configuration (SpaceTime.EdgeRejectionAndGaussNewtonRemoveGrossAndSubPixelErrors,
+  // library default 0.86%); 3% leaves room for the smaller picture's larger share of edge pixels. The columns at the
+  // left edge whose partner falls outside the right image (one disparity wide, about 15 here) stay holes.
+  const auto j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_LT(j["bad_1"]["holes_excluded"].get<double>(), 0.03) << r.output;
+  EXPECT_GT(j["coverage"].get<double>(), 0.85) << r.output;
   // The same recording's first pair through `stereo` with its rig, block matcher.
   const std::string out2 = Temp("out2");
   r = RunRangebayes("stereo " + rec + "/left/000000.png " + rec + "/right/000000.png --rig " + rec +
                     "/rig.yaml --matcher block --min-disparity 4 --num-disparities 24 --out " + out2);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(out2 + "/mesh.ply"));
+  // The six frames beat the one: SpaceTime.TemporalWindowBeatsSingleFrame asks the library for half the RMS error
+  // away from depth edges; over every pixel here the mean |error| measured 0.064 px against 0.116 px.
+  r = RunRangebayes("eval-depth " + out2 + "/disparity.pfm " + rec + "/ground_truth/disparity_left_px.pfm --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto single = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_LT(j["mean_abs_px"].get<double>(), 0.75 * single["mean_abs_px"].get<double>()) << r.output;
 }
 
 TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
@@ -148,6 +166,13 @@ TEST(StereoCli, StereoOnTsukubaScoredAgainstTheScene) {
   r = RunRangebayes("eval-depth " + out + "/disparity.pfm tests/data/stereo/tsukuba");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("bad-1 "), std::string::npos) << r.output;
+  // Middlebury v2 lists OpenCV's SGBM at about 5% bad-1 (non-occluded, holes as errors) on Tsukuba, as
+  // Sgbm.TsukubaNonOccludedBad1 asks of the library (measured 5.2% here, coverage 98%).
+  r = RunRangebayes("eval-depth " + out + "/disparity.pfm tests/data/stereo/tsukuba --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_LT(j["bad_1"]["holes_as_errors"].get<double>(), 0.10) << r.output;
+  EXPECT_GT(j["coverage"].get<double>(), 0.9) << r.output;
   // A range that leaves out the background (5–8 px): the command says so.
   r = RunRangebayes("stereo tests/data/stereo/tsukuba/imL.png tests/data/stereo/tsukuba/imR.png "
                     "--min-disparity 8 --num-disparities 16 --no-mesh --out " + out);
@@ -241,18 +266,64 @@ TEST(StereoCli, BundledMiddleburyRecordingScoresAgainstItsGroundTruth) {
   EXPECT_LT(bad2, 0.20);
 }
 
+// Faces folded over their neighbours, counted here from the file as SmoothSummary defines them (bayes/
+// smoothing_energy.h): the unit normal points against the sum of its edge-neighbours' unit normals.
+int CountFoldedFaces(const Mesh& mesh) {
+  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(mesh.num_faces()));
+  std::map<std::pair<int, int>, std::vector<int>> edge_faces;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    normal[static_cast<size_t>(f)] = (b - a).cross(c - a).normalized();
+    for (int k = 0; k < 3; ++k) {
+      const int u = mesh.F(f, k), v = mesh.F(f, (k + 1) % 3);
+      edge_faces[{std::min(u, v), std::max(u, v)}].push_back(f);
+    }
+  }
+  std::vector<Eigen::Vector3d> sum(normal.size(), Eigen::Vector3d::Zero());
+  std::vector<bool> has_neighbour(normal.size(), false);
+  for (const auto& [edge, faces] : edge_faces) {
+    for (int f : faces) {
+      for (int g : faces) {
+        if (g == f) continue;
+        sum[static_cast<size_t>(f)] += normal[static_cast<size_t>(g)];
+        has_neighbour[static_cast<size_t>(f)] = true;
+      }
+    }
+  }
+  int folded = 0;
+  for (size_t f = 0; f < normal.size(); ++f) folded += has_neighbour[f] && normal[f].dot(sum[f]) < 0;
+  return folded;
+}
+
 // Smoothing the bundled recording's stereo mesh (every 2nd pixel) unfolds most of the faces that the matching
-// noise folded (17 of them in the input, 5 left): no warning about folded faces then, which it printed whenever
-// any were left. Its --png draws the mesh as the camera saw it (core/render.h, SetCameraFrameView).
+// noise folded (17 of them in the input, 8 left, counted here from the files): no warning about folded faces then,
+// which it printed whenever any were left. A prior weight 1000× too large folds more than the input had: then
+// the warning names both counts. Its --png draws the mesh as the camera saw it (core/render.h,
+// SetCameraFrameView).
 TEST(StereoCli, SmoothingAStereoMeshWarnsOnlyAboutFoldsItAdds) {
   const std::string rec = "recordings/middlebury2014_artl_quarter", out = Temp("artl_smooth");
   RunResult r = RunRangebayes("stereo " + rec + "/left/000000.png " + rec + "/right/000000.png --rig " + rec +
                               "/rig.yaml --downsample 2 --quiet --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  const int input_folds = CountFoldedFaces(ReadMesh(out + "/mesh.ply"));
+  EXPECT_GT(input_folds, 0);
   r = RunRangebayes("smooth " + out + "/mesh.ply " + out + "/smoothed.ply --png " + out + "/before_after.png");
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  const int result_folds = CountFoldedFaces(ReadMesh(out + "/smoothed.ply"));
+  std::printf("folded faces: input %d, smoothed %d\n", input_folds, result_folds);
+  EXPECT_LT(result_folds, input_folds);
   EXPECT_EQ(r.output.find("faces flipped in the result"), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(out + "/before_after.png"));
+
+  r = RunRangebayes("smooth " + out + "/mesh.ply " + out + "/overdone.ply --prior-weight 10000 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const int overdone_folds = CountFoldedFaces(ReadMesh(out + "/overdone.ply"));
+  ASSERT_GT(overdone_folds, input_folds);
+  EXPECT_NE(r.output.find("warning: " + std::to_string(overdone_folds) +
+                          " faces flipped in the result (folded against their neighbours; the input had " +
+                          std::to_string(input_folds) + "); try a lower --prior-weight"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST(StereoCli, ErrorsAreOneLine) {
