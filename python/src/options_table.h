@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -56,7 +57,16 @@ T FieldFromPython(py::handle value, const std::string& name) {
     if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__index__")) {
       throw py::type_error(name + ": expected an int");
     }
-    return py::cast<T>(py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr())));
+    const py::object index = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
+    if (!index) throw py::error_already_set();
+    // Checked here: pybind11's own failure says only "Unable to cast Python instance to C++ type".
+    const auto big = py::cast<py::int_>(index);
+    if (big < py::int_(std::numeric_limits<T>::min()) || big > py::int_(std::numeric_limits<T>::max())) {
+      throw py::value_error(name + ": " + py::str(index).cast<std::string>() + " is out of range [" +
+                            std::to_string(std::numeric_limits<T>::min()) + ", " +
+                            std::to_string(std::numeric_limits<T>::max()) + "]");
+    }
+    return py::cast<T>(index);
   } else if constexpr (std::is_floating_point_v<T>) {
     if (py::isinstance<py::bool_>(value) || PyNumber_Check(value.ptr()) == 0 || py::isinstance<py::str>(value)) {
       throw py::type_error(name + ": expected a number");

@@ -58,3 +58,12 @@ def test_to_open3d_refuses_a_face_index_out_of_range(trim_star):
         rb.to_open3d(mesh)
     with pytest.raises(TypeError, match="from_open3d: expected an open3d.geometry.TriangleMesh"):
         rb.from_open3d(None)
+
+
+def test_integer_keywords_out_of_range_name_themselves(trim_star):
+    mesh = rb.read_mesh(trim_star)
+    # pybind11 alone says "Unable to cast Python instance to C++ type", without the keyword.
+    with pytest.raises(ValueError, match=r"max_iterations: 2147483648 is out of range \[.*, 2147483647\]"):
+        rb.smooth(mesh, max_iterations=2**31)
+    with pytest.raises(ValueError, match="target_faces: 4294967296 is out of range"):
+        rb.decimate(mesh, target_faces=2**32)
