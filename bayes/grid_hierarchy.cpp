@@ -217,7 +217,7 @@ void RestrictVertices(const NoisyMesh& fine, const Grid& grid, const std::vector
   std::vector<Eigen::Matrix3d> information(static_cast<size_t>(nv));
   for (int v = 0; v < nv; ++v) {
     RB_CHECK(InformationFromCovariance(fine.covariance[static_cast<size_t>(v)], &information[static_cast<size_t>(v)]),
-             "grid hierarchy: the covariance of vertex ", v, " is not finite and positive semi-definite");
+             "grid hierarchy: the covariance of vertex ", v, " is not finite, positive semi-definite and non-zero");
   }
   level.mesh.mesh.V.resize(nc, 3);
   level.mesh.covariance.resize(static_cast<size_t>(nc));

@@ -653,7 +653,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   });
   for (size_t i = 0; i < information.size(); ++i) {
     RB_CHECK(information[i].allFinite(), "smooth: the covariance of vertex ", i,
-             " is not finite and positive semi-definite");
+             " is not finite, positive semi-definite and non-zero");
   }
   // The solver works on a reordered copy (SolverOrder); results go back to the input's order.
   std::vector<int> face_order;
@@ -849,7 +849,8 @@ bool InformationFromCovariance(const Eigen::Matrix3d& c, Eigen::Matrix3d* inform
 
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance) {
   Eigen::Matrix3d information;
-  RB_CHECK(InformationFromCovariance(covariance, &information), "covariance is not finite and positive semi-definite");
+  RB_CHECK(InformationFromCovariance(covariance, &information),
+           "covariance is not finite, positive semi-definite and non-zero");
   return information;
 }
 

@@ -198,9 +198,9 @@ Mesh Smooth(const NoisyMesh& noisy, const SmoothOptions& options = {}, SmoothSum
 // The information matrix W = ½ Σ⁻¹ that the smoother uses for a covariance Σ: symmetrised, eigenvalues below 1e-6
 // of the largest raised to it (rounding, or a singular Σ); σ² I gives (0.5 / σ²) I exactly (which the energy stores
 // compactly). False when Σ is not finite and positive semi-definite (an eigenvalue below −1e-6 of the largest is
-// not rounding).
+// not rounding) or is zero (no measurement: infinite information).
 bool InformationFromCovariance(const Eigen::Matrix3d& covariance, Eigen::Matrix3d* information);
-// The same; throws Error when Σ is not finite and positive semi-definite.
+// The same; throws Error when Σ is not finite, positive semi-definite and non-zero.
 Eigen::Matrix3d InformationFromCovariance(const Eigen::Matrix3d& covariance);
 
 // A start for the smoother on an organized mesh from an earlier result at the same pixels (successive frames of

@@ -660,6 +660,17 @@ TEST(Smooth, IndefiniteCovarianceIsRefused) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("vertex 5"), std::string::npos) << e.what();
   }
+  // A zero covariance is semi-definite but no measurement (infinite information): refused, and said so.
+  EXPECT_FALSE(InformationFromCovariance(Eigen::Matrix3d::Zero(), &information));
+  input.covariance[5].setZero();
+  try {
+    Smooth(input);
+    ADD_FAILURE() << "a zero covariance was smoothed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 5 is not finite, positive semi-definite and non-zero"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace
