@@ -352,7 +352,8 @@ void CheckMeshForLibrary(const Mesh& mesh, const std::string& what) {
   const Eigen::Index n = mesh.V.rows();
   for (Eigen::Index i = 0; i < n; ++i) {
     if (!mesh.V.row(i).allFinite()) {
-      throw py::value_error(what + ": vertex " + std::to_string(i) + " is not finite (written through a view?)");
+      throw py::value_error(what + ": vertex " + std::to_string(i) +
+                            " is not finite (in the file read, or written through a view)");
     }
   }
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
