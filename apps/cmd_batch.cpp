@@ -1,6 +1,7 @@
 // `rangebayes batch submit|run-task|status|resubmit`: many subcommand lines on a Slurm cluster or on local
 // worker processes (batch/submit.h, batch/task.h).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -35,18 +36,70 @@ void PrintTaskEnd(const BatchTaskStatus& s) {
   if (s.state == "succeeded") {
     std::printf("task %d: succeeded in %.2f s\n", s.index, s.duration_s);
   } else {
-    std::printf("task %d: failed (exit %d) after %.2f s: %s\n", s.index, s.exit_code, s.duration_s,
+    std::printf("task %d: %s (exit %d) after %.2f s: %s\n", s.index, s.state.c_str(), s.exit_code, s.duration_s,
                 s.error_line.c_str());
   }
   std::fflush(stdout);
 }
 
-// After a local run: the counts and failures; exit 3 when a task did not succeed (partial success).
+// Where each subcommand of `sub` names its outputs, from its own options: an option named --out (with its short
+// name) or --png, and a positional named OUT, take output paths; a positional of several words whose help starts
+// "IN OUT" (decimate's FILES) ends with its output unless an output option is given.
+void AddSyntaxes(const CLI::App& parent, const std::string& prefix, SubcommandSyntaxes* syntaxes) {
+  for (const CLI::App* sub : parent.get_subcommands([](const CLI::App*) { return true; })) {
+    const std::string name = prefix + sub->get_name();
+    if (name == "batch") continue;
+    SubcommandSyntax syntax;
+    for (const CLI::Option* opt : sub->get_options()) {
+      if (opt->nonpositional()) {
+        if (opt->get_type_size_max() <= 0) continue;  // a flag
+        const bool output =
+            std::find(opt->get_lnames().begin(), opt->get_lnames().end(), "out") != opt->get_lnames().end() ||
+            std::find(opt->get_lnames().begin(), opt->get_lnames().end(), "png") != opt->get_lnames().end();
+        for (const std::string& l : opt->get_lnames()) {
+          syntax.value_options.push_back("--" + l);
+          if (output) syntax.output_options.push_back("--" + l);
+        }
+        for (const std::string& s : opt->get_snames()) {
+          syntax.value_options.push_back("-" + s);
+          if (output) syntax.output_options.push_back("-" + s);
+        }
+      } else if (opt->get_positional()) {
+        SubcommandSyntax::Positional p;
+        const int words = opt->get_items_expected_max();
+        p.words = words >= 1000 ? -1 : words;
+        p.output = opt->get_name() == "OUT";
+        p.last_is_output = p.words != 1 && opt->get_description().rfind("IN OUT", 0) == 0;
+        syntax.positionals.push_back(p);
+      }
+    }
+    (*syntaxes)[name] = syntax;
+    AddSyntaxes(*sub, name + " ", syntaxes);
+  }
+}
+
+SubcommandSyntaxes Syntaxes(const CLI::App& app) {
+  SubcommandSyntaxes syntaxes;
+  AddSyntaxes(app, "", &syntaxes);
+  return syntaxes;
+}
+
+// The exit code of batch status (and of a local submit or resubmit): 0 when every task succeeded; 3 when a task
+// needs a rerun (failed, partial, changed or interrupted); else 4 while a task is running or missing (queued,
+// not started yet, or never started).
+int BatchExitCode(const BatchReport& report) {
+  if (report.failed > 0 || report.partial > 0 || report.changed > 0 || report.interrupted > 0) return 3;
+  if (report.running > 0 || report.missing > 0) return 4;
+  return 0;
+}
+
+// After a local run: the counts and failures, and BatchExitCode (3 for a missing task too: none is left to run).
 void FinishLocal(const BatchSubmitSummary& summary) {
   std::printf("%s\n", summary.BriefReport().c_str());
   const BatchReport report = CollectBatchReport(summary.dir);
   std::printf("%s", report.BriefReport().c_str());
-  if (report.failed > 0 || report.missing > 0 || report.interrupted > 0) SetExitCode(3);
+  const int code = BatchExitCode(report);
+  if (code != 0) SetExitCode(report.missing > 0 ? 3 : code);
 }
 
 void Submitted(const BatchSubmitSummary& summary) {
@@ -79,6 +132,7 @@ void AddBatch(CLI::App& app) {
       for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {
         if (command->get_name() != "batch") a->options.subcommands.push_back(command->get_name());
       }
+      a->options.syntaxes = Syntaxes(app);
       Submitted(SubmitBatch(a->manifest, a->out, a->options));
     });
   }
@@ -88,8 +142,9 @@ void AddBatch(CLI::App& app) {
         "resubmit", "Submit exactly the missing and failed tasks of DIR again, as a new job array (or --local N)");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     AddSchedulingOptions(sub, a.get());
-    sub->callback([a] {
+    sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
+      a->options.syntaxes = Syntaxes(app);
       Submitted(ResubmitBatch(a->dir, a->options));
     });
   }
@@ -105,8 +160,10 @@ void AddBatch(CLI::App& app) {
         "success; writes DIR/status/I.json; exits with the task's exit code");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     sub->add_option("I", a->index, "Task index (0-based, manifest order)")->required()->check(NonNegativeInteger());
-    sub->callback([a] {
-      const BatchTaskStatus s = RunBatchTask(a->dir, a->index);
+    sub->callback([a, &app] {
+      RunTaskOptions options;
+      options.syntaxes = Syntaxes(app);
+      const BatchTaskStatus s = RunBatchTask(a->dir, a->index, options);
       PrintTaskEnd(s);
       if (s.state != "succeeded") SetExitCode(s.exit_code > 0 && s.exit_code < 256 ? s.exit_code : 1);
     });
@@ -119,12 +176,15 @@ void AddBatch(CLI::App& app) {
     auto a = std::make_shared<Args>();
     CLI::App* sub = batch->add_subcommand(
         "status",
-        "Counts of succeeded, failed, running, interrupted and missing tasks of DIR, and each failure's error line");
+        "Counts of succeeded, partial, changed, failed, running, interrupted and missing tasks of DIR, and each "
+        "failure's error line. Exit 0: all succeeded; 3: some need a rerun (failed, partial, changed, "
+        "interrupted); 4: none of those, but some are running or missing (not started)");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     sub->add_flag("--json", a->json, "Print JSON (every task with its status file)");
     sub->callback([a] {
       const BatchReport report = CollectBatchReport(a->dir);
       std::printf("%s", a->json ? report.Json().c_str() : report.BriefReport().c_str());
+      SetExitCode(BatchExitCode(report));
     });
   }
 }

@@ -1,5 +1,6 @@
 #include "batch/manifest.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -60,7 +61,9 @@ std::vector<std::string> SplitCommandLine(const std::string& line) {
 
 std::vector<ManifestTask> ParseManifest(const std::string& text, const std::string& source) {
   std::vector<ManifestTask> tasks;
-  std::istringstream in(text);
+  // A file saved by an editor that marks UTF-8 (Windows) starts with a byte order mark, which is no part of a word.
+  const std::string bom = "\xEF\xBB\xBF";
+  std::istringstream in(text.rfind(bom, 0) == 0 ? text.substr(bom.size()) : text);
   std::string line;
   int line_number = 0;
   while (std::getline(in, line)) {
@@ -94,8 +97,99 @@ std::vector<ManifestTask> ReadManifest(const std::string& path) {
   return ParseManifest(text.str(), path);
 }
 
+std::vector<size_t> OutputWordIndices(const std::vector<std::string>& arguments, const SubcommandSyntaxes& syntaxes) {
+  std::vector<size_t> outputs;
+  if (arguments.empty()) return outputs;
+  size_t first = 1;
+  const SubcommandSyntax* syntax = nullptr;
+  if (arguments.size() > 1) {
+    const auto nested = syntaxes.find(arguments[0] + " " + arguments[1]);
+    if (nested != syntaxes.end()) {
+      syntax = &nested->second;
+      first = 2;
+    }
+  }
+  if (syntax == nullptr) {
+    const auto it = syntaxes.find(arguments[0]);
+    if (it != syntaxes.end()) syntax = &it->second;
+  }
+  static const SubcommandSyntax kFallback{{"--out", "-o"}, {"--out", "-o"}, {}};
+  if (syntax == nullptr) syntax = &kFallback;
+  auto listed = [](const std::vector<std::string>& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+  };
+  std::vector<size_t> positional;
+  bool output_option = false;
+  bool only_positional = false;
+  for (size_t i = first; i < arguments.size(); ++i) {
+    const std::string& word = arguments[i];
+    if (only_positional || word.empty() || word[0] != '-' || word == "-") {
+      positional.push_back(i);
+    } else if (word == "--") {
+      only_positional = true;
+    } else if (word.rfind("--", 0) == 0 && word.find('=') != std::string::npos) {
+      if (listed(syntax->output_options, word.substr(0, word.find('=')))) {
+        outputs.push_back(i);
+        output_option = true;
+      }
+    } else if (listed(syntax->value_options, word) || listed(syntax->output_options, word)) {
+      if (i + 1 < arguments.size()) {
+        ++i;
+        if (listed(syntax->output_options, word)) {
+          outputs.push_back(i);
+          output_option = true;
+        }
+      }
+    } else if (word.size() > 2 && word[1] != '-' && listed(syntax->output_options, word.substr(0, 2))) {
+      outputs.push_back(i);  // -oVALUE
+      output_option = true;
+    }
+  }
+  size_t next = 0;
+  for (const SubcommandSyntax::Positional& p : syntax->positionals) {
+    const size_t count = p.words < 0 ? positional.size() - next : std::min<size_t>(p.words, positional.size() - next);
+    if (p.output) {
+      for (size_t k = 0; k < count; ++k) outputs.push_back(positional[next + k]);
+    } else if (p.last_is_output && !output_option && count > 0) {
+      outputs.push_back(positional[next + count - 1]);
+    }
+    next += count;
+  }
+  std::sort(outputs.begin(), outputs.end());
+  return outputs;
+}
+
+namespace {
+
+// The path in an output word: the word, or VALUE of --option=VALUE, or VALUE of -oVALUE.
+std::string OutputPath(const std::string& word) {
+  if (word.rfind("--", 0) == 0 && word.find('=') != std::string::npos) return word.substr(word.find('=') + 1);
+  if (word.size() > 2 && word[0] == '-' && word[1] != '-') return word.substr(2);
+  return word;
+}
+
+}  // namespace
+
+void CheckTaskOutputs(const ManifestTask& task, const SubcommandSyntaxes& syntaxes, const std::string& source) {
+  for (const size_t i : OutputWordIndices(task.arguments, syntaxes)) {
+    const std::string path = OutputPath(task.arguments[i]);
+    RB_CHECK(!fs::path(path).is_absolute(), source, ":", task.line_number, ": the output '", path,
+             "' is an absolute path; a task's outputs are relative paths inside its own folder DIR/tasks/", task.index,
+             "/, which keeps tasks from overwriting each other's results");
+    int depth = 0;
+    for (const fs::path& part : fs::path(path).lexically_normal()) {
+      if (part == "..")
+        --depth;
+      else if (!part.empty() && part != ".")
+        ++depth;
+      RB_CHECK(depth >= 0, source, ":", task.line_number, ": the output '", path,
+               "' leaves the task's folder DIR/tasks/", task.index, "/ through '..'; name it inside that folder");
+    }
+  }
+}
+
 std::vector<std::string> ResolveTaskArguments(const std::vector<std::string>& arguments,
-                                              const std::string& manifest_dir) {
+                                              const std::string& manifest_dir, const SubcommandSyntaxes& syntaxes) {
   RB_CHECK(fs::path(manifest_dir).is_absolute(), "manifest folder must be absolute: ", manifest_dir);
   auto resolve = [&](const std::string& word) -> std::string {
     if (word.empty() || word[0] == '-' || fs::path(word).is_absolute()) return word;
@@ -104,12 +198,13 @@ std::vector<std::string> ResolveTaskArguments(const std::vector<std::string>& ar
     if (fs::exists(candidate, ec)) return candidate.lexically_normal().string();
     return word;
   };
+  const std::vector<size_t> outputs = OutputWordIndices(arguments, syntaxes);
   std::vector<std::string> resolved;
   resolved.reserve(arguments.size());
   for (size_t i = 0; i < arguments.size(); ++i) {
     const std::string& word = arguments[i];
-    if (i == 0) {
-      resolved.push_back(word);  // the subcommand
+    if (i == 0 || std::binary_search(outputs.begin(), outputs.end(), i)) {
+      resolved.push_back(word);  // the subcommand, or an output: never a path beside the manifest
     } else if (word.rfind("--", 0) == 0 && word.find('=') != std::string::npos) {
       const size_t eq = word.find('=');
       resolved.push_back(word.substr(0, eq + 1) + resolve(word.substr(eq + 1)));

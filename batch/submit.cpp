@@ -1,6 +1,9 @@
 #include "batch/submit.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -19,6 +22,57 @@ namespace rangebayes {
 namespace fs = std::filesystem;
 
 namespace {
+
+// An exclusive flock on DIR/batch.lock for as long as it lives; the file names the holder (pid and host). Not
+// inherited by the processes it starts (O_CLOEXEC), and released by the kernel when the holder dies.
+class BatchLock {
+ public:
+  explicit BatchLock(const BatchLayout& layout) {
+    const std::string path = layout.dir + "/batch.lock";
+    fd_ = open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    RB_CHECK(fd_ >= 0, path, ": cannot open the batch's lock (", std::strerror(errno), ")");
+    if (flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      char holder[256] = {};
+      const ssize_t n = pread(fd_, holder, sizeof(holder) - 1, 0);
+      close(fd_);
+      std::string who = n > 0 ? std::string(holder, static_cast<size_t>(n)) : "";
+      while (!who.empty() && (who.back() == '\n' || who.back() == ' ')) who.pop_back();
+      RB_CHECK(error != EWOULDBLOCK, layout.dir, ": another batch submit or resubmit of this batch is running (",
+               who.empty() ? "pid unknown" : who, "); wait for it to end, then see rangebayes batch status ",
+               layout.dir);
+      RB_FAIL(path, ": cannot lock (", std::strerror(error), ")");
+    }
+    char host[256] = {};
+    gethostname(host, sizeof(host) - 1);
+    const std::string me = "pid " + std::to_string(getpid()) + " on " + host + "\n";
+    if (ftruncate(fd_, 0) != 0 || pwrite(fd_, me.data(), me.size(), 0) != static_cast<ssize_t>(me.size())) {
+      // The lock holds without the note; a refused run then says "pid unknown".
+    }
+  }
+  ~BatchLock() { close(fd_); }
+  BatchLock(const BatchLock&) = delete;
+  BatchLock& operator=(const BatchLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+// Refuses indices that the cluster cannot take as array indices (MaxArraySize), naming the limit.
+void CheckMaxArraySize(const std::vector<int>& indices, const BatchSubmitOptions& options) {
+  const CapturedRun run = RunAndCapture({options.scontrol, "show", "config"});
+  if (!run.started || run.exit.exit_code != 0) return;  // sbatch, run next, gives its own message
+  const std::optional<int> max_size = ParseMaxArraySize(run.out);
+  if (!max_size) return;
+  const int highest = *std::max_element(indices.begin(), indices.end());
+  RB_CHECK(highest < *max_size, "task ", highest, " cannot be submitted: this cluster's MaxArraySize is ", *max_size,
+           " (array indices 0-", *max_size - 1,
+           ", scontrol show config), and task indices are array indices; "
+           "split the manifest into batches of at most ",
+           *max_size,
+           " tasks, or ask the administrators to raise "
+           "MaxArraySize in slurm.conf");
+}
 
 std::string JobScript(const BatchRecord& record, const BatchLayout& layout) {
   std::ostringstream s;
@@ -48,6 +102,7 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
     return summary;
   }
   submission.kind = "slurm";
+  CheckMaxArraySize(indices, options);
   fs::create_directories(layout.slurm_dir());
   summary.job_script = layout.slurm_dir() + "/job.sh";
   WriteFileAtomically(summary.job_script, JobScript(record, layout));
@@ -138,6 +193,19 @@ std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vec
   return command;
 }
 
+std::optional<int> ParseMaxArraySize(const std::string& output) {
+  std::istringstream in(output);
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream words(line);
+    std::string key, equals;
+    long long value = 0;
+    if (words >> key >> equals >> value && key == "MaxArraySize" && equals == "=" && value > 0 && value <= 1 << 30) {
+      return static_cast<int>(value);
+    }
+  }
+  return std::nullopt;
+}
+
 std::string ParseSbatchJobId(const std::string& output) {
   std::string line = LastLine(output);
   const size_t semicolon = line.find(';');
@@ -161,11 +229,17 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
       RB_FAIL(manifest_path, ":", t.line_number, ": '", name, "' is not a rangebayes subcommand (", known, ")");
     }
   }
+  for (const ManifestTask& t : tasks) CheckTaskOutputs(t, options.syntaxes, manifest_path);
   const BatchLayout layout(dir);
-  // A folder whose earlier submit was refused (no submission recorded) may be used again.
-  RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,
-           ": already holds a batch (batch.json); use batch resubmit DIR, or another --out");
+  const auto check_no_batch = [&] {
+    // A folder whose earlier submit was refused (no submission recorded) may be used again.
+    RB_CHECK(!fs::exists(layout.record()) || ReadBatchRecord(layout).submissions.empty(), layout.dir,
+             ": already holds a batch (batch.json); use batch resubmit DIR, or another --out");
+  };
+  check_no_batch();
   CreateFolder(layout.dir);
+  const BatchLock lock(layout);
+  check_no_batch();  // again under the lock: another submit may have recorded its batch meanwhile
   fs::copy_file(manifest_path, layout.manifest(), fs::copy_options::overwrite_existing);
   BatchRecord record;
   record.manifest_source = fs::absolute(manifest_path).lexically_normal().string();
@@ -181,8 +255,11 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
 BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options) {
   options.Check();
   const BatchLayout layout(dir);
+  ReadBatchRecord(layout);  // a folder that holds no batch is refused before a lock file is made in it
+  const BatchLock lock(layout);
   BatchRecord record = ReadBatchRecord(layout);
   const BatchReport report = CollectBatchReport(layout.dir);
+  for (const ManifestTask& t : report.tasks) CheckTaskOutputs(t, options.syntaxes, layout.manifest());
   std::set<std::string> ours;
   for (const BatchSubmission& s : record.submissions) {
     if (s.kind == "slurm") ours.insert(s.job_id);

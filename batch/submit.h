@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,9 +18,13 @@ struct BatchSubmitOptions {
   std::string binary;                   // rangebayes binary the tasks run (absolute); empty: this executable
   std::string sbatch = "sbatch";        // sbatch program (a name on PATH or a path)
   std::string squeue = "squeue";        // squeue program, for resubmit's check that nothing is still queued
+  std::string scontrol = "scontrol";    // scontrol program, for the cluster's MaxArraySize before sbatch
   // When not empty: the subcommands a task line may start with (the binary's own), checked for every line before
   // anything is written or submitted.
   std::vector<std::string> subcommands;
+  // Where each subcommand names its outputs: every line's outputs are checked (CheckTaskOutputs) before anything
+  // is written or submitted, and the local workers' run-task takes the binary's own.
+  SubcommandSyntaxes syntaxes;
   // Called (in the submitting process) when a local task has ended.
   std::function<void(const BatchTaskStatus&)> on_task_end;
   void Check() const;
@@ -34,18 +39,22 @@ struct BatchSubmitSummary {
   std::string BriefReport() const;
 };
 
-// Creates DIR (it must not hold a batch yet, unless its only submit was refused), copies the manifest into it and submits every task. With
-// local_workers > 0 it returns when every task has ended (see BatchReport for the outcome); otherwise it
-// returns after sbatch accepted the array. Throws with sbatch's own error line when sbatch is missing or
-// refuses the job.
+// Creates DIR (it must not hold a batch yet, unless its only submit was refused), copies the manifest into it and
+// submits every task. With local_workers > 0 it returns when every task has ended (see BatchReport for the
+// outcome); otherwise it returns after sbatch accepted the array. Holds an exclusive lock on DIR/batch.lock
+// meanwhile, so another submit or resubmit of DIR is refused (naming this process) while tasks run here or sbatch
+// is called. Throws, before anything is written, on a line whose output is absolute or leaves its task's folder
+// (CheckTaskOutputs), and, before sbatch, when a task index is not below the cluster's MaxArraySize (scontrol
+// show config); throws with sbatch's own error line when sbatch is missing or refuses the job.
 BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
                                const BatchSubmitOptions& options);
 
-// Submits exactly the missing, failed and interrupted tasks of DIR again (a new array, or local workers;
-// interrupted: marked running, but their run-task process on this host is gone, RunTaskIsGone); when the batch
+// Submits exactly the missing, partial, changed, failed and interrupted tasks of DIR again (a new array, or local
+// workers; interrupted: marked running, but their run-task process on this host is gone, RunTaskIsGone); when the batch
 // has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running (killed
 // on another node before they could record their end). Throws when none is left, or when squeue lists a job of
-// this batch still queued or running.
+// this batch still queued or running, when another submit or resubmit of DIR holds its lock, and when the
+// manifest has another number of tasks than was submitted (CollectBatchReport).
 BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options);
 
 // Runs the given tasks of DIR with `workers` processes of `binary batch run-task DIR I` and returns when all
@@ -58,6 +67,9 @@ std::string ArraySpec(const std::vector<int>& indices, int max_parallel);
 // The sbatch command line for `indices` of the batch (everything but the job script is an option).
 std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vector<int>& indices,
                                        const BatchSubmitOptions& options, const std::string& job_script);
+
+// MaxArraySize in `scontrol show config` output ("MaxArraySize            = 1001"); nullopt when it is not there.
+std::optional<int> ParseMaxArraySize(const std::string& output);
 
 // The job id in sbatch --parsable output ("12" or "12;cluster"); throws when there is none.
 std::string ParseSbatchJobId(const std::string& output);

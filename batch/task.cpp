@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -69,20 +70,34 @@ std::string BootId() {
   return id;
 }
 
-// The line that says why a command failed: its last line containing "error:", else its last line.
-std::string ErrorLine(const std::string& output) {
-  std::istringstream in(output);
-  std::string line, last, last_error;
-  while (std::getline(in, line)) {
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    // Progress output rewrites its line with carriage returns; keep what was printed last.
-    const size_t cr = line.find_last_of('\r');
-    if (cr != std::string::npos) line = line.substr(cr + 1);
-    if (line.empty()) continue;
-    last = line;
-    if (line.find("error:") != std::string::npos) last_error = line;
+// True when `line` names a frame that failed or was skipped ("frame 12 skipped: ...", "frame 3: sinks: ...: write
+// failed: ..."), or a system error that explains a failure by itself (a full disk).
+bool NamesACause(const std::string& line) {
+  for (const int e : {ENOSPC, EDQUOT, EROFS, EIO}) {
+    if (line.find(std::strerror(e)) != std::string::npos) return true;
   }
-  return last_error.empty() ? last : last_error;
+  for (size_t at = line.find("frame "); at != std::string::npos; at = line.find("frame ", at + 1)) {
+    const bool numbered = at + 6 < line.size() && std::isdigit(static_cast<unsigned char>(line[at + 6]));
+    if (numbered && (line.find("failed", at) != std::string::npos || line.find("skipped", at) != std::string::npos ||
+                     line.find("error", at) != std::string::npos)) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// Whether `state` is one whose result folder is published.
+bool Published(const std::string& state) { return state == "succeeded" || state == "partial"; }
+
+// Whether process `pid` exists on this host and has not ended (a zombie, not yet reaped by its parent, has).
+bool ProcessRunsHere(int pid) {
+  if (pid <= 0) return false;
+  if (kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) return false;
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(in, line)) return true;  // /proc does not say: kill(2) found it
+  const size_t name_end = line.rfind(')');
+  return name_end == std::string::npos || name_end + 2 >= line.size() || line[name_end + 2] != 'Z';
 }
 
 volatile sig_atomic_t g_child_pid = 0;
@@ -93,25 +108,29 @@ void ForwardSignal(int sig) {
   if (g_child_pid > 0) kill(static_cast<pid_t>(g_child_pid), sig);
 }
 
+// Forwards SIGTERM, SIGINT and SIGHUP to the command while it lives. A signal that is ignored (nohup, a background
+// job of a non-interactive shell) keeps its SIG_IGN, which the command inherits: whoever ignored it meant the
+// work to go on.
 struct SignalForwarding {
-  bool active = false;
-  struct sigaction old_term{}, old_int{}, old_hup{};
-  explicit SignalForwarding(bool on) : active(on) {
-    if (!active) return;
+  static constexpr int kSignals[3] = {SIGTERM, SIGINT, SIGHUP};
+  bool installed[3] = {false, false, false};
+  struct sigaction old[3]{};
+  explicit SignalForwarding(bool on) {
     g_signal = 0;
+    if (!on) return;
     struct sigaction sa{};
     sa.sa_handler = ForwardSignal;
     sigemptyset(&sa.sa_mask);
-    sigaction(SIGTERM, &sa, &old_term);
-    sigaction(SIGINT, &sa, &old_int);
-    sigaction(SIGHUP, &sa, &old_hup);
+    for (int k = 0; k < 3; ++k) {
+      if (sigaction(kSignals[k], nullptr, &old[k]) != 0 || old[k].sa_handler == SIG_IGN) continue;
+      installed[k] = sigaction(kSignals[k], &sa, &old[k]) == 0;
+    }
   }
   ~SignalForwarding() {
     g_child_pid = 0;
-    if (!active) return;
-    sigaction(SIGTERM, &old_term, nullptr);
-    sigaction(SIGINT, &old_int, nullptr);
-    sigaction(SIGHUP, &old_hup, nullptr);
+    for (int k = 0; k < 3; ++k) {
+      if (installed[k]) sigaction(kSignals[k], &old[k], nullptr);
+    }
   }
   SignalForwarding(const SignalForwarding&) = delete;
   SignalForwarding& operator=(const SignalForwarding&) = delete;
@@ -246,6 +265,7 @@ std::string BatchTaskStatusJson(const BatchTaskStatus& s) {
   j["end_utc"] = s.end_utc;
   j["duration_s"] = s.duration_s;
   j["error_line"] = s.error_line;
+  j["line"] = s.line;
   j["command"] = s.command;
   return JsonText(j, 2) + "\n";
 }
@@ -269,12 +289,13 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
     s.end_utc = j.value("end_utc", "");
     s.duration_s = j.value("duration_s", 0.0);
     s.error_line = j.value("error_line", "");
+    s.line = j.value("line", "");
     s.command = j.value("command", "");
   } catch (const json::exception& e) {
     RB_FAIL(source, ": malformed task status (", e.what(), ")");
   }
-  RB_CHECK(s.state == "running" || s.state == "succeeded" || s.state == "failed", source, ": unknown state '",
-           s.state, "'");
+  RB_CHECK(s.state == "running" || s.state == "succeeded" || s.state == "partial" || s.state == "failed", source,
+           ": unknown state '", s.state, "'");
   return s;
 }
 
@@ -296,19 +317,27 @@ void RunTaskOptions::Check() const {
 namespace {
 
 // The temporary folders of earlier runs of task `index` that never finished (their run-task was killed with
-// SIGKILL or lost its node): a published result supersedes them.
+// SIGKILL or lost its node): a published result supersedes them. A folder whose run-task (the pid that ends its
+// name) still runs on this host belongs to a run in progress and stays.
 void RemoveAbandonedWork(const BatchLayout& layout, int index) {
   const std::string prefix = ".tmp-" + std::to_string(index) + "-";
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(layout.tasks_dir(), ec)) {
-    if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const int pid = std::atoi(name.substr(name.find_last_of('-') + 1).c_str());
+    if (pid != static_cast<int>(getpid()) && ProcessRunsHere(pid)) continue;
+    fs::remove_all(entry.path(), ec);
   }
 }
 
 // The status of a task that starts now: attempt and job from Slurm's environment, run from its previous status.
-BatchTaskStatus StartingStatus(const BatchLayout& layout, int index, const std::vector<std::string>& arguments) {
+BatchTaskStatus StartingStatus(const BatchLayout& layout, const ManifestTask& task,
+                               const std::vector<std::string>& arguments) {
+  const int index = task.index;
   BatchTaskStatus status;
   status.index = index;
+  status.line = task.line;
   status.state = "running";
   const std::string restarts = Env("SLURM_RESTART_COUNT");
   status.attempt = restarts.empty() ? 0 : std::atoi(restarts.c_str());
@@ -360,7 +389,7 @@ void RecordExit(const ProcessExit& exit, const std::string& start_error, int sto
     return;
   }
   status->exit_code = exit.exit_code;
-  if (exit.exit_code != 0) status->error_line = ErrorLine(output);
+  if (exit.exit_code != 0) status->error_line = TaskErrorLine(output);
   if (exit.signal != 0) {
     status->error_line = "ended by signal " + std::to_string(exit.signal) +
                          (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
@@ -371,13 +400,14 @@ void RecordExit(const ProcessExit& exit, const std::string& start_error, int sto
   }
 }
 
-// Publishes the work folder of a command that succeeded and was not stopped; else the task failed.
+// Publishes the work folder of a command that succeeded (exit 0) or partly succeeded (exit 3: replay with frames
+// that failed or were skipped) and was not stopped; else the task failed.
 void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, int stop_signal,
                    BatchTaskStatus* status) {
-  if (status->exit_code == 0 && stop_signal == 0) {
+  if ((status->exit_code == 0 || status->exit_code == 3) && stop_signal == 0) {
     try {
       Publish(work, layout.task_dir(index));
-      status->state = "succeeded";
+      status->state = status->exit_code == 0 ? "succeeded" : "partial";
       RemoveAbandonedWork(layout, index);
     } catch (const Error& e) {
       status->state = "failed";
@@ -393,18 +423,59 @@ void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, i
   }
 }
 
+// Task i's status and result belong to line i of the manifest, so the manifest may be edited but keep its tasks.
+void CheckTaskCount(const BatchLayout& layout, const BatchRecord& record, const std::vector<ManifestTask>& tasks) {
+  RB_CHECK(static_cast<int>(tasks.size()) == record.num_tasks, layout.manifest(), ": has ", tasks.size(),
+           " tasks, but the batch was submitted with ", record.num_tasks,
+           "; results are matched to tasks by their position, so edit lines there but keep their number "
+           "(submit a new batch for other tasks)");
+}
+
 }  // namespace
+
+std::string TaskErrorLine(const std::string& output) {
+  std::istringstream in(output);
+  std::string line, last, last_error, last_cause;
+  while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    // Progress output rewrites its line with carriage returns; keep what was printed last.
+    const size_t cr = line.find_last_of('\r');
+    if (cr != std::string::npos) line = line.substr(cr + 1);
+    if (line.empty()) continue;
+    last = line;
+    if (line.find("error:") != std::string::npos) last_error = line;
+    if (NamesACause(line)) last_cause = line;
+  }
+  const bool summing_up = last_error.find("see the errors above") != std::string::npos;
+  if (!last_cause.empty() && (last_error.empty() || summing_up)) {
+    return last_error.empty() ? last_cause : last_error + " (last: " + last_cause + ")";
+  }
+  return last_error.empty() ? last : last_error;
+}
 
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options) {
   options.Check();
   const BatchLayout layout(dir);
   const BatchRecord record = ReadBatchRecord(layout);
   const std::vector<ManifestTask> tasks = ReadManifest(layout.manifest());
+  CheckTaskCount(layout, record, tasks);
   RB_CHECK(index >= 0 && index < static_cast<int>(tasks.size()), layout.dir, ": task ", index,
            " out of range (the manifest has ", tasks.size(), " tasks, 0-", tasks.size() - 1, ")");
   const ManifestTask& task = tasks[index];
-  const std::vector<std::string> arguments = ResolveTaskArguments(task.arguments, record.manifest_dir);
-  BatchTaskStatus status = StartingStatus(layout, index, arguments);
+  const std::vector<std::string> arguments =
+      ResolveTaskArguments(task.arguments, record.manifest_dir, options.syntaxes);
+  BatchTaskStatus status = StartingStatus(layout, task, arguments);
+  try {
+    CheckTaskOutputs(task, options.syntaxes, layout.manifest());
+  } catch (const Error& e) {
+    // A line edited in DIR/manifest.txt after submit's check: refused here, before anything is written.
+    status.state = "failed";
+    status.exit_code = 2;
+    status.end_utc = status.start_utc;
+    status.error_line = e.what();
+    WriteBatchTaskStatus(layout, status);
+    return status;
+  }
 
   fs::create_directories(layout.tasks_dir());
   fs::create_directories(fs::path(layout.log_file(index)).parent_path());
@@ -452,17 +523,18 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
 bool RunTaskIsGone(const BatchTaskStatus& status) {
   if (status.state != "running" || status.pid <= 0 || status.host != HostName()) return false;
   if (!status.boot_id.empty() && status.boot_id != BootId()) return true;  // the machine restarted since
-  if (kill(static_cast<pid_t>(status.pid), 0) != 0 && errno == ESRCH) return true;
+  if (!ProcessRunsHere(status.pid)) return true;
   // A process with that pid runs, but it may be another that reused the pid.
   return status.pid_start_ticks >= 0 && ProcessStartTicks(status.pid) != status.pid_start_ticks;
 }
 
 BatchReport CollectBatchReport(const std::string& dir) {
   const BatchLayout layout(dir);
-  ReadBatchRecord(layout);
+  const BatchRecord record = ReadBatchRecord(layout);
   BatchReport report;
   report.dir = layout.dir;
   report.tasks = ReadManifest(layout.manifest());
+  CheckTaskCount(layout, record, report.tasks);
   for (const ManifestTask& task : report.tasks) {
     std::optional<BatchTaskStatus> status;
     try {
@@ -477,8 +549,10 @@ BatchReport CollectBatchReport(const std::string& dir) {
     }
     std::string state = "missing";
     if (status) {
-      if (status->state == "succeeded") {
-        state = fs::is_directory(layout.task_dir(task.index)) ? "succeeded" : "missing";
+      if (status->state != "running" && !status->line.empty() && status->line != task.line) {
+        state = "changed";  // its status and result are of the line that was there before DIR/manifest.txt was edited
+      } else if (Published(status->state)) {
+        state = fs::is_directory(layout.task_dir(task.index)) ? status->state : "missing";
       } else if (RunTaskIsGone(*status)) {
         state = "interrupted";
       } else {
@@ -486,6 +560,8 @@ BatchReport CollectBatchReport(const std::string& dir) {
       }
     }
     if (state == "succeeded") ++report.succeeded;
+    if (state == "partial") ++report.partial;
+    if (state == "changed") ++report.changed;
     if (state == "failed") ++report.failed;
     if (state == "running") ++report.running;
     if (state == "interrupted") ++report.interrupted;
@@ -499,7 +575,7 @@ BatchReport CollectBatchReport(const std::string& dir) {
 std::vector<int> BatchReport::UnfinishedIndices() const {
   std::vector<int> indices;
   for (size_t i = 0; i < states.size(); ++i) {
-    if (states[i] == "missing" || states[i] == "failed" || states[i] == "interrupted") {
+    if (states[i] != "succeeded" && states[i] != "running") {
       indices.push_back(static_cast<int>(i));
     }
   }
@@ -508,8 +584,10 @@ std::vector<int> BatchReport::UnfinishedIndices() const {
 
 std::string BatchReport::BriefReport() const {
   std::ostringstream out;
-  out << dir << ": " << tasks.size() << " tasks: " << succeeded << " succeeded, " << failed << " failed, "
-      << running << " running, ";
+  out << dir << ": " << tasks.size() << " tasks: " << succeeded << " succeeded, ";
+  if (partial > 0) out << partial << " partial, ";
+  if (changed > 0) out << changed << " changed, ";
+  out << failed << " failed, " << running << " running, ";
   if (interrupted > 0) out << interrupted << " interrupted, ";
   out << missing << " missing\n";
   for (size_t i = 0; i < tasks.size(); ++i) {
@@ -520,11 +598,16 @@ std::string BatchReport::BriefReport() const {
           << "or the machine restarted) before it recorded an end; unless Slurm requeues its job, 'rangebayes batch "
           << "resubmit " << dir << "' runs it again\n";
     }
-    if (states[i] != "failed") continue;
+    if (states[i] == "changed") {
+      out << "changed: task " << i << " (manifest line " << tasks[i].line_number << "): its " << statuses[i]->state
+          << " run was of the line '" << statuses[i]->line
+          << "', which DIR/manifest.txt no longer has; 'rangebayes batch resubmit " << dir << "' runs the new one\n";
+    }
+    if (states[i] != "failed" && states[i] != "partial") continue;
     const BatchTaskStatus& s = *statuses[i];
-    out << "failed: task " << i << " (manifest line " << tasks[i].line_number << ", exit " << s.exit_code
+    out << states[i] << ": task " << i << " (manifest line " << tasks[i].line_number << ", exit " << s.exit_code
         << ", attempt " << s.attempt << ", host " << (s.node.empty() ? s.host : s.node) << "): " << s.error_line
-        << "\n";
+        << " (log: " << dir << "/logs/" << i << ".log)\n";
   }
   return out.str();
 }
@@ -534,6 +617,8 @@ std::string BatchReport::Json() const {
   j["dir"] = dir;
   j["tasks"] = tasks.size();
   j["succeeded"] = succeeded;
+  j["partial"] = partial;
+  j["changed"] = changed;
   j["failed"] = failed;
   j["running"] = running;
   j["interrupted"] = interrupted;

@@ -3,7 +3,8 @@
 // Layout of a batch folder DIR (README, "Batch processing on a Slurm cluster"):
 //   DIR/manifest.txt        the manifest, copied at submission
 //   DIR/batch.json          the manifest's folder, the binary, and every submission (sbatch command, job id)
-//   DIR/tasks/<index>/      the outputs of task <index>, present only when it succeeded
+//   DIR/batch.lock          locked (flock) by the submit or resubmit that runs tasks here (--local) or calls sbatch
+//   DIR/tasks/<index>/      the outputs of task <index>, present only when it succeeded (or partly succeeded)
 //   DIR/tasks/.tmp-<index>-<attempt>-<pid>/   where a task runs; renamed to tasks/<index>/ on success
 //   DIR/status/<index>.json the task's status (BatchTaskStatus), replaced atomically
 //   DIR/logs/<index>.log    the task command's stdout and stderr, appended by every run
@@ -59,7 +60,9 @@ BatchRecord ReadBatchRecord(const BatchLayout& layout);
 // The status of one task, DIR/status/<index>.json.
 struct BatchTaskStatus {
   int index = 0;
-  std::string state;      // "running", "succeeded" or "failed"
+  // "running", "succeeded", "partial" (the command exited 3: some of its work failed or was skipped, the rest is
+  // published) or "failed"
+  std::string state;
   int exit_code = -1;     // of the task's command; 128 + signal when a signal ended it; -1 while running
   int attempt = 0;        // SLURM_RESTART_COUNT (0 on the first run of a job, and for --local)
   int run = 1;            // how many times run-task started this index in this folder, this run included
@@ -71,7 +74,8 @@ struct BatchTaskStatus {
   std::string node;       // SLURMD_NODENAME, empty outside Slurm
   std::string start_utc, end_utc;  // ISO 8601 with milliseconds; end empty while running
   double duration_s = 0;           // wall time of the command
-  std::string error_line;          // failed: the command's last "error:" line (else its last line, or why)
+  std::string error_line;          // failed or partial: the line that says why (TaskErrorLine), or why else
+  std::string line;                // the manifest line this run ran, as written (ManifestTask::line)
   std::string command;             // the manifest line as run, paths resolved
 };
 
@@ -87,16 +91,22 @@ struct RunTaskOptions {
   std::string binary;  // the rangebayes binary that runs the task's line; empty: this executable
   // Forward SIGTERM/SIGINT/SIGHUP (Slurm's cancel, preemption, requeue) to the command, then clean up the
   // temporary folder and record the task as failed.
+  // A signal that was ignored when run-task started (nohup, a background job of a script) stays ignored, for
+  // run-task and its command.
   bool forward_signals = true;
+  SubcommandSyntaxes syntaxes;  // where each subcommand names its outputs (OutputWordIndices)
   void Check() const;
 };
 
 // Runs task `index` of the batch in DIR: resolves the line's paths (ResolveTaskArguments), runs it in
 // DIR/tasks/.tmp-<index>-<attempt>-<pid>/ with its output appended to DIR/logs/<index>.log, and renames the
-// folder to DIR/tasks/<index>/ (replacing an older result) only when the command exited 0; otherwise removes
-// it. Writes the status file at the start (running) and the end. On success it also removes the temporary
-// folders that earlier runs of the same task left when they were killed (SIGKILL, a lost node). Returns the
-// final status; throws only when DIR is not a batch or `index` is out of range.
+// folder to DIR/tasks/<index>/ (replacing an older result) only when the command exited 0 (succeeded) or 3
+// (partial); otherwise removes it. A line whose output is absolute or leaves the task's folder
+// (CheckTaskOutputs) fails without running. Writes the status file at the start (running) and the end. On
+// success it also removes the temporary folders that earlier runs of the same task left when they were killed
+// (SIGKILL, a lost node), but not one whose process (the pid in its name) is alive on this host. Returns the
+// final status; throws only when DIR is not a batch, its manifest has another number of tasks than it was
+// submitted with, or `index` is out of range.
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options = {});
 
 // True when `status` says running but its run-task process is gone: it ran on this host and no process
@@ -108,25 +118,35 @@ bool RunTaskIsGone(const BatchTaskStatus& status);
 // process or /proc does not say. A pid and its start identify a process: pids are reused, their starts are not.
 std::int64_t ProcessStartTicks(int pid);
 
+// The line of a command's output that says why it failed or only partly succeeded: its last line containing
+// "error:"; but a line naming a frame that failed or was skipped (or a system error such as "No space left on
+// device") is preferred to an "error:" line that only sums up ("see the errors above"), and is the line of a
+// partial success; else the last line.
+std::string TaskErrorLine(const std::string& output);
+
 // The state of every task of a batch, from its status files and task folders (no Slurm accounting).
 struct BatchReport {
   std::string dir;
   std::vector<ManifestTask> tasks;
-  // Per task: "succeeded" (status says so and tasks/<index>/ exists), "failed", "running", "interrupted"
-  // (status says running, but it was written by a run-task process on this host that is gone: RunTaskIsGone;
-  // one on another host cannot be checked from here and stays "running"), or "missing" (never started, or
-  // its result folder is gone). A status file that cannot be read counts as "failed", its error line saying why.
+  // Per task: "succeeded" (status says so and tasks/<index>/ exists), "partial" (likewise, the command exited 3),
+  // "changed" (it ran another line than the manifest now has: DIR/manifest.txt was edited since), "failed",
+  // "running", "interrupted" (status says running, but it was written by a run-task process on this host that
+  // is gone: RunTaskIsGone; one on another host cannot be checked from here and stays "running"), or "missing"
+  // (never started, or its result folder is gone). A status file that cannot be read counts as "failed", its
+  // error line saying why.
   std::vector<std::string> states;
   std::vector<std::optional<BatchTaskStatus>> statuses;
-  int succeeded = 0, failed = 0, running = 0, interrupted = 0, missing = 0;
+  int succeeded = 0, partial = 0, changed = 0, failed = 0, running = 0, interrupted = 0, missing = 0;
 
-  // Counts, then one line per failed or interrupted task.
+  // Counts, then one line per partial, changed, failed or interrupted task.
   std::string BriefReport() const;
   std::string Json() const;
-  // Indices whose state is missing, failed or interrupted, ascending.
+  // Indices whose state is missing, partial, changed, failed or interrupted, ascending.
   std::vector<int> UnfinishedIndices() const;
 };
 
+// Throws naming DIR when it holds no batch, or when DIR/manifest.txt has another number of tasks than the batch
+// was submitted with (task i's results belong to line i: edit lines, but do not add or remove them).
 BatchReport CollectBatchReport(const std::string& dir);
 
 // ISO 8601 UTC with milliseconds, e.g. 2026-12-01T20:15:03.125Z.

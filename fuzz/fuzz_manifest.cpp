@@ -1,6 +1,7 @@
-// libFuzzer entry for batch manifests (ParseManifest, SplitCommandLine, ResolveTaskArguments,
-// QuoteForShell): any input parses or throws rangebayes::Error; every task parsed has a subcommand, and its
-// words survive QuoteForShell → SplitCommandLine unchanged.
+// libFuzzer entry for batch manifests (ParseManifest, SplitCommandLine, OutputWordIndices, CheckTaskOutputs,
+// ResolveTaskArguments, QuoteForShell): any input parses or throws rangebayes::Error; every task parsed has a
+// subcommand, its words survive QuoteForShell → SplitCommandLine unchanged, and its output words are words of
+// the line that resolving leaves as they are.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -20,6 +21,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     return 0;
   }
   fuzz::Require(!tasks.empty(), "a manifest has tasks");
+  SubcommandSyntaxes syntaxes;
+  syntaxes["convert"].positionals = {{1, false, false}, {1, true, false}};
+  syntaxes["smooth"].value_options = {"--noise", "--png"};
+  syntaxes["smooth"].output_options = {"--png"};
+  syntaxes["smooth"].positionals = {{1, false, false}, {1, true, false}};
+  syntaxes["decimate"].value_options = {"--out", "-o"};
+  syntaxes["decimate"].output_options = {"--out", "-o"};
+  syntaxes["decimate"].positionals = {{-1, false, true}};
   for (size_t i = 0; i < tasks.size(); ++i) {
     const ManifestTask& task = tasks[i];
     fuzz::Require(task.index == static_cast<int>(i), "tasks are numbered in order");
@@ -27,8 +36,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
                   "a task starts with a subcommand");
     const std::vector<std::string> again = SplitCommandLine(QuoteForShell(task.arguments));
     fuzz::Require(again == task.arguments, "QuoteForShell then SplitCommandLine gives the words back");
-    const std::vector<std::string> resolved = ResolveTaskArguments(task.arguments, fuzz::ScratchDir());
+    const std::vector<std::string> resolved = ResolveTaskArguments(task.arguments, fuzz::ScratchDir(), syntaxes);
     fuzz::Require(resolved.size() == task.arguments.size(), "resolving keeps the word count");
+    for (const size_t k : OutputWordIndices(task.arguments, syntaxes)) {
+      fuzz::Require(k > 0 && k < task.arguments.size(), "an output is a word of the line after the subcommand");
+      fuzz::Require(resolved[k] == task.arguments[k], "an output is never resolved");
+    }
+    try {
+      CheckTaskOutputs(task, syntaxes, "fuzz.txt");
+    } catch (const Error&) {
+    }
   }
   return 0;
 }

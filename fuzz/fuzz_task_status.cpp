@@ -16,7 +16,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   try {
     const BatchTaskStatus s = ParseBatchTaskStatus(text, "fuzz.json");
-    fuzz::Require(s.state == "running" || s.state == "succeeded" || s.state == "failed", "known state");
+    fuzz::Require(s.state == "running" || s.state == "succeeded" || s.state == "partial" || s.state == "failed",
+                  "known state");
     fuzz::RequireFinite(s.duration_s, "duration_s");
     const BatchTaskStatus back = ParseBatchTaskStatus(BatchTaskStatusJson(s), "round trip");
     fuzz::Require(back.index == s.index && back.state == s.state && back.exit_code == s.exit_code &&

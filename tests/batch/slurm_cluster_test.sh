@@ -53,13 +53,14 @@ job=$("$rb" batch submit "$m"/tasks.txt --out "$slurm" --max-parallel 2)
 wait_job "$job"
 phase "first job done"
 
-status=$("$rb" batch status "$slurm")
+status=$("$rb" batch status "$slurm") && rc=0 || rc=$?
 echo "$status"
+[ "$rc" -eq 3 ] || fail "batch status exited $rc with a failed task, not 3"
 expect_in "$status" "5 tasks: 4 succeeded, 1 failed, 0 running, 0 missing" "status after the first job"
 expect_in "$status" "failed: task 4 (manifest line 8, exit 1, attempt 0, host node1): rangebayes smooth: error:" \
   "the failed task and its host"
 expect_in "$status" "later/block.obj" "the error line names the missing input"
-json=$("$rb" batch status "$slurm" --json)
+json=$("$rb" batch status "$slurm" --json) || true
 expect_in "$json" '"failed": 1' "status --json counts"
 expect_in "$json" "\"job_id\": \"$job\"" "status --json job id"
 [ ! -e "$slurm"/tasks/4 ] || fail "the failed task published a folder"

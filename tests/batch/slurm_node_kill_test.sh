@@ -119,8 +119,9 @@ rb_cluster_pids=("${alive[@]}")
 phase "killed slurmd, ${#groups[@]} slurmstepd and their task trees: ${victims[*]}"
 
 # The status files still say running; `batch status` finds the run-task processes (on this host) gone.
-status=$("$rb" batch status "$a")
+status=$("$rb" batch status "$a") && rc=0 || rc=$?
 echo "$status"
+[ "$rc" -eq 3 ] || fail "batch status exited $rc with an interrupted task, not 3"
 expect_in "$status" "3 tasks: 2 succeeded, 0 failed, 0 running, 1 interrupted, 0 missing" "A after the kill"
 expect_in "$status" "interrupted: task 1 (manifest line 3" "A's interrupted task"
 expect_in "$("$rb" batch status "$b")" "1 tasks: 0 succeeded, 0 failed, 0 running, 1 interrupted, 0 missing" \
