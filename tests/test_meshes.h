@@ -1,6 +1,9 @@
 // Small hand-built meshes shared by the tests of several modules.
 #pragma once
 
+#include <Eigen/Geometry>
+#include <vector>
+
 #include "core/mesh.h"
 
 namespace rangebayes::testing {
@@ -34,6 +37,16 @@ inline Mesh Tetrahedron() {
   mesh.F.resize(4, 3);
   mesh.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
   return mesh;
+}
+
+// Unit normal of every face ((b − a) × (c − a), normalised), computed here apart from the library's kernels.
+inline std::vector<Eigen::Vector3d> UnitFaceNormals(const Mesh& mesh) {
+  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(mesh.num_faces()));
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    normal[static_cast<size_t>(f)] = (b - a).cross(c - a).normalized();
+  }
+  return normal;
 }
 
 }  // namespace rangebayes::testing

@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -17,9 +16,11 @@
 #include "../apps/run_binary.h"
 #include "core/mesh_io.h"
 #include "core/scan_poses.h"
+#include "core/topology.h"
 #include "fusion/register.h"
 #include "fusion/scan.h"
 #include "tests/temp_dir.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
@@ -71,24 +72,16 @@ std::pair<int, int> PngSize(const std::string& path) {
   return {be32(16), be32(20)};
 }
 
-// Mean angle (degrees) between the normals of faces that share an edge: how rough a surface is.
+// Mean angle (degrees) between the normals of the two faces of each manifold edge: how rough a surface is.
 double MeanDihedralDeg(const Mesh& mesh) {
-  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(mesh.num_faces()));
-  std::map<std::pair<int, int>, std::vector<int>> edge_faces;
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
-    normal[static_cast<size_t>(f)] = (b - a).cross(c - a).normalized();
-    for (int k = 0; k < 3; ++k) {
-      const int u = mesh.F(f, k), v = mesh.F(f, (k + 1) % 3);
-      edge_faces[{std::min(u, v), std::max(u, v)}].push_back(f);
-    }
-  }
+  const std::vector<Eigen::Vector3d> normal = testing::UnitFaceNormals(mesh);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
   double sum = 0;
   int pairs = 0;
-  for (const auto& [edge, faces] : edge_faces) {
-    if (faces.size() != 2) continue;
-    const Eigen::Vector3d& n = normal[static_cast<size_t>(faces[0])];
-    const Eigen::Vector3d& m = normal[static_cast<size_t>(faces[1])];
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    if (topology.edge_faces.size(e) != 2) continue;
+    const Eigen::Vector3d& n = normal[static_cast<size_t>(topology.edge_faces.begin(e)[0])];
+    const Eigen::Vector3d& m = normal[static_cast<size_t>(topology.edge_faces.begin(e)[1])];
     sum += std::atan2(n.cross(m).norm(), n.dot(m)) * 180 / M_PI;
     ++pairs;
   }

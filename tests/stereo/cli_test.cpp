@@ -8,16 +8,17 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "core/mesh_io.h"
+#include "core/topology.h"
 #include "stereo/pfm.h"
 #include "tests/apps/run_binary.h"
 #include "tests/temp_dir.h"
+#include "tests/test_meshes.h"
 
 namespace rangebayes {
 namespace {
@@ -269,24 +270,16 @@ TEST(StereoCli, BundledMiddleburyRecordingScoresAgainstItsGroundTruth) {
 // Faces folded over their neighbours, counted here from the file as SmoothSummary defines them (bayes/
 // smoothing_energy.h): the unit normal points against the sum of its edge-neighbours' unit normals.
 int CountFoldedFaces(const Mesh& mesh) {
-  std::vector<Eigen::Vector3d> normal(static_cast<size_t>(mesh.num_faces()));
-  std::map<std::pair<int, int>, std::vector<int>> edge_faces;
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
-    normal[static_cast<size_t>(f)] = (b - a).cross(c - a).normalized();
-    for (int k = 0; k < 3; ++k) {
-      const int u = mesh.F(f, k), v = mesh.F(f, (k + 1) % 3);
-      edge_faces[{std::min(u, v), std::max(u, v)}].push_back(f);
-    }
-  }
+  const std::vector<Eigen::Vector3d> normal = testing::UnitFaceNormals(mesh);
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
   std::vector<Eigen::Vector3d> sum(normal.size(), Eigen::Vector3d::Zero());
   std::vector<bool> has_neighbour(normal.size(), false);
-  for (const auto& [edge, faces] : edge_faces) {
-    for (int f : faces) {
-      for (int g : faces) {
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    for (const int* f = topology.edge_faces.begin(e); f != topology.edge_faces.end(e); ++f) {
+      for (const int* g = topology.edge_faces.begin(e); g != topology.edge_faces.end(e); ++g) {
         if (g == f) continue;
-        sum[static_cast<size_t>(f)] += normal[static_cast<size_t>(g)];
-        has_neighbour[static_cast<size_t>(f)] = true;
+        sum[static_cast<size_t>(*f)] += normal[static_cast<size_t>(*g)];
+        has_neighbour[static_cast<size_t>(*f)] = true;
       }
     }
   }
