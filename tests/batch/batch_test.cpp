@@ -298,6 +298,20 @@ TEST(RunTask, PublishesOnlyOnSuccessAndReplacesAnOlderResult) {
   EXPECT_NE(ReadText(out + "/logs/1.log").find("run 2"), std::string::npos);
 }
 
+// `rangebayes batch run-task OUT 0` in a process group of its own (so that a test can signal it and its command
+// together), with SIGHUP ignored from the start when `ignore_hangup` (as under nohup). Its pid, or -1.
+pid_t StartRunTaskInItsOwnGroup(const std::string& out, bool ignore_hangup) {
+  const pid_t child = fork();
+  if (child == 0) {
+    setpgid(0, 0);
+    if (ignore_hangup) signal(SIGHUP, SIG_IGN);
+    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  if (child > 0) setpgid(child, child);
+  return child;
+}
+
 // A node dies mid-task: run-task and its command are killed with SIGKILL together (one process group) while
 // the command is writing its outputs. No result is published, the status still says running, and once the
 // job has left the queue a resubmit takes the task again and its run completes (removing the dead run's
@@ -315,14 +329,8 @@ TEST(RunTask, KilledMidTaskLeavesNoResultAndAResubmitCompletes) {
   const std::string out = dir.path() + "/out";
   SubmitBatch(manifest, out, options);
 
-  const pid_t child = fork();
+  const pid_t child = StartRunTaskInItsOwnGroup(out, false);
   ASSERT_GE(child, 0);
-  if (child == 0) {
-    setpgid(0, 0);
-    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  setpgid(child, child);
   // Wait until the command has written some of its outputs in its temporary folder.
   bool writing = false;
   for (int i = 0; i < 1200 && !writing; ++i) {
@@ -823,15 +831,8 @@ TEST(RunTask, AnIgnoredHangupStaysIgnored) {
   options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo 3");
   const std::string out = dir.path() + "/out";
   SubmitBatch(manifest, out, options);
-  const pid_t child = fork();
+  const pid_t child = StartRunTaskInItsOwnGroup(out, true);
   ASSERT_GE(child, 0);
-  if (child == 0) {
-    setpgid(0, 0);
-    signal(SIGHUP, SIG_IGN);
-    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  setpgid(child, child);
   struct sigaction ignore_pipe {
   }, old_pipe{};
   ignore_pipe.sa_handler = SIG_IGN;
