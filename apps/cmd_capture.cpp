@@ -140,7 +140,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.window_step_frames = o.window_step_frames;
   p.sgbm.num_disparities = o.num_disparities;
   p.sgbm.min_disparity_px = o.min_disparity_px;
-  if (p.matcher == PipelineMatcher::kSgbm && o.window_px > 11) UsageError("--window: sgbm takes at most 11 px");
+  if (p.matcher == PipelineMatcher::kSgbm) CheckSgbmWindow(o.window_px);
   p.sgbm.block_size_px = o.window_px;
   p.spacetime.num_disparities = o.num_disparities;
   p.spacetime.min_disparity_px = o.min_disparity_px;

@@ -257,7 +257,7 @@ void AddStereo(CLI::App& app) {
                                      "--subpixel-iterations", "--edge-reject", "--doubtful-jump"}) {
         if (sub->count(block_only) > 0) UsageError(std::string(block_only) + " applies to --matcher block, not sgbm");
       }
-      if (o->m.window_px > 11) UsageError("--window: sgbm takes at most 11 px");
+      CheckSgbmWindow(o->m.window_px);
     }
     ReadNoiseModelOption(&o->m);
     cv::Mat left = ReadStereoImage(o->left), right = ReadStereoImage(o->right);

@@ -3,6 +3,11 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <string>
+
+#include "apps/command.h"
+#include "core/error.h"
+#include "stereo/sgbm_matcher.h"
 
 namespace rangebayes::apps {
 
@@ -60,6 +65,12 @@ void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_n
       ->check(IntegerCheck("", [](long long w) {
         return w == 0 || w % 2 == 1 ? std::string() : "must be odd, got " + std::to_string(w);
       }));
+}
+
+void CheckSgbmWindow(int window_px) {
+  if (window_px > kSgbmMaxBlockSizePx) {
+    UsageError(StrCat("--window: sgbm takes at most ", kSgbmMaxBlockSizePx, " px"));
+  }
 }
 
 CLI::Validator PositiveReal() {

@@ -24,6 +24,9 @@ void AddThreadsOption(CLI::App* sub, int* threads);
 // default_note says what the default is for this subcommand.
 void AddWindowOption(CLI::App* sub, int* window_px, const std::string& default_note, int min_px);
 
+// --window with the sgbm matcher: a usage error above OpenCV's largest block (kSgbmMaxBlockSizePx).
+void CheckSgbmWindow(int window_px);
+
 // Checks of real-valued options with plain messages (CLI11's PositiveNumber and NonNegativeNumber print the
 // largest double as the end of their range, and let NaN through).
 CLI::Validator PositiveReal();     // a finite number > 0

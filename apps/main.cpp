@@ -24,6 +24,14 @@ std::string ParsedName(const CLI::App& app) {
   return name;
 }
 
+// The one error line of a failed command (`suffix` after the message). What the command printed comes before
+// it, also when both streams go to one file (2>&1): stdout is flushed first.
+int PrintError(const CLI::App& app, const std::string& message, const char* suffix, int exit_code) {
+  std::fflush(stdout);
+  std::fprintf(stderr, "%s: error: %s%s\n", ParsedName(app).c_str(), message.c_str(), suffix);
+  return exit_code;
+}
+
 // CLI11 lists a negated flag as "--no-x{false}", which reads as "the default is false"; the descriptions say
 // which of the pair is the default.
 class Formatter : public CLI::Formatter {
@@ -64,21 +72,13 @@ int main(int argc, char** argv) {
     for (char& c : message) {
       if (c == '\n') c = ' ';
     }
-    std::fflush(stdout);  // what the command printed comes before its error, also in one file (2>&1)
-    std::fprintf(stderr, "%s: error: %s (see --help)\n", ParsedName(app).c_str(), message.c_str());
-    return 2;
+    return PrintError(app, message, " (see --help)", 2);
   } catch (const rangebayes::Error& e) {
-    std::fflush(stdout);
-    std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
-    return 1;
+    return PrintError(app, e.what(), "", 1);
   } catch (const std::bad_alloc&) {
-    std::fflush(stdout);
-    std::fprintf(stderr, "%s: error: out of memory\n", ParsedName(app).c_str());
-    return 1;
+    return PrintError(app, "out of memory", "", 1);
   } catch (const std::exception& e) {
-    std::fflush(stdout);
-    std::fprintf(stderr, "%s: error: %s\n", ParsedName(app).c_str(), e.what());
-    return 1;
+    return PrintError(app, e.what(), "", 1);
   }
   // What a command printed as its result (a report, JSON) must have reached standard output: on a full disk
   // (`eval ... > r.json`) the file would hold less than the command printed while it exited 0.

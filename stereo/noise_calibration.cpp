@@ -60,7 +60,7 @@ std::unique_ptr<StereoMatcher> MakeMatcher(const NoiseCalibrationOptions& o, int
     SgbmMatcherOptions s;
     s.min_disparity_px = o.min_disparity_px;
     s.num_disparities = o.num_disparities;
-    s.block_size_px = std::min(o.window_px > 0 ? o.window_px : 5, 11);
+    s.block_size_px = std::min(o.window_px > 0 ? o.window_px : 5, kSgbmMaxBlockSizePx);
     return std::make_unique<SgbmMatcher>(s);
   }
   SpaceTimeMatcherOptions m = o.matcher == NoiseCalibrationMatcher::kSpaceTime ? SpaceTimeStaticSceneOptions(frames)

@@ -30,8 +30,8 @@ void CheckStereoSequence(const std::vector<cv::Mat>& left, const std::vector<cv:
 void SgbmMatcherOptions::Check() const {
   RB_CHECK(num_disparities >= 1 && num_disparities <= 1024, "num_disparities ", num_disparities,
            " is outside 1–1024");
-  RB_CHECK(block_size_px >= 1 && block_size_px <= 11 && block_size_px % 2 == 1, "block_size_px ", block_size_px,
-           " must be odd and in 1–11");
+  RB_CHECK(block_size_px >= 1 && block_size_px <= kSgbmMaxBlockSizePx && block_size_px % 2 == 1, "block_size_px ",
+           block_size_px, " must be odd and in 1–", kSgbmMaxBlockSizePx);
   RB_CHECK(p1 >= 0 && p2 >= 0 && (p2 == 0 || p2 > p1), "SGBM penalties p1 ", p1, ", p2 ", p2,
            " must satisfy 0 ≤ p1 < p2");
   RB_CHECK(uniqueness_ratio_pct >= 0 && uniqueness_ratio_pct <= 100, "uniqueness_ratio_pct ",

@@ -5,10 +5,13 @@
 
 namespace rangebayes {
 
+// The largest block OpenCV's SGBM takes (px).
+inline constexpr int kSgbmMaxBlockSizePx = 11;
+
 struct SgbmMatcherOptions {
   int min_disparity_px = 0;        // any integer: smallest disparity searched
   int num_disparities = 64;        // ≥ 1, rounded up to a multiple of 16 (OpenCV's requirement)
-  int block_size_px = 5;           // odd, 1–11
+  int block_size_px = 5;           // odd, 1–kSgbmMaxBlockSizePx
   int p1 = 0;                      // ≥ 0; 0: 8·channels·block² (OpenCV's sample)
   int p2 = 0;                      // > p1 or 0; 0: 32·channels·block²
   int uniqueness_ratio_pct = 10;   // 0–100: margin by which the best cost must win

@@ -2,6 +2,8 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <initializer_list>
+
 #include "python/src/bindings.h"
 #include "python/src/convert.h"
 #include "python/src/option_tables.h"
@@ -18,6 +20,13 @@ std::vector<ImageIn> ImageSequence(py::handle images, const std::string& what) {
     out.push_back(ImageFromArray(images, what));
   }
   return out;
+}
+
+// numpy's default float64 maps are taken as float32, the library's type (disparities need no more; NaN stays NaN).
+void Float64AsFloat32(std::initializer_list<cv::Mat*> maps) {
+  for (cv::Mat* m : maps) {
+    if (m->type() == CV_64F) m->convertTo(*m, CV_32F);
+  }
 }
 
 std::vector<cv::Mat> Mats(const std::vector<ImageIn>& images) {
@@ -235,9 +244,7 @@ DepthFromDisparityOptions (min_depth_m, max_depth_m, sigma_pixel_px). GIL releas
         std::vector<ImageIn> keep;
         cv::Mat d = MatOrEmpty(disparity, "disparity", &keep);
         cv::Mat s = MatOrEmpty(sigma, "sigma", &keep);
-        // numpy's default float64 is taken as float32 (the library's type; disparities need no more).
-        if (d.type() == CV_64F) d.convertTo(d, CV_32F);
-        if (s.type() == CV_64F) s.convertTo(s, CV_32F);
+        Float64AsFloat32({&d, &s});
         RB_CHECK(d.type() == CV_32F && (s.empty() || s.type() == CV_32F),
                  "depth_from_disparity: disparity and sigma must be float32 or float64 (h, w) images");
         py::gil_scoped_release nogil;
@@ -327,10 +334,7 @@ non-occluded mask (uint8, 255 = evaluate; None when absent), the search range an
           mask_in = mask_in.attr("astype")("uint8");
         }
         if (!mask.is_none()) m_in = MatOrEmpty(mask_in, "mask", &keep);
-        // float64 maps are scored as float32 (the library's type; NaN stays NaN).
-        for (cv::Mat* d : {&e, &gt}) {
-          if (d->type() == CV_64F) d->convertTo(*d, CV_32F);
-        }
+        Float64AsFloat32({&e, &gt});
         if (e.empty() || e.type() != CV_32F || gt.type() != CV_32F) {
           throw py::type_error(
               "evaluate_disparity: estimate and ground_truth must be float32 or float64 (h, w) "
