@@ -64,6 +64,8 @@ class AdaptiveEpsilonSummary:
     p90_epsilon_squared: float
     faces_at_minimum: int
     prepass_iterations: int
+    prepass_evaluations: int
+    prepass_time_s: float
     time_s: float
 
 class NoiseEstimateDetails:
@@ -100,8 +102,11 @@ class SmoothSummary:
     remaining_decrease: float
     termination: str
     time_s: float
+    setup_time_s: float
+    restarts: int
     flipped_faces: int
     input_flipped_faces: int
+    inactive_faces: int
     num_threads: int
     potential_name: str
     memory_bytes: int
@@ -120,6 +125,7 @@ class LearnedPrior:
     prior_weight: float
     noise_kind: str
     noise_k: float
+    noise_k_max: float
     training_set: str
     training_pairs: int
     method: str
@@ -169,12 +175,43 @@ class DecimatedMesh:
 
 class DecimateSummary:
     lambda_: float
+    target_faces: int
+    refitted: bool
+    poses: int
     input_faces: int
     num_patches: int
     output_faces: int
     output_vertices: int
     energy: float
+    data_energy: float
+    fuses: int
+    splits: int
+    swaps: int
+    rejected_disconnecting: int
+    rounds: int
     converged: bool
+    bisection_steps: int
+    budget_faces: int
+    lambda_too_many: float
+    lambda_fits: float
+    faces_too_many: int
+    faces_fits: int
+    max_chain_error_rel: float
+    kept_corner_vertices: int
+    blocked_vertices: int
+    fell_back_to_dense: bool
+    seconds_partition: float
+    seconds_geometry: float
+    seconds_refit_and_shading: float
+    seconds_search_partition: float
+    seconds_search_geometry: float
+    refit_moved: int
+    refit_blocked: int
+    refit_flips: int
+    refit_quadric_before: float
+    refit_quadric_after: float
+    refit_rms_before: float
+    refit_rms_after: float
     seconds_total: float
     notices: list[str]
     def brief_report(self) -> str: ...
@@ -210,6 +247,12 @@ class StereoRig:
     P2: npt.NDArray[np.float64]
     Q: npt.NDArray[np.float64]
     doffs_px: float
+    rms_left_px: float
+    rms_right_px: float
+    rms_stereo_px: float
+    epipolar_error_px: float
+    view_names: list[str]
+    view_rms_stereo_px: list[float]
     def __init__(self) -> None: ...
     def rectified_left(self) -> CameraIntrinsics: ...
     def baseline_m(self) -> float: ...
@@ -225,6 +268,7 @@ class DisparityNoiseModel:
     matcher: str
     samples: int
     outlier_fraction: float
+    depth_slope_px_per_m: float
     image_noise_gray: float
     jump_scale: float
     width_min_px: int

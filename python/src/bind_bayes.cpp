@@ -112,71 +112,91 @@ py::tuple SmoothPy(py::handle mesh, py::handle noise, py::handle sigma, py::hand
 }  // namespace
 
 void BindBayes(py::module_& m) {
-  py::class_<AdaptiveEpsilonSummary>(m, "AdaptiveEpsilonSummary", "What the adaptive-ε default did.")
-      .def_readonly("per_face", &AdaptiveEpsilonSummary::per_face)
-      .def_readonly("gate_median_epsilon_squared", &AdaptiveEpsilonSummary::gate_median_epsilon_squared)
-      .def_readonly("median_epsilon_squared", &AdaptiveEpsilonSummary::median_epsilon_squared)
-      .def_readonly("p10_epsilon_squared", &AdaptiveEpsilonSummary::p10_epsilon_squared)
-      .def_readonly("p90_epsilon_squared", &AdaptiveEpsilonSummary::p90_epsilon_squared)
-      .def_readonly("faces_at_minimum", &AdaptiveEpsilonSummary::faces_at_minimum)
-      .def_readonly("prepass_iterations", &AdaptiveEpsilonSummary::prepass_iterations)
-      .def_readonly("time_s", &AdaptiveEpsilonSummary::time_s);
+  py::class_<AdaptiveEpsilonSummary> adaptive(m, "AdaptiveEpsilonSummary", "What the adaptive-ε default did.");
+  PickledFields(adaptive)
+      .ReadOnly("per_face", &AdaptiveEpsilonSummary::per_face)
+      .ReadOnly("gate_median_epsilon_squared", &AdaptiveEpsilonSummary::gate_median_epsilon_squared)
+      .ReadOnly("median_epsilon_squared", &AdaptiveEpsilonSummary::median_epsilon_squared)
+      .ReadOnly("p10_epsilon_squared", &AdaptiveEpsilonSummary::p10_epsilon_squared)
+      .ReadOnly("p90_epsilon_squared", &AdaptiveEpsilonSummary::p90_epsilon_squared)
+      .ReadOnly("faces_at_minimum", &AdaptiveEpsilonSummary::faces_at_minimum)
+      .ReadOnly("prepass_iterations", &AdaptiveEpsilonSummary::prepass_iterations)
+      .ReadOnly("prepass_evaluations", &AdaptiveEpsilonSummary::prepass_evaluations)
+      .ReadOnly("prepass_time_s", &AdaptiveEpsilonSummary::prepass_time_s)
+      .ReadOnly("time_s", &AdaptiveEpsilonSummary::time_s)
+      .Pickle();
 
-  py::class_<SmoothSummary>(m, "SmoothSummary", py::dynamic_attr(),
-                            "What smooth() did; brief_report() is what `rangebayes smooth` prints. noise_model: "
-                            "the NoiseModelChoice (file covariances or the generic model).")
-      .def_readonly("iterations", &SmoothSummary::iterations)
-      .def_readonly("evaluations", &SmoothSummary::evaluations)
-      .def_readonly("energy", &SmoothSummary::energy, "energy at the start, then after each iteration")
-      .def_readonly("data_energy", &SmoothSummary::data_energy)
-      .def_readonly("prior_energy", &SmoothSummary::prior_energy)
-      .def_readonly("prior_weight", &SmoothSummary::prior_weight, "β the energy used (after prior_weight_per_stride)")
-      .def_readonly("pixel_stride", &SmoothSummary::pixel_stride,
-                    "organized meshes: the pixel grid's step that β was divided by; 0: none")
-      .def_readonly("notices", &SmoothSummary::notices,
-                    "what the call repaired or could not use, one line each (e.g. pixel positions that are not "
-                    "one grid)")
-      .def_readonly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
-      .def_readonly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
-      .def_readonly("remaining_decrease", &SmoothSummary::remaining_decrease,
-                    "E − E* at the end, estimated from the rate of decrease (inf: fewer than 4 iterations)")
+  py::class_<SmoothSummary> smooth_summary(m, "SmoothSummary", py::dynamic_attr(),
+                                           "What smooth() did; brief_report() is what `rangebayes smooth` prints. "
+                                           "noise_model: the NoiseModelChoice (file covariances or the generic "
+                                           "model).");
+  smooth_summary
       .def_property_readonly("termination", [](const SmoothSummary& s) { return SmoothTerminationName(s.termination); })
-      .def_readonly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
-      .def_readonly("flipped_faces", &SmoothSummary::flipped_faces)
-      .def_readonly("input_flipped_faces", &SmoothSummary::input_flipped_faces)
-      .def_readonly("num_threads", &SmoothSummary::num_threads)
-      .def_readonly("potential_name", &SmoothSummary::potential_name)
-      .def_readonly("memory_bytes", &SmoothSummary::memory_bytes)
-      .def_readonly("levels", &SmoothSummary::levels,
-                    "grid levels solved coarse to fine, in any stage (1: single level)")
-      .def_readonly("continuation_stages", &SmoothSummary::continuation_stages,
-                    "ε-continuation stages solved before the final solve")
-      .def_readonly("coarse_work", &SmoothSummary::coarse_work,
-                    "evaluations before the final solve (coarse levels, continuation stages) in units of one "
-                    "evaluation of the input; iterations and evaluations are the final solve's")
-      .def_readonly("adaptive_epsilon_used", &SmoothSummary::adaptive_epsilon_used)
-      .def_readonly("adaptive", &SmoothSummary::adaptive)
       .def("brief_report", &SmoothSummary::BriefReport);
+  PickledFields(smooth_summary)
+      .ReadOnly("iterations", &SmoothSummary::iterations)
+      .ReadOnly("evaluations", &SmoothSummary::evaluations)
+      .ReadOnly("energy", &SmoothSummary::energy, "energy at the start, then after each iteration")
+      .ReadOnly("data_energy", &SmoothSummary::data_energy)
+      .ReadOnly("prior_energy", &SmoothSummary::prior_energy)
+      .ReadOnly("prior_weight", &SmoothSummary::prior_weight, "β the energy used (after prior_weight_per_stride)")
+      .ReadOnly("pixel_stride", &SmoothSummary::pixel_stride,
+                "organized meshes: the pixel grid's step that β was divided by; 0: none")
+      .ReadOnly("notices", &SmoothSummary::notices,
+                "what the call repaired or could not use, one line each (e.g. pixel positions that are not "
+                "one grid)")
+      .ReadOnly("initial_gradient_norm", &SmoothSummary::initial_gradient_norm)
+      .ReadOnly("final_gradient_norm", &SmoothSummary::final_gradient_norm)
+      .ReadOnly("remaining_decrease", &SmoothSummary::remaining_decrease,
+                "E − E* at the end, estimated from the rate of decrease (inf: fewer than 4 iterations)")
+      .State(
+          "termination", [](const SmoothSummary& s) { return py::cast(static_cast<int>(s.termination)); },
+          [](SmoothSummary& s, py::handle value) { s.termination = static_cast<SmoothTermination>(value.cast<int>()); })
+      .ReadOnly("time_s", &SmoothSummary::time_s, "seconds, the whole call")
+      .ReadOnly("setup_time_s", &SmoothSummary::setup_time_s, "seconds for topology and buffers")
+      .ReadOnly("restarts", &SmoothSummary::restarts)
+      .ReadOnly("flipped_faces", &SmoothSummary::flipped_faces)
+      .ReadOnly("input_flipped_faces", &SmoothSummary::input_flipped_faces)
+      .ReadOnly("inactive_faces", &SmoothSummary::inactive_faces, "degenerate faces left out of the prior")
+      .ReadOnly("num_threads", &SmoothSummary::num_threads)
+      .ReadOnly("potential_name", &SmoothSummary::potential_name)
+      .ReadOnly("memory_bytes", &SmoothSummary::memory_bytes)
+      .ReadOnly("levels", &SmoothSummary::levels, "grid levels solved coarse to fine, in any stage (1: single level)")
+      .ReadOnly("continuation_stages", &SmoothSummary::continuation_stages,
+                "ε-continuation stages solved before the final solve")
+      .ReadOnly("coarse_work", &SmoothSummary::coarse_work,
+                "evaluations before the final solve (coarse levels, continuation stages) in units of one "
+                "evaluation of the input; iterations and evaluations are the final solve's")
+      .ReadOnly("adaptive_epsilon_used", &SmoothSummary::adaptive_epsilon_used)
+      .ReadOnly("adaptive", &SmoothSummary::adaptive)
+      .Pickle();
 
-  py::class_<NoiseEstimateDetails>(m, "NoiseEstimateDetails", "What the noise estimate read from the mesh.")
-      .def_readonly("one_ring", &NoiseEstimateDetails::one_ring, "one-ring residual scale / l_e")
-      .def_readonly("growth", &NoiseEstimateDetails::growth, "two-ring residual over the one-ring's")
-      .def_readonly("tail", &NoiseEstimateDetails::tail, "99th percentile over the median of the one-ring residuals")
-      .def_readonly("raised_to_floor", &NoiseEstimateDetails::raised_to_floor,
-                    "heavy-tailed residuals: the real-sensor floor set the estimate");
-  py::class_<GenericNoiseSummary>(m, "GenericNoiseSummary")
-      .def_readonly("mean_edge_length", &GenericNoiseSummary::mean_edge_length, "l_e, model units")
-      .def_readonly("noise_edge_multiple", &GenericNoiseSummary::noise_edge_multiple, "k used")
-      .def_readonly("sigma", &GenericNoiseSummary::sigma, "σ along the normal, model units")
-      .def_readonly("estimated", &GenericNoiseSummary::estimated)
-      .def_readonly("estimate", &GenericNoiseSummary::estimate, "what the estimate read (when estimated)")
-      .def_readonly("across_ratio", &GenericNoiseSummary::across_ratio, "σ across the normal is σ / across_ratio");
-  py::class_<NoiseModelChoice>(m, "NoiseModelChoice",
-                               "brief_report() is the noise line that `rangebayes smooth` prints.")
-      .def_readonly("from_file", &NoiseModelChoice::from_file)
-      .def_readonly("replaced_file", &NoiseModelChoice::replaced_file)
-      .def_readonly("generic", &NoiseModelChoice::generic)
-      .def("brief_report", &NoiseModelChoice::BriefReport);
+  py::class_<NoiseEstimateDetails> estimate_details(m, "NoiseEstimateDetails",
+                                                    "What the noise estimate read from the mesh.");
+  PickledFields(estimate_details)
+      .ReadOnly("one_ring", &NoiseEstimateDetails::one_ring, "one-ring residual scale / l_e")
+      .ReadOnly("growth", &NoiseEstimateDetails::growth, "two-ring residual over the one-ring's")
+      .ReadOnly("tail", &NoiseEstimateDetails::tail, "99th percentile over the median of the one-ring residuals")
+      .ReadOnly("raised_to_floor", &NoiseEstimateDetails::raised_to_floor,
+                "heavy-tailed residuals: the real-sensor floor set the estimate")
+      .Pickle();
+  py::class_<GenericNoiseSummary> generic_noise(m, "GenericNoiseSummary");
+  PickledFields(generic_noise)
+      .ReadOnly("mean_edge_length", &GenericNoiseSummary::mean_edge_length, "l_e, model units")
+      .ReadOnly("noise_edge_multiple", &GenericNoiseSummary::noise_edge_multiple, "k used")
+      .ReadOnly("sigma", &GenericNoiseSummary::sigma, "σ along the normal, model units")
+      .ReadOnly("estimated", &GenericNoiseSummary::estimated)
+      .ReadOnly("estimate", &GenericNoiseSummary::estimate, "what the estimate read (when estimated)")
+      .ReadOnly("across_ratio", &GenericNoiseSummary::across_ratio, "σ across the normal is σ / across_ratio")
+      .Pickle();
+  py::class_<NoiseModelChoice> noise_choice(m, "NoiseModelChoice",
+                                            "brief_report() is the noise line that `rangebayes smooth` prints.");
+  noise_choice.def("brief_report", &NoiseModelChoice::BriefReport);
+  PickledFields(noise_choice)
+      .ReadOnly("from_file", &NoiseModelChoice::from_file)
+      .ReadOnly("replaced_file", &NoiseModelChoice::replaced_file)
+      .ReadOnly("generic", &NoiseModelChoice::generic)
+      .Pickle();
 
   m.def("smooth", &SmoothPy, py::arg("mesh"), py::arg("noise") = py::none(), py::arg("sigma") = py::none(),
         py::arg("prior") = "sqrt",
@@ -246,26 +266,64 @@ or with a vertex that is not finite is refused. GIL released.)");
       "GenericNoiseSummary).");
 
   // Decimation.
-  py::class_<DecimatedMesh>(m, "DecimatedMesh", "One decimated pose; arrays are copies.")
-      .def_readonly("mesh", &DecimatedMesh::mesh)
-      .def_readonly("corner_normals", &DecimatedMesh::corner_normals)
-      .def_readonly("face_patch", &DecimatedMesh::face_patch, "per output face, its patch")
-      .def_readonly("vertex_source", &DecimatedMesh::vertex_source, "per output vertex, its input index")
-      .def_readonly("dense_face_patch", &DecimatedMesh::dense_face_patch, "per input face, its patch (-1: dropped)")
-      .def_readonly("polygons", &DecimatedMesh::polygons, "one polygon (vertex indices) per patch")
-      .def_readonly("num_patches", &DecimatedMesh::num_patches);
-  py::class_<DecimateSummary>(m, "DecimateSummary",
-                              "What decimate() did; brief_report() is what `rangebayes decimate` prints.")
-      .def_readonly("lambda_", &DecimateSummary::lambda, "the λ used")
-      .def_readonly("input_faces", &DecimateSummary::input_faces)
-      .def_readonly("num_patches", &DecimateSummary::num_patches)
-      .def_readonly("output_faces", &DecimateSummary::output_faces)
-      .def_readonly("output_vertices", &DecimateSummary::output_vertices)
-      .def_readonly("energy", &DecimateSummary::energy)
-      .def_readonly("converged", &DecimateSummary::converged)
-      .def_readonly("seconds_total", &DecimateSummary::seconds_total)
-      .def_readonly("notices", &DecimateSummary::notices)
-      .def("brief_report", &DecimateSummary::BriefReport);
+  py::class_<DecimatedMesh> decimated(m, "DecimatedMesh", "One decimated pose; arrays are copies.");
+  PickledFields(decimated)
+      .ReadOnly("mesh", &DecimatedMesh::mesh)
+      .ReadOnly("corner_normals", &DecimatedMesh::corner_normals)
+      .ReadOnly("face_patch", &DecimatedMesh::face_patch, "per output face, its patch")
+      .ReadOnly("vertex_source", &DecimatedMesh::vertex_source, "per output vertex, its input index")
+      .ReadOnly("dense_face_patch", &DecimatedMesh::dense_face_patch, "per input face, its patch (-1: dropped)")
+      .ReadOnly("polygons", &DecimatedMesh::polygons, "one polygon (vertex indices) per patch")
+      .ReadOnly("num_patches", &DecimatedMesh::num_patches)
+      .Pickle();
+  py::class_<DecimateSummary> decimate_summary(m, "DecimateSummary",
+                                               "What decimate() did; brief_report() is what `rangebayes decimate` "
+                                               "prints.");
+  decimate_summary.def("brief_report", &DecimateSummary::BriefReport);
+  PickledFields(decimate_summary)
+      .ReadOnly("lambda_", &DecimateSummary::lambda, "the λ used")
+      .ReadOnly("target_faces", &DecimateSummary::target_faces, "the faces asked for (0: λ given)")
+      .ReadOnly("refitted", &DecimateSummary::refitted, "vertices were refitted (refit_vertices)")
+      .ReadOnly("poses", &DecimateSummary::poses, "meshes decimated with one patch map")
+      .ReadOnly("input_faces", &DecimateSummary::input_faces)
+      .ReadOnly("num_patches", &DecimateSummary::num_patches)
+      .ReadOnly("output_faces", &DecimateSummary::output_faces)
+      .ReadOnly("output_vertices", &DecimateSummary::output_vertices)
+      .ReadOnly("energy", &DecimateSummary::energy, "λ·#patches + data term, summed over poses")
+      .ReadOnly("data_energy", &DecimateSummary::data_energy)
+      .ReadOnly("fuses", &DecimateSummary::fuses)
+      .ReadOnly("splits", &DecimateSummary::splits)
+      .ReadOnly("swaps", &DecimateSummary::swaps)
+      .ReadOnly("rejected_disconnecting", &DecimateSummary::rejected_disconnecting,
+                "split/swap moves refused because they would cut a patch")
+      .ReadOnly("rounds", &DecimateSummary::rounds)
+      .ReadOnly("converged", &DecimateSummary::converged)
+      .ReadOnly("bisection_steps", &DecimateSummary::bisection_steps, "full decimations the λ search ran")
+      .ReadOnly("budget_faces", &DecimateSummary::budget_faces)
+      .ReadOnly("lambda_too_many", &DecimateSummary::lambda_too_many,
+                "the λ search's bracket: at lambda_too_many the patches need faces_too_many > budget_faces")
+      .ReadOnly("lambda_fits", &DecimateSummary::lambda_fits)
+      .ReadOnly("faces_too_many", &DecimateSummary::faces_too_many)
+      .ReadOnly("faces_fits", &DecimateSummary::faces_fits)
+      .ReadOnly("max_chain_error_rel", &DecimateSummary::max_chain_error_rel)
+      .ReadOnly("kept_corner_vertices", &DecimateSummary::kept_corner_vertices)
+      .ReadOnly("blocked_vertices", &DecimateSummary::blocked_vertices)
+      .ReadOnly("fell_back_to_dense", &DecimateSummary::fell_back_to_dense)
+      .ReadOnly("seconds_partition", &DecimateSummary::seconds_partition)
+      .ReadOnly("seconds_geometry", &DecimateSummary::seconds_geometry)
+      .ReadOnly("seconds_refit_and_shading", &DecimateSummary::seconds_refit_and_shading)
+      .ReadOnly("seconds_search_partition", &DecimateSummary::seconds_search_partition)
+      .ReadOnly("seconds_search_geometry", &DecimateSummary::seconds_search_geometry)
+      .ReadOnly("refit_moved", &DecimateSummary::refit_moved)
+      .ReadOnly("refit_blocked", &DecimateSummary::refit_blocked)
+      .ReadOnly("refit_flips", &DecimateSummary::refit_flips)
+      .ReadOnly("refit_quadric_before", &DecimateSummary::refit_quadric_before)
+      .ReadOnly("refit_quadric_after", &DecimateSummary::refit_quadric_after)
+      .ReadOnly("refit_rms_before", &DecimateSummary::refit_rms_before)
+      .ReadOnly("refit_rms_after", &DecimateSummary::refit_rms_after)
+      .ReadOnly("seconds_total", &DecimateSummary::seconds_total)
+      .ReadOnly("notices", &DecimateSummary::notices)
+      .Pickle();
   m.def(
       "decimate",
       [](py::handle mesh, py::kwargs kwargs) {
@@ -310,24 +368,28 @@ or with a vertex that is not finite is refused. GIL released.)");
 
   // Learned priors.
   py::class_<LearnedPrior> learned_prior(m, "LearnedPrior", "A learned spline potential (prior.yaml).");
-  EigenCopyField(learned_prior, "theta", &LearnedPrior::theta, "N knot values φ(t_j), t_j = 2j/(N−1)");
-  learned_prior.def(py::init<>())
-      .def_property(
+  learned_prior.def(py::init<>());
+  PickledFields(learned_prior)
+      .EigenCopy("theta", &LearnedPrior::theta, "N knot values φ(t_j), t_j = 2j/(N−1)")
+      .Property(
           "num_knots", [](const LearnedPrior& p) { return p.spline.num_knots; },
           [](LearnedPrior& p, int n) { p.spline.num_knots = n; })
-      .def_property(
+      .Property(
           "epsilon_squared", [](const LearnedPrior& p) { return p.spline.epsilon_squared; },
           [](LearnedPrior& p, double e) { p.spline.epsilon_squared = e; })
-      .def_readwrite("prior_weight", &LearnedPrior::prior_weight, "β it was trained with")
-      .def_readwrite("noise_kind", &LearnedPrior::noise_kind)
-      .def_readwrite("noise_k", &LearnedPrior::noise_k)
-      .def_readwrite("training_set", &LearnedPrior::training_set)
-      .def_readwrite("training_pairs", &LearnedPrior::training_pairs)
-      .def_readwrite("method", &LearnedPrior::method)
-      .def_readwrite("regularizer_weight", &LearnedPrior::regularizer_weight)
-      .def_readwrite("training_mse_le2", &LearnedPrior::training_mse_le2,
-                     "the data loss per vertex at the end of training, in units of the mean edge length squared")
-      .def_readwrite("date", &LearnedPrior::date);
+      .ReadWrite("prior_weight", &LearnedPrior::prior_weight, "β it was trained with")
+      .ReadWrite("noise_kind", &LearnedPrior::noise_kind)
+      .ReadWrite("noise_k", &LearnedPrior::noise_k)
+      .ReadWrite("noise_k_max", &LearnedPrior::noise_k_max,
+                 "a mixture of levels: the training noise spans [noise_k, noise_k_max]; NaN: a single level")
+      .ReadWrite("training_set", &LearnedPrior::training_set)
+      .ReadWrite("training_pairs", &LearnedPrior::training_pairs)
+      .ReadWrite("method", &LearnedPrior::method)
+      .ReadWrite("regularizer_weight", &LearnedPrior::regularizer_weight)
+      .ReadWrite("training_mse_le2", &LearnedPrior::training_mse_le2,
+                 "the data loss per vertex at the end of training, in units of the mean edge length squared")
+      .ReadWrite("date", &LearnedPrior::date)
+      .Pickle();
   m.def(
       "read_learned_prior", [](const PathArg& path) { return ReadLearnedPrior(path.string()); }, py::arg("path"),
       "A LearnedPrior from the YAML file `rangebayes learn-prior` writes (for smooth(potential=...)); "

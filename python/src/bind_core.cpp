@@ -155,6 +155,15 @@ written through views) and raise ValueError for a mesh they could not use.)")
       .def_property_readonly("num_faces", &Mesh::num_faces)
       .def(
           "copy", [](const Mesh& mesh) { return Mesh(mesh); }, "A deep copy.")
+      // Pickled as the constructor's arguments (copies), so an unpickled mesh is checked as Mesh(...) checks.
+      .def(py::pickle(
+          [](const Mesh& mesh) {
+            return py::make_tuple(mesh.V, mesh.F, mesh.N.rows() > 0 ? py::cast(mesh.N) : py::object(py::none()));
+          },
+          [](const py::tuple& state) {
+            if (state.size() != 3) throw py::value_error("cannot unpickle Mesh: not a state this module wrote");
+            return MeshFromArrays(state[0], state[1], state[2]);
+          }))
       .def("__repr__", [](const Mesh& mesh) {
         return "<rangebayes.Mesh " + std::to_string(mesh.num_vertices()) + " vertices, " +
                std::to_string(mesh.num_faces()) + " faces>";
@@ -230,6 +239,25 @@ writable views of the C++ storage (no copy); assignment copies.)")
       .def_property_readonly("num_faces", [](const NoisyMesh& n) { return n.mesh.num_faces(); })
       .def(
           "copy", [](const NoisyMesh& n) { return NoisyMesh(n); }, "A deep copy.")
+      .def(py::pickle(
+          [](py::object self) {
+            const NoisyMesh& n = self.cast<const NoisyMesh&>();
+            const py::object copy = py::module_::import("numpy").attr("array");
+            return py::make_tuple(n.mesh.V, n.mesh.F, n.mesh.N.rows() > 0 ? py::cast(n.mesh.N) : py::object(py::none()),
+                                  copy(self.attr("covariances")), copy(self.attr("pixel")));
+          },
+          [](const py::tuple& state) {
+            if (state.size() != 5) throw py::value_error("cannot unpickle NoisyMesh: not a state this module wrote");
+            NoisyMesh noisy;
+            noisy.mesh = MeshFromArrays(state[0], state[1], state[2]);
+            noisy.covariance = CovariancesFor(state[3], noisy.mesh.V.rows());
+            noisy.pixel = PixelsFromArray(state[4], "pixel");
+            if (noisy.pixel.rows() != 0 && noisy.pixel.rows() != noisy.mesh.V.rows()) {
+              throw py::value_error("cannot unpickle NoisyMesh: " + std::to_string(noisy.pixel.rows()) +
+                                    " pixel rows for " + std::to_string(noisy.mesh.V.rows()) + " vertices");
+            }
+            return noisy;
+          }))
       .def("__repr__", [](const NoisyMesh& n) {
         return "<rangebayes.NoisyMesh " + std::to_string(n.mesh.num_vertices()) + " vertices, " +
                std::to_string(n.mesh.num_faces()) + " faces, " + (n.has_covariance() ? "with" : "without") +
@@ -303,7 +331,17 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
       .def_property_readonly("normals",
                              [](py::object self) { return VerticesView(self.cast<CornerNormals&>().normals, self); })
       .def_property_readonly("normal_index",
-                             [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); });
+                             [](py::object self) { return FacesView(self.cast<CornerNormals&>().normal_index, self); })
+      .def(py::pickle([](const CornerNormals& c) { return py::make_tuple(c.normals, c.normal_index); },
+                      [](const py::tuple& state) {
+                        if (state.size() != 2) {
+                          throw py::value_error("cannot unpickle CornerNormals: not a state this module wrote");
+                        }
+                        CornerNormals c;
+                        c.normals = VerticesFromArray(state[0], "normals");
+                        c.normal_index = FacesFromArray(state[1], "normal_index", c.normals.rows());
+                        return c;
+                      }));
   m.def(
       "render",
       [](py::handle mesh, py::kwargs kwargs) {

@@ -81,35 +81,46 @@ cv::Mat MatOrEmpty(py::handle array, const std::string& what, std::vector<ImageI
 }  // namespace
 
 void BindStereo(py::module_& m) {
-  py::class_<CameraIntrinsics>(m, "CameraIntrinsics", "Pinhole intrinsics in pixels; image width × height.")
-      .def(py::init<>())
-      .def_readwrite("fx_px", &CameraIntrinsics::fx_px)
-      .def_readwrite("fy_px", &CameraIntrinsics::fy_px)
-      .def_readwrite("cx_px", &CameraIntrinsics::cx_px)
-      .def_readwrite("cy_px", &CameraIntrinsics::cy_px)
-      .def_readwrite("width", &CameraIntrinsics::width)
-      .def_readwrite("height", &CameraIntrinsics::height);
+  py::class_<CameraIntrinsics> intrinsics(m, "CameraIntrinsics", "Pinhole intrinsics in pixels; image width × height.");
+  intrinsics.def(py::init<>());
+  PickledFields(intrinsics)
+      .ReadWrite("fx_px", &CameraIntrinsics::fx_px)
+      .ReadWrite("fy_px", &CameraIntrinsics::fy_px)
+      .ReadWrite("cx_px", &CameraIntrinsics::cx_px)
+      .ReadWrite("cy_px", &CameraIntrinsics::cy_px)
+      .ReadWrite("width", &CameraIntrinsics::width)
+      .ReadWrite("height", &CameraIntrinsics::height)
+      .Pickle();
 
   py::class_<StereoRig> rig(m, "StereoRig", R"(A calibrated stereo rig (calibration/stereo_rig.h). Matrices are
 numpy arrays (copies on read; assign a whole array to change one). Translations in metres.)");
   rig.def(py::init<>())
-      .def_readwrite("width", &StereoRig::width)
-      .def_readwrite("height", &StereoRig::height)
-      .def_readwrite("is_rectified", &StereoRig::is_rectified)
-      .def_readwrite("doffs_px", &StereoRig::doffs_px)
       .def("rectified_left", &StereoRig::RectifiedLeft, "the rectified left camera")
       .def("baseline_m", &StereoRig::baseline_m);
-  EigenCopyField(rig, "K_left", &StereoRig::K_left);
-  EigenCopyField(rig, "K_right", &StereoRig::K_right);
-  EigenCopyField(rig, "distortion_left", &StereoRig::distortion_left);
-  EigenCopyField(rig, "distortion_right", &StereoRig::distortion_right);
-  EigenCopyField(rig, "R_right_from_left", &StereoRig::R_right_from_left);
-  EigenCopyField(rig, "t_right_from_left_m", &StereoRig::t_right_from_left_m);
-  EigenCopyField(rig, "R1", &StereoRig::R1);
-  EigenCopyField(rig, "R2", &StereoRig::R2);
-  EigenCopyField(rig, "P1", &StereoRig::P1);
-  EigenCopyField(rig, "P2", &StereoRig::P2);
-  EigenCopyField(rig, "Q", &StereoRig::Q);
+  PickledFields(rig)
+      .ReadWrite("width", &StereoRig::width)
+      .ReadWrite("height", &StereoRig::height)
+      .ReadWrite("is_rectified", &StereoRig::is_rectified)
+      .ReadWrite("doffs_px", &StereoRig::doffs_px)
+      .EigenCopy("K_left", &StereoRig::K_left)
+      .EigenCopy("K_right", &StereoRig::K_right)
+      .EigenCopy("distortion_left", &StereoRig::distortion_left)
+      .EigenCopy("distortion_right", &StereoRig::distortion_right)
+      .EigenCopy("R_right_from_left", &StereoRig::R_right_from_left)
+      .EigenCopy("t_right_from_left_m", &StereoRig::t_right_from_left_m)
+      .EigenCopy("R1", &StereoRig::R1)
+      .EigenCopy("R2", &StereoRig::R2)
+      .EigenCopy("P1", &StereoRig::P1)
+      .EigenCopy("P2", &StereoRig::P2)
+      .EigenCopy("Q", &StereoRig::Q)
+      .ReadWrite("rms_left_px", &StereoRig::rms_left_px, "calibration RMS reprojection error, px (-1: unknown)")
+      .ReadWrite("rms_right_px", &StereoRig::rms_right_px)
+      .ReadWrite("rms_stereo_px", &StereoRig::rms_stereo_px)
+      .ReadWrite("epipolar_error_px", &StereoRig::epipolar_error_px,
+                 "mean |y_left − y_right| of rectified board corners, px (-1: unknown)")
+      .ReadWrite("view_names", &StereoRig::view_names, "the views that entered the calibration (left file names)")
+      .ReadWrite("view_rms_stereo_px", &StereoRig::view_rms_stereo_px, "their per-view stereo RMS, same order")
+      .Pickle();
   m.def(
       "read_rig", [](const PathArg& path) { return ReadStereoRig(path.string()); }, py::arg("path"),
       "Reads a rig YAML (OpenCV FileStorage, as calibrate writes).");
@@ -119,32 +130,36 @@ numpy arrays (copies on read; assign a whole array to change one). Translations 
       "Writes a StereoRig as the rig.yaml (OpenCV FileStorage) that `rangebayes calibrate rig` writes and --rig "
       "reads.");
 
-  py::class_<DisparityNoiseModel>(m, "DisparityNoiseModel", "σ_d model fitted by `rangebayes calibrate noise`.")
-      .def(py::init<>())
-      .def_property(
+  py::class_<DisparityNoiseModel> noise_model(m, "DisparityNoiseModel",
+                                              "σ_d model fitted by `rangebayes calibrate noise`.");
+  noise_model.def(py::init<>());
+  PickledFields(noise_model)
+      .Property(
           "form", [](const DisparityNoiseModel& d) { return std::string(NoiseFormName(d.form)); },
           [](DisparityNoiseModel& d, const std::string& s) { d.form = ParseNoiseForm(s); },
           "'constant', 'floor-plus-scale' or 'learned'")
-      .def_readwrite("sigma_px", &DisparityNoiseModel::sigma_px)
-      .def_readwrite("floor_px", &DisparityNoiseModel::floor_px)
-      .def_readwrite("scale", &DisparityNoiseModel::scale)
-      .def_readwrite("matcher", &DisparityNoiseModel::matcher)
-      .def_readwrite("samples", &DisparityNoiseModel::samples)
-      .def_readwrite("outlier_fraction", &DisparityNoiseModel::outlier_fraction)
-      .def_readwrite("image_noise_gray", &DisparityNoiseModel::image_noise_gray)
-      .def_readwrite("jump_scale", &DisparityNoiseModel::jump_scale)
-      .def_readwrite("width_min_px", &DisparityNoiseModel::width_min_px)
-      .def_readwrite("width_max_px", &DisparityNoiseModel::width_max_px)
-      .def_readwrite("window_px", &DisparityNoiseModel::window_px)
-      .def(
-          "apply",
-          [](const DisparityNoiseModel& model, double sigma_pred_px, double jump_px) {
-            model.Check();  // fields set from Python: a NaN sigma_px gave NaN here without a word
-            return model.Apply(sigma_pred_px, jump_px);
-          },
-          py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
-          "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px); raises Error for a "
-          "model with fields out of range");
+      .ReadWrite("sigma_px", &DisparityNoiseModel::sigma_px)
+      .ReadWrite("floor_px", &DisparityNoiseModel::floor_px)
+      .ReadWrite("scale", &DisparityNoiseModel::scale)
+      .ReadWrite("matcher", &DisparityNoiseModel::matcher)
+      .ReadWrite("samples", &DisparityNoiseModel::samples)
+      .ReadWrite("outlier_fraction", &DisparityNoiseModel::outlier_fraction)
+      .ReadWrite("depth_slope_px_per_m", &DisparityNoiseModel::depth_slope_px_per_m)
+      .ReadWrite("image_noise_gray", &DisparityNoiseModel::image_noise_gray)
+      .ReadWrite("jump_scale", &DisparityNoiseModel::jump_scale)
+      .ReadWrite("width_min_px", &DisparityNoiseModel::width_min_px)
+      .ReadWrite("width_max_px", &DisparityNoiseModel::width_max_px)
+      .ReadWrite("window_px", &DisparityNoiseModel::window_px)
+      .Pickle();
+  noise_model.def(
+      "apply",
+      [](const DisparityNoiseModel& model, double sigma_pred_px, double jump_px) {
+        model.Check();  // fields set from Python: a NaN sigma_px gave NaN here without a word
+        return model.Apply(sigma_pred_px, jump_px);
+      },
+      py::arg("sigma_pred_px"), py::arg("jump_px") = 0.0,
+      "σ_d (px) for a predicted σ (px) and (learned form) the largest neighbour jump (px); raises Error for a "
+      "model with fields out of range");
   m.def(
       "read_noise_model", [](const PathArg& path) { return ReadDisparityNoiseModel(path.string()); }, py::arg("path"),
       "A DisparityNoiseModel from the noise.yaml `rangebayes calibrate noise` writes (σ_d in px; for "
@@ -155,20 +170,38 @@ numpy arrays (copies on read; assign a whole array to change one). Translations 
       py::arg("path"), py::arg("model"),
       "Writes a DisparityNoiseModel as the noise.yaml the CLI's --noise-model reads.");
 
-  py::class_<DepthFrame>(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres), sigma_depth_m,
-disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where invalid.)")
-      .def_property_readonly("depth_m", [](const DepthFrame& f) { return ArrayFromMat(f.depth_m); })
-      .def_property_readonly("sigma_depth_m", [](const DepthFrame& f) { return ArrayFromMat(f.sigma_depth_m); })
-      .def_property_readonly("disparity_px", [](const DepthFrame& f) { return ArrayFromMat(f.disparity_px); })
-      .def_property_readonly("sigma_disparity_px", [](const DepthFrame& f) { return ArrayFromMat(f.sigma_disparity_px); })
-      .def_readwrite("frame_id", &DepthFrame::frame_id)
-      .def_readwrite("timestamp_ns", &DepthFrame::timestamp_ns)
-      .def_readwrite("intrinsics", &DepthFrame::intrinsics)
-      .def_readwrite("baseline_m", &DepthFrame::baseline_m)
-      .def_readwrite("doffs_px", &DepthFrame::doffs_px)
-      .def_readwrite("sigma_pixel_px", &DepthFrame::sigma_pixel_px)
-      .def_property_readonly("width", &DepthFrame::width)
-      .def_property_readonly("height", &DepthFrame::height);
+  py::class_<DepthFrame> depth_frame(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres),
+sigma_depth_m, disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where
+invalid.)");
+  depth_frame.def_property_readonly("width", &DepthFrame::width).def_property_readonly("height", &DepthFrame::height);
+  // The images pickle as float32 copies and come back as the arrays they were (a map of another type or shape
+  // from a hand-made state is refused).
+  const auto image = [](cv::Mat DepthFrame::*member, const char* name) {
+    return std::make_pair(
+        std::function<py::object(const DepthFrame&)>([member](const DepthFrame& f) { return ArrayFromMat(f.*member); }),
+        std::function<void(DepthFrame&, py::handle)>([member, name](DepthFrame& f, py::handle value) {
+          if (value.is_none()) return;
+          const ImageIn in = ImageFromArray(value, std::string("DepthFrame.") + name);
+          if (in.mat.type() != CV_32F) throw py::value_error(std::string("DepthFrame.") + name + ": expected float32");
+          f.*member = in.mat.clone();
+        }));
+  };
+  PickledFields<DepthFrame> depth_fields(depth_frame);
+  for (const auto& [name, member] : {std::pair{"depth_m", &DepthFrame::depth_m},
+                                     {"sigma_depth_m", &DepthFrame::sigma_depth_m},
+                                     {"disparity_px", &DepthFrame::disparity_px},
+                                     {"sigma_disparity_px", &DepthFrame::sigma_disparity_px}}) {
+    depth_frame.def_property_readonly(name, [member = member](const DepthFrame& f) { return ArrayFromMat(f.*member); });
+    const auto [get, set] = image(member, name);
+    depth_fields.State(name, get, set);
+  }
+  depth_fields.ReadWrite("frame_id", &DepthFrame::frame_id)
+      .ReadWrite("timestamp_ns", &DepthFrame::timestamp_ns)
+      .ReadWrite("intrinsics", &DepthFrame::intrinsics)
+      .ReadWrite("baseline_m", &DepthFrame::baseline_m)
+      .ReadWrite("doffs_px", &DepthFrame::doffs_px)
+      .ReadWrite("sigma_pixel_px", &DepthFrame::sigma_pixel_px)
+      .Pickle();
 
   m.def(
       "rectify",
@@ -296,19 +329,21 @@ non-occluded mask (uint8, 255 = evaluate; None when absent), the search range an
       },
       py::arg("folder"), "Reads a Middlebury scene folder (the layouts `rangebayes eval-depth --scene` reads).");
 
-  py::class_<DisparityEvaluation>(m, "DisparityEvaluation",
-                                  "A disparity map scored against ground truth; brief_report() is what `rangebayes "
-                                  "eval-depth` prints.")
-      .def_readonly("evaluated_pixels", &DisparityEvaluation::evaluated_pixels)
-      .def_readonly("estimated_pixels", &DisparityEvaluation::estimated_pixels)
-      .def_readonly("coverage", &DisparityEvaluation::coverage)
-      .def_readonly("thresholds_px", &DisparityEvaluation::thresholds_px)
-      .def_readonly("bad_with_holes", &DisparityEvaluation::bad_with_holes,
-                    "per threshold: share of evaluated pixels missing or off by more (Middlebury's bad-N)")
-      .def_readonly("bad_valid_only", &DisparityEvaluation::bad_valid_only, "the same among estimated pixels")
-      .def_readonly("rms_px", &DisparityEvaluation::rms_px)
-      .def_readonly("mean_abs_px", &DisparityEvaluation::mean_abs_px)
-      .def("brief_report", &DisparityEvaluation::BriefReport);
+  py::class_<DisparityEvaluation> evaluation(m, "DisparityEvaluation",
+                                             "A disparity map scored against ground truth; brief_report() is what "
+                                             "`rangebayes eval-depth` prints.");
+  evaluation.def("brief_report", &DisparityEvaluation::BriefReport);
+  PickledFields(evaluation)
+      .ReadOnly("evaluated_pixels", &DisparityEvaluation::evaluated_pixels)
+      .ReadOnly("estimated_pixels", &DisparityEvaluation::estimated_pixels)
+      .ReadOnly("coverage", &DisparityEvaluation::coverage)
+      .ReadOnly("thresholds_px", &DisparityEvaluation::thresholds_px)
+      .ReadOnly("bad_with_holes", &DisparityEvaluation::bad_with_holes,
+                "per threshold: share of evaluated pixels missing or off by more (Middlebury's bad-N)")
+      .ReadOnly("bad_valid_only", &DisparityEvaluation::bad_valid_only, "the same among estimated pixels")
+      .ReadOnly("rms_px", &DisparityEvaluation::rms_px)
+      .ReadOnly("mean_abs_px", &DisparityEvaluation::mean_abs_px)
+      .Pickle();
   m.def(
       "evaluate_disparity",
       [](py::handle estimate, py::handle ground_truth, py::handle mask, py::kwargs kwargs) {

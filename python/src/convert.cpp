@@ -443,11 +443,14 @@ ImageIn ImageFromArray(py::handle obj, const std::string& what) {
   }
   const int channels = a.ndim() == 3 ? static_cast<int>(a.shape(2)) : 1;
   if (channels < 1 || channels > 4) throw py::value_error(what + ": expected 1 to 4 channels");
+  // By numpy's equality, not identity: an array that came through pickle (multiprocessing) carries its own
+  // instance of the dtype, and one of the other byte order is another dtype.
+  const auto is = [&](const py::dtype& dtype) { return a.dtype().attr("__eq__")(dtype).cast<bool>(); };
   int depth = -1;
-  if (a.dtype().is(py::dtype::of<std::uint8_t>())) depth = CV_8U;
-  if (a.dtype().is(py::dtype::of<std::uint16_t>())) depth = CV_16U;
-  if (a.dtype().is(py::dtype::of<float>())) depth = CV_32F;
-  if (a.dtype().is(py::dtype::of<double>())) depth = CV_64F;
+  if (is(py::dtype::of<std::uint8_t>())) depth = CV_8U;
+  if (is(py::dtype::of<std::uint16_t>())) depth = CV_16U;
+  if (is(py::dtype::of<float>())) depth = CV_32F;
+  if (is(py::dtype::of<double>())) depth = CV_64F;
   if (depth < 0) {
     throw py::type_error(what + ": expected dtype uint8, uint16, float32 or float64, got " +
                          py::str(a.dtype()).cast<std::string>());
