@@ -46,6 +46,10 @@ struct Item {
 using ItemPtr = std::unique_ptr<Item>;
 using ItemQueue = BoundedQueue<ItemPtr>;
 
+// Thrown by a stage's work when a stop is requested while it runs (through the library's progress callback, see
+// Run::EndOnStop): the item is abandoned as one popped after the stop is, not counted as failed.
+struct StopRequested {};
+
 // State shared by the stage threads of one run.
 class Run {
  public:
@@ -57,6 +61,15 @@ class Run {
   }
   void Halt() { halt_.store(true); }
 
+  // `progress` that first ends the call with StopRequested once a stop was requested: a converged solve of a
+  // full-resolution frame runs for minutes, and Ctrl-C waited for it (15-20 s on a 320x240 replay).
+  ProgressCallback EndOnStop(ProgressCallback progress) const {
+    return [this, progress = std::move(progress)](double fraction, std::string_view stage) {
+      if (Stopping()) throw StopRequested{};
+      if (progress) progress(fraction, stage);
+    };
+  }
+
   void AddError(const std::string& line) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (summary_.errors.size() < 100) summary_.errors.push_back(line);
@@ -66,13 +79,16 @@ class Run {
     ++summary_.abandoned;
   }
 
-  // Runs `work` on an item with timing and error capture: no exception leaves it.
+  // Runs `work` on an item with timing and error capture: no exception leaves it. False when a stop ended the work
+  // (StopRequested): the caller abandons the item.
   template <typename Work>
-  void Process(Item& item, StageTiming* timing, const Work& work) {
-    if (!item.result.error.empty()) return;
+  bool Process(Item& item, StageTiming* timing, const Work& work) {
+    if (!item.result.error.empty()) return true;
     const auto start = Clock::now();
     try {
       work(item);
+    } catch (const StopRequested&) {
+      return false;
     } catch (const std::exception& e) {
       // "smooth: …" from the library keeps its own prefix (it was "smooth: smooth: …").
       const std::string what = e.what();
@@ -89,17 +105,17 @@ class Run {
     ++timing->items;
     timing->total_ms += ms;
     timing->max_ms = std::max(timing->max_ms, ms);
+    return true;
   }
 
   // A plain one-in-one-out stage.
   template <typename Work>
   void Stage(ItemQueue& in, ItemQueue& out, StageTiming* timing, const Work& work) {
     while (auto item = in.Pop()) {
-      if (Stopping()) {
+      if (Stopping() || !Process(**item, timing, work)) {
         AddAbandoned();
         continue;
       }
-      Process(**item, timing, work);
       out.Push(std::move(*item));
     }
     out.Close();
@@ -595,11 +611,13 @@ class Stages {
       if (item.settings.full_quality) {
         SmoothOptions smoothing = options.smoothing;
         smoothing.tolerance = SmoothOptions{}.tolerance;
+        smoothing.progress = run.EndOnStop(smoothing.progress);
         item.result.smoothed = Smooth(item.result.raw_mesh, smoothing);
         return;
       }
       if (!options.smooth) return;
       SmoothOptions smoothing = options.smoothing;
+      smoothing.progress = run.EndOnStop(smoothing.progress);
       // Per frame the pipeline runs the plain solve: the adaptive-ε pre-pass is not part of a frame's budget.
       smoothing.adaptive_epsilon = false;
       // Under a budget, the ray preconditioner's matrix per stage costs more than it saves (a 640x480 live replay:
@@ -661,7 +679,9 @@ class Stages {
     run.Stage((*queues[4]), (*queues[5]), t_decimate, [&](Item& item) {
       if (!options.decimate && !item.settings.full_quality) return;
       const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
-      item.result.decimated = Decimate(input, options.decimation);
+      DecimateOptions decimation = options.decimation;
+      decimation.progress = run.EndOnStop(decimation.progress);
+      item.result.decimated = Decimate(input, decimation);
     });
   }
 

@@ -255,6 +255,38 @@ TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
   }
 }
 
+// A stop requested while a frame is being smoothed or decimated ends that call at its next progress report (a
+// converged full-resolution solve runs for minutes; Ctrl-C waited for it): the library reports nothing more
+// after the stop, and the frame is abandoned, not failed. The stop is set from the stage's own progress, so the
+// test needs no clock.
+TEST(Pipeline, StopEndsTheSmoothingAndDecimationInFlight) {
+  const TempDir dir("pipe_stop_in_flight");
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, 3));
+  for (const bool in_decimation : {false, true}) {
+    SCOPED_TRACE(in_decimation ? "decimation" : "smoothing");
+    PlaybackSource source(rec);
+    std::atomic<bool> stop{false};
+    std::atomic<int> reports_after_stop{0};
+    const ProgressCallback stop_at_first_report = [&](double, std::string_view) {
+      if (stop.exchange(true)) ++reports_after_stop;
+    };
+    CollectSink sink;
+    PipelineOptions options = SmallPipelineOptions();
+    options.smooth = true;
+    options.decimate = true;
+    options.stop = &stop;
+    (in_decimation ? options.decimation.progress : options.smoothing.progress) = stop_at_first_report;
+    const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+    EXPECT_TRUE(s.stopped);
+    EXPECT_EQ(reports_after_stop.load(), 0);
+    EXPECT_EQ(s.results, 0);
+    EXPECT_EQ(s.failed, 0);
+    EXPECT_TRUE(sink.results.empty());
+    EXPECT_GE(s.abandoned, 1);
+    EXPECT_EQ(s.frames_captured, s.results + s.failed + s.abandoned);
+  }
+}
+
 TEST(PipelineScaling, DownsampledIntrinsicsHalveCoordinatesPerLevel) {
   CameraIntrinsics k;
   k.fx_px = 640;
