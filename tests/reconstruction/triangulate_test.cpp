@@ -276,10 +276,10 @@ TEST(Triangulate, NormalisedResidualsMatchTheCovarianceWithPixelJitter) {
 // (kGaussNewtonSigmaFloorPx/Scale): with the parabola's defaults the along-ray part came out 0.47–0.52 (σ_d overstated
 // by the floor). Measured 2.68 / 2.85 / 2.87 (2.75 / 2.90 / 2.97 with the edge rejection, before the doubtful pixels
 // were kept). The parts as in the jitter test above: the lateral part (σ_px) alone would keep the total in its band
-// with the along-ray part as low as 0.58. The sphere's along-ray part is left out: it measures 0.76 (planes 0.93,
-// cylinder 0.94), σ_d overstated there by the command's σ_d model (doubtful pixels, 9% of the sphere with σ_d inflated
-// by 1 px, and strongly slanted parts, disparity gradient ≥ 0.25 px/px, both normalised far below 1); an open finding,
-// not a band.
+// with the along-ray part as low as 0.58. The sphere's along-ray part is left out: it measures 0.79 (planes 0.94,
+// cylinder 0.96; 0.76 before the neighbour term and the doubtful-pixel test read the departure from the local slope),
+// σ_d overstated there by the command's σ_d model (doubtful pixels, 9% of the sphere with σ_d inflated by 1 px, and
+// the matching σ on strongly slanted parts, SpaceTime.SigmaDoesNotGrowWithTheSlope); an open finding, not a band.
 TEST(Triangulate, NormalisedResidualsMatchTheCovarianceForTheSpaceTimeCommand) {
   for (const auto scene : {SynthScene::kSphere, SynthScene::kPlanes, SynthScene::kCylinder}) {
     const ResidualStats s = NormalisedResiduals(scene, 0.2, 0.2, /*cut_on_total=*/false, /*command_config=*/true);

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -169,6 +170,54 @@ TEST(SpaceTime, SigmaMatchesTheErrors) {
       EXPECT_LT(rms_z, 2.0);
       EXPECT_GT(e.sigma_rank_correlation, 0.08);
     }
+  }
+}
+
+// A slanted surface is not a doubt: σ_d's neighbour term and the doubtful-pixel test read the neighbours' departure
+// from the local slope, not their raw difference. On the sphere (T = 8, `rangebayes spacetime`'s configuration,
+// away from depth edges) the RMS of e/σ_d where the ground truth slopes by 0.2–1 px/px, over that where it is
+// flat, was 0.63 (seeds 3, 7) with the raw differences and is 0.73 with the slope taken out (the library's
+// defaults: 0.93–0.96 → 0.98–1.02). What remains is the matching σ itself (the cost's curvature is lower on a
+// slant, the Gauss–Newton step's error is not), an open finding.
+TEST(SpaceTime, SigmaDoesNotGrowWithTheSlope) {
+  for (const std::uint64_t seed : {3u, 7u}) {
+    const SynthRecording rec = RenderSynthetic(Scene(SynthScene::kSphere, 8, 2.0, seed));
+    SpaceTimeMatcherOptions options = SpaceTimeStaticSceneOptions(8);  // what `rangebayes spacetime` runs
+    options.min_disparity_px = 8;
+    options.num_disparities = 48;
+    options.image_noise_gray = 2.0;
+    SpaceTimeMatcher m(options);
+    const DisparityResult r = m.Match(rec.left, rec.right);
+    const cv::Mat& gt = rec.disparity_px;
+    const int margin = 5;
+    double z2[2] = {0, 0};
+    int n[2] = {0, 0};
+    for (int y = margin; y < gt.rows - margin; ++y) {
+      for (int x = margin + 60; x < gt.cols - margin; ++x) {
+        bool smooth = true;  // no ground-truth jump (beyond the slope) within the margin
+        const double gx = 0.5 * (gt.at<float>(y, x + 1) - gt.at<float>(y, x - 1));
+        const double gy = 0.5 * (gt.at<float>(y + 1, x) - gt.at<float>(y - 1, x));
+        for (int k = -margin; k <= margin && smooth; ++k) {
+          smooth = std::abs(gt.at<float>(y, x + k) - gt.at<float>(y, x) - k * gx) < 0.5 &&
+                   std::abs(gt.at<float>(y + k, x) - gt.at<float>(y, x) - k * gy) < 0.5;
+        }
+        const float d = r.disparity_px.at<float>(y, x), s = r.sigma_disparity_px.at<float>(y, x);
+        if (!smooth || !std::isfinite(d)) continue;
+        const double slope = std::hypot(gx, gy);
+        const int part = slope < 0.1 ? 0 : slope >= 0.2 && slope <= 1.0 ? 1 : -1;
+        if (part < 0) continue;
+        const double e = d - gt.at<float>(y, x);
+        z2[part] += e * e / (static_cast<double>(s) * s);
+        ++n[part];
+      }
+    }
+    ASSERT_GT(n[0], 1000);
+    ASSERT_GT(n[1], 300);
+    const double flat = std::sqrt(z2[0] / n[0]), steep = std::sqrt(z2[1] / n[1]);
+    std::printf("seed %d: rms z flat %.3f (%d px), steep %.3f (%d px), ratio %.3f\n", static_cast<int>(seed), flat,
+                n[0], steep, n[1], steep / flat);
+    EXPECT_GT(steep / flat, 0.68) << "seed " << seed;
+    EXPECT_LT(steep / flat, 1.2) << "seed " << seed;
   }
 }
 
