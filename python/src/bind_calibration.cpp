@@ -241,6 +241,25 @@ released.)");
       py::arg("model"), py::arg("scenes"), py::arg("stride_px") = 2, py::kw_only(), py::arg("progress") = py::none(),
       "The calibration test of a learned model on held-out scenes with ground truth (`rangebayes calibrate "
       "check-noise`): a NoiseModelCheck. GIL released.");
+  m.def(
+      "ground_truth_noise_samples",
+      [](const PathArg& folder, py::kwargs kwargs) {
+        py::dict kw = py::dict(kwargs);
+        GroundTruthNoiseOptions options;
+        ApplyKeywords(GroundTruthNoiseOptionFields(), kw, &options, "ground_truth_noise_samples");
+        options.Check();
+        std::vector<NoiseSample> samples;
+        {
+          py::gil_scoped_release nogil;
+          samples = GroundTruthNoiseSamples(ReadMiddleburyScene(folder.string()), options);
+        }
+        return SamplesToArray(samples);
+      },
+      py::arg("folder"),
+      "The residual samples one Middlebury scene gives calibrate_noise(target='ground-truth') and check_noise_model "
+      "(the matcher run as `rangebayes stereo` runs it, d − d_gt on the non-occluded pixels): (n, 4) float64 "
+      "residual_px, sigma_pred_px, depth_m (NaN), jump_px. Keywords: rangebayes.GROUND_TRUTH_NOISE_OPTIONS. GIL "
+      "released.");
 }
 
 }  // namespace rangebayes::python

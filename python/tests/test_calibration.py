@@ -93,6 +93,13 @@ def test_noise_from_ground_truth_and_its_check(tmp_path, cli, root):
     assert check.brief_report() == cli_check
     assert check.samples > 1000 and len(check.observed_within) == 3
     assert check.passes() == ("NOT calibrated" not in cli_check)
+    # The samples the check scores (its default stride 2): z = residual / σ_d of the model gives its shares.
+    samples = rb.ground_truth_noise_samples(scene, stride_px=2)
+    assert samples.shape == (check.samples, 4) and np.isnan(samples[:, 2]).all()
+    z = np.abs(samples[:, 0]) / np.array([model.apply(s, j) for s, j in samples[:, [1, 3]]])
+    assert [np.mean(z <= k) for k in (1, 2, 3)] == pytest.approx(check.observed_within, abs=1e-9)
+    with pytest.raises(TypeError, match="ground_truth_noise_samples.*frames"):
+        rb.ground_truth_noise_samples(scene, frames=3)
     with pytest.raises(TypeError, match=r"calibrate_noise\(target='ground-truth'\).*frames"):
         rb.calibrate_noise([scene], target="ground-truth", frames=3)
     with pytest.raises(rb.Error, match="tsukuba_missing"):
