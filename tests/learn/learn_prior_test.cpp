@@ -165,6 +165,15 @@ TEST(LearnPrior, ProgressIsHeardAfterEveryPairWithinASweep) {
   };
   EXPECT_THROW(LearnPrior(pairs, options), Stop);
   EXPECT_EQ(calls, 2);
+
+  // Each solve reports from within (first at its first iteration): a stop is heard before the first pair is done.
+  stages.clear();
+  options.progress = [&stages](double, std::string_view stage) {
+    stages.emplace_back(stage);
+    throw Stop{};
+  };
+  EXPECT_THROW(LearnPrior(pairs, options), Stop);
+  EXPECT_EQ(stages, std::vector<std::string>{"smoothing pair 1 of 3"});
 }
 
 // On a clean box a vertex lies on a crease exactly when its faces do not all share one normal.
