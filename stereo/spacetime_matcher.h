@@ -43,7 +43,8 @@ struct SpaceTimeMatcherOptions {
   // is larger than σ_n where the model fails); p₂ = exp(−(C(d₂) − C(d))/(4σ_eff²)) the likelihood ratio of
   // the runner-up minimum d₂ (≥ 2 px away) under Gaussian noise, a = ambiguity_weight, so σ_pred grows to
   // the runner-up's distance as the two become equally likely; J = mean over the valid w×w neighbours of
-  // (d_n − d)² for |d_n − d| > neighbour_jump_px (a window straddling a depth edge, isolated mismatches).
+  // e_n² for |d_n − d| and |e_n| > neighbour_jump_px, e_n = d_n − d − g·Δ_n the departure from the local slope g
+  // (a window straddling a depth edge, isolated mismatches; a slant is not one). The edge test below reads e_n too.
   bool residual_noise = true;
   double ambiguity_weight = 1.0;     // ≥ 0 (0: off)
   double neighbour_jump_px = 1.0;    // < 0: off; ≥ 0: neighbour differences above this count into J
