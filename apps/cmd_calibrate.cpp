@@ -40,6 +40,7 @@ struct RigArgs {
   int min_pairs = 5;
   bool drop_outliers = false;
   bool rational = false;
+  double max_rms_px = StereoCalibrationOptions{}.max_rms_px;
   std::string out;
   std::string png;
   bool quiet = false;
@@ -72,6 +73,7 @@ void RunRig(const RigArgs& a) {
   options.min_pairs = a.min_pairs;
   options.drop_outliers = a.drop_outliers;
   options.rational_model = a.rational;
+  options.max_rms_px = a.max_rms_px;
   options.Check();
   CheckFileToWrite(a.out);
   if (!a.png.empty()) CheckFileToWrite(a.png);
@@ -87,13 +89,15 @@ void RunRig(const RigArgs& a) {
     rig = CalibrateStereoRig(pairs, options, &s, progress.callback());
     progress.Finish();
   }
-  WriteStereoRig(rig, a.out);
-
   std::fputs(s.BriefReport().c_str(), stdout);
+  std::printf("baseline %.4f m, rectified f %.1f px\n", rig.baseline_m(), rig.P1(0, 0));
+  // A rig that cannot work is not written (a --rational fit once wrote one of stereo RMS 2e10 px, exit 0).
+  const std::string problem = CalibrationProblem(s, options);
+  RB_CHECK(problem.empty(), problem, "; ", a.out, " not written");
+  WriteStereoRig(rig, a.out);
   int flagged = 0;
   for (const CalibrationView& v : s.views) flagged += v.flagged;
   if (flagged > 0 && !a.drop_outliers) std::printf("rerun with --drop-outliers to calibrate without them\n");
-  std::printf("baseline %.4f m, rectified f %.1f px\n", rig.baseline_m(), rig.P1(0, 0));
   std::printf("wrote %s\n", a.out.c_str());
   if (!a.png.empty()) {
     for (const CalibrationView& v : s.views) {
@@ -133,6 +137,10 @@ void AddRig(CLI::App* calibrate) {
                 "Recalibrate without the flagged views (stereo RMS above max(median + 3 x 1.4826 x MAD, 1.5 x "
                 "median))");
   sub->add_flag("--rational", a->rational, "8-coefficient rational distortion model (needs many views)");
+  sub->add_option("--max-rms", a->max_rms_px,
+                  "Refuse (and write nothing) when the stereo RMS or the mean rectified epipolar error is above "
+                  "this, px (inf: no limit)")
+      ->check(PositiveOrInf());
   sub->add_option("--out,-o", a->out, "Output rig file (OpenCV FileStorage YAML)")->required();
   sub->add_option("--png", a->png, "Write the first used pair, rectified, with horizontal epipolar lines");
   AddQuietFlag(sub, &a->quiet);

@@ -79,6 +79,12 @@ CLI::Validator PositiveReal() {
   });
 }
 
+CLI::Validator PositiveOrInf() {
+  return RealCheck("POSITIVE or inf", [](double v) {
+    return v > 0 ? std::string() : "must be a number > 0 or inf, got " + CLI::detail::to_string(v);
+  });
+}
+
 CLI::Validator NonNegativeReal() {
   return RealCheck("NONNEGATIVE", [](double v) {
     return std::isfinite(v) && v >= 0 ? std::string() : "must be a finite number >= 0, got " + CLI::detail::to_string(v);

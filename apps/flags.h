@@ -30,6 +30,7 @@ void CheckSgbmWindow(int window_px);
 // Checks of real-valued options with plain messages (CLI11's PositiveNumber and NonNegativeNumber print the
 // largest double as the end of their range, and let NaN through).
 CLI::Validator PositiveReal();     // a finite number > 0
+CLI::Validator PositiveOrInf();    // a number > 0, inf included (no limit)
 CLI::Validator NonNegativeReal();  // a finite number ≥ 0
 CLI::Validator RealRange(double lo, double hi);  // a number in [lo, hi] (NaN refused)
 // Counts and indices: CLI11's checks for these print the largest double as the range's end.

@@ -238,10 +238,12 @@ StageResult Calibrate(const std::vector<PairDetection>& views, const cv::Size& s
                                       per_view, flags, criteria);
     for (int i = 0; i < per_view.rows; ++i) s.view_right.push_back(per_view.at<double>(i));
     // Two stages: the stereo step estimates only R and T. Jointly re-estimating the intrinsics from the
-    // pairs alone fits worse on OpenCV's samples (0.634 px against 0.448 px).
+    // pairs alone fits worse on OpenCV's samples (0.634 px against 0.448 px). The distortion model's flag goes
+    // with it: without CALIB_RATIONAL_MODEL the stereo step reads only the first five of the eight coefficients
+    // (a stereo RMS of 2e10 px on OpenCV's samples with --rational).
     cv::Mat E, F, stereo_view;
-    s.rms_stereo = cv::stereoCalibrate(object, left, right, s.K_left, s.D_left, s.K_right, s.D_right, size, s.R, s.T,
-                                       E, F, stereo_view, cv::CALIB_FIX_INTRINSIC, criteria);
+    s.rms_stereo = cv::stereoCalibrate(object, left, right, s.K_left, s.D_left, s.K_right, s.D_right, size, s.R, s.T, E,
+                                       F, stereo_view, cv::CALIB_FIX_INTRINSIC | flags, criteria);
     for (int i = 0; i < stereo_view.rows; ++i) {
       const double a = stereo_view.at<double>(i, 0), b = stereo_view.at<double>(i, 1);
       s.view_stereo.push_back(std::sqrt(0.5 * (a * a + b * b)));
@@ -315,6 +317,25 @@ void StereoCalibrationOptions::Check() const {
   RB_CHECK(outlier_min_ratio >= 1 && outlier_min_ratio <= 5, "outlier_min_ratio ", outlier_min_ratio,
            " not in [1, 5]");
   RB_CHECK(coverage_grid >= 2 && coverage_grid <= 64, "coverage_grid ", coverage_grid, " not in [2, 64]");
+  RB_CHECK(max_rms_px > 0, "max_rms_px ", max_rms_px, " must be > 0 (inf: no limit)");
+}
+
+std::string CalibrationProblem(const StereoCalibrationSummary& summary, const StereoCalibrationOptions& options) {
+  const double worst = std::max(summary.rms_stereo_px, summary.epipolar_error_mean_px);
+  if (std::isfinite(summary.rms_stereo_px) && std::isfinite(summary.epipolar_error_mean_px) &&
+      !(worst > options.max_rms_px)) {
+    return "";
+  }
+  int flagged = 0;
+  for (const CalibrationView& v : summary.views) flagged += v.flagged ? 1 : 0;
+  char values[96];
+  std::snprintf(values, sizeof(values), "stereo RMS %.4g px, mean epipolar error %.4g px", summary.rms_stereo_px,
+                summary.epipolar_error_mean_px);
+  std::string hints;
+  if (flagged > 0 && !options.drop_outliers) hints += "rerun with --drop-outliers (views are flagged above), or ";
+  if (options.rational_model) hints += "try without --rational or with more views, or ";
+  hints += "check --board and that left and right images are paired";
+  return StrCat("the calibration is not usable: ", values, " (limit ", options.max_rms_px, " px, --max-rms); ", hints);
 }
 
 void RectifiedPreviewOptions::Check() const {
@@ -634,7 +655,9 @@ std::string StereoCalibrationSummary::BriefReport() const {
     const char* used = detector_used == ChessboardDetector::kClassic ? "classic" : "sb";
     if (detectors_compared) {
       const auto rms = [](double v) {
-        return v < 0 ? std::string("too few pairs") : std::to_string(v).substr(0, 5) + " px";
+        char text[32];
+        std::snprintf(text, sizeof(text), "%.4g px", v);  // to_string cut to 5 characters printed 2e10 as "20092"
+        return v < 0 ? std::string("too few pairs") : std::string(text);
       };
       std::snprintf(line, sizeof(line), "corner detector: %s kept (stereo RMS sb %s, classic %s)\n", used,
                     rms(rms_stereo_sector_based_px).c_str(), rms(rms_stereo_classic_px).c_str());

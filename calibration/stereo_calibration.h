@@ -64,6 +64,9 @@ struct StereoCalibrationOptions {
   double outlier_min_ratio = 1.5;     // [1, 5]
   bool drop_outliers = false;         // recalibrate without the flagged views (needs min_pairs left)
   bool rational_model = false;        // 8-coefficient distortion (k4..k6); needs many views
+  // A rig whose stereo RMS or mean rectified epipolar error exceeds this is not usable (a misdetected board,
+  // the wrong board size, a distortion model that failed): CalibrationProblem says so. > 0; inf: no limit.
+  double max_rms_px = 2.0;
   int coverage_grid = 8;              // coverage grid cells per side for the grid coverage figure; [2, 64]
   void Check() const;
 };
@@ -123,6 +126,11 @@ struct StereoCalibrationSummary {
 // Throws Error when an image cannot be read, sizes differ, or fewer than min_pairs pairs are usable.
 StereoRig CalibrateStereoRig(const std::vector<CalibrationImagePair>& pairs, const StereoCalibrationOptions& options,
                              StereoCalibrationSummary* summary = nullptr, const ProgressCallback& progress = {});
+
+// Why the calibration summarised is not usable (its stereo RMS or mean epipolar error above options.max_rms_px,
+// or not finite), with what to try; empty when it is. `calibrate rig` prints the summary first and then fails with
+// this line without writing the rig; Python's calibrate_rig raises it.
+std::string CalibrationProblem(const StereoCalibrationSummary& summary, const StereoCalibrationOptions& options);
 
 // The rectified pair side by side with horizontal lines every line_spacing_px rows (corresponding points lie
 // on one line when the rectification is right).

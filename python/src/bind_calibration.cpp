@@ -115,6 +115,8 @@ void BindCalibration(py::module_& m) {
           py::gil_scoped_release nogil;
           rig = CalibrateStereoRig(pairs, options, &summary, progress);
         }
+        const std::string problem = CalibrationProblem(summary, options);
+        RB_CHECK(problem.empty(), "calibrate_rig: ", problem, " (max_rms_px=float('inf') returns it anyway)");
         return std::make_pair(std::move(rig), std::move(summary));
       },
       py::arg("left"), py::arg("right"),

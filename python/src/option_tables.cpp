@@ -245,6 +245,7 @@ const FieldTable<StereoCalibrationOptions>& StereoCalibrationOptionFields() {
       RB_PY_FIELD(StereoCalibrationOptions, drop_outliers),
       RB_PY_FIELD(StereoCalibrationOptions, rational_model),
       RB_PY_FIELD(StereoCalibrationOptions, coverage_grid),
+      RB_PY_FIELD(StereoCalibrationOptions, max_rms_px),
   };
   return table;
 }

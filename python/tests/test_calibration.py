@@ -46,6 +46,20 @@ def test_rig_bad_input(root):
         rb.calibrate_rig(3, right)
 
 
+def test_an_unusable_rig_is_an_error(tmp_path, root):
+    """One right image replaced by another view's: stereo RMS ~19 px, refused as `calibrate rig` refuses it."""
+    import shutil
+    for image in (root / "tests" / "data" / "calibration" / "opencv_stereo").glob("*.jpg"):
+        shutil.copy(image, tmp_path / image.name)
+    shutil.copy(tmp_path / "right09.jpg", tmp_path / "right05.jpg")
+    left, right = str(tmp_path / "left*.jpg"), str(tmp_path / "right*.jpg")
+    with pytest.raises(rb.Error, match="not usable: stereo RMS .* --drop-outliers"):
+        rb.calibrate_rig(left, right)
+    rig, summary = rb.calibrate_rig(left, right, max_rms_px=float("inf"))
+    assert summary.rms_stereo_px > 2.0
+    assert rb.RIG_CALIBRATION_OPTIONS["max_rms_px"] == 2.0
+
+
 def test_noise_from_a_plane_is_the_cli_model(tmp_path, cli):
     rec = tmp_path / "plane"
     run(cli, "synth", "--scene", "plane", "--frames", "4", "--width", "160", "--height", "120", "--out", rec, "-q")

@@ -128,5 +128,30 @@ TEST(Cli, V4l2OnlyCameraFlagsAreRefusedWithLibcamera) {
   EXPECT_FALSE(std::filesystem::exists("/tmp/rb_cli_never_rec"));
 }
 
+// A calibration that cannot work is refused after its table is printed, and no rig is written (a rig of stereo RMS
+// 2e10 px once went out with exit 0): the OpenCV samples with one right image replaced by another view's.
+TEST(Cli, CalibrateRigRefusesAnUnusableRig) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "rb_cli_unusable_rig";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (const auto& entry : fs::directory_iterator(fs::path(RB_SOURCE_DIR) / "tests/data/calibration/opencv_stereo")) {
+    fs::copy_file(entry.path(), dir / entry.path().filename());
+  }
+  fs::copy_file(dir / "right09.jpg", dir / "right05.jpg", fs::copy_options::overwrite_existing);
+  const std::string args = "calibrate rig --left '" + (dir / "left*.jpg").string() + "' --right '" +
+                           (dir / "right*.jpg").string() + "' -q --out " + (dir / "rig.yaml").string();
+  RunResult r = RunRangebayes(args);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("FLAGGED"), std::string::npos) << r.output;  // the table first
+  EXPECT_NE(r.output.find("error: the calibration is not usable: stereo RMS"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--drop-outliers"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "rig.yaml"));
+  r = RunRangebayes(args + " --drop-outliers");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir / "rig.yaml"));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace rangebayes
