@@ -20,6 +20,16 @@ struct SubmitArgs {
   BatchSubmitOptions options;
 };
 
+// --task-timeout SECONDS, of submit and resubmit (for every task) and of run-task (for its one).
+void AddTaskTimeoutOption(CLI::App* sub, double* seconds) {
+  sub->add_option("--task-timeout", *seconds,
+                  "Time limit of each task, in seconds (at most a year): its command gets SIGTERM, SIGKILL " +
+                      FormatSeconds(kTaskTimeoutGraceS) +
+                      " s later, and the task is recorded as timeout (resubmit runs it again). The same with --local "
+                      "and on Slurm, where it also sets sbatch's --time (whole minutes, with room for that grace)")
+      ->check(PositiveReal());
+}
+
 void AddSchedulingOptions(CLI::App* sub, SubmitArgs* a) {
   sub->add_option("--partition", a->options.partition, "Slurm partition (sbatch --partition); default: the cluster's");
   sub->add_option("--max-parallel", a->options.max_parallel,
@@ -30,6 +40,7 @@ void AddSchedulingOptions(CLI::App* sub, SubmitArgs* a) {
   sub->add_option("--local", a->options.local_workers,
                   "Run here with N worker processes instead of Slurm; returns when every task has ended")
       ->check(CLI::Range(1, 1024));
+  AddTaskTimeoutOption(sub, &a->options.task_timeout_s);
 }
 
 void PrintTaskEnd(const BatchTaskStatus& s) {
@@ -85,10 +96,12 @@ SubcommandSyntaxes Syntaxes(const CLI::App& app) {
 }
 
 // The exit code of batch status (and of a local submit or resubmit): 0 when every task succeeded; 3 when a task
-// needs a rerun (failed, partial, changed or interrupted); else 4 while a task is running or missing (queued,
-// not started yet, or never started).
+// needs a rerun (failed, partial, changed, timeout or interrupted); else 4 while a task is running or missing
+// (queued, not started yet, or never started).
 int BatchExitCode(const BatchReport& report) {
-  if (report.failed > 0 || report.partial > 0 || report.changed > 0 || report.interrupted > 0) return 3;
+  if (report.failed > 0 || report.partial > 0 || report.changed > 0 || report.timeout > 0 || report.interrupted > 0) {
+    return 3;
+  }
   if (report.running > 0 || report.missing > 0) return 4;
   return 0;
 }
@@ -152,6 +165,7 @@ void AddBatch(CLI::App& app) {
     struct Args {
       std::string dir;
       int index = 0;
+      double task_timeout_s = 0;
     };
     auto a = std::make_shared<Args>();
     CLI::App* sub = batch->add_subcommand(
@@ -160,8 +174,10 @@ void AddBatch(CLI::App& app) {
         "success; writes DIR/status/I.json; exits with the task's exit code");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     sub->add_option("I", a->index, "Task index (0-based, manifest order)")->required()->check(NonNegativeInteger());
+    AddTaskTimeoutOption(sub, &a->task_timeout_s);
     sub->callback([a, &app] {
       RunTaskOptions options;
+      options.task_timeout_s = a->task_timeout_s;
       options.syntaxes = Syntaxes(app);
       const BatchTaskStatus s = RunBatchTask(a->dir, a->index, options);
       PrintTaskEnd(s);
@@ -176,9 +192,9 @@ void AddBatch(CLI::App& app) {
     auto a = std::make_shared<Args>();
     CLI::App* sub = batch->add_subcommand(
         "status",
-        "Counts of succeeded, partial, changed, failed, running, interrupted and missing tasks of DIR, and each "
-        "failure's error line. Exit 0: all succeeded; 3: some need a rerun (failed, partial, changed, "
-        "interrupted); 4: none of those, but some are running or missing (not started)");
+        "Counts of succeeded, partial, changed, failed, timeout, running, interrupted and missing tasks of DIR, "
+        "and each failure's error line. Exit 0: all succeeded; 3: some need a rerun (failed, partial, changed, "
+        "timeout, interrupted); 4: none of those, but some are running or missing (not started)");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     sub->add_flag("--json", a->json, "Print JSON (every task with its status file)");
     sub->callback([a] {

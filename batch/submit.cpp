@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -74,13 +75,27 @@ void CheckMaxArraySize(const std::vector<int>& indices, const BatchSubmitOptions
            "MaxArraySize in slurm.conf");
 }
 
-std::string JobScript(const BatchRecord& record, const BatchLayout& layout) {
+// run-task's options for the tasks of a submission (its time limit).
+std::vector<std::string> RunTaskOptionWords(const BatchSubmitOptions& options) {
+  if (options.task_timeout_s <= 0) return {};
+  return {"--task-timeout", FormatSeconds(options.task_timeout_s)};
+}
+
+std::string JobScript(const BatchRecord& record, const BatchLayout& layout, const BatchSubmitOptions& options) {
   std::ostringstream s;
   s << "#!/bin/sh\n"
     << "# rangebayes batch: runs task $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
     << "# (the sbatch command lines are in " << layout.record() << ").\n"
-    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir}) << " \"$SLURM_ARRAY_TASK_ID\"\n";
+    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir}) << " \"$SLURM_ARRAY_TASK_ID\"";
+  const std::vector<std::string> words = RunTaskOptionWords(options);
+  if (!words.empty()) s << " " << QuoteForShell(words);
+  s << "\n";
   return s.str();
+}
+
+// Whether an sbatch argument sets the time limit (--time, --time=T, -t T, -tT; not --time-min).
+bool IsSlurmTimeArgument(const std::string& word) {
+  return word == "--time" || word.rfind("--time=", 0) == 0 || (word.rfind("-t", 0) == 0 && word.rfind("--", 0) != 0);
 }
 
 BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const std::vector<int>& indices,
@@ -91,6 +106,7 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
   BatchSubmission& submission = summary.submission;
   submission.time_utc = NowUtc();
   submission.indices = indices;
+  submission.task_timeout_s = options.task_timeout_s;
   if (options.local_workers > 0) {
     submission.kind = "local";
     submission.workers = options.local_workers;
@@ -105,7 +121,7 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
   CheckMaxArraySize(indices, options);
   fs::create_directories(layout.slurm_dir());
   summary.job_script = layout.slurm_dir() + "/job.sh";
-  WriteFileAtomically(summary.job_script, JobScript(record, layout));
+  WriteFileAtomically(summary.job_script, JobScript(record, layout, options));
   fs::permissions(summary.job_script, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                                           fs::perms::others_read | fs::perms::others_exec);
   submission.command = SbatchCommand(layout, indices, options, summary.job_script);
@@ -145,6 +161,17 @@ void BatchSubmitOptions::Check() const {
   RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "BatchSubmitOptions::binary must be absolute: ", binary);
   RB_CHECK(partition.find_first_of(" \t\n") == std::string::npos, "--partition has whitespace: '", partition, "'");
   RB_CHECK(!sbatch.empty() && !squeue.empty(), "BatchSubmitOptions: sbatch and squeue must be named");
+  if (task_timeout_s != 0) {
+    CheckTaskTimeout(task_timeout_s);
+    for (const std::string& a : slurm_args) {
+      RB_CHECK(!IsSlurmTimeArgument(a), "--task-timeout sets sbatch's --time (", SlurmTimeMinutes(task_timeout_s),
+               " min for ", FormatSeconds(task_timeout_s), " s); give it without --slurm-arg=", a);
+    }
+  }
+}
+
+long SlurmTimeMinutes(double task_timeout_s) {
+  return static_cast<long>(std::ceil((task_timeout_s + kTaskTimeoutGraceS) / 60)) + 1;
 }
 
 std::string BatchSubmitSummary::BriefReport() const {
@@ -188,6 +215,9 @@ std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vec
                                       "--output=" + layout.slurm_dir() + "/%A_%a.out",
                                       "--chdir=" + layout.dir};
   if (!options.partition.empty()) command.push_back("--partition=" + options.partition);
+  if (options.task_timeout_s > 0) {
+    command.push_back("--time=" + std::to_string(SlurmTimeMinutes(options.task_timeout_s)));
+  }
   command.insert(command.end(), options.slurm_args.begin(), options.slurm_args.end());
   command.push_back(job_script);
   return command;
@@ -321,6 +351,7 @@ void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices,
     while (next < indices.size() && static_cast<int>(running.size()) < options.local_workers) {
       ProcessSpec spec;
       spec.argv = {binary, "batch", "run-task", layout.dir, std::to_string(indices[next])};
+      for (const std::string& word : RunTaskOptionWords(options)) spec.argv.push_back(word);
       spec.output_path = output;
       running[StartProcess(spec)] = indices[next];
       ++next;

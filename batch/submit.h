@@ -15,6 +15,10 @@ struct BatchSubmitOptions {
   int max_parallel = 0;                 // array throttle (--array=...%N); 0: no limit; 1-100000
   std::vector<std::string> slurm_args;  // passed to sbatch as they are (e.g. --time=1:00:00, --cpus-per-task=4)
   int local_workers = 0;                // > 0: run here with this many worker processes instead of Slurm
+  // > 0: each task's time limit (s; CheckTaskTimeout), on either path: run-task stops the command (SIGTERM to its
+  // process group, SIGKILL kTaskTimeoutGraceS later) and records "timeout". On Slurm it also sets sbatch's --time
+  // (SlurmTimeMinutes), so it cannot be given with a --time in slurm_args.
+  double task_timeout_s = 0;
   std::string binary;                   // rangebayes binary the tasks run (absolute); empty: this executable
   std::string sbatch = "sbatch";        // sbatch program (a name on PATH or a path)
   std::string squeue = "squeue";        // squeue program, for resubmit's check that nothing is still queued
@@ -60,6 +64,11 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
 // Runs the given tasks of DIR with `workers` processes of `binary batch run-task DIR I` and returns when all
 // have ended; their own output goes to DIR/local/run-task.out.
 void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices, const BatchSubmitOptions& options);
+
+// sbatch's --time in minutes for a task limit of `task_timeout_s`: Slurm counts whole minutes, and run-task needs the
+// grace after SIGTERM and a minute to start and record, so that run-task, not Slurm, stops the task:
+// ceil((task_timeout_s + kTaskTimeoutGraceS) / 60) + 1.
+long SlurmTimeMinutes(double task_timeout_s);
 
 // sbatch's --array value: ascending indices as ranges ("0-5", "1,3,7-9"), with "%N" when max_parallel > 0.
 std::string ArraySpec(const std::vector<int>& indices, int max_parallel);

@@ -9,7 +9,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -924,6 +926,193 @@ TEST(LocalRunner, StatusExitCodeSaysWhetherEveryTaskSucceeded) {
   WriteBatchTaskStatus(BatchLayout(out), failed);
   EXPECT_EQ(RunShell(status, &output), 3) << output;
   EXPECT_EQ(RunShell(status + " --json", &output), 3) << output;
+}
+
+// A task that hangs (`info` of a FIFO nobody writes) past --task-timeout on a local worker: its command is stopped,
+// the task is recorded as timeout (not failed), nothing of it is published, the next task still runs, status
+// lists it, and resubmit runs it again like a failed task.
+TEST(LocalRunner, ATaskPastItsTimeLimitIsStoppedAsTimeoutAndTheBatchGoesOn) {
+  const TempDir dir("timeout");
+  const std::string manifest = MakeManifest(dir.path(), "info in/stuck.obj\nconvert in/tet.obj b.ply\n");
+  ASSERT_EQ(mkfifo((dir.path() + "/in/stuck.obj").c_str(), 0600), 0);
+  BatchSubmitOptions options = OneLocalWorker();
+  options.task_timeout_s = 0.5;
+  std::vector<std::string> ended;
+  options.on_task_end = [&](const BatchTaskStatus& s) { ended.push_back(s.state); };
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  EXPECT_EQ(ended, (std::vector<std::string>{"timeout", "succeeded"}));
+  const auto status = ReadBatchTaskStatus(BatchLayout(out), 0);
+  ASSERT_TRUE(status.has_value());
+  EXPECT_EQ(status->state, "timeout");
+  EXPECT_EQ(status->exit_code, 128 + SIGTERM);
+  EXPECT_NE(status->error_line.find("time limit of 0.5 s reached (--task-timeout): stopped with SIGTERM"),
+            std::string::npos)
+      << status->error_line;
+  EXPECT_FALSE(fs::exists(out + "/tasks/0"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).task_timeout_s, 0.5);
+
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.states, (std::vector<std::string>{"timeout", "succeeded"}));
+  EXPECT_EQ(report.timeout, 1);
+  EXPECT_EQ(report.failed, 0);
+  EXPECT_NE(report.BriefReport().find("2 tasks: 1 succeeded, 0 failed, 1 timeout, 0 running, 0 missing"),
+            std::string::npos)
+      << report.BriefReport();
+  EXPECT_NE(report.BriefReport().find("timeout: task 0 (manifest line 1, exit 143"), std::string::npos)
+      << report.BriefReport();
+  EXPECT_EQ(nlohmann::json::parse(report.Json())["timeout"], 1);
+  std::string output;
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch status " + out, &output), 3) << output;
+
+  // Retried like a failed task: the input is there now, and the resubmit (with no time limit) completes it.
+  fs::remove(dir.path() + "/in/stuck.obj");
+  fs::copy_file(dir.path() + "/in/tet.obj", dir.path() + "/in/stuck.obj");
+  EXPECT_EQ(ResubmitBatch(out, OneLocalWorker()).indices, std::vector<int>{0});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
+// A command that ignores SIGTERM at its time limit is killed with SIGKILL after the grace, with whatever it started
+// (its process group).
+TEST(RunTask, ACommandThatIgnoresSigtermIsKilledWithItsChildrenAfterTheGrace) {
+  const TempDir dir("timeout_kill");
+  const std::string out = RunTwoConverts(dir);
+  RunTaskOptions run = TestRunOptions();
+  const std::string child_pid = dir.path() + "/child.pid";
+  run.binary = FakeProgram(dir.path() + "/stubborn", "trap '' TERM\nsleep 1000 &\necho $! > " + child_pid +
+                                                         ".tmp\nmv " + child_pid + ".tmp " + child_pid + "\nwait");
+  run.task_timeout_s = 0.2;
+  run.timeout_grace_s = 0.2;
+  const BatchTaskStatus status = RunBatchTask(out, 1, run);
+  EXPECT_EQ(status.state, "timeout");
+  EXPECT_EQ(status.exit_code, 128 + SIGKILL);
+  EXPECT_NE(status.error_line.find("time limit of 0.2 s reached (--task-timeout): killed (SIGKILL) 0.2 s after "
+                                   "SIGTERM"),
+            std::string::npos)
+      << status.error_line;
+  // The command's child got SIGKILL too: wait until it has ended (it was orphaned, so init reaps it).
+  const int pid = std::stoi(ReadText(child_pid));
+  bool ended = false;
+  for (int i = 0; i < 200 && !ended; ++i) {
+    ended = ProcessStartTicks(pid) < 0 ||
+            ReadText("/proc/" + std::to_string(pid) + "/stat").find(") Z ") != std::string::npos;
+    if (!ended) usleep(10 * 1000);
+  }
+  EXPECT_TRUE(ended) << "the command's child " << pid << " outlived its time limit";
+  if (!ended) kill(pid, SIGKILL);
+}
+
+TEST(RunTask, TimeLimitIsPositiveAndFinite) {
+  const TempDir dir("timeout_check");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\n");
+  for (const double bad : {-1.0, std::nan(""), HUGE_VAL, kMaxTaskTimeoutS * 2}) {
+    BatchSubmitOptions options;
+    options.task_timeout_s = bad;
+    EXPECT_THROW(options.Check(), Error) << bad;
+  }
+  BatchSubmitOptions options;
+  options.task_timeout_s = 90;
+  options.Check();
+  EXPECT_EQ(SlurmTimeMinutes(90), 3);  // 90 s and the 10 s grace: 2 minutes, and one for run-task
+  EXPECT_EQ(SbatchCommand(BatchLayout("/b"), {0}, options, "/b/job.sh").at(8), "--time=3");
+  // Slurm's own time limit is then ours.
+  options.slurm_args = {"--cpus-per-task=2", "--time=1:00:00"};
+  try {
+    options.Check();
+    ADD_FAILURE() << "--task-timeout and --slurm-arg=--time were both taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--task-timeout sets sbatch's --time (3 min for 90 s); give it without "
+                                         "--slurm-arg=--time=1:00:00"),
+              std::string::npos)
+        << e.what();
+  }
+  options.slurm_args = {"--time-min=10"};
+  options.Check();
+  std::string output;
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch submit " + manifest + " --out " + dir.path() +
+                         "/out --local 1 --task-timeout nan",
+                     &output),
+            2)
+      << output;
+  EXPECT_FALSE(fs::exists(dir.path() + "/out"));
+  EXPECT_NE(output.find("--task-timeout"), std::string::npos) << output;
+}
+
+// `rangebayes batch run-task OUT 0` as a Slurm job's script runs it (SLURM_JOB_ID=77, scontrol as `scontrol_body`
+// on PATH), stopped by SIGTERM to its process group while its command (`info` of the FIFO in/stuck.obj) waits, as
+// slurmstepd stops a job. The task's status after.
+BatchTaskStatus StopRunTaskAsSlurmDoes(const TempDir& dir, const std::string& out, const std::string& scontrol_body) {
+  const std::string bin = dir.path() + "/bin";
+  fs::remove_all(bin);
+  fs::create_directories(bin);
+  FakeProgram(bin + "/scontrol", scontrol_body);
+  const pid_t child = fork();
+  if (child == 0) {
+    setpgid(0, 0);
+    setenv("SLURM_JOB_ID", "77", 1);
+    setenv("PATH", (bin + ":/usr/bin:/bin").c_str(), 1);
+    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  if (child > 0) setpgid(child, child);
+  struct sigaction ignore_pipe {
+  }, old_pipe{};
+  ignore_pipe.sa_handler = SIG_IGN;
+  sigaction(SIGPIPE, &ignore_pipe, &old_pipe);
+  {
+    // Opening blocks until `info` opens the FIFO: the task runs. It waits for a mesh until it is stopped.
+    std::ofstream mesh(dir.path() + "/in/stuck.obj", std::ios::binary);
+    kill(-child, SIGTERM);
+    waitpid(child, nullptr, 0);
+  }
+  sigaction(SIGPIPE, &old_pipe, nullptr);
+  return ReadBatchTaskStatus(BatchLayout(out), 0).value_or(BatchTaskStatus{});
+}
+
+// Slurm stops a job at its time limit as it stops a cancelled one (SIGTERM, SIGKILL after KillWait); run-task asks
+// scontrol, whose line of the job says Reason=TimeLimit by then, and records "timeout", not a cancellation.
+TEST(RunTask, SlurmsTimeLimitIsATimeoutNotACancellation) {
+  const TempDir dir("slurm_time_limit");
+  const std::string manifest = MakeManifest(dir.path(), "info in/stuck.obj\n");
+  ASSERT_EQ(mkfifo((dir.path() + "/in/stuck.obj").c_str(), 0600), 0);
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo 76");
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  // What Slurm 22.05's scontrol printed for a job at its time limit, while its processes had SIGTERM (abridged);
+  // 76 is the array's own id, also listed.
+  const std::string job_line =
+      "JobId=77 ArrayJobId=76 ArrayTaskId=0 JobName=job.sh JobState=COMPLETING "
+      "Reason=TimeLimit Dependency=(null) RunTime=00:01:27 TimeLimit=00:01:00";
+  EXPECT_TRUE(JobReachedTimeLimit(job_line + "\n", "77", nullptr));
+  EXPECT_FALSE(JobReachedTimeLimit(job_line + "\n", "7", nullptr));
+  EXPECT_FALSE(JobReachedTimeLimit("JobId=76 JobState=RUNNING Reason=None\n" + job_line + "\n", "76", nullptr));
+  EXPECT_TRUE(JobReachedTimeLimit("JobId=5 JobState=TIMEOUT Reason=None\n", "5", nullptr));
+
+  BatchTaskStatus status = StopRunTaskAsSlurmDoes(dir, out, "echo '" + job_line + "'");
+  EXPECT_EQ(status.state, "timeout");
+  EXPECT_EQ(status.exit_code, 128 + SIGTERM);
+  EXPECT_NE(status.error_line.find("stopped by signal 15 (Slurm job 77 reached its time limit of 00:01:00)"),
+            std::string::npos)
+      << status.error_line;
+  EXPECT_EQ(CollectBatchReport(out).timeout, 1);
+
+  // Cancelled (scancel), and scontrol failing: each says so, the latter naming every possibility.
+  status = StopRunTaskAsSlurmDoes(dir, out, "echo 'JobId=77 JobState=CANCELLED Reason=None TimeLimit=00:01:00'");
+  EXPECT_EQ(status.state, "failed");
+  EXPECT_NE(status.error_line.find("stopped by signal 15 (the job was cancelled, preempted or requeued)"),
+            std::string::npos)
+      << status.error_line;
+  status =
+      StopRunTaskAsSlurmDoes(dir, out, "echo 'slurm_load_jobs error: Unable to contact slurm controller' >&2\nexit 1");
+  EXPECT_EQ(status.state, "failed");
+  EXPECT_NE(status.error_line.find("cancelled, preempted, requeued or its time limit reached (scontrol show job 77 "
+                                   "could not say which"),
+            std::string::npos)
+      << status.error_line;
+  EXPECT_EQ(status.run, 3);
 }
 
 // A manifest saved with a UTF-8 byte order mark (and CRLF line ends) by a Windows editor.

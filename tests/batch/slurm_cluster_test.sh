@@ -3,8 +3,9 @@
 # of replays of the bundled recording and smooths of bundled meshes, one task failing on a missing input,
 # goes through `batch submit`; `batch status` names the failure with its error line; after the fix,
 # `batch resubmit` runs exactly that task; a requeued task (scontrol requeue) publishes once, with its
-# attempt counted and its Slurm output appended; and every output equals, byte for byte, that of
-# `batch submit --local 2`.
+# attempt counted and its Slurm output appended; a hanging task stopped at --task-timeout, and one stopped at
+# Slurm's own time limit (--time=1, a minute: it runs alongside the rest), both read "timeout"; and every output
+# equals, byte for byte, that of `batch submit --local 2`.
 #   usage: slurm_cluster_test.sh RANGEBAYES_BINARY   (from the repository root)
 # Exit 77 (skip) only when the Slurm or munge programs are not installed (scripts/setup.sh installs them).
 set -euo pipefail
@@ -21,7 +22,8 @@ rb_test_begin rb_slurm_test
 wait_job() { wait_for 120 "job $1 to leave the queue" job_gone "$1"; }
 running() { grep -qs '"state": "running"' "$1"; }
 
-rb_cluster_start "$work"/cluster 1
+# One slot more than the two the first job takes (--max-parallel 2), for the task that waits for its time limit.
+rb_cluster_start "$work"/cluster 1 3
 phase "cluster up"
 
 # The manifest's folder: the bundled data under the names the manifest uses.
@@ -39,6 +41,13 @@ smooth meshes/fandisk_noisy_gauss0.3.obj "fandisk smoothed.ply" --noise 0.3 --to
 # fails until later/block.obj exists beside the manifest
 smooth later/block.obj block.ply --tolerance fast --threads 1
 MANIFEST
+
+# Tasks that hang: `info` of a FIFO that nobody writes. One is stopped at Slurm's time limit (a minute, the least
+# Slurm takes; its controller checks limits every 30 s), checked at the end.
+mkfifo "$m"/stuck.obj
+echo "info stuck.obj" >"$m"/hang.txt
+slurm_limit="$work"/slurm_limit
+limit_job=$("$rb" batch submit "$m"/hang.txt --out "$slurm_limit" --slurm-arg=--time=1)
 
 # sbatch refusing (an unknown partition) and sbatch missing: one error line each, exit 1.
 if err=$("$rb" batch submit "$m"/tasks.txt --out "$work"/refused --partition nope 2>&1); then fail "submit to partition nope"; fi
@@ -102,6 +111,19 @@ expect_in "$status" '"attempt": 1' "requeued task's attempt from SLURM_RESTART_C
 ls -A "$rq"/tasks | grep -q '^\.' && fail "a temporary task folder was left behind after requeue"
 [ -s "$rq"/tasks/0/angel.ply ] || fail "requeued task has no result"
 
+# A hanging task stopped by run-task at --task-timeout; sbatch's --time leaves room for it.
+tt="$work"/task_timeout
+tt_job=$("$rb" batch submit "$m"/hang.txt --out "$tt" --task-timeout 1)
+grep -q -- '"--time=2"' "$tt"/batch.json || fail "--task-timeout 1 did not set sbatch's --time=2: $(cat "$tt"/batch.json)"
+wait_job "$tt_job"
+status=$("$rb" batch status "$tt") && rc=0 || rc=$?
+echo "$status"
+[ "$rc" -eq 3 ] || fail "batch status exited $rc with a timed-out task, not 3"
+expect_in "$status" "1 tasks: 0 succeeded, 0 failed, 1 timeout, 0 running, 0 missing" "status after --task-timeout"
+expect_in "$status" "timeout: task 0 (manifest line 1, exit 143, attempt 0, host node1): time limit of 1 s reached (--task-timeout): stopped with SIGTERM" \
+  "the --task-timeout line"
+phase "--task-timeout task stopped"
+
 # The same manifest on two local workers gives the same files.
 local_out="$work"/local
 "$rb" batch submit "$m"/tasks.txt --out "$local_out" --local 2 >"$work"/local.txt ||
@@ -112,4 +134,13 @@ expect_in "$(cat "$work"/local.txt)" "5 tasks: 5 succeeded" "local run"
 diff -r -x summary.json "$slurm"/tasks "$local_out"/tasks || fail "Slurm and --local outputs differ"
 [ "$(find "$slurm"/tasks -type f | wc -l)" -gt 10 ] || fail "too few output files: $(find "$slurm"/tasks -type f)"
 cmp "$slurm"/tasks/4/block.ply "$local_out"/tasks/4/block.ply
+
+# Slurm's own time limit: the task reads timeout, naming it, not a cancellation.
+wait_for 180 "job $limit_job to reach its time limit and leave the queue" job_gone "$limit_job"
+phase "time-limit job done"
+status=$("$rb" batch status "$slurm_limit") && rc=0 || rc=$?
+echo "$status"
+[ "$rc" -eq 3 ] || fail "batch status exited $rc with a task at Slurm's time limit, not 3"
+expect_in "$status" "1 tasks: 0 succeeded, 0 failed, 1 timeout, 0 running, 0 missing" "status after Slurm's time limit"
+expect_in "$status" "(Slurm job $limit_job reached its time limit of 00:01:00)" "the time limit named"
 echo "PASS: $(find "$slurm"/tasks -type f ! -name summary.json | wc -l) output files identical between Slurm and --local 2"

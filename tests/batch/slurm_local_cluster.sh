@@ -3,7 +3,8 @@
 # bench/batch_slurm_bench.sh.
 #
 #   rb_cluster_start ROOT [NODES [CPUS]]  # ROOT: a new temporary folder; NODES slurmd on this machine (1),
-#                                         # each offering CPUS job slots (default: nproc)
+#                                         # each offering CPUS job slots (default: nproc; more than the
+#                                         # machine has are taken: SlurmdParameters=config_overrides)
 #   rb_cluster_stop               # kills what rb_cluster_start started (call it from an EXIT trap)
 #
 # Exports SLURM_CONF, so sbatch/squeue (and rangebayes batch) talk to this cluster. Needs root: slurmd runs
@@ -93,6 +94,7 @@ SlurmctldTimeout=30
 SlurmdTimeout=30
 InactiveLimit=0
 MinJobAge=2
+SlurmdParameters=config_overrides
 CONF
   local names=() port=$((ctld_port + 1)) n
   for n in $(seq "$nodes"); do
