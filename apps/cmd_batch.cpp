@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "apps/flags.h"
 #include "batch/submit.h"
 #include "batch/task.h"
+#include "core/error.h"
 
 namespace rangebayes::apps {
 namespace {
@@ -95,6 +97,40 @@ SubcommandSyntaxes Syntaxes(const CLI::App& app) {
   return syntaxes;
 }
 
+// BatchSubmitOptions::check_line: a task line parsed by a second instance of the binary's own command line (MakeApp),
+// so that what the parser refuses at the start of a task (an unknown option, a value an option's check refuses, a
+// missing or extra argument) is refused at submit. Its top-level parse-complete callback, which CLI11 runs after
+// parsing and before the subcommands' callbacks, ends the parse, so no command runs.
+std::function<void(const std::vector<std::string>&)> TaskLineChecker() {
+  struct Parsed {};
+  std::shared_ptr<CLI::App> app = MakeApp();
+  app->parse_complete_callback([] { throw Parsed{}; });
+  return [app](const std::vector<std::string>& arguments) {
+    std::vector<const char*> argv = {"rangebayes"};
+    for (const std::string& a : arguments) argv.push_back(a.c_str());
+    std::string problem;
+    try {
+      app->parse(static_cast<int>(argv.size()), argv.data());
+      problem = "was not checked (its command would have run)";  // not reached: Parsed ends every parse
+    } catch (const Parsed&) {
+      return;
+    } catch (const CLI::CallForHelp&) {
+      problem = "--help shows help instead of running the task";
+    } catch (const CLI::CallForAllHelp&) {
+      problem = "--help-all shows help instead of running the task";
+    } catch (const CLI::CallForVersion&) {
+      problem = "--version shows the version instead of running the task";
+    } catch (const CLI::ParseError& e) {
+      problem = e.what();
+    }
+    for (char& c : problem) {
+      if (c == '\n') c = ' ';
+    }
+    const std::string name = ParsedCommandName(*app);
+    RB_FAIL(name.substr(name.find(' ') + 1), ": ", problem, " (see ", name, " --help)");
+  };
+}
+
 // The exit code of batch status (and of a local submit or resubmit): 0 when every task succeeded; 3 when a task
 // needs a rerun (failed, partial, changed, timeout or interrupted); else 4 while a task is running or missing
 // (queued, not started yet, or never started).
@@ -135,7 +171,9 @@ void AddBatch(CLI::App& app) {
     CLI::App* sub = batch->add_subcommand(
         "submit",
         "Submit every line of MANIFEST (one rangebayes subcommand per line, # comments) as one Slurm job array; "
-        "prints the job id. Inputs are paths relative to the manifest's folder, outputs relative to the task's "
+        "prints the job id. Each line is first parsed as the subcommand would parse it: a mistyped option or bad "
+        "value refuses the batch, naming the line. Inputs are paths relative to the manifest's folder, outputs "
+        "relative to the task's "
         "folder DIR/tasks/<index>/ (README, Batch processing)");
     sub->add_option("MANIFEST", a->manifest, "Manifest file")->required()->check(CLI::ExistingFile);
     sub->add_option("--out,-o", a->out, "Batch folder DIR (created; must not hold a batch yet)")->required();
@@ -146,6 +184,7 @@ void AddBatch(CLI::App& app) {
         if (command->get_name() != "batch") a->options.subcommands.push_back(command->get_name());
       }
       a->options.syntaxes = Syntaxes(app);
+      a->options.check_line = TaskLineChecker();
       Submitted(SubmitBatch(a->manifest, a->out, a->options));
     });
   }
@@ -158,6 +197,7 @@ void AddBatch(CLI::App& app) {
     sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
       a->options.syntaxes = Syntaxes(app);
+      a->options.check_line = TaskLineChecker();
       Submitted(ResubmitBatch(a->dir, a->options));
     });
   }

@@ -139,6 +139,19 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
   return summary;
 }
 
+// Every task line as the binary's parser reads it (options.check_line), naming the manifest line it refuses.
+void CheckTaskLines(const std::vector<ManifestTask>& tasks, const std::string& manifest_dir,
+                    const BatchSubmitOptions& options, const std::string& source) {
+  if (!options.check_line) return;
+  for (const ManifestTask& t : tasks) {
+    try {
+      options.check_line(ResolveTaskArguments(t.arguments, manifest_dir, options.syntaxes));
+    } catch (const Error& e) {
+      RB_FAIL(source, ":", t.line_number, ": ", e.what());
+    }
+  }
+}
+
 // Array job ids that squeue lists (queued or running); `*listed` tells whether squeue could be run at all.
 std::set<std::string> QueuedArrayJobs(const std::string& squeue, bool* listed) {
   const CapturedRun run = RunAndCapture({squeue, "--noheader", "--array", "--format=%F"});
@@ -260,6 +273,7 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
     }
   }
   for (const ManifestTask& t : tasks) CheckTaskOutputs(t, options.syntaxes, manifest_path);
+  CheckTaskLines(tasks, fs::absolute(manifest_path).lexically_normal().parent_path().string(), options, manifest_path);
   const BatchLayout layout(dir);
   const auto check_no_batch = [&] {
     // A folder whose earlier submit was refused (no submission recorded) may be used again.
@@ -290,6 +304,7 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   BatchRecord record = ReadBatchRecord(layout);
   const BatchReport report = CollectBatchReport(layout.dir);
   for (const ManifestTask& t : report.tasks) CheckTaskOutputs(t, options.syntaxes, layout.manifest());
+  CheckTaskLines(report.tasks, record.manifest_dir, options, layout.manifest());
   std::set<std::string> ours;
   for (const BatchSubmission& s : record.submissions) {
     if (s.kind == "slurm") ours.insert(s.job_id);

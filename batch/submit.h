@@ -26,6 +26,10 @@ struct BatchSubmitOptions {
   // When not empty: the subcommands a task line may start with (the binary's own), checked for every line before
   // anything is written or submitted.
   std::vector<std::string> subcommands;
+  // When set: parses a task line's words (its inputs resolved as run-task resolves them) as the binary does, and
+  // throws Error with the parser's message (an unknown option, a bad value, a missing argument). Submit and
+  // resubmit call it for every line before anything is written or submitted, naming the manifest line.
+  std::function<void(const std::vector<std::string>& arguments)> check_line;
   // Where each subcommand names its outputs: every line's outputs are checked (CheckTaskOutputs) before anything
   // is written or submitted, and the local workers' run-task takes the binary's own.
   SubcommandSyntaxes syntaxes;
@@ -47,9 +51,10 @@ struct BatchSubmitSummary {
 // submits every task. With local_workers > 0 it returns when every task has ended (see BatchReport for the
 // outcome); otherwise it returns after sbatch accepted the array. Holds an exclusive lock on DIR/batch.lock
 // meanwhile, so another submit or resubmit of DIR is refused (naming this process) while tasks run here or sbatch
-// is called. Throws, before anything is written, on a line whose output is absolute or leaves its task's folder
-// (CheckTaskOutputs), and, before sbatch, when a task index is not below the cluster's MaxArraySize (scontrol
-// show config); throws with sbatch's own error line when sbatch is missing or refuses the job.
+// is called. Throws, before anything is written, on a line that options.check_line refuses or whose output is
+// absolute or leaves its task's folder (CheckTaskOutputs), and, before sbatch, when a task index is not below the
+// cluster's MaxArraySize (scontrol show config); throws with sbatch's own error line when sbatch is missing or refuses
+// the job.
 BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::string& dir,
                                const BatchSubmitOptions& options);
 

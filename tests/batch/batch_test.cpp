@@ -1115,6 +1115,44 @@ TEST(RunTask, SlurmsTimeLimitIsATimeoutNotACancellation) {
   EXPECT_EQ(status.run, 3);
 }
 
+// A mistyped option, a value an option refuses, or a missing argument in a manifest line: `batch submit` parses
+// every line with the binary's own parser first and refuses the batch with one line naming the manifest line, before
+// anything is written; so does resubmit after DIR/manifest.txt was edited. An input that does not exist yet is not
+// the parser's business (smooth's input is read when the task runs).
+TEST(SubmitBatch, AMistypedOptionIsRefusedNamingItsLineBeforeAnythingIsWritten) {
+  const TempDir dir("mistyped");
+  const std::string submit = std::string(RB_BINARY) + " batch submit " + dir.path() + "/tasks.txt --local 1 --out ";
+  const auto refused = [&](const std::string& lines, const std::string& expected) {
+    MakeManifest(dir.path(), lines);
+    std::string output;
+    EXPECT_EQ(RunShell(submit + dir.path() + "/refused", &output), 1) << output;
+    EXPECT_NE(output.find("rangebayes batch submit: error: " + dir.path() + "/tasks.txt:" + expected),
+              std::string::npos)
+        << output;
+    EXPECT_EQ(std::count(output.begin(), output.end(), '\n'), 1) << output;
+    EXPECT_FALSE(fs::exists(dir.path() + "/refused"));
+  };
+  refused("convert in/tet.obj a.ply\n# smooth\n\nsmooth in/tet.obj b.ply --tolerence fast\n",
+          "4: smooth: The following arguments were not expected: fast --tolerence (see rangebayes smooth --help)");
+  refused("smooth in/tet.obj b.ply --noise -1\n", "1: smooth: --noise: ");
+  refused("convert in/tet.obj\n", "1: convert: OUT is required");
+  refused(
+      "calibrate noise --target plane in/tet.obj --out n.yaml --bogus\n",
+      "1: calibrate noise: The following argument was not expected: --bogus (see rangebayes calibrate noise --help)");
+  refused("info in/tet.obj --help\n", "1: info: --help shows help instead of running the task");
+
+  MakeManifest(dir.path(), "convert in/tet.obj a.ply\nsmooth later/missing.obj b.ply --tolerance fast\n");
+  std::string output;
+  EXPECT_EQ(RunShell(submit + dir.path() + "/out", &output), 3) << output;
+  EXPECT_NE(output.find("2 tasks: 1 succeeded, 1 failed"), std::string::npos) << output;
+  WriteText(dir.path() + "/out/manifest.txt",
+            "convert in/tet.obj a.ply\nsmooth in/tet.obj b.ply --tolerance fastest\n");
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch resubmit " + dir.path() + "/out --local 1", &output), 1)
+      << output;
+  EXPECT_NE(output.find(dir.path() + "/out/manifest.txt:2: smooth: --tolerance: "), std::string::npos) << output;
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(dir.path() + "/out")).submissions.size(), 1u);
+}
+
 // A manifest saved with a UTF-8 byte order mark (and CRLF line ends) by a Windows editor.
 TEST(Manifest, AByteOrderMarkIsSkipped) {
   const auto tasks = ParseManifest("\xEF\xBB\xBFinfo a.obj\r\nconvert a.obj b.ply\r\n", "m.txt");
