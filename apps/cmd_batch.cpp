@@ -152,26 +152,27 @@ void FinishLocal(const BatchSubmitSummary& summary) {
 }
 
 void Submitted(const BatchSubmitSummary& summary) {
-  if (summary.submission.kind == "local") {
+  if (summary.JobIds().empty()) {
     FinishLocal(summary);
     return;
   }
-  std::printf("%s\n", summary.submission.job_id.c_str());
+  std::printf("%s\n", summary.JobIds().c_str());
   std::fprintf(stderr, "%s; follow it with: rangebayes batch status %s\n", summary.BriefReport().c_str(),
                summary.dir.c_str());
 }
 
 void AddBatch(CLI::App& app) {
   CLI::App* batch = app.add_subcommand(
-      "batch", "Run a manifest of subcommand lines as a Slurm job array, or on local worker processes");
+      "batch", "Run a manifest of subcommand lines as Slurm job arrays, or on local worker processes");
   batch->require_subcommand(1);
 
   {
     auto a = std::make_shared<SubmitArgs>();
     CLI::App* sub = batch->add_subcommand(
         "submit",
-        "Submit every line of MANIFEST (one rangebayes subcommand per line, # comments) as one Slurm job array; "
-        "prints the job id. Each line is first parsed as the subcommand would parse it: a mistyped option or bad "
+        "Submit every line of MANIFEST (one rangebayes subcommand per line, # comments) as one Slurm job array "
+        "(one per MaxArraySize tasks when the batch has more); prints the job ids. Each line is first parsed as the "
+        "subcommand would parse it: a mistyped option or bad "
         "value refuses the batch, naming the line. Inputs are paths relative to the manifest's folder, outputs "
         "relative to the task's "
         "folder DIR/tasks/<index>/ (README, Batch processing)");
@@ -191,7 +192,7 @@ void AddBatch(CLI::App& app) {
   {
     auto a = std::make_shared<SubmitArgs>();
     CLI::App* sub = batch->add_subcommand(
-        "resubmit", "Submit exactly the missing and failed tasks of DIR again, as a new job array (or --local N)");
+        "resubmit", "Submit exactly the missing and failed tasks of DIR again, as new job arrays (or --local N)");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     AddSchedulingOptions(sub, a.get());
     sub->callback([a, &app] {
@@ -241,6 +242,20 @@ void AddBatch(CLI::App& app) {
       const BatchReport report = CollectBatchReport(a->dir);
       std::printf("%s", a->json ? report.Json().c_str() : report.BriefReport().c_str());
       SetExitCode(BatchExitCode(report));
+    });
+  }
+  {
+    auto dir = std::make_shared<std::string>();
+    CLI::App* sub = batch->add_subcommand(
+        "cancel",
+        "Cancel (scancel) every Slurm job of DIR that is still queued or running; then batch status DIR "
+        "says what ended, and batch resubmit DIR runs the rest");
+    sub->add_option("DIR", *dir, "Batch folder")->required();
+    sub->callback([dir] {
+      std::string ids;
+      for (const std::string& id : CancelBatch(*dir, BatchSubmitOptions{})) ids += (ids.empty() ? "" : " ") + id;
+      std::printf("cancelled Slurm job%s %s of %s\n", ids.find(' ') == std::string::npos ? "" : "s", ids.c_str(),
+                  BatchLayout(*dir).dir.c_str());
     });
   }
 }

@@ -59,20 +59,12 @@ class BatchLock {
   int fd_ = -1;
 };
 
-// Refuses indices that the cluster cannot take as array indices (MaxArraySize), naming the limit.
-void CheckMaxArraySize(const std::vector<int>& indices, const BatchSubmitOptions& options) {
+// The cluster's MaxArraySize (scontrol show config); nullopt when scontrol cannot tell (sbatch then says what it
+// refuses).
+std::optional<int> ClusterMaxArraySize(const BatchSubmitOptions& options) {
   const CapturedRun run = RunAndCapture({options.scontrol, "show", "config"});
-  if (!run.started || run.exit.exit_code != 0) return;  // sbatch, run next, gives its own message
-  const std::optional<int> max_size = ParseMaxArraySize(run.out);
-  if (!max_size) return;
-  const int highest = *std::max_element(indices.begin(), indices.end());
-  RB_CHECK(highest < *max_size, "task ", highest, " cannot be submitted: this cluster's MaxArraySize is ", *max_size,
-           " (array indices 0-", *max_size - 1,
-           ", scontrol show config), and task indices are array indices; "
-           "split the manifest into batches of at most ",
-           *max_size,
-           " tasks, or ask the administrators to raise "
-           "MaxArraySize in slurm.conf");
+  if (!run.started || run.exit.exit_code != 0) return std::nullopt;
+  return ParseMaxArraySize(run.out);
 }
 
 // run-task's options for the tasks of a submission (its time limit).
@@ -84,9 +76,10 @@ std::vector<std::string> RunTaskOptionWords(const BatchSubmitOptions& options) {
 std::string JobScript(const BatchRecord& record, const BatchLayout& layout, const BatchSubmitOptions& options) {
   std::ostringstream s;
   s << "#!/bin/sh\n"
-    << "# rangebayes batch: runs task $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
-    << "# (the sbatch command lines are in " << layout.record() << ").\n"
-    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir}) << " \"$SLURM_ARRAY_TASK_ID\"";
+    << "# rangebayes batch: runs task $1 + $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
+    << "# ($1: the job's offset, 0 when not given; the sbatch command lines are in " << layout.record() << ").\n"
+    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir})
+    << " \"$((${1:-0} + SLURM_ARRAY_TASK_ID))\"";
   const std::vector<std::string> words = RunTaskOptionWords(options);
   if (!words.empty()) s << " " << QuoteForShell(words);
   s << "\n";
@@ -98,12 +91,25 @@ bool IsSlurmTimeArgument(const std::string& word) {
   return word == "--time" || word.rfind("--time=", 0) == 0 || (word.rfind("-t", 0) == 0 && word.rfind("--", 0) != 0);
 }
 
+// "tasks 0-99" or "task 4".
+std::string TasksText(const std::vector<int>& indices) {
+  return (indices.size() == 1 ? "task " : "tasks ") + ArraySpec(indices, 0);
+}
+
+// "12 (tasks 0-99), 13 (tasks 100-120)".
+std::string JobsText(const std::vector<BatchSubmission>& jobs) {
+  std::string text;
+  for (const BatchSubmission& s : jobs)
+    text += (text.empty() ? "" : ", ") + s.job_id + " (" + TasksText(s.indices) + ")";
+  return text;
+}
+
 BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const std::vector<int>& indices,
                           const BatchSubmitOptions& options) {
   BatchSubmitSummary summary;
   summary.dir = layout.dir;
   summary.indices = indices;
-  BatchSubmission& submission = summary.submission;
+  BatchSubmission submission;
   submission.time_utc = NowUtc();
   submission.indices = indices;
   submission.task_timeout_s = options.task_timeout_s;
@@ -111,6 +117,7 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
     submission.kind = "local";
     submission.workers = options.local_workers;
     record.submissions.push_back(submission);
+    summary.submissions.push_back(submission);
     WriteBatchRecord(layout, record);
     BatchSubmitOptions local = options;
     local.binary = record.binary;
@@ -118,25 +125,52 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
     return summary;
   }
   submission.kind = "slurm";
-  CheckMaxArraySize(indices, options);
+  summary.max_array_size = ClusterMaxArraySize(options);
+  std::vector<ArrayJob> jobs = SplitArrayJobs(indices, summary.max_array_size);
   fs::create_directories(layout.slurm_dir());
   summary.job_script = layout.slurm_dir() + "/job.sh";
   WriteFileAtomically(summary.job_script, JobScript(record, layout, options));
   fs::permissions(summary.job_script, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                                           fs::perms::others_read | fs::perms::others_exec);
-  submission.command = SbatchCommand(layout, indices, options, summary.job_script);
-  const CapturedRun run = RunAndCapture(submission.command);
-  RB_CHECK(run.started, options.sbatch, ": cannot run sbatch (", run.error,
-           "); submit from a machine with the Slurm client installed, or use --local N to run here");
-  if (run.exit.exit_code != 0) {
-    std::string line = LastLine(run.err);
-    if (line.empty()) line = LastLine(run.out);
-    RB_FAIL("sbatch refused the job (exit ", run.exit.exit_code, "): ", line.empty() ? "no message" : line);
+  for (ArrayJob& job : jobs) {
+    // With a throttle, each array waits for the one before, so that the throttle holds for the batch.
+    if (options.max_parallel > 0 && !summary.submissions.empty()) job.after_job = summary.submissions.back().job_id;
+    BatchSubmission s = submission;
+    s.indices = job.indices;
+    s.array_offset = job.offset;
+    s.command = SbatchCommand(layout, job, options, summary.job_script);
+    const CapturedRun run = RunAndCapture(s.command);
+    // The jobs accepted before a refusal are recorded (their tasks run); the message names them.
+    const bool first = summary.submissions.empty();
+    const std::string which = first ? "" : " for " + TasksText(job.indices);
+    const std::string before = first ? ""
+                                     : "; Slurm accepted the jobs before it, " + JobsText(summary.submissions) +
+                                           ", recorded in " + layout.record() +
+                                           ": once they have ended, 'rangebayes batch resubmit " + layout.dir +
+                                           "' submits the rest";
+    RB_CHECK(run.started, options.sbatch, ": cannot run sbatch", which, " (", run.error, ")",
+             first ? "; submit from a machine with the Slurm client installed, or use --local N to run here" : before);
+    if (run.exit.exit_code != 0) {
+      std::string line = LastLine(run.err);
+      if (line.empty()) line = LastLine(run.out);
+      RB_FAIL("sbatch refused the job", which, " (exit ", run.exit.exit_code, "): ", line.empty() ? "no message" : line,
+              before);
+    }
+    s.job_id = ParseSbatchJobId(run.out);
+    record.submissions.push_back(s);
+    summary.submissions.push_back(s);
+    WriteBatchRecord(layout, record);
   }
-  submission.job_id = ParseSbatchJobId(run.out);
-  record.submissions.push_back(submission);
-  WriteBatchRecord(layout, record);
   return summary;
+}
+
+// The Slurm array job ids of the batch's submissions, in order.
+std::vector<std::string> SlurmJobsOf(const BatchRecord& record) {
+  std::vector<std::string> jobs;
+  for (const BatchSubmission& s : record.submissions) {
+    if (s.kind == "slurm") jobs.push_back(s.job_id);
+  }
+  return jobs;
 }
 
 // Every task line as the binary's parser reads it (options.check_line), naming the manifest line it refuses.
@@ -159,7 +193,7 @@ std::set<std::string> QueuedArrayJobs(const std::string& squeue, bool* listed) {
   *listed = run.started;
   if (!run.started) return jobs;
   RB_CHECK(run.exit.exit_code == 0, "squeue failed (exit ", run.exit.exit_code, "): ", LastLine(run.err),
-           "; resubmit checks that no task of the batch is still queued");
+           "; it is asked which jobs of the batch are still queued or running");
   std::istringstream in(run.out);
   std::string id;
   while (in >> id) jobs.insert(id);
@@ -189,14 +223,27 @@ long SlurmTimeMinutes(double task_timeout_s) {
 
 std::string BatchSubmitSummary::BriefReport() const {
   std::ostringstream out;
-  if (submission.kind == "local") {
-    out << "ran " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " on " << submission.workers
-        << " local worker" << (submission.workers == 1 ? "" : "s") << " in " << dir;
+  const auto plural = [](size_t n, const char* word) { return std::to_string(n) + " " + word + (n == 1 ? "" : "s"); };
+  if (!submissions.empty() && submissions.front().kind == "local") {
+    out << "ran " << plural(indices.size(), "task") << " on " << plural(submissions.front().workers, "local worker")
+        << " in " << dir;
+  } else if (submissions.size() == 1) {
+    out << "submitted " << plural(indices.size(), "task") << " as Slurm job " << submissions.front().job_id
+        << " (array " << ArraySpec(submissions.front().indices, 0) << ") in " << dir;
   } else {
-    out << "submitted " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " as Slurm job "
-        << submission.job_id << " (array " << ArraySpec(indices, 0) << ") in " << dir;
+    out << "submitted " << plural(indices.size(), "task") << " as " << submissions.size() << " Slurm jobs";
+    if (max_array_size) out << " (MaxArraySize " << *max_array_size << ")";
+    out << ": " << JobsText(submissions) << " in " << dir;
   }
   return out.str();
+}
+
+std::string BatchSubmitSummary::JobIds() const {
+  std::string ids;
+  for (const BatchSubmission& s : submissions) {
+    if (s.kind == "slurm") ids += (ids.empty() ? "" : " ") + s.job_id;
+  }
+  return ids;
 }
 
 std::string ArraySpec(const std::vector<int>& input, int max_parallel) {
@@ -217,12 +264,30 @@ std::string ArraySpec(const std::vector<int>& input, int max_parallel) {
   return out.str();
 }
 
-std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vector<int>& indices,
+std::vector<ArrayJob> SplitArrayJobs(const std::vector<int>& input, std::optional<int> max_array_size) {
+  std::vector<int> indices = input;
+  std::sort(indices.begin(), indices.end());
+  indices.erase(std::unique(indices.begin(), indices.end()), indices.end());
+  RB_CHECK(!indices.empty(), "no tasks to submit");
+  RB_CHECK(!max_array_size || *max_array_size > 0, "MaxArraySize must be positive, got ", *max_array_size);
+  if (!max_array_size || indices.back() < *max_array_size) return {ArrayJob{0, indices, ""}};
+  std::vector<ArrayJob> jobs;
+  for (const int index : indices) {
+    const int offset = index / *max_array_size * *max_array_size;
+    if (jobs.empty() || jobs.back().offset != offset) jobs.push_back(ArrayJob{offset, {}, ""});
+    jobs.back().indices.push_back(index);
+  }
+  return jobs;
+}
+
+std::vector<std::string> SbatchCommand(const BatchLayout& layout, const ArrayJob& job,
                                        const BatchSubmitOptions& options, const std::string& job_script) {
+  std::vector<int> array_indices;
+  for (const int index : job.indices) array_indices.push_back(index - job.offset);
   std::vector<std::string> command = {options.sbatch,
                                       "--parsable",
                                       "--job-name=rangebayes-batch",
-                                      "--array=" + ArraySpec(indices, options.max_parallel),
+                                      "--array=" + ArraySpec(array_indices, options.max_parallel),
                                       "--requeue",
                                       "--open-mode=append",
                                       "--output=" + layout.slurm_dir() + "/%A_%a.out",
@@ -231,8 +296,10 @@ std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vec
   if (options.task_timeout_s > 0) {
     command.push_back("--time=" + std::to_string(SlurmTimeMinutes(options.task_timeout_s)));
   }
+  if (!job.after_job.empty()) command.push_back("--dependency=afterany:" + job.after_job);
   command.insert(command.end(), options.slurm_args.begin(), options.slurm_args.end());
   command.push_back(job_script);
+  if (job.offset != 0) command.push_back(std::to_string(job.offset));
   return command;
 }
 
@@ -305,10 +372,8 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   const BatchReport report = CollectBatchReport(layout.dir);
   for (const ManifestTask& t : report.tasks) CheckTaskOutputs(t, options.syntaxes, layout.manifest());
   CheckTaskLines(report.tasks, record.manifest_dir, options, layout.manifest());
-  std::set<std::string> ours;
-  for (const BatchSubmission& s : record.submissions) {
-    if (s.kind == "slurm") ours.insert(s.job_id);
-  }
+  const std::vector<std::string> jobs = SlurmJobsOf(record);
+  const std::set<std::string> ours(jobs.begin(), jobs.end());
   bool queue_listed = false;
   if (!ours.empty()) {
     for (const std::string& id : QueuedArrayJobs(options.squeue, &queue_listed)) {
@@ -330,6 +395,33 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
            report.running, " running)");
   if (!options.binary.empty()) record.binary = options.binary;
   return Submit(layout, record, indices, options);
+}
+
+std::vector<std::string> CancelBatch(const std::string& dir, const BatchSubmitOptions& options) {
+  const BatchLayout layout(dir);
+  const std::vector<std::string> jobs = SlurmJobsOf(ReadBatchRecord(layout));
+  RB_CHECK(!jobs.empty(), layout.dir,
+           ": has no Slurm job to cancel (a --local run ends with Ctrl-C of its submit or "
+           "resubmit, or kill of the pid named in ",
+           layout.dir, "/batch.lock)");
+  bool listed = false;
+  const std::set<std::string> queued = QueuedArrayJobs(options.squeue, &listed);
+  RB_CHECK(listed, options.squeue,
+           ": cannot run squeue, which says which jobs of the batch are still queued or "
+           "running; cancel them with scancel (their ids are in ",
+           layout.record(), ")");
+  std::vector<std::string> cancel;
+  for (const std::string& job : jobs) {
+    if (queued.count(job) != 0) cancel.push_back(job);
+  }
+  RB_CHECK(!cancel.empty(), layout.dir, ": no Slurm job of this batch is queued or running (jobs ", QuoteForShell(jobs),
+           "); see rangebayes batch status ", layout.dir);
+  std::vector<std::string> command = {options.scancel};
+  command.insert(command.end(), cancel.begin(), cancel.end());
+  const CapturedRun run = RunAndCapture(command);
+  RB_CHECK(run.started, options.scancel, ": cannot run scancel (", run.error, ")");
+  RB_CHECK(run.exit.exit_code == 0, "scancel failed (exit ", run.exit.exit_code, "): ", LastLine(run.err));
+  return cancel;
 }
 
 void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices, const BatchSubmitOptions& options) {

@@ -261,6 +261,7 @@ void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
     js["indices"] = s.indices;
     if (s.kind == "slurm") {
       js["job_id"] = s.job_id;
+      if (s.array_offset != 0) js["array_offset"] = s.array_offset;
       js["command"] = s.command;
     } else {
       js["workers"] = s.workers;
@@ -294,6 +295,7 @@ BatchRecord ReadBatchRecord(const BatchLayout& layout) {
       s.time_utc = js.value("time_utc", "");
       for (const json& i : js.at("indices")) s.indices.push_back(IntOf(i, "an element of \"indices\""));
       s.job_id = js.value("job_id", "");
+      s.array_offset = IntAt(js, "array_offset", 0);
       if (js.contains("command")) s.command = js.at("command").get<std::vector<std::string>>();
       s.workers = IntAt(js, "workers", 0);
       s.task_timeout_s = js.value("task_timeout_s", 0.0);

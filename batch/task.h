@@ -8,7 +8,9 @@
 //   DIR/tasks/.tmp-<index>-<attempt>-<pid>/   where a task runs; renamed to tasks/<index>/ on success
 //   DIR/status/<index>.json the task's status (BatchTaskStatus), replaced atomically
 //   DIR/logs/<index>.log    the task command's stdout and stderr, appended by every run
-//   DIR/slurm/              job script and Slurm's output files (%A_%a.out, opened for append)
+//   DIR/slurm/              job script and Slurm's output files (<job>_<array index>.out, opened for append; the
+//                           array index is the task index less the job's array_offset, 0 unless a batch above
+//                           MaxArraySize was split)
 #pragma once
 
 #include <cstdint>
@@ -39,6 +41,7 @@ struct BatchSubmission {
   std::string time_utc;      // ISO 8601
   std::vector<int> indices;  // the task indices it ran
   std::string job_id;        // Slurm array job id (kind slurm)
+  int array_offset = 0;      // task index = array_offset + array index (kind slurm; ArrayJob::offset)
   std::vector<std::string> command;  // the sbatch command line (kind slurm)
   int workers = 0;                   // worker processes (kind local)
   double task_timeout_s = 0;         // each task's time limit (--task-timeout); 0: none

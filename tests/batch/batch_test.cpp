@@ -598,7 +598,7 @@ TEST(LocalRunner, RunsEveryTaskOnWorkersAndReportsEach) {
     ended.insert(s.index);
   };
   const BatchSubmitSummary summary = SubmitBatch(manifest, dir.path() + "/out", options);
-  EXPECT_EQ(summary.submission.kind, "local");
+  EXPECT_EQ(summary.submissions.at(0).kind, "local");
   EXPECT_EQ(ended, (std::set<int>{0, 1, 2, 3, 4}));
   const BatchReport report = CollectBatchReport(dir.path() + "/out");
   EXPECT_EQ(report.succeeded, 5);
@@ -1015,7 +1015,7 @@ TEST(RunTask, TimeLimitIsPositiveAndFinite) {
   options.task_timeout_s = 90;
   options.Check();
   EXPECT_EQ(SlurmTimeMinutes(90), 3);  // 90 s and the 10 s grace: 2 minutes, and one for run-task
-  EXPECT_EQ(SbatchCommand(BatchLayout("/b"), {0}, options, "/b/job.sh").at(8), "--time=3");
+  EXPECT_EQ(SbatchCommand(BatchLayout("/b"), ArrayJob{0, {0}, ""}, options, "/b/job.sh").at(8), "--time=3");
   // Slurm's own time limit is then ours.
   options.slurm_args = {"--cpus-per-task=2", "--time=1:00:00"};
   try {
@@ -1161,32 +1161,109 @@ TEST(Manifest, AByteOrderMarkIsSkipped) {
   EXPECT_EQ(tasks[0].line, "info a.obj");
 }
 
-// More tasks than the cluster's MaxArraySize allows as array indices: refused before sbatch, naming the limit.
-TEST(Slurm, TasksBeyondMaxArraySizeAreRefusedNamingTheLimit) {
+// More tasks than the cluster's MaxArraySize allows as array indices: split into one array per MaxArraySize task
+// indices, each job's script given its offset (array index + offset = task index), each recorded; with
+// --max-parallel each waits for the one before. Resubmit checks every job of the batch in the queue and splits
+// likewise; cancel cancels those still queued; a refusal after the first job names what Slurm has accepted.
+TEST(Slurm, ABatchAboveMaxArraySizeIsSplitIntoArrayJobs) {
   const TempDir dir("max_array");
-  const std::string manifest =
-      MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\nconvert in/tet.obj c.ply\n");
+  std::string lines;
+  for (int i = 0; i < 5; ++i) lines += "convert in/tet.obj t" + std::to_string(i) + ".ply\n";
+  const std::string manifest = MakeManifest(dir.path(), lines);
   BatchSubmitOptions options;
   options.binary = RB_BINARY;
-  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo called > " + dir.path() + "/sbatch.called\necho 5");
+  options.max_parallel = 1;
+  // Records its arguments and accepts each job as 41, 42, ...
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo \"$@\" >> " + dir.path() + "/sbatch.args\nn=$(wc -l < " +
+                                                           dir.path() + "/sbatch.args)\necho $((40 + n))");
   options.scontrol = FakeProgram(dir.path() + "/scontrol",
                                  "echo 'Configuration data as of 2026-12-07T14:00:00'\n"
                                  "echo 'MaxArraySize            = 2'\necho 'MaxJobCount             = 10000'");
+  const std::string out = dir.path() + "/out";
+  const BatchSubmitSummary summary = SubmitBatch(manifest, out, options);
+  EXPECT_EQ(summary.JobIds(), "41 42 43");
+  EXPECT_EQ(summary.BriefReport(),
+            "submitted 5 tasks as 3 Slurm jobs (MaxArraySize 2): 41 (tasks 0-1), 42 (tasks "
+            "2-3), 43 (task 4) in " +
+                BatchLayout(out).dir);
+  const std::string job_script = BatchLayout(out).slurm_dir() + "/job.sh";
+  std::istringstream args(ReadText(dir.path() + "/sbatch.args"));
+  std::string line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0-1%1 "), std::string::npos) << line;
+  EXPECT_EQ(line.find("--dependency"), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size()), job_script) << line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0-1%1 "), std::string::npos) << line;
+  EXPECT_NE(line.find("--dependency=afterany:41 "), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size() - 2), job_script + " 2") << line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0%1 --requeue"), std::string::npos) << line;
+  EXPECT_NE(line.find("--dependency=afterany:42 "), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size() - 2), job_script + " 4") << line;
+  const BatchRecord record = ReadBatchRecord(BatchLayout(out));
+  ASSERT_EQ(record.submissions.size(), 3u);
+  EXPECT_EQ(record.submissions[1].job_id, "42");
+  EXPECT_EQ(record.submissions[1].array_offset, 2);
+  EXPECT_EQ(record.submissions[1].indices, (std::vector<int>{2, 3}));
+
+  // What Slurm runs for array index 1 of job 42: task 3.
+  std::string output;
+  ASSERT_EQ(RunShell("SLURM_ARRAY_TASK_ID=1 sh " + job_script + " 2", &output), 0) << output;
+  EXPECT_TRUE(fs::exists(out + "/tasks/3/t3.ply")) << output;
+
+  // Resubmit: refused while any of the jobs is queued; then tasks 0-2 and 4, split likewise.
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7\necho 43");
   try {
-    SubmitBatch(manifest, dir.path() + "/out", options);
-    ADD_FAILURE() << "3 tasks were submitted to a cluster whose MaxArraySize is 2";
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "resubmit went ahead while job 43 of the batch was queued";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("task 2 cannot be submitted: this cluster's MaxArraySize is 2 (array "
-                                         "indices 0-1"),
+    EXPECT_NE(std::string(e.what()).find("Slurm job 43 of this batch is still queued or running"), std::string::npos)
+        << e.what();
+  }
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  const BatchSubmitSummary again = ResubmitBatch(out, options);
+  EXPECT_EQ(again.indices, (std::vector<int>{0, 1, 2, 4}));
+  EXPECT_EQ(again.BriefReport(),
+            "submitted 4 tasks as 3 Slurm jobs (MaxArraySize 2): 44 (tasks 0-1), 45 (task 2), "
+            "46 (task 4) in " +
+                BatchLayout(out).dir);
+
+  // Cancel: the batch's jobs that squeue still lists, in one scancel.
+  options.scancel = FakeProgram(dir.path() + "/scancel", "echo \"$@\" > " + dir.path() + "/scancel.args");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7\necho 45\necho 46\necho 41");
+  EXPECT_EQ(CancelBatch(out, options), (std::vector<std::string>{"41", "45", "46"}));
+  EXPECT_EQ(ReadText(dir.path() + "/scancel.args"), "41 45 46\n");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  EXPECT_THROW(CancelBatch(out, options), Error);
+
+  // sbatch refusing the second job: the first is recorded, and the message says so.
+  options.sbatch = FakeProgram(dir.path() + "/sbatch2", "[ -e " + dir.path() +
+                                                            "/once ] && { echo 'sbatch: error: "
+                                                            "QOSMaxSubmitJobPerUserLimit' >&2; exit 1; }\ntouch " +
+                                                            dir.path() + "/once\necho 50");
+  try {
+    SubmitBatch(manifest, dir.path() + "/out2", options);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("sbatch refused the job for tasks 2-3 (exit 1): sbatch: error: "
+                                         "QOSMaxSubmitJobPerUserLimit; Slurm accepted the jobs before it, 50 (tasks "
+                                         "0-1), recorded in "),
               std::string::npos)
         << e.what();
   }
-  EXPECT_FALSE(fs::exists(dir.path() + "/sbatch.called"));
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(dir.path() + "/out2")).submissions.size(), 1u);
+
   EXPECT_EQ(ParseMaxArraySize("MaxArraySize            = 1001\n"), 1001);
   EXPECT_FALSE(ParseMaxArraySize("MaxJobCount = 5\n").has_value());
-  // Within the limit it is submitted.
-  options.scontrol = FakeProgram(dir.path() + "/scontrol", "echo 'MaxArraySize = 3'");
-  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out", options).submission.job_id, "5");
+  // Within the limit, or with the limit unknown: one array, array index = task index.
+  EXPECT_EQ(SplitArrayJobs({3, 1}, 4).size(), 1u);
+  EXPECT_EQ(SplitArrayJobs({5, 1}, std::nullopt).at(0).indices, (std::vector<int>{1, 5}));
+  const std::vector<ArrayJob> jobs = SplitArrayJobs({250, 3, 120, 199}, 100);
+  ASSERT_EQ(jobs.size(), 3u);
+  EXPECT_EQ(jobs[1].offset, 100);
+  EXPECT_EQ(jobs[1].indices, (std::vector<int>{120, 199}));
+  EXPECT_EQ(jobs[2].offset, 200);
 }
 
 TEST(Slurm, ArraySpecAndSbatchCommandLine) {
@@ -1199,11 +1276,11 @@ TEST(Slurm, ArraySpecAndSbatchCommandLine) {
   options.max_parallel = 4;
   options.slurm_args = {"--time=10", "--cpus-per-task=2"};
   const BatchLayout layout("/data/b");
-  EXPECT_EQ(SbatchCommand(layout, {0, 1, 2}, options, "/data/b/slurm/job.sh"),
-            (std::vector<std::string>{"sbatch", "--parsable", "--job-name=rangebayes-batch", "--array=0-2%4",
-                                      "--requeue", "--open-mode=append", "--output=/data/b/slurm/%A_%a.out",
-                                      "--chdir=/data/b", "--partition=gpu", "--time=10", "--cpus-per-task=2",
-                                      "/data/b/slurm/job.sh"}));
+  EXPECT_EQ(
+      SbatchCommand(layout, ArrayJob{0, {0, 1, 2}, ""}, options, "/data/b/slurm/job.sh"),
+      (std::vector<std::string>{"sbatch", "--parsable", "--job-name=rangebayes-batch", "--array=0-2%4", "--requeue",
+                                "--open-mode=append", "--output=/data/b/slurm/%A_%a.out", "--chdir=/data/b",
+                                "--partition=gpu", "--time=10", "--cpus-per-task=2", "/data/b/slurm/job.sh"}));
   EXPECT_EQ(ParseSbatchJobId("12\n"), "12");
   EXPECT_EQ(ParseSbatchJobId("Submitted\n345;cluster\n"), "345");
   EXPECT_THROW(ParseSbatchJobId(""), Error);
@@ -1236,7 +1313,7 @@ TEST(Slurm, MissingOrRefusingSbatchIsOneClearError) {
   }
   // After the refusal the same folder can be submitted again.
   options.sbatch = FakeProgram(dir.path() + "/accept", "echo 5");
-  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).submission.job_id, "5");
+  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).JobIds(), "5");
 }
 
 TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
@@ -1251,8 +1328,9 @@ TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
   options.squeue = FakeProgram(dir.path() + "/squeue", "echo 41");
   const std::string out = dir.path() + "/out";
   const BatchSubmitSummary first = SubmitBatch(manifest, out, options);
-  EXPECT_EQ(first.submission.job_id, "41");
-  EXPECT_NE(ReadText(out + "/slurm/job.sh").find("batch run-task " + BatchLayout(out).dir + " \"$SLURM_ARRAY_TASK_ID\""),
+  EXPECT_EQ(first.JobIds(), "41");
+  EXPECT_NE(ReadText(out + "/slurm/job.sh")
+                .find("batch run-task " + BatchLayout(out).dir + " \"$((${1:-0} + SLURM_ARRAY_TASK_ID))\""),
             std::string::npos)
       << ReadText(out + "/slurm/job.sh");
   EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).job_id, "41");

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # End to end on a real one-node Slurm cluster started here (tests/batch/slurm_local_cluster.sh): a manifest
 # of replays of the bundled recording and smooths of bundled meshes, one task failing on a missing input,
-# goes through `batch submit`; `batch status` names the failure with its error line; after the fix,
-# `batch resubmit` runs exactly that task; a requeued task (scontrol requeue) publishes once, with its
+# goes through `batch submit` (split into two job arrays: the cluster's MaxArraySize is 3); `batch status` names
+# the failure with its error line; after the fix, `batch resubmit` runs exactly that task; `batch cancel` cancels
+# both arrays of a split batch; a requeued task (scontrol requeue) publishes once, with its
 # attempt counted and its Slurm output appended; a hanging task stopped at --task-timeout, and one stopped at
 # Slurm's own time limit (--time=1, a minute: it runs alongside the rest), both read "timeout"; and every output
 # equals, byte for byte, that of `batch submit --local 2`.
@@ -22,8 +23,9 @@ rb_test_begin rb_slurm_test
 wait_job() { wait_for 120 "job $1 to leave the queue" job_gone "$1"; }
 running() { grep -qs '"state": "running"' "$1"; }
 
-# One slot more than the two the first job takes (--max-parallel 2), for the task that waits for its time limit.
-rb_cluster_start "$work"/cluster 1 3
+# One slot more than the two the first job takes (--max-parallel 2), for the task that waits for its time limit;
+# MaxArraySize 3, so that the 5 tasks of the first batch take two job arrays (tasks 0-2, and 3-4 as 0-1).
+rb_cluster_start "$work"/cluster 1 3 3
 phase "cluster up"
 
 # The manifest's folder: the bundled data under the names the manifest uses.
@@ -57,10 +59,13 @@ if err=$(PATH=/nonexistent "$rb" batch submit "$m"/tasks.txt --out "$work"/nosba
 expect_in "$err" "sbatch: cannot run sbatch (No such file or directory)" "sbatch missing"
 
 slurm="$work"/slurm
-job=$("$rb" batch submit "$m"/tasks.txt --out "$slurm" --max-parallel 2)
-[[ $job =~ ^[0-9]+$ ]] || fail "batch submit printed '$job', not a job id"
+jobs=$("$rb" batch submit "$m"/tasks.txt --out "$slurm" --max-parallel 2)
+[[ $jobs =~ ^[0-9]+\ [0-9]+$ ]] || fail "batch submit printed '$jobs', not two job ids"
+job=${jobs% *} job_b=${jobs#* }
+grep -q -- "--dependency=afterany:$job" "$slurm"/batch.json || fail "the second array does not wait for the first"
 wait_job "$job"
-phase "first job done"
+wait_job "$job_b"
+phase "first jobs done"
 
 status=$("$rb" batch status "$slurm") && rc=0 || rc=$?
 echo "$status"
@@ -72,16 +77,18 @@ expect_in "$status" "later/block.obj" "the error line names the missing input"
 json=$("$rb" batch status "$slurm" --json) || true
 expect_in "$json" '"failed": 1' "status --json counts"
 expect_in "$json" "\"job_id\": \"$job\"" "status --json job id"
+expect_in "$json" "\"job_id\": \"$job_b\"" "status --json job id of the second array"
 [ ! -e "$slurm"/tasks/4 ] || fail "the failed task published a folder"
 ls -A "$slurm"/tasks | grep -q '^\.' && fail "a temporary task folder was left behind: $(ls -A "$slurm"/tasks)"
-[ -s "$slurm/slurm/${job}_4.out" ] || fail "no Slurm output file for task 4"
+[ -s "$slurm/slurm/${job_b}_1.out" ] || fail "no Slurm output file for task 4 (array index 1 of job $job_b)"
 
 # The fix: the input appears beside the manifest; resubmit runs exactly task 4.
 mkdir -p "$m"/later
 cp "$src"/tests/data/meshes/block_noisy_gauss0.4.obj "$m"/later/block.obj
 job2=$("$rb" batch resubmit "$slurm")
-[ "$job2" != "$job" ] || fail "resubmit reused job $job"
-grep -q -- '"--array=4"' "$slurm"/batch.json || fail "resubmit did not submit exactly task 4: $(cat "$slurm"/batch.json)"
+[[ $job2 =~ ^[0-9]+$ && $job2 != "$job" && $job2 != "$job_b" ]] || fail "resubmit printed '$job2', not a new job id"
+[ "$(grep -c -- '"--array=1"' "$slurm"/batch.json)" -eq 1 ] && grep -q '"array_offset": 3' "$slurm"/batch.json ||
+  fail "resubmit did not submit exactly task 4 (array index 1 at offset 3): $(cat "$slurm"/batch.json)"
 wait_job "$job2"
 phase "resubmitted job done"
 status=$("$rb" batch status "$slurm")
@@ -110,6 +117,18 @@ expect_in "$status" '"attempt": 1' "requeued task's attempt from SLURM_RESTART_C
   fail "Slurm output of the requeued task was not appended: $(cat "$rq/slurm/${job3}_0.out")"
 ls -A "$rq"/tasks | grep -q '^\.' && fail "a temporary task folder was left behind after requeue"
 [ -s "$rq"/tasks/0/angel.ply ] || fail "requeued task has no result"
+
+# Cancel: a split batch of four hanging tasks (arrays 0-2 and 3), some running, some queued.
+cancel_dir="$work"/cancel
+printf 'info stuck.obj\n%.0s' 1 2 3 4 >"$m"/hang4.txt
+cancel_jobs=$("$rb" batch submit "$m"/hang4.txt --out "$cancel_dir")
+[[ $cancel_jobs =~ ^[0-9]+\ [0-9]+$ ]] || fail "batch submit of 4 tasks printed '$cancel_jobs', not two job ids"
+out=$("$rb" batch cancel "$cancel_dir")
+expect_in "$out" "cancelled Slurm jobs $cancel_jobs of $cancel_dir" "batch cancel"
+for j in $cancel_jobs; do wait_job "$j"; done
+if err=$("$rb" batch cancel "$cancel_dir" 2>&1); then fail "a second batch cancel succeeded"; fi
+expect_in "$err" "no Slurm job of this batch is queued or running" "cancel with nothing queued"
+phase "split batch cancelled"
 
 # A hanging task stopped by run-task at --task-timeout; sbatch's --time leaves room for it.
 tt="$work"/task_timeout
