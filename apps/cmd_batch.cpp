@@ -195,6 +195,10 @@ void AddBatch(CLI::App& app) {
         "resubmit", "Submit exactly the missing and failed tasks of DIR again, as new job arrays (or --local N)");
     sub->add_option("DIR", a->dir, "Batch folder")->required();
     AddSchedulingOptions(sub, a.get());
+    sub->add_flag("--include-running", a->options.include_running,
+                  "Also the tasks whose status still says running: a --local run on another host that died, which "
+                  "batch status names but cannot check. Only when you know they are not running (refused while a "
+                  "Slurm job of the batch is queued, or for a task whose run-task runs on this host)");
     sub->callback([a, &app] {
       if (a->options.local_workers > 0) a->options.on_task_end = PrintTaskEnd;
       a->options.syntaxes = Syntaxes(app);

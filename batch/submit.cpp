@@ -383,16 +383,25 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   }
   // Missing, failed and interrupted (a run-task process on this host gone before it recorded an end).
   std::vector<int> indices = report.UnfinishedIndices();
-  if (queue_listed) {
-    // No job of the batch is left in the queue, so a task still marked running (on another node, where
-    // its process cannot be checked) was killed before it could write its final status: unfinished too.
+  // A task still marked running: with no job of the batch left in the queue, it was killed (on another node, where
+  // its process cannot be checked) before it could write its final status; with include_running, the user says it
+  // was (a --local run on a host that died). Never one whose run-task is alive here.
+  if (queue_listed || options.include_running) {
     for (size_t i = 0; i < report.states.size(); ++i) {
-      if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
+      if (report.states[i] != "running") continue;
+      const BatchTaskStatus& s = *report.statuses[i];
+      RB_CHECK(!RunTaskRunsHere(s), "task ", i, " still runs on this host (run-task pid ", s.pid,
+               "); wait for it to end, or stop it, before batch resubmit");
+      indices.push_back(static_cast<int>(i));
     }
   }
   std::sort(indices.begin(), indices.end());
-  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
-           report.running, " running)");
+  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ", report.running,
+           " running",
+           report.running > 0 && !options.include_running
+               ? "; a task that reads running on a host that is down is taken by resubmit --include-running"
+               : "",
+           ")");
   if (!options.binary.empty()) record.binary = options.binary;
   return Submit(layout, record, indices, options);
 }

@@ -16,6 +16,10 @@ struct BatchSubmitOptions {
   int max_parallel = 0;                 // array throttle (--array=...%N); 0: no limit; 1-100000
   std::vector<std::string> slurm_args;  // passed to sbatch as they are (e.g. --time=1:00:00, --cpus-per-task=4)
   int local_workers = 0;                // > 0: run here with this many worker processes instead of Slurm
+  // Resubmit only: take the tasks whose status says running too (a --local run on a host that died, which cannot
+  // be checked from here). Still refused while squeue lists a job of the batch or such a task's run-task runs on
+  // this host.
+  bool include_running = false;
   // > 0: each task's time limit (s; CheckTaskTimeout), on either path: run-task stops the command (SIGTERM to its
   // process group, SIGKILL kTaskTimeoutGraceS later) and records "timeout". On Slurm it also sets sbatch's --time
   // (SlurmTimeMinutes), so it cannot be given with a --time in slurm_args.
@@ -71,7 +75,8 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
 // has Slurm jobs and squeue lists none of them any more, also the tasks whose status still says running (killed
 // on another node before they could record their end). Throws when none is left, or when squeue lists a job of
 // this batch still queued or running, when another submit or resubmit of DIR holds its lock, and when the
-// manifest has another number of tasks than was submitted (CollectBatchReport).
+// manifest has another number of tasks than was submitted (CollectBatchReport). With include_running, the tasks
+// that still read running are taken too, unless one's run-task runs on this host (then it throws, naming it).
 BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOptions& options);
 
 // Cancels (scancel) every Slurm job of the batch in DIR that squeue still lists (queued or running), and returns

@@ -675,6 +675,10 @@ bool RunTaskIsGone(const BatchTaskStatus& status) {
   return status.pid_start_ticks >= 0 && ProcessStartTicks(status.pid) != status.pid_start_ticks;
 }
 
+bool RunTaskRunsHere(const BatchTaskStatus& status) {
+  return status.state == "running" && status.pid > 0 && status.host == HostName() && !RunTaskIsGone(status);
+}
+
 BatchReport CollectBatchReport(const std::string& dir) {
   const BatchLayout layout(dir);
   const BatchRecord record = ReadBatchRecord(layout);
@@ -740,7 +744,16 @@ std::string BatchReport::BriefReport() const {
   out << running << " running, ";
   if (interrupted > 0) out << interrupted << " interrupted, ";
   out << missing << " missing\n";
+  const std::string here = HostName();
   for (size_t i = 0; i < tasks.size(); ++i) {
+    if (states[i] == "running" && statuses[i]->job_id.empty() && !statuses[i]->host.empty() &&
+        statuses[i]->host != here) {
+      const BatchTaskStatus& s = *statuses[i];
+      out << "running: task " << i << " (manifest line " << tasks[i].line_number << ", started " << s.start_utc
+          << ") on " << s.host << " (not this host, " << here << ": cannot check whether its run-task process " << s.pid
+          << " still runs); if " << s.host << " is down, 'rangebayes batch resubmit " << dir
+          << " --include-running' runs it again\n";
+    }
     if (states[i] == "interrupted") {
       const BatchTaskStatus& s = *statuses[i];
       out << "interrupted: task " << i << " (manifest line " << tasks[i].line_number << ", attempt " << s.attempt

@@ -142,6 +142,10 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
 // process with that pid now is another one (another start time: pids are reused).
 bool RunTaskIsGone(const BatchTaskStatus& status);
 
+// True when `status` says running and its run-task process is alive on this host (RunTaskIsGone says it is not
+// gone).
+bool RunTaskRunsHere(const BatchTaskStatus& status);
+
 // When process `pid` started, in clock ticks after the boot (field 22 of /proc/PID/stat); -1 when there is no such
 // process or /proc does not say. A pid and its start identify a process: pids are reused, their starts are not.
 std::int64_t ProcessStartTicks(int pid);
@@ -166,7 +170,9 @@ struct BatchReport {
   std::vector<std::optional<BatchTaskStatus>> statuses;
   int succeeded = 0, partial = 0, changed = 0, failed = 0, timeout = 0, running = 0, interrupted = 0, missing = 0;
 
-  // Counts, then one line per partial, changed, failed, timeout or interrupted task.
+  // Counts, then one line per partial, changed, failed, timeout or interrupted task, and per running task of a
+  // --local run on another host (which cannot be checked from here: if that host is down, only
+  // resubmit --include-running takes it).
   std::string BriefReport() const;
   std::string Json() const;
   // Indices whose state is missing, partial, changed, failed, timeout or interrupted, ascending.

@@ -432,6 +432,67 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
 }
 
+// A task of a --local run on another host that died still reads running, as its process cannot be checked from
+// here: status names it and its host, saying so; resubmit leaves it unless told --include-running, which is
+// still refused for a task whose run-task is alive on this host.
+TEST(LocalRunner, ARunningTaskOfAnotherHostIsNamedAndTakenOnlyWithIncludeRunning) {
+  const TempDir dir("other_host");
+  BatchSubmitOptions options = OneLocalWorker();
+  const std::string out = RunTwoConverts(dir);
+  fs::remove_all(out + "/tasks/1");
+  BatchTaskStatus elsewhere = *ReadBatchTaskStatus(BatchLayout(out), 1);
+  elsewhere.state = "running";
+  elsewhere.host = "lab-node-7";
+  elsewhere.pid = 4242;
+  elsewhere.start_utc = "2026-12-07T10:00:00.000Z";
+  WriteBatchTaskStatus(BatchLayout(out), elsewhere);
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.states, (std::vector<std::string>{"succeeded", "running"}));
+  EXPECT_NE(report.BriefReport().find("running: task 1 (manifest line 2, started 2026-12-07T10:00:00.000Z) on "
+                                      "lab-node-7 (not this host, "),
+            std::string::npos)
+      << report.BriefReport();
+  EXPECT_NE(report.BriefReport().find("cannot check whether its run-task process 4242 still runs); if lab-node-7 is "
+                                      "down, 'rangebayes batch resubmit " +
+                                      BatchLayout(out).dir + " --include-running' runs it again"),
+            std::string::npos)
+      << report.BriefReport();
+  try {
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "a task that may still run on lab-node-7 was resubmitted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing to resubmit (1 succeeded, 1 running; a task that reads running on a "
+                                         "host that is down is taken by resubmit --include-running)"),
+              std::string::npos)
+        << e.what();
+  }
+  // A Slurm task reads running on its node while its job runs: no line for it.
+  BatchTaskStatus in_job = elsewhere;
+  in_job.job_id = "41";
+  WriteBatchTaskStatus(BatchLayout(out), in_job);
+  EXPECT_EQ(CollectBatchReport(out).BriefReport().find("running: task"), std::string::npos);
+  // Alive here: refused even when told.
+  BatchTaskStatus here = elsewhere;
+  const BatchTaskStatus mine = RunBatchTask(out, 0, TestRunOptions());
+  here.host = mine.host;
+  here.pid = static_cast<int>(getpid());
+  here.pid_start_ticks = ProcessStartTicks(here.pid);
+  here.boot_id = mine.boot_id;
+  WriteBatchTaskStatus(BatchLayout(out), here);
+  options.include_running = true;
+  try {
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "a task whose run-task runs here was resubmitted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("task 1 still runs on this host (run-task pid " + std::to_string(getpid())),
+              std::string::npos)
+        << e.what();
+  }
+  WriteBatchTaskStatus(BatchLayout(out), elsewhere);
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
 // A status file that cannot be read (cut to nothing when a machine crashed) made every command on the batch fail
 // on it (status, resubmit, run-task of that very task): it counts as failed, saying why, and a resubmit runs
 // that task again, whose new status replaces it.
