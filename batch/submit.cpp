@@ -99,8 +99,9 @@ std::string TasksText(const std::vector<int>& indices) {
 // "12 (tasks 0-99), 13 (tasks 100-120)".
 std::string JobsText(const std::vector<BatchSubmission>& jobs) {
   std::string text;
-  for (const BatchSubmission& s : jobs)
+  for (const BatchSubmission& s : jobs) {
     text += (text.empty() ? "" : ", ") + s.job_id + " (" + TasksText(s.indices) + ")";
+  }
   return text;
 }
 

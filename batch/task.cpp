@@ -474,8 +474,8 @@ CommandEnd RunCommand(ProcessSpec spec, const RunTaskOptions& options) {
   if (g_signal != 0) kill(static_cast<pid_t>(g_command_target), g_signal);
   TimeLimit limit(options.task_timeout_s, options.timeout_grace_s);
   if (options.task_timeout_s > 0 && !limit.Armed()) {
-    kill(static_cast<pid_t>(g_command_target), SIGKILL);
     end.start_error = "cannot arm the task's time limit (setitimer: " + std::string(std::strerror(errno)) + ")";
+    kill(static_cast<pid_t>(g_command_target), SIGKILL);
   }
   // Until it is reaped, the command's pid and process group stay its own, so a late alarm or forwarded signal
   // reaches no other process.
@@ -489,7 +489,7 @@ CommandEnd RunCommand(ProcessSpec spec, const RunTaskOptions& options) {
 }
 
 // Why Slurm stopped the job run-task runs in (it forwarded SIGTERM): its time limit, when `scontrol show job` says
-// so (the state is TIMEOUT before slurmd sends the signal); else cancelled, preempted or requeued.
+// so (the controller sets Reason=TimeLimit before slurmd sends the signal); else cancelled, preempted or requeued.
 std::string SlurmStopReason(const RunTaskOptions& options, bool* time_limit) {
   const std::string job = Env("SLURM_JOB_ID");
   const CapturedRun run = RunAndCapture({options.scontrol, "show", "job", "-o", job});
