@@ -7,6 +7,19 @@
 namespace rangebayes::apps {
 namespace {
 
+// CLI11 lists a negated flag as "--no-x{false}", which reads as "the default is false"; the descriptions say
+// which of the pair is the default.
+class Formatter : public CLI::Formatter {
+ public:
+  std::string make_option_name(const CLI::Option* option, bool is_positional) const override {
+    std::string name = CLI::Formatter::make_option_name(option, is_positional);
+    for (const std::string value : {"{false}", "{true}"}) {
+      for (size_t at = name.find(value); at != std::string::npos; at = name.find(value)) name.erase(at, value.size());
+    }
+    return name;
+  }
+};
+
 std::vector<std::pair<int, CommandAdder>>& Registry() {
   static std::vector<std::pair<int, CommandAdder>> registry;
   return registry;
@@ -28,6 +41,31 @@ void AddRegisteredCommands(CLI::App& app) {
   std::stable_sort(registry.begin(), registry.end(),
                    [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& [order, adder] : registry) adder(app);
+}
+
+std::unique_ptr<CLI::App> MakeApp() {
+  auto app = std::make_unique<CLI::App>(
+      "rangebayes: stereo range scanning to clean, compact meshes (Diebel, Thrun, Bruenig, ACM TOG 2006).\n"
+      "Run 'rangebayes SUBCOMMAND --help' for the options of each subcommand.");
+  app->name("rangebayes");
+  app->require_subcommand(1);
+  app->set_version_flag("--version", "rangebayes 0.1.0");
+  app->option_defaults()->always_capture_default();
+  app->formatter(std::make_shared<Formatter>());
+  AddRegisteredCommands(*app);
+  return app;
+}
+
+std::string ParsedCommandName(const CLI::App& app) {
+  std::string name = "rangebayes";
+  const CLI::App* current = &app;
+  while (true) {
+    const auto subs = current->get_subcommands();
+    if (subs.empty()) break;
+    current = subs.front();
+    name += " " + current->get_name();
+  }
+  return name;
 }
 
 void SetExitCode(int code) { ExitCodeStorage() = code; }

@@ -8,6 +8,8 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <memory>
+#include <string>
 
 namespace rangebayes::apps {
 
@@ -16,6 +18,13 @@ using CommandAdder = std::function<void(CLI::App& app)>;
 // Commands are added in ascending `order` (the order --help lists them in).
 bool RegisterCommands(int order, CommandAdder adder);
 void AddRegisteredCommands(CLI::App& app);
+
+// The `rangebayes` command line that main parses: every registered subcommand with its options. batch makes a
+// second one to check its task lines with the same parser.
+std::unique_ptr<CLI::App> MakeApp();
+
+// "rangebayes SUB [SUBSUB]": the subcommands `app` parsed, or had reached when parsing threw.
+std::string ParsedCommandName(const CLI::App& app);
 
 // The process exit code, for commands that succeed partially (default 0).
 void SetExitCode(int code);

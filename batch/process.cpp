@@ -50,9 +50,16 @@ pid_t StartProcess(const ProcessSpec& spec) {
   posix_spawn_file_actions_addopen(&a.actions, STDOUT_FILENO, out.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
   posix_spawn_file_actions_adddup2(&a.actions, STDOUT_FILENO, STDERR_FILENO);
   if (!spec.working_dir.empty()) posix_spawn_file_actions_addchdir_np(&a.actions, spec.working_dir.c_str());
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  if (spec.own_process_group) {
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attributes, 0);
+  }
   std::vector<char*> argv = ArgvPointers(spec.argv);
   pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, argv[0], &a.actions, nullptr, argv.data(), environ);
+  const int rc = posix_spawnp(&pid, argv[0], &a.actions, &attributes, argv.data(), environ);
+  posix_spawnattr_destroy(&attributes);
   RB_CHECK(rc == 0, spec.argv[0], ": cannot start (", std::strerror(rc), ")");
   return pid;
 }
@@ -74,6 +81,13 @@ ProcessExit WaitProcess(pid_t pid) {
     RB_CHECK(errno == EINTR, "waitpid ", pid, ": ", std::strerror(errno));
   }
   return DecodeWaitStatus(status);
+}
+
+void WaitUntilEnded(pid_t pid) {
+  siginfo_t info{};
+  while (waitid(P_PID, static_cast<id_t>(pid), &info, WEXITED | WNOWAIT) != 0) {
+    RB_CHECK(errno == EINTR, "waitid ", pid, ": ", std::strerror(errno));
+  }
 }
 
 CapturedRun RunAndCapture(const std::vector<std::string>& argv) {

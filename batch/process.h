@@ -15,6 +15,9 @@ struct ProcessSpec {
   std::vector<std::string> argv;  // argv[0] is the program: a path, or a name looked up on PATH
   std::string working_dir;        // empty: the caller's
   std::string output_path;        // stdout and stderr appended here (created); empty: /dev/null
+  // The process leads a process group of its own, so that a signal to the group (kill(-pid, ...)) reaches
+  // whatever it starts, and nothing else.
+  bool own_process_group = false;
 };
 
 // Starts a process with stdin from /dev/null. Throws rangebayes::Error naming the program when it cannot be
@@ -30,6 +33,10 @@ ProcessExit DecodeWaitStatus(int status);
 
 // Waits for `pid`, retrying on EINTR.
 ProcessExit WaitProcess(pid_t pid);
+
+// Waits until `pid` has ended, retrying on EINTR, without reaping it: until WaitProcess, its pid (and the process
+// group it leads) cannot be taken by another process, so a late signal to it reaches no one else.
+void WaitUntilEnded(pid_t pid);
 
 // A finished command and what it printed.
 struct CapturedRun {

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -58,29 +59,50 @@ class BatchLock {
   int fd_ = -1;
 };
 
-// Refuses indices that the cluster cannot take as array indices (MaxArraySize), naming the limit.
-void CheckMaxArraySize(const std::vector<int>& indices, const BatchSubmitOptions& options) {
+// The cluster's MaxArraySize (scontrol show config); nullopt when scontrol cannot tell (sbatch then says what it
+// refuses).
+std::optional<int> ClusterMaxArraySize(const BatchSubmitOptions& options) {
   const CapturedRun run = RunAndCapture({options.scontrol, "show", "config"});
-  if (!run.started || run.exit.exit_code != 0) return;  // sbatch, run next, gives its own message
-  const std::optional<int> max_size = ParseMaxArraySize(run.out);
-  if (!max_size) return;
-  const int highest = *std::max_element(indices.begin(), indices.end());
-  RB_CHECK(highest < *max_size, "task ", highest, " cannot be submitted: this cluster's MaxArraySize is ", *max_size,
-           " (array indices 0-", *max_size - 1,
-           ", scontrol show config), and task indices are array indices; "
-           "split the manifest into batches of at most ",
-           *max_size,
-           " tasks, or ask the administrators to raise "
-           "MaxArraySize in slurm.conf");
+  if (!run.started || run.exit.exit_code != 0) return std::nullopt;
+  return ParseMaxArraySize(run.out);
 }
 
-std::string JobScript(const BatchRecord& record, const BatchLayout& layout) {
+// run-task's options for the tasks of a submission (its time limit).
+std::vector<std::string> RunTaskOptionWords(const BatchSubmitOptions& options) {
+  if (options.task_timeout_s <= 0) return {};
+  return {"--task-timeout", FormatSeconds(options.task_timeout_s)};
+}
+
+std::string JobScript(const BatchRecord& record, const BatchLayout& layout, const BatchSubmitOptions& options) {
   std::ostringstream s;
   s << "#!/bin/sh\n"
-    << "# rangebayes batch: runs task $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
-    << "# (the sbatch command lines are in " << layout.record() << ").\n"
-    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir}) << " \"$SLURM_ARRAY_TASK_ID\"\n";
+    << "# rangebayes batch: runs task $1 + $SLURM_ARRAY_TASK_ID of " << layout.manifest() << "\n"
+    << "# ($1: the job's offset, 0 when not given; the sbatch command lines are in " << layout.record() << ").\n"
+    << "exec " << QuoteForShell({record.binary, "batch", "run-task", layout.dir})
+    << " \"$((${1:-0} + SLURM_ARRAY_TASK_ID))\"";
+  const std::vector<std::string> words = RunTaskOptionWords(options);
+  if (!words.empty()) s << " " << QuoteForShell(words);
+  s << "\n";
   return s.str();
+}
+
+// Whether an sbatch argument sets the time limit (--time, --time=T, -t T, -tT; not --time-min).
+bool IsSlurmTimeArgument(const std::string& word) {
+  return word == "--time" || word.rfind("--time=", 0) == 0 || (word.rfind("-t", 0) == 0 && word.rfind("--", 0) != 0);
+}
+
+// "tasks 0-99" or "task 4".
+std::string TasksText(const std::vector<int>& indices) {
+  return (indices.size() == 1 ? "task " : "tasks ") + ArraySpec(indices, 0);
+}
+
+// "12 (tasks 0-99), 13 (tasks 100-120)".
+std::string JobsText(const std::vector<BatchSubmission>& jobs) {
+  std::string text;
+  for (const BatchSubmission& s : jobs) {
+    text += (text.empty() ? "" : ", ") + s.job_id + " (" + TasksText(s.indices) + ")";
+  }
+  return text;
 }
 
 BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const std::vector<int>& indices,
@@ -88,13 +110,15 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
   BatchSubmitSummary summary;
   summary.dir = layout.dir;
   summary.indices = indices;
-  BatchSubmission& submission = summary.submission;
+  BatchSubmission submission;
   submission.time_utc = NowUtc();
   submission.indices = indices;
+  submission.task_timeout_s = options.task_timeout_s;
   if (options.local_workers > 0) {
     submission.kind = "local";
     submission.workers = options.local_workers;
     record.submissions.push_back(submission);
+    summary.submissions.push_back(submission);
     WriteBatchRecord(layout, record);
     BatchSubmitOptions local = options;
     local.binary = record.binary;
@@ -102,25 +126,65 @@ BatchSubmitSummary Submit(const BatchLayout& layout, BatchRecord record, const s
     return summary;
   }
   submission.kind = "slurm";
-  CheckMaxArraySize(indices, options);
+  summary.max_array_size = ClusterMaxArraySize(options);
+  std::vector<ArrayJob> jobs = SplitArrayJobs(indices, summary.max_array_size);
   fs::create_directories(layout.slurm_dir());
   summary.job_script = layout.slurm_dir() + "/job.sh";
-  WriteFileAtomically(summary.job_script, JobScript(record, layout));
+  WriteFileAtomically(summary.job_script, JobScript(record, layout, options));
   fs::permissions(summary.job_script, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                                           fs::perms::others_read | fs::perms::others_exec);
-  submission.command = SbatchCommand(layout, indices, options, summary.job_script);
-  const CapturedRun run = RunAndCapture(submission.command);
-  RB_CHECK(run.started, options.sbatch, ": cannot run sbatch (", run.error,
-           "); submit from a machine with the Slurm client installed, or use --local N to run here");
-  if (run.exit.exit_code != 0) {
-    std::string line = LastLine(run.err);
-    if (line.empty()) line = LastLine(run.out);
-    RB_FAIL("sbatch refused the job (exit ", run.exit.exit_code, "): ", line.empty() ? "no message" : line);
+  for (ArrayJob& job : jobs) {
+    // With a throttle, each array waits for the one before, so that the throttle holds for the batch.
+    if (options.max_parallel > 0 && !summary.submissions.empty()) job.after_job = summary.submissions.back().job_id;
+    BatchSubmission s = submission;
+    s.indices = job.indices;
+    s.array_offset = job.offset;
+    s.command = SbatchCommand(layout, job, options, summary.job_script);
+    const CapturedRun run = RunAndCapture(s.command);
+    // The jobs accepted before a refusal are recorded (their tasks run); the message names them.
+    const bool first = summary.submissions.empty();
+    const std::string which = first ? "" : " for " + TasksText(job.indices);
+    const std::string before = first ? ""
+                                     : "; Slurm accepted the jobs before it, " + JobsText(summary.submissions) +
+                                           ", recorded in " + layout.record() +
+                                           ": once they have ended, 'rangebayes batch resubmit " + layout.dir +
+                                           "' submits the rest";
+    RB_CHECK(run.started, options.sbatch, ": cannot run sbatch", which, " (", run.error, ")",
+             first ? "; submit from a machine with the Slurm client installed, or use --local N to run here" : before);
+    if (run.exit.exit_code != 0) {
+      std::string line = LastLine(run.err);
+      if (line.empty()) line = LastLine(run.out);
+      RB_FAIL("sbatch refused the job", which, " (exit ", run.exit.exit_code, "): ", line.empty() ? "no message" : line,
+              before);
+    }
+    s.job_id = ParseSbatchJobId(run.out);
+    record.submissions.push_back(s);
+    summary.submissions.push_back(s);
+    WriteBatchRecord(layout, record);
   }
-  submission.job_id = ParseSbatchJobId(run.out);
-  record.submissions.push_back(submission);
-  WriteBatchRecord(layout, record);
   return summary;
+}
+
+// The Slurm array job ids of the batch's submissions, in order.
+std::vector<std::string> SlurmJobsOf(const BatchRecord& record) {
+  std::vector<std::string> jobs;
+  for (const BatchSubmission& s : record.submissions) {
+    if (s.kind == "slurm") jobs.push_back(s.job_id);
+  }
+  return jobs;
+}
+
+// Every task line as the binary's parser reads it (options.check_line), naming the manifest line it refuses.
+void CheckTaskLines(const std::vector<ManifestTask>& tasks, const std::string& manifest_dir,
+                    const BatchSubmitOptions& options, const std::string& source) {
+  if (!options.check_line) return;
+  for (const ManifestTask& t : tasks) {
+    try {
+      options.check_line(ResolveTaskArguments(t.arguments, manifest_dir, options.syntaxes));
+    } catch (const Error& e) {
+      RB_FAIL(source, ":", t.line_number, ": ", e.what());
+    }
+  }
 }
 
 // Array job ids that squeue lists (queued or running); `*listed` tells whether squeue could be run at all.
@@ -130,7 +194,7 @@ std::set<std::string> QueuedArrayJobs(const std::string& squeue, bool* listed) {
   *listed = run.started;
   if (!run.started) return jobs;
   RB_CHECK(run.exit.exit_code == 0, "squeue failed (exit ", run.exit.exit_code, "): ", LastLine(run.err),
-           "; resubmit checks that no task of the batch is still queued");
+           "; it is asked which jobs of the batch are still queued or running");
   std::istringstream in(run.out);
   std::string id;
   while (in >> id) jobs.insert(id);
@@ -145,18 +209,42 @@ void BatchSubmitOptions::Check() const {
   RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "BatchSubmitOptions::binary must be absolute: ", binary);
   RB_CHECK(partition.find_first_of(" \t\n") == std::string::npos, "--partition has whitespace: '", partition, "'");
   RB_CHECK(!sbatch.empty() && !squeue.empty(), "BatchSubmitOptions: sbatch and squeue must be named");
+  if (task_timeout_s != 0) {
+    CheckTaskTimeout(task_timeout_s);
+    for (const std::string& a : slurm_args) {
+      RB_CHECK(!IsSlurmTimeArgument(a), "--task-timeout sets sbatch's --time (", SlurmTimeMinutes(task_timeout_s),
+               " min for ", FormatSeconds(task_timeout_s), " s); give it without --slurm-arg=", a);
+    }
+  }
+}
+
+long SlurmTimeMinutes(double task_timeout_s) {
+  return static_cast<long>(std::ceil((task_timeout_s + kTaskTimeoutGraceS) / 60)) + 1;
 }
 
 std::string BatchSubmitSummary::BriefReport() const {
   std::ostringstream out;
-  if (submission.kind == "local") {
-    out << "ran " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " on " << submission.workers
-        << " local worker" << (submission.workers == 1 ? "" : "s") << " in " << dir;
+  const auto plural = [](size_t n, const char* word) { return std::to_string(n) + " " + word + (n == 1 ? "" : "s"); };
+  if (!submissions.empty() && submissions.front().kind == "local") {
+    out << "ran " << plural(indices.size(), "task") << " on " << plural(submissions.front().workers, "local worker")
+        << " in " << dir;
+  } else if (submissions.size() == 1) {
+    out << "submitted " << plural(indices.size(), "task") << " as Slurm job " << submissions.front().job_id
+        << " (array " << ArraySpec(submissions.front().indices, 0) << ") in " << dir;
   } else {
-    out << "submitted " << indices.size() << " task" << (indices.size() == 1 ? "" : "s") << " as Slurm job "
-        << submission.job_id << " (array " << ArraySpec(indices, 0) << ") in " << dir;
+    out << "submitted " << plural(indices.size(), "task") << " as " << submissions.size() << " Slurm jobs";
+    if (max_array_size) out << " (MaxArraySize " << *max_array_size << ")";
+    out << ": " << JobsText(submissions) << " in " << dir;
   }
   return out.str();
+}
+
+std::string BatchSubmitSummary::JobIds() const {
+  std::string ids;
+  for (const BatchSubmission& s : submissions) {
+    if (s.kind == "slurm") ids += (ids.empty() ? "" : " ") + s.job_id;
+  }
+  return ids;
 }
 
 std::string ArraySpec(const std::vector<int>& input, int max_parallel) {
@@ -177,19 +265,42 @@ std::string ArraySpec(const std::vector<int>& input, int max_parallel) {
   return out.str();
 }
 
-std::vector<std::string> SbatchCommand(const BatchLayout& layout, const std::vector<int>& indices,
+std::vector<ArrayJob> SplitArrayJobs(const std::vector<int>& input, std::optional<int> max_array_size) {
+  std::vector<int> indices = input;
+  std::sort(indices.begin(), indices.end());
+  indices.erase(std::unique(indices.begin(), indices.end()), indices.end());
+  RB_CHECK(!indices.empty(), "no tasks to submit");
+  RB_CHECK(!max_array_size || *max_array_size > 0, "MaxArraySize must be positive, got ", *max_array_size);
+  if (!max_array_size || indices.back() < *max_array_size) return {ArrayJob{0, indices, ""}};
+  std::vector<ArrayJob> jobs;
+  for (const int index : indices) {
+    const int offset = index / *max_array_size * *max_array_size;
+    if (jobs.empty() || jobs.back().offset != offset) jobs.push_back(ArrayJob{offset, {}, ""});
+    jobs.back().indices.push_back(index);
+  }
+  return jobs;
+}
+
+std::vector<std::string> SbatchCommand(const BatchLayout& layout, const ArrayJob& job,
                                        const BatchSubmitOptions& options, const std::string& job_script) {
+  std::vector<int> array_indices;
+  for (const int index : job.indices) array_indices.push_back(index - job.offset);
   std::vector<std::string> command = {options.sbatch,
                                       "--parsable",
                                       "--job-name=rangebayes-batch",
-                                      "--array=" + ArraySpec(indices, options.max_parallel),
+                                      "--array=" + ArraySpec(array_indices, options.max_parallel),
                                       "--requeue",
                                       "--open-mode=append",
                                       "--output=" + layout.slurm_dir() + "/%A_%a.out",
                                       "--chdir=" + layout.dir};
   if (!options.partition.empty()) command.push_back("--partition=" + options.partition);
+  if (options.task_timeout_s > 0) {
+    command.push_back("--time=" + std::to_string(SlurmTimeMinutes(options.task_timeout_s)));
+  }
+  if (!job.after_job.empty()) command.push_back("--dependency=afterany:" + job.after_job);
   command.insert(command.end(), options.slurm_args.begin(), options.slurm_args.end());
   command.push_back(job_script);
+  if (job.offset != 0) command.push_back(std::to_string(job.offset));
   return command;
 }
 
@@ -230,6 +341,7 @@ BatchSubmitSummary SubmitBatch(const std::string& manifest_path, const std::stri
     }
   }
   for (const ManifestTask& t : tasks) CheckTaskOutputs(t, options.syntaxes, manifest_path);
+  CheckTaskLines(tasks, fs::absolute(manifest_path).lexically_normal().parent_path().string(), options, manifest_path);
   const BatchLayout layout(dir);
   const auto check_no_batch = [&] {
     // A folder whose earlier submit was refused (no submission recorded) may be used again.
@@ -260,10 +372,9 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   BatchRecord record = ReadBatchRecord(layout);
   const BatchReport report = CollectBatchReport(layout.dir);
   for (const ManifestTask& t : report.tasks) CheckTaskOutputs(t, options.syntaxes, layout.manifest());
-  std::set<std::string> ours;
-  for (const BatchSubmission& s : record.submissions) {
-    if (s.kind == "slurm") ours.insert(s.job_id);
-  }
+  CheckTaskLines(report.tasks, record.manifest_dir, options, layout.manifest());
+  const std::vector<std::string> jobs = SlurmJobsOf(record);
+  const std::set<std::string> ours(jobs.begin(), jobs.end());
   bool queue_listed = false;
   if (!ours.empty()) {
     for (const std::string& id : QueuedArrayJobs(options.squeue, &queue_listed)) {
@@ -273,18 +384,54 @@ BatchSubmitSummary ResubmitBatch(const std::string& dir, const BatchSubmitOption
   }
   // Missing, failed and interrupted (a run-task process on this host gone before it recorded an end).
   std::vector<int> indices = report.UnfinishedIndices();
-  if (queue_listed) {
-    // No job of the batch is left in the queue, so a task still marked running (on another node, where
-    // its process cannot be checked) was killed before it could write its final status: unfinished too.
+  // A task still marked running: with no job of the batch left in the queue, it was killed (on another node, where
+  // its process cannot be checked) before it could write its final status; with include_running, the user says it
+  // was (a --local run on a host that died). Never one whose run-task is alive here.
+  if (queue_listed || options.include_running) {
     for (size_t i = 0; i < report.states.size(); ++i) {
-      if (report.states[i] == "running") indices.push_back(static_cast<int>(i));
+      if (report.states[i] != "running") continue;
+      const BatchTaskStatus& s = *report.statuses[i];
+      RB_CHECK(!RunTaskRunsHere(s), "task ", i, " still runs on this host (run-task pid ", s.pid,
+               "); wait for it to end, or stop it, before batch resubmit");
+      indices.push_back(static_cast<int>(i));
     }
   }
   std::sort(indices.begin(), indices.end());
-  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ",
-           report.running, " running)");
+  RB_CHECK(!indices.empty(), layout.dir, ": nothing to resubmit (", report.succeeded, " succeeded, ", report.running,
+           " running",
+           report.running > 0 && !options.include_running
+               ? "; a task that reads running on a host that is down is taken by resubmit --include-running"
+               : "",
+           ")");
   if (!options.binary.empty()) record.binary = options.binary;
   return Submit(layout, record, indices, options);
+}
+
+std::vector<std::string> CancelBatch(const std::string& dir, const BatchSubmitOptions& options) {
+  const BatchLayout layout(dir);
+  const std::vector<std::string> jobs = SlurmJobsOf(ReadBatchRecord(layout));
+  RB_CHECK(!jobs.empty(), layout.dir,
+           ": has no Slurm job to cancel (a --local run ends with Ctrl-C of its submit or "
+           "resubmit, or kill of the pid named in ",
+           layout.dir, "/batch.lock)");
+  bool listed = false;
+  const std::set<std::string> queued = QueuedArrayJobs(options.squeue, &listed);
+  RB_CHECK(listed, options.squeue,
+           ": cannot run squeue, which says which jobs of the batch are still queued or "
+           "running; cancel them with scancel (their ids are in ",
+           layout.record(), ")");
+  std::vector<std::string> cancel;
+  for (const std::string& job : jobs) {
+    if (queued.count(job) != 0) cancel.push_back(job);
+  }
+  RB_CHECK(!cancel.empty(), layout.dir, ": no Slurm job of this batch is queued or running (jobs ", QuoteForShell(jobs),
+           "); see rangebayes batch status ", layout.dir);
+  std::vector<std::string> command = {options.scancel};
+  command.insert(command.end(), cancel.begin(), cancel.end());
+  const CapturedRun run = RunAndCapture(command);
+  RB_CHECK(run.started, options.scancel, ": cannot run scancel (", run.error, ")");
+  RB_CHECK(run.exit.exit_code == 0, "scancel failed (exit ", run.exit.exit_code, "): ", LastLine(run.err));
+  return cancel;
 }
 
 void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices, const BatchSubmitOptions& options) {
@@ -321,6 +468,7 @@ void RunBatchLocally(const BatchLayout& layout, const std::vector<int>& indices,
     while (next < indices.size() && static_cast<int>(running.size()) < options.local_workers) {
       ProcessSpec spec;
       spec.argv = {binary, "batch", "run-task", layout.dir, std::to_string(indices[next])};
+      for (const std::string& word : RunTaskOptionWords(options)) spec.argv.push_back(word);
       spec.output_path = output;
       running[StartProcess(spec)] = indices[next];
       ++next;

@@ -1,11 +1,13 @@
 #include "batch/task.h"
 
 #include <signal.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -100,13 +102,66 @@ bool ProcessRunsHere(int pid) {
   return name_end == std::string::npos || name_end + 2 >= line.size() || line[name_end + 2] != 'Z';
 }
 
-volatile sig_atomic_t g_child_pid = 0;
+// Where signals for the command go while it runs: its pid, or minus its process group; 0 when none runs.
+volatile sig_atomic_t g_command_target = 0;
 volatile sig_atomic_t g_signal = 0;
+volatile sig_atomic_t g_time_limit_alarms = 0;
 
 void ForwardSignal(int sig) {
   g_signal = sig;
-  if (g_child_pid > 0) kill(static_cast<pid_t>(g_child_pid), sig);
+  if (g_command_target != 0) kill(static_cast<pid_t>(g_command_target), sig);
 }
+
+// The first alarm is the task's time limit (SIGTERM); every later one, a grace period apart, sends SIGKILL.
+void TimeLimitAlarm(int) {
+  const bool first = g_time_limit_alarms == 0;
+  g_time_limit_alarms = 1;
+  if (g_command_target != 0) kill(static_cast<pid_t>(g_command_target), first ? SIGTERM : SIGKILL);
+}
+
+timeval Timeval(double seconds) {
+  timeval t{};
+  t.tv_sec = static_cast<time_t>(seconds);
+  t.tv_usec = static_cast<suseconds_t>((seconds - static_cast<double>(t.tv_sec)) * 1e6);
+  if (t.tv_sec == 0 && t.tv_usec == 0) t.tv_usec = 1;  // a zero it_value would disarm the timer
+  return t;
+}
+
+// The command's time limit while it lives: SIGALRM (ITIMER_REAL) after `limit_s`, then every `grace_s`. The old
+// SIGALRM action comes back, and the timer is disarmed, at Disarm or at the end of its scope. Armed() is false
+// when sigaction or setitimer failed (they fail only for invalid arguments).
+class TimeLimit {
+ public:
+  TimeLimit(double limit_s, double grace_s) {
+    g_time_limit_alarms = 0;
+    if (limit_s <= 0) return;
+    struct sigaction sa {};
+    sa.sa_handler = TimeLimitAlarm;
+    sigemptyset(&sa.sa_mask);
+    if (sigaction(SIGALRM, &sa, &old_) != 0) return;
+    itimerval timer{};
+    timer.it_value = Timeval(limit_s);
+    timer.it_interval = Timeval(grace_s);
+    armed_ = setitimer(ITIMER_REAL, &timer, nullptr) == 0;
+    if (!armed_) sigaction(SIGALRM, &old_, nullptr);
+  }
+  bool Armed() const { return armed_; }
+  ~TimeLimit() { Disarm(); }
+  TimeLimit(const TimeLimit&) = delete;
+  TimeLimit& operator=(const TimeLimit&) = delete;
+  void Disarm() {
+    if (!armed_) return;
+    const itimerval off{};
+    setitimer(ITIMER_REAL, &off, nullptr);
+    sigaction(SIGALRM, &old_, nullptr);
+    armed_ = false;
+  }
+  bool Reached() const { return g_time_limit_alarms != 0; }
+
+ private:
+  bool armed_ = false;
+  struct sigaction old_ {};
+};
 
 // Forwards SIGTERM, SIGINT and SIGHUP to the command while it lives. A signal that is ignored (nohup, a background
 // job of a non-interactive shell) keeps its SIG_IGN, which the command inherits: whoever ignored it meant the
@@ -127,7 +182,7 @@ struct SignalForwarding {
     }
   }
   ~SignalForwarding() {
-    g_child_pid = 0;
+    g_command_target = 0;
     for (int k = 0; k < 3; ++k) {
       if (installed[k]) sigaction(kSignals[k], &old[k], nullptr);
     }
@@ -206,10 +261,12 @@ void WriteBatchRecord(const BatchLayout& layout, const BatchRecord& record) {
     js["indices"] = s.indices;
     if (s.kind == "slurm") {
       js["job_id"] = s.job_id;
+      if (s.array_offset != 0) js["array_offset"] = s.array_offset;
       js["command"] = s.command;
     } else {
       js["workers"] = s.workers;
     }
+    if (s.task_timeout_s > 0) js["task_timeout_s"] = s.task_timeout_s;
     j["submissions"].push_back(js);
   }
   std::string text;
@@ -238,8 +295,10 @@ BatchRecord ReadBatchRecord(const BatchLayout& layout) {
       s.time_utc = js.value("time_utc", "");
       for (const json& i : js.at("indices")) s.indices.push_back(IntOf(i, "an element of \"indices\""));
       s.job_id = js.value("job_id", "");
+      s.array_offset = IntAt(js, "array_offset", 0);
       if (js.contains("command")) s.command = js.at("command").get<std::vector<std::string>>();
       s.workers = IntAt(js, "workers", 0);
+      s.task_timeout_s = js.value("task_timeout_s", 0.0);
       record.submissions.push_back(s);
     }
   } catch (const json::exception& e) {
@@ -294,8 +353,9 @@ BatchTaskStatus ParseBatchTaskStatus(const std::string& text, const std::string&
   } catch (const json::exception& e) {
     RB_FAIL(source, ": malformed task status (", e.what(), ")");
   }
-  RB_CHECK(s.state == "running" || s.state == "succeeded" || s.state == "partial" || s.state == "failed", source,
-           ": unknown state '", s.state, "'");
+  RB_CHECK(s.state == "running" || s.state == "succeeded" || s.state == "partial" || s.state == "failed" ||
+               s.state == "timeout",
+           source, ": unknown state '", s.state, "'");
   return s;
 }
 
@@ -312,6 +372,38 @@ std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, in
 
 void RunTaskOptions::Check() const {
   RB_CHECK(binary.empty() || fs::path(binary).is_absolute(), "RunTaskOptions::binary must be absolute: ", binary);
+  if (task_timeout_s != 0) CheckTaskTimeout(task_timeout_s);
+  RB_CHECK(std::isfinite(timeout_grace_s) && timeout_grace_s > 0 && timeout_grace_s <= kMaxTaskTimeoutS,
+           "RunTaskOptions::timeout_grace_s must be a positive number of seconds, got ", timeout_grace_s);
+}
+
+void CheckTaskTimeout(double seconds) {
+  RB_CHECK(std::isfinite(seconds) && seconds > 0 && seconds <= kMaxTaskTimeoutS,
+           "--task-timeout must be a number of seconds above 0 and at most ", FormatSeconds(kMaxTaskTimeoutS),
+           " (a year), got ", FormatSeconds(seconds));
+}
+
+std::string FormatSeconds(double seconds) {
+  std::ostringstream out;
+  out.precision(15);
+  out << seconds;
+  return out.str();
+}
+
+bool JobReachedTimeLimit(const std::string& output, const std::string& job_id, std::string* limit) {
+  std::istringstream lines(output);
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream words(line);
+    std::string word;
+    if (!(words >> word) || word != "JobId=" + job_id) continue;
+    bool reached = false;
+    while (words >> word) {
+      if (word == "JobState=TIMEOUT" || word == "Reason=TimeLimit") reached = true;
+      if (word.rfind("TimeLimit=", 0) == 0 && limit != nullptr) *limit = word.substr(10);
+    }
+    return reached;
+  }
+  return false;
 }
 
 namespace {
@@ -357,19 +449,58 @@ BatchTaskStatus StartingStatus(const BatchLayout& layout, const ManifestTask& ta
   return status;
 }
 
-// Runs the task's command with the signals forwarded to it; a command that cannot start gives start_error.
-ProcessExit RunCommand(const ProcessSpec& spec, const RunTaskOptions& options, std::string* start_error) {
+// How the command ended, besides its exit: a stop signal run-task received (forwarded to it), or its time limit.
+struct CommandEnd {
   ProcessExit exit;
+  std::string start_error;  // not empty: the command could not start
+  int stop_signal = 0;      // SIGTERM, SIGINT or SIGHUP that run-task received and forwarded
+  bool time_limit = false;  // its --task-timeout expired (SIGTERM, then SIGKILL after the grace)
+};
+
+// Runs the task's command with the signals forwarded to it and its time limit, if any. With a time limit the
+// command leads a process group of its own, and both go to the whole group (whatever it started too).
+CommandEnd RunCommand(ProcessSpec spec, const RunTaskOptions& options) {
+  CommandEnd end;
   SignalForwarding forwarding(options.forward_signals);
+  spec.own_process_group = options.task_timeout_s > 0;
+  pid_t pid = -1;
   try {
-    const pid_t pid = StartProcess(spec);
-    g_child_pid = pid;
-    if (g_signal != 0) kill(pid, g_signal);
-    exit = WaitProcess(pid);
+    pid = StartProcess(spec);
   } catch (const Error& e) {
-    *start_error = e.what();
+    end.start_error = e.what();
+    return end;
   }
-  return exit;
+  g_command_target = spec.own_process_group ? -pid : pid;
+  if (g_signal != 0) kill(static_cast<pid_t>(g_command_target), g_signal);
+  TimeLimit limit(options.task_timeout_s, options.timeout_grace_s);
+  if (options.task_timeout_s > 0 && !limit.Armed()) {
+    end.start_error = "cannot arm the task's time limit (setitimer: " + std::string(std::strerror(errno)) + ")";
+    kill(static_cast<pid_t>(g_command_target), SIGKILL);
+  }
+  // Until it is reaped, the command's pid and process group stay its own, so a late alarm or forwarded signal
+  // reaches no other process.
+  WaitUntilEnded(pid);
+  limit.Disarm();
+  g_command_target = 0;
+  end.time_limit = limit.Reached();
+  end.exit = WaitProcess(pid);
+  end.stop_signal = g_signal;
+  return end;
+}
+
+// Why Slurm stopped the job run-task runs in (it forwarded SIGTERM): its time limit, when `scontrol show job` says
+// so (the controller sets Reason=TimeLimit before slurmd sends the signal); else cancelled, preempted or requeued.
+std::string SlurmStopReason(const RunTaskOptions& options, bool* time_limit) {
+  const std::string job = Env("SLURM_JOB_ID");
+  const CapturedRun run = RunAndCapture({options.scontrol, "show", "job", "-o", job});
+  if (!run.started || run.exit.exit_code != 0) {
+    return "Slurm stopped the job: cancelled, preempted, requeued or its time limit reached (scontrol show job " + job +
+           " could not say which: " + (run.started ? LastLine(run.err) : run.error) + ")";
+  }
+  std::string limit;
+  *time_limit = JobReachedTimeLimit(run.out, job, &limit);
+  if (*time_limit) return "Slurm job " + job + " reached its time limit" + (limit.empty() ? "" : " of " + limit);
+  return "the job was cancelled, preempted or requeued";
 }
 
 std::string ReadFrom(const std::string& path, std::uintmax_t offset) {
@@ -380,20 +511,40 @@ std::string ReadFrom(const std::string& path, std::uintmax_t offset) {
   return text.str();
 }
 
-// The exit code and error line of a command that ended (or never started), from its output in the log.
-void RecordExit(const ProcessExit& exit, const std::string& start_error, int stop_signal, const std::string& output,
-                const std::string& log, BatchTaskStatus* status) {
-  if (!start_error.empty()) {
+// The exit code and error line of a command that ended (or never started), from its output in the log; a command
+// stopped at its time limit (ours or Slurm's) is recorded as "timeout".
+void RecordExit(const CommandEnd& end, const RunTaskOptions& options, const std::string& output, const std::string& log,
+                BatchTaskStatus* status) {
+  if (!end.start_error.empty()) {
     status->exit_code = 127;
-    status->error_line = start_error;
+    status->error_line = end.start_error;
     return;
   }
+  const ProcessExit& exit = end.exit;
   status->exit_code = exit.exit_code;
-  if (exit.exit_code != 0) status->error_line = TaskErrorLine(output);
-  if (exit.signal != 0) {
-    status->error_line = "ended by signal " + std::to_string(exit.signal) +
-                         (stop_signal != 0 ? " (the job was cancelled, preempted or requeued)" : "") +
-                         (status->error_line.empty() ? "" : "; last line: " + status->error_line);
+  const std::string last = exit.exit_code != 0 ? TaskErrorLine(output) : "";
+  status->error_line = last;
+  if (end.time_limit) {
+    status->state = "timeout";
+    status->error_line =
+        "time limit of " + FormatSeconds(options.task_timeout_s) + " s reached (--task-timeout): " +
+        (exit.signal == SIGKILL ? "killed (SIGKILL) " + FormatSeconds(options.timeout_grace_s) + " s after SIGTERM"
+                                : "stopped with SIGTERM (exit " + std::to_string(exit.exit_code) + ")") +
+        (last.empty() ? "" : "; last line: " + last);
+    return;
+  }
+  if (end.stop_signal != 0) {
+    std::string reason;
+    if (!Env("SLURM_JOB_ID").empty()) {
+      bool time_limit = false;
+      reason = " (" + SlurmStopReason(options, &time_limit) + ")";
+      if (time_limit) status->state = "timeout";
+    }
+    status->error_line = "stopped by signal " + std::to_string(end.stop_signal) + reason + ", exit " +
+                         std::to_string(exit.exit_code) + (last.empty() ? "" : "; last line: " + last);
+  } else if (exit.signal != 0) {
+    status->error_line =
+        "ended by signal " + std::to_string(exit.signal) + (last.empty() ? "" : "; last line: " + last);
   } else if (exit.exit_code != 0 && status->error_line.empty()) {
     // A command whose error line could not reach the log (a full disk) still fails with a line saying so.
     status->error_line = "exit " + std::to_string(exit.exit_code) + " with no output in " + log;
@@ -401,10 +552,11 @@ void RecordExit(const ProcessExit& exit, const std::string& start_error, int sto
 }
 
 // Publishes the work folder of a command that succeeded (exit 0) or partly succeeded (exit 3: replay with frames
-// that failed or were skipped) and was not stopped; else the task failed.
-void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, int stop_signal,
+// that failed or were skipped) and was neither stopped nor timed out; else the task failed (or timed out).
+void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, const CommandEnd& end,
                    BatchTaskStatus* status) {
-  if ((status->exit_code == 0 || status->exit_code == 3) && stop_signal == 0) {
+  const bool stopped = end.stop_signal != 0 || end.time_limit;
+  if ((status->exit_code == 0 || status->exit_code == 3) && !stopped) {
     try {
       Publish(work, layout.task_dir(index));
       status->state = status->exit_code == 0 ? "succeeded" : "partial";
@@ -416,11 +568,8 @@ void PublishOrFail(const BatchLayout& layout, int index, const fs::path& work, i
     }
     return;
   }
-  status->state = "failed";
-  if (status->exit_code == 0) {
-    status->exit_code = 128 + stop_signal;
-    status->error_line = "stopped by signal " + std::to_string(stop_signal) + " before its result was published";
-  }
+  if (status->state != "timeout") status->state = "failed";
+  if (status->exit_code == 0) status->exit_code = 128 + (end.time_limit ? SIGTERM : end.stop_signal);
 }
 
 // Task i's status and result belong to line i of the manifest, so the manifest may be edited but keep its tasks.
@@ -503,14 +652,12 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
   spec.working_dir = work.string();
   spec.output_path = log;
   const auto start = std::chrono::steady_clock::now();
-  std::string start_error;
-  const ProcessExit exit = RunCommand(spec, options, &start_error);
+  const CommandEnd end = RunCommand(spec, options);
   status.duration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   status.end_utc = NowUtc();
 
-  const int stop_signal = g_signal;
-  RecordExit(exit, start_error, stop_signal, ReadFrom(log, log_start), log, &status);
-  PublishOrFail(layout, index, work, stop_signal, &status);
+  RecordExit(end, options, ReadFrom(log, log_start), log, &status);
+  PublishOrFail(layout, index, work, end, &status);
   fs::remove_all(work, ec);
   {
     std::ofstream footer(log, std::ios::app);
@@ -526,6 +673,10 @@ bool RunTaskIsGone(const BatchTaskStatus& status) {
   if (!ProcessRunsHere(status.pid)) return true;
   // A process with that pid runs, but it may be another that reused the pid.
   return status.pid_start_ticks >= 0 && ProcessStartTicks(status.pid) != status.pid_start_ticks;
+}
+
+bool RunTaskRunsHere(const BatchTaskStatus& status) {
+  return status.state == "running" && status.pid > 0 && status.host == HostName() && !RunTaskIsGone(status);
 }
 
 BatchReport CollectBatchReport(const std::string& dir) {
@@ -563,6 +714,7 @@ BatchReport CollectBatchReport(const std::string& dir) {
     if (state == "partial") ++report.partial;
     if (state == "changed") ++report.changed;
     if (state == "failed") ++report.failed;
+    if (state == "timeout") ++report.timeout;
     if (state == "running") ++report.running;
     if (state == "interrupted") ++report.interrupted;
     if (state == "missing") ++report.missing;
@@ -587,10 +739,21 @@ std::string BatchReport::BriefReport() const {
   out << dir << ": " << tasks.size() << " tasks: " << succeeded << " succeeded, ";
   if (partial > 0) out << partial << " partial, ";
   if (changed > 0) out << changed << " changed, ";
-  out << failed << " failed, " << running << " running, ";
+  out << failed << " failed, ";
+  if (timeout > 0) out << timeout << " timeout, ";
+  out << running << " running, ";
   if (interrupted > 0) out << interrupted << " interrupted, ";
   out << missing << " missing\n";
+  const std::string here = HostName();
   for (size_t i = 0; i < tasks.size(); ++i) {
+    if (states[i] == "running" && statuses[i]->job_id.empty() && !statuses[i]->host.empty() &&
+        statuses[i]->host != here) {
+      const BatchTaskStatus& s = *statuses[i];
+      out << "running: task " << i << " (manifest line " << tasks[i].line_number << ", started " << s.start_utc
+          << ") on " << s.host << " (not this host, " << here << ": cannot check whether its run-task process " << s.pid
+          << " still runs); if " << s.host << " is down, 'rangebayes batch resubmit " << dir
+          << " --include-running' runs it again\n";
+    }
     if (states[i] == "interrupted") {
       const BatchTaskStatus& s = *statuses[i];
       out << "interrupted: task " << i << " (manifest line " << tasks[i].line_number << ", attempt " << s.attempt
@@ -603,7 +766,7 @@ std::string BatchReport::BriefReport() const {
           << " run was of the line '" << statuses[i]->line
           << "', which DIR/manifest.txt no longer has; 'rangebayes batch resubmit " << dir << "' runs the new one\n";
     }
-    if (states[i] != "failed" && states[i] != "partial") continue;
+    if (states[i] != "failed" && states[i] != "partial" && states[i] != "timeout") continue;
     const BatchTaskStatus& s = *statuses[i];
     out << states[i] << ": task " << i << " (manifest line " << tasks[i].line_number << ", exit " << s.exit_code
         << ", attempt " << s.attempt << ", host " << (s.node.empty() ? s.host : s.node) << "): " << s.error_line
@@ -620,6 +783,7 @@ std::string BatchReport::Json() const {
   j["partial"] = partial;
   j["changed"] = changed;
   j["failed"] = failed;
+  j["timeout"] = timeout;
   j["running"] = running;
   j["interrupted"] = interrupted;
   j["missing"] = missing;

@@ -8,7 +8,9 @@
 //   DIR/tasks/.tmp-<index>-<attempt>-<pid>/   where a task runs; renamed to tasks/<index>/ on success
 //   DIR/status/<index>.json the task's status (BatchTaskStatus), replaced atomically
 //   DIR/logs/<index>.log    the task command's stdout and stderr, appended by every run
-//   DIR/slurm/              job script and Slurm's output files (%A_%a.out, opened for append)
+//   DIR/slurm/              job script and Slurm's output files (<job>_<array index>.out, opened for append; the
+//                           array index is the task index less the job's array_offset, 0 unless a batch above
+//                           MaxArraySize was split)
 #pragma once
 
 #include <cstdint>
@@ -39,8 +41,10 @@ struct BatchSubmission {
   std::string time_utc;      // ISO 8601
   std::vector<int> indices;  // the task indices it ran
   std::string job_id;        // Slurm array job id (kind slurm)
+  int array_offset = 0;      // task index = array_offset + array index (kind slurm; ArrayJob::offset)
   std::vector<std::string> command;  // the sbatch command line (kind slurm)
   int workers = 0;                   // worker processes (kind local)
+  double task_timeout_s = 0;         // each task's time limit (--task-timeout); 0: none
 };
 
 // DIR/batch.json.
@@ -61,7 +65,7 @@ BatchRecord ReadBatchRecord(const BatchLayout& layout);
 struct BatchTaskStatus {
   int index = 0;
   // "running", "succeeded", "partial" (the command exited 3: some of its work failed or was skipped, the rest is
-  // published) or "failed"
+  // published), "failed", or "timeout" (stopped at its time limit: run-task's --task-timeout, or Slurm's)
   std::string state;
   int exit_code = -1;     // of the task's command; 128 + signal when a signal ended it; -1 while running
   int attempt = 0;        // SLURM_RESTART_COUNT (0 on the first run of a job, and for --local)
@@ -87,25 +91,49 @@ void WriteBatchTaskStatus(const BatchLayout& layout, const BatchTaskStatus& stat
 // nullopt when the task has no status file yet.
 std::optional<BatchTaskStatus> ReadBatchTaskStatus(const BatchLayout& layout, int index);
 
+// After SIGTERM at its time limit, a task's command has this long to end before SIGKILL (Slurm's KillWait is 30 s
+// by default; the command's own cleanup takes well under a second).
+constexpr double kTaskTimeoutGraceS = 10;
+
 struct RunTaskOptions {
   std::string binary;  // the rangebayes binary that runs the task's line; empty: this executable
-  // Forward SIGTERM/SIGINT/SIGHUP (Slurm's cancel, preemption, requeue) to the command, then clean up the
-  // temporary folder and record the task as failed.
+  // Forward SIGTERM/SIGINT/SIGHUP (Slurm's cancel, preemption, requeue, time limit) to the command, then clean up
+  // the temporary folder and record the task as failed (or as timeout when Slurm says its time limit was reached).
   // A signal that was ignored when run-task started (nohup, a background job of a script) stays ignored, for
   // run-task and its command.
   bool forward_signals = true;
+  // > 0: the command's time limit (s, finite, at most kMaxTaskTimeoutS): then SIGTERM to its process group (it
+  // runs in one of its own), SIGKILL after timeout_grace_s more, and the task is recorded as "timeout".
+  double task_timeout_s = 0;
+  double timeout_grace_s = kTaskTimeoutGraceS;  // > 0, finite
+  // Asked (`scontrol show job -o $SLURM_JOB_ID`) whether a stop signal inside a Slurm job was its time limit.
+  std::string scontrol = "scontrol";
   SubcommandSyntaxes syntaxes;  // where each subcommand names its outputs (OutputWordIndices)
   void Check() const;
 };
 
+// The largest --task-timeout: a year, in seconds.
+constexpr double kMaxTaskTimeoutS = 365.0 * 24 * 3600;
+
+// Throws naming --task-timeout unless `seconds` is a finite number in (0, kMaxTaskTimeoutS].
+void CheckTaskTimeout(double seconds);
+
+// Whether `scontrol show job -o` output says that job `job_id` was stopped at its time limit: its line (JobId=ID;
+// an array's own id lists every task of the array, one line each) says JobState=TIMEOUT, or Reason=TimeLimit (while
+// it completes, which is when its processes get SIGTERM). *limit gets its TimeLimit value ("00:01:00").
+bool JobReachedTimeLimit(const std::string& scontrol_output, const std::string& job_id, std::string* limit);
+
+// Seconds as a short decimal ("30", "0.25"), as written on the command lines of run-task.
+std::string FormatSeconds(double seconds);
+
 // Runs task `index` of the batch in DIR: resolves the line's paths (ResolveTaskArguments), runs it in
 // DIR/tasks/.tmp-<index>-<attempt>-<pid>/ with its output appended to DIR/logs/<index>.log, and renames the
 // folder to DIR/tasks/<index>/ (replacing an older result) only when the command exited 0 (succeeded) or 3
-// (partial); otherwise removes it. A line whose output is absolute or leaves the task's folder
-// (CheckTaskOutputs) fails without running. Writes the status file at the start (running) and the end. On
-// success it also removes the temporary folders that earlier runs of the same task left when they were killed
-// (SIGKILL, a lost node), but not one whose process (the pid in its name) is alive on this host. Returns the
-// final status; throws only when DIR is not a batch, its manifest has another number of tasks than it was
+// (partial) and was neither stopped by a signal nor at its time limit; otherwise removes it. A line whose output is
+// absolute or leaves the task's folder (CheckTaskOutputs) fails without running. Writes the status file at the start
+// (running) and the end. On success it also removes the temporary folders that earlier runs of the same task left when
+// they were killed (SIGKILL, a lost node), but not one whose process (the pid in its name) is alive on this host.
+// Returns the final status; throws only when DIR is not a batch, its manifest has another number of tasks than it was
 // submitted with, or `index` is out of range.
 BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOptions& options = {});
 
@@ -113,6 +141,10 @@ BatchTaskStatus RunBatchTask(const std::string& dir, int index, const RunTaskOpt
 // `status.pid` exists any more (killed with SIGKILL), or the machine restarted since (another boot id), or the
 // process with that pid now is another one (another start time: pids are reused).
 bool RunTaskIsGone(const BatchTaskStatus& status);
+
+// True when `status` says running and its run-task process is alive on this host (RunTaskIsGone says it is not
+// gone).
+bool RunTaskRunsHere(const BatchTaskStatus& status);
 
 // When process `pid` started, in clock ticks after the boot (field 22 of /proc/PID/stat); -1 when there is no such
 // process or /proc does not say. A pid and its start identify a process: pids are reused, their starts are not.
@@ -130,18 +162,20 @@ struct BatchReport {
   std::vector<ManifestTask> tasks;
   // Per task: "succeeded" (status says so and tasks/<index>/ exists), "partial" (likewise, the command exited 3),
   // "changed" (it ran another line than the manifest now has: DIR/manifest.txt was edited since), "failed",
-  // "running", "interrupted" (status says running, but it was written by a run-task process on this host that
-  // is gone: RunTaskIsGone; one on another host cannot be checked from here and stays "running"), or "missing"
-  // (never started, or its result folder is gone). A status file that cannot be read counts as "failed", its
-  // error line saying why.
+  // "timeout" (stopped at its time limit), "running", "interrupted" (status says running, but it was written by a
+  // run-task process on this host that is gone: RunTaskIsGone; one on another host cannot be checked from here and
+  // stays "running"), or "missing" (never started, or its result folder is gone). A status file that cannot be read
+  // counts as "failed", its error line saying why.
   std::vector<std::string> states;
   std::vector<std::optional<BatchTaskStatus>> statuses;
-  int succeeded = 0, partial = 0, changed = 0, failed = 0, running = 0, interrupted = 0, missing = 0;
+  int succeeded = 0, partial = 0, changed = 0, failed = 0, timeout = 0, running = 0, interrupted = 0, missing = 0;
 
-  // Counts, then one line per partial, changed, failed or interrupted task.
+  // Counts, then one line per partial, changed, failed, timeout or interrupted task, and per running task of a
+  // --local run on another host (which cannot be checked from here: if that host is down, only
+  // resubmit --include-running takes it).
   std::string BriefReport() const;
   std::string Json() const;
-  // Indices whose state is missing, partial, changed, failed or interrupted, ascending.
+  // Indices whose state is missing, partial, changed, failed, timeout or interrupted, ascending.
   std::vector<int> UnfinishedIndices() const;
 };
 

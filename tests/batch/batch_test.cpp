@@ -9,7 +9,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -430,6 +432,67 @@ TEST(LocalRunner, ResubmitTakesATaskWhoseRunTaskIsGone) {
   EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
 }
 
+// A task of a --local run on another host that died still reads running, as its process cannot be checked from
+// here: status names it and its host, saying so; resubmit leaves it unless told --include-running, which is
+// still refused for a task whose run-task is alive on this host.
+TEST(LocalRunner, ARunningTaskOfAnotherHostIsNamedAndTakenOnlyWithIncludeRunning) {
+  const TempDir dir("other_host");
+  BatchSubmitOptions options = OneLocalWorker();
+  const std::string out = RunTwoConverts(dir);
+  fs::remove_all(out + "/tasks/1");
+  BatchTaskStatus elsewhere = *ReadBatchTaskStatus(BatchLayout(out), 1);
+  elsewhere.state = "running";
+  elsewhere.host = "lab-node-7";
+  elsewhere.pid = 4242;
+  elsewhere.start_utc = "2026-12-07T10:00:00.000Z";
+  WriteBatchTaskStatus(BatchLayout(out), elsewhere);
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.states, (std::vector<std::string>{"succeeded", "running"}));
+  EXPECT_NE(report.BriefReport().find("running: task 1 (manifest line 2, started 2026-12-07T10:00:00.000Z) on "
+                                      "lab-node-7 (not this host, "),
+            std::string::npos)
+      << report.BriefReport();
+  EXPECT_NE(report.BriefReport().find("cannot check whether its run-task process 4242 still runs); if lab-node-7 is "
+                                      "down, 'rangebayes batch resubmit " +
+                                      BatchLayout(out).dir + " --include-running' runs it again"),
+            std::string::npos)
+      << report.BriefReport();
+  try {
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "a task that may still run on lab-node-7 was resubmitted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing to resubmit (1 succeeded, 1 running; a task that reads running on a "
+                                         "host that is down is taken by resubmit --include-running)"),
+              std::string::npos)
+        << e.what();
+  }
+  // A Slurm task reads running on its node while its job runs: no line for it.
+  BatchTaskStatus in_job = elsewhere;
+  in_job.job_id = "41";
+  WriteBatchTaskStatus(BatchLayout(out), in_job);
+  EXPECT_EQ(CollectBatchReport(out).BriefReport().find("running: task"), std::string::npos);
+  // Alive here: refused even when told.
+  BatchTaskStatus here = elsewhere;
+  const BatchTaskStatus mine = RunBatchTask(out, 0, TestRunOptions());
+  here.host = mine.host;
+  here.pid = static_cast<int>(getpid());
+  here.pid_start_ticks = ProcessStartTicks(here.pid);
+  here.boot_id = mine.boot_id;
+  WriteBatchTaskStatus(BatchLayout(out), here);
+  options.include_running = true;
+  try {
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "a task whose run-task runs here was resubmitted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("task 1 still runs on this host (run-task pid " + std::to_string(getpid())),
+              std::string::npos)
+        << e.what();
+  }
+  WriteBatchTaskStatus(BatchLayout(out), elsewhere);
+  EXPECT_EQ(ResubmitBatch(out, options).indices, std::vector<int>{1});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
 // A status file that cannot be read (cut to nothing when a machine crashed) made every command on the batch fail
 // on it (status, resubmit, run-task of that very task): it counts as failed, saying why, and a resubmit runs
 // that task again, whose new status replaces it.
@@ -596,7 +659,7 @@ TEST(LocalRunner, RunsEveryTaskOnWorkersAndReportsEach) {
     ended.insert(s.index);
   };
   const BatchSubmitSummary summary = SubmitBatch(manifest, dir.path() + "/out", options);
-  EXPECT_EQ(summary.submission.kind, "local");
+  EXPECT_EQ(summary.submissions.at(0).kind, "local");
   EXPECT_EQ(ended, (std::set<int>{0, 1, 2, 3, 4}));
   const BatchReport report = CollectBatchReport(dir.path() + "/out");
   EXPECT_EQ(report.succeeded, 5);
@@ -926,6 +989,231 @@ TEST(LocalRunner, StatusExitCodeSaysWhetherEveryTaskSucceeded) {
   EXPECT_EQ(RunShell(status + " --json", &output), 3) << output;
 }
 
+// A task that hangs (`info` of a FIFO nobody writes) past --task-timeout on a local worker: its command is stopped,
+// the task is recorded as timeout (not failed), nothing of it is published, the next task still runs, status
+// lists it, and resubmit runs it again like a failed task.
+TEST(LocalRunner, ATaskPastItsTimeLimitIsStoppedAsTimeoutAndTheBatchGoesOn) {
+  const TempDir dir("timeout");
+  const std::string manifest = MakeManifest(dir.path(), "info in/stuck.obj\nconvert in/tet.obj b.ply\n");
+  ASSERT_EQ(mkfifo((dir.path() + "/in/stuck.obj").c_str(), 0600), 0);
+  BatchSubmitOptions options = OneLocalWorker();
+  options.task_timeout_s = 0.5;
+  std::vector<std::string> ended;
+  options.on_task_end = [&](const BatchTaskStatus& s) { ended.push_back(s.state); };
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  EXPECT_EQ(ended, (std::vector<std::string>{"timeout", "succeeded"}));
+  const auto status = ReadBatchTaskStatus(BatchLayout(out), 0);
+  ASSERT_TRUE(status.has_value());
+  EXPECT_EQ(status->state, "timeout");
+  EXPECT_EQ(status->exit_code, 128 + SIGTERM);
+  EXPECT_NE(status->error_line.find("time limit of 0.5 s reached (--task-timeout): stopped with SIGTERM"),
+            std::string::npos)
+      << status->error_line;
+  EXPECT_FALSE(fs::exists(out + "/tasks/0"));
+  EXPECT_EQ(Entries(out + "/tasks", "."), std::vector<std::string>{});
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).task_timeout_s, 0.5);
+
+  const BatchReport report = CollectBatchReport(out);
+  EXPECT_EQ(report.states, (std::vector<std::string>{"timeout", "succeeded"}));
+  EXPECT_EQ(report.timeout, 1);
+  EXPECT_EQ(report.failed, 0);
+  EXPECT_NE(report.BriefReport().find("2 tasks: 1 succeeded, 0 failed, 1 timeout, 0 running, 0 missing"),
+            std::string::npos)
+      << report.BriefReport();
+  EXPECT_NE(report.BriefReport().find("timeout: task 0 (manifest line 1, exit 143"), std::string::npos)
+      << report.BriefReport();
+  EXPECT_EQ(nlohmann::json::parse(report.Json())["timeout"], 1);
+  std::string output;
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch status " + out, &output), 3) << output;
+
+  // Retried like a failed task: the input is there now, and the resubmit (with no time limit) completes it.
+  fs::remove(dir.path() + "/in/stuck.obj");
+  fs::copy_file(dir.path() + "/in/tet.obj", dir.path() + "/in/stuck.obj");
+  EXPECT_EQ(ResubmitBatch(out, OneLocalWorker()).indices, std::vector<int>{0});
+  EXPECT_EQ(CollectBatchReport(out).succeeded, 2);
+}
+
+// A command that ignores SIGTERM at its time limit is killed with SIGKILL after the grace, with whatever it started
+// (its process group).
+TEST(RunTask, ACommandThatIgnoresSigtermIsKilledWithItsChildrenAfterTheGrace) {
+  const TempDir dir("timeout_kill");
+  const std::string out = RunTwoConverts(dir);
+  RunTaskOptions run = TestRunOptions();
+  const std::string child_pid = dir.path() + "/child.pid";
+  run.binary = FakeProgram(dir.path() + "/stubborn", "trap '' TERM\nsleep 1000 &\necho $! > " + child_pid +
+                                                         ".tmp\nmv " + child_pid + ".tmp " + child_pid + "\nwait");
+  run.task_timeout_s = 0.2;
+  run.timeout_grace_s = 0.2;
+  const BatchTaskStatus status = RunBatchTask(out, 1, run);
+  EXPECT_EQ(status.state, "timeout");
+  EXPECT_EQ(status.exit_code, 128 + SIGKILL);
+  EXPECT_NE(status.error_line.find("time limit of 0.2 s reached (--task-timeout): killed (SIGKILL) 0.2 s after "
+                                   "SIGTERM"),
+            std::string::npos)
+      << status.error_line;
+  // The command's child got SIGKILL too: wait until it has ended (it was orphaned, so init reaps it).
+  const int pid = std::stoi(ReadText(child_pid));
+  bool ended = false;
+  for (int i = 0; i < 200 && !ended; ++i) {
+    ended = ProcessStartTicks(pid) < 0 ||
+            ReadText("/proc/" + std::to_string(pid) + "/stat").find(") Z ") != std::string::npos;
+    if (!ended) usleep(10 * 1000);
+  }
+  EXPECT_TRUE(ended) << "the command's child " << pid << " outlived its time limit";
+  if (!ended) kill(pid, SIGKILL);
+}
+
+TEST(RunTask, TimeLimitIsPositiveAndFinite) {
+  const TempDir dir("timeout_check");
+  const std::string manifest = MakeManifest(dir.path(), "convert in/tet.obj a.ply\n");
+  for (const double bad : {-1.0, std::nan(""), HUGE_VAL, kMaxTaskTimeoutS * 2}) {
+    BatchSubmitOptions options;
+    options.task_timeout_s = bad;
+    EXPECT_THROW(options.Check(), Error) << bad;
+  }
+  BatchSubmitOptions options;
+  options.task_timeout_s = 90;
+  options.Check();
+  EXPECT_EQ(SlurmTimeMinutes(90), 3);  // 90 s and the 10 s grace: 2 minutes, and one for run-task
+  EXPECT_EQ(SbatchCommand(BatchLayout("/b"), ArrayJob{0, {0}, ""}, options, "/b/job.sh").at(8), "--time=3");
+  // Slurm's own time limit is then ours.
+  options.slurm_args = {"--cpus-per-task=2", "--time=1:00:00"};
+  try {
+    options.Check();
+    ADD_FAILURE() << "--task-timeout and --slurm-arg=--time were both taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--task-timeout sets sbatch's --time (3 min for 90 s); give it without "
+                                         "--slurm-arg=--time=1:00:00"),
+              std::string::npos)
+        << e.what();
+  }
+  options.slurm_args = {"--time-min=10"};
+  options.Check();
+  std::string output;
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch submit " + manifest + " --out " + dir.path() +
+                         "/out --local 1 --task-timeout nan",
+                     &output),
+            2)
+      << output;
+  EXPECT_FALSE(fs::exists(dir.path() + "/out"));
+  EXPECT_NE(output.find("--task-timeout"), std::string::npos) << output;
+}
+
+// `rangebayes batch run-task OUT 0` as a Slurm job's script runs it (SLURM_JOB_ID=77, scontrol as `scontrol_body`
+// on PATH), stopped by SIGTERM to its process group while its command (`info` of the FIFO in/stuck.obj) waits, as
+// slurmstepd stops a job. The task's status after.
+BatchTaskStatus StopRunTaskAsSlurmDoes(const TempDir& dir, const std::string& out, const std::string& scontrol_body) {
+  const std::string bin = dir.path() + "/bin";
+  fs::remove_all(bin);
+  fs::create_directories(bin);
+  FakeProgram(bin + "/scontrol", scontrol_body);
+  const pid_t child = fork();
+  if (child == 0) {
+    setpgid(0, 0);
+    setenv("SLURM_JOB_ID", "77", 1);
+    setenv("PATH", (bin + ":/usr/bin:/bin").c_str(), 1);
+    execl(RB_BINARY, RB_BINARY, "batch", "run-task", out.c_str(), "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  if (child > 0) setpgid(child, child);
+  struct sigaction ignore_pipe {
+  }, old_pipe{};
+  ignore_pipe.sa_handler = SIG_IGN;
+  sigaction(SIGPIPE, &ignore_pipe, &old_pipe);
+  {
+    // Opening blocks until `info` opens the FIFO: the task runs. It waits for a mesh until it is stopped.
+    std::ofstream mesh(dir.path() + "/in/stuck.obj", std::ios::binary);
+    kill(-child, SIGTERM);
+    waitpid(child, nullptr, 0);
+  }
+  sigaction(SIGPIPE, &old_pipe, nullptr);
+  return ReadBatchTaskStatus(BatchLayout(out), 0).value_or(BatchTaskStatus{});
+}
+
+// Slurm stops a job at its time limit as it stops a cancelled one (SIGTERM, SIGKILL after KillWait); run-task asks
+// scontrol, whose line of the job says Reason=TimeLimit by then, and records "timeout", not a cancellation.
+TEST(RunTask, SlurmsTimeLimitIsATimeoutNotACancellation) {
+  const TempDir dir("slurm_time_limit");
+  const std::string manifest = MakeManifest(dir.path(), "info in/stuck.obj\n");
+  ASSERT_EQ(mkfifo((dir.path() + "/in/stuck.obj").c_str(), 0600), 0);
+  BatchSubmitOptions options;
+  options.binary = RB_BINARY;
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo 76");
+  const std::string out = dir.path() + "/out";
+  SubmitBatch(manifest, out, options);
+  // What Slurm 22.05's scontrol printed for a job at its time limit, while its processes had SIGTERM (abridged);
+  // 76 is the array's own id, also listed.
+  const std::string job_line =
+      "JobId=77 ArrayJobId=76 ArrayTaskId=0 JobName=job.sh JobState=COMPLETING "
+      "Reason=TimeLimit Dependency=(null) RunTime=00:01:27 TimeLimit=00:01:00";
+  EXPECT_TRUE(JobReachedTimeLimit(job_line + "\n", "77", nullptr));
+  EXPECT_FALSE(JobReachedTimeLimit(job_line + "\n", "7", nullptr));
+  EXPECT_FALSE(JobReachedTimeLimit("JobId=76 JobState=RUNNING Reason=None\n" + job_line + "\n", "76", nullptr));
+  EXPECT_TRUE(JobReachedTimeLimit("JobId=5 JobState=TIMEOUT Reason=None\n", "5", nullptr));
+
+  BatchTaskStatus status = StopRunTaskAsSlurmDoes(dir, out, "echo '" + job_line + "'");
+  EXPECT_EQ(status.state, "timeout");
+  EXPECT_EQ(status.exit_code, 128 + SIGTERM);
+  EXPECT_NE(status.error_line.find("stopped by signal 15 (Slurm job 77 reached its time limit of 00:01:00)"),
+            std::string::npos)
+      << status.error_line;
+  EXPECT_EQ(CollectBatchReport(out).timeout, 1);
+
+  // Cancelled (scancel), and scontrol failing: each says so, the latter naming every possibility.
+  status = StopRunTaskAsSlurmDoes(dir, out, "echo 'JobId=77 JobState=CANCELLED Reason=None TimeLimit=00:01:00'");
+  EXPECT_EQ(status.state, "failed");
+  EXPECT_NE(status.error_line.find("stopped by signal 15 (the job was cancelled, preempted or requeued)"),
+            std::string::npos)
+      << status.error_line;
+  status =
+      StopRunTaskAsSlurmDoes(dir, out, "echo 'slurm_load_jobs error: Unable to contact slurm controller' >&2\nexit 1");
+  EXPECT_EQ(status.state, "failed");
+  EXPECT_NE(status.error_line.find("cancelled, preempted, requeued or its time limit reached (scontrol show job 77 "
+                                   "could not say which"),
+            std::string::npos)
+      << status.error_line;
+  EXPECT_EQ(status.run, 3);
+}
+
+// A mistyped option, a value an option refuses, or a missing argument in a manifest line: `batch submit` parses
+// every line with the binary's own parser first and refuses the batch with one line naming the manifest line, before
+// anything is written; so does resubmit after DIR/manifest.txt was edited. An input that does not exist yet is not
+// the parser's business (smooth's input is read when the task runs).
+TEST(SubmitBatch, AMistypedOptionIsRefusedNamingItsLineBeforeAnythingIsWritten) {
+  const TempDir dir("mistyped");
+  const std::string submit = std::string(RB_BINARY) + " batch submit " + dir.path() + "/tasks.txt --local 1 --out ";
+  const auto refused = [&](const std::string& lines, const std::string& expected) {
+    MakeManifest(dir.path(), lines);
+    std::string output;
+    EXPECT_EQ(RunShell(submit + dir.path() + "/refused", &output), 1) << output;
+    EXPECT_NE(output.find("rangebayes batch submit: error: " + dir.path() + "/tasks.txt:" + expected),
+              std::string::npos)
+        << output;
+    EXPECT_EQ(std::count(output.begin(), output.end(), '\n'), 1) << output;
+    EXPECT_FALSE(fs::exists(dir.path() + "/refused"));
+  };
+  refused("convert in/tet.obj a.ply\n# smooth\n\nsmooth in/tet.obj b.ply --tolerence fast\n",
+          "4: smooth: The following arguments were not expected: fast --tolerence (see rangebayes smooth --help)");
+  refused("smooth in/tet.obj b.ply --noise -1\n", "1: smooth: --noise: ");
+  refused("convert in/tet.obj\n", "1: convert: OUT is required");
+  refused(
+      "calibrate noise --target plane in/tet.obj --out n.yaml --bogus\n",
+      "1: calibrate noise: The following argument was not expected: --bogus (see rangebayes calibrate noise --help)");
+  refused("info in/tet.obj --help\n", "1: info: --help shows help instead of running the task");
+
+  MakeManifest(dir.path(), "convert in/tet.obj a.ply\nsmooth later/missing.obj b.ply --tolerance fast\n");
+  std::string output;
+  EXPECT_EQ(RunShell(submit + dir.path() + "/out", &output), 3) << output;
+  EXPECT_NE(output.find("2 tasks: 1 succeeded, 1 failed"), std::string::npos) << output;
+  WriteText(dir.path() + "/out/manifest.txt",
+            "convert in/tet.obj a.ply\nsmooth in/tet.obj b.ply --tolerance fastest\n");
+  EXPECT_EQ(RunShell(std::string(RB_BINARY) + " batch resubmit " + dir.path() + "/out --local 1", &output), 1)
+      << output;
+  EXPECT_NE(output.find(dir.path() + "/out/manifest.txt:2: smooth: --tolerance: "), std::string::npos) << output;
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(dir.path() + "/out")).submissions.size(), 1u);
+}
+
 // A manifest saved with a UTF-8 byte order mark (and CRLF line ends) by a Windows editor.
 TEST(Manifest, AByteOrderMarkIsSkipped) {
   const auto tasks = ParseManifest("\xEF\xBB\xBFinfo a.obj\r\nconvert a.obj b.ply\r\n", "m.txt");
@@ -934,32 +1222,109 @@ TEST(Manifest, AByteOrderMarkIsSkipped) {
   EXPECT_EQ(tasks[0].line, "info a.obj");
 }
 
-// More tasks than the cluster's MaxArraySize allows as array indices: refused before sbatch, naming the limit.
-TEST(Slurm, TasksBeyondMaxArraySizeAreRefusedNamingTheLimit) {
+// More tasks than the cluster's MaxArraySize allows as array indices: split into one array per MaxArraySize task
+// indices, each job's script given its offset (array index + offset = task index), each recorded; with
+// --max-parallel each waits for the one before. Resubmit checks every job of the batch in the queue and splits
+// likewise; cancel cancels those still queued; a refusal after the first job names what Slurm has accepted.
+TEST(Slurm, ABatchAboveMaxArraySizeIsSplitIntoArrayJobs) {
   const TempDir dir("max_array");
-  const std::string manifest =
-      MakeManifest(dir.path(), "convert in/tet.obj a.ply\nconvert in/tet.obj b.ply\nconvert in/tet.obj c.ply\n");
+  std::string lines;
+  for (int i = 0; i < 5; ++i) lines += "convert in/tet.obj t" + std::to_string(i) + ".ply\n";
+  const std::string manifest = MakeManifest(dir.path(), lines);
   BatchSubmitOptions options;
   options.binary = RB_BINARY;
-  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo called > " + dir.path() + "/sbatch.called\necho 5");
+  options.max_parallel = 1;
+  // Records its arguments and accepts each job as 41, 42, ...
+  options.sbatch = FakeProgram(dir.path() + "/sbatch", "echo \"$@\" >> " + dir.path() + "/sbatch.args\nn=$(wc -l < " +
+                                                           dir.path() + "/sbatch.args)\necho $((40 + n))");
   options.scontrol = FakeProgram(dir.path() + "/scontrol",
                                  "echo 'Configuration data as of 2026-12-07T14:00:00'\n"
                                  "echo 'MaxArraySize            = 2'\necho 'MaxJobCount             = 10000'");
+  const std::string out = dir.path() + "/out";
+  const BatchSubmitSummary summary = SubmitBatch(manifest, out, options);
+  EXPECT_EQ(summary.JobIds(), "41 42 43");
+  EXPECT_EQ(summary.BriefReport(),
+            "submitted 5 tasks as 3 Slurm jobs (MaxArraySize 2): 41 (tasks 0-1), 42 (tasks "
+            "2-3), 43 (task 4) in " +
+                BatchLayout(out).dir);
+  const std::string job_script = BatchLayout(out).slurm_dir() + "/job.sh";
+  std::istringstream args(ReadText(dir.path() + "/sbatch.args"));
+  std::string line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0-1%1 "), std::string::npos) << line;
+  EXPECT_EQ(line.find("--dependency"), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size()), job_script) << line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0-1%1 "), std::string::npos) << line;
+  EXPECT_NE(line.find("--dependency=afterany:41 "), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size() - 2), job_script + " 2") << line;
+  std::getline(args, line);
+  EXPECT_NE(line.find("--array=0%1 --requeue"), std::string::npos) << line;
+  EXPECT_NE(line.find("--dependency=afterany:42 "), std::string::npos) << line;
+  EXPECT_EQ(line.substr(line.size() - job_script.size() - 2), job_script + " 4") << line;
+  const BatchRecord record = ReadBatchRecord(BatchLayout(out));
+  ASSERT_EQ(record.submissions.size(), 3u);
+  EXPECT_EQ(record.submissions[1].job_id, "42");
+  EXPECT_EQ(record.submissions[1].array_offset, 2);
+  EXPECT_EQ(record.submissions[1].indices, (std::vector<int>{2, 3}));
+
+  // What Slurm runs for array index 1 of job 42: task 3.
+  std::string output;
+  ASSERT_EQ(RunShell("SLURM_ARRAY_TASK_ID=1 sh " + job_script + " 2", &output), 0) << output;
+  EXPECT_TRUE(fs::exists(out + "/tasks/3/t3.ply")) << output;
+
+  // Resubmit: refused while any of the jobs is queued; then tasks 0-2 and 4, split likewise.
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7\necho 43");
   try {
-    SubmitBatch(manifest, dir.path() + "/out", options);
-    ADD_FAILURE() << "3 tasks were submitted to a cluster whose MaxArraySize is 2";
+    ResubmitBatch(out, options);
+    ADD_FAILURE() << "resubmit went ahead while job 43 of the batch was queued";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("task 2 cannot be submitted: this cluster's MaxArraySize is 2 (array "
-                                         "indices 0-1"),
+    EXPECT_NE(std::string(e.what()).find("Slurm job 43 of this batch is still queued or running"), std::string::npos)
+        << e.what();
+  }
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  const BatchSubmitSummary again = ResubmitBatch(out, options);
+  EXPECT_EQ(again.indices, (std::vector<int>{0, 1, 2, 4}));
+  EXPECT_EQ(again.BriefReport(),
+            "submitted 4 tasks as 3 Slurm jobs (MaxArraySize 2): 44 (tasks 0-1), 45 (task 2), "
+            "46 (task 4) in " +
+                BatchLayout(out).dir);
+
+  // Cancel: the batch's jobs that squeue still lists, in one scancel.
+  options.scancel = FakeProgram(dir.path() + "/scancel", "echo \"$@\" > " + dir.path() + "/scancel.args");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7\necho 45\necho 46\necho 41");
+  EXPECT_EQ(CancelBatch(out, options), (std::vector<std::string>{"41", "45", "46"}));
+  EXPECT_EQ(ReadText(dir.path() + "/scancel.args"), "41 45 46\n");
+  options.squeue = FakeProgram(dir.path() + "/squeue", "echo 7");
+  EXPECT_THROW(CancelBatch(out, options), Error);
+
+  // sbatch refusing the second job: the first is recorded, and the message says so.
+  options.sbatch = FakeProgram(dir.path() + "/sbatch2", "[ -e " + dir.path() +
+                                                            "/once ] && { echo 'sbatch: error: "
+                                                            "QOSMaxSubmitJobPerUserLimit' >&2; exit 1; }\ntouch " +
+                                                            dir.path() + "/once\necho 50");
+  try {
+    SubmitBatch(manifest, dir.path() + "/out2", options);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("sbatch refused the job for tasks 2-3 (exit 1): sbatch: error: "
+                                         "QOSMaxSubmitJobPerUserLimit; Slurm accepted the jobs before it, 50 (tasks "
+                                         "0-1), recorded in "),
               std::string::npos)
         << e.what();
   }
-  EXPECT_FALSE(fs::exists(dir.path() + "/sbatch.called"));
+  EXPECT_EQ(ReadBatchRecord(BatchLayout(dir.path() + "/out2")).submissions.size(), 1u);
+
   EXPECT_EQ(ParseMaxArraySize("MaxArraySize            = 1001\n"), 1001);
   EXPECT_FALSE(ParseMaxArraySize("MaxJobCount = 5\n").has_value());
-  // Within the limit it is submitted.
-  options.scontrol = FakeProgram(dir.path() + "/scontrol", "echo 'MaxArraySize = 3'");
-  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out", options).submission.job_id, "5");
+  // Within the limit, or with the limit unknown: one array, array index = task index.
+  EXPECT_EQ(SplitArrayJobs({3, 1}, 4).size(), 1u);
+  EXPECT_EQ(SplitArrayJobs({5, 1}, std::nullopt).at(0).indices, (std::vector<int>{1, 5}));
+  const std::vector<ArrayJob> jobs = SplitArrayJobs({250, 3, 120, 199}, 100);
+  ASSERT_EQ(jobs.size(), 3u);
+  EXPECT_EQ(jobs[1].offset, 100);
+  EXPECT_EQ(jobs[1].indices, (std::vector<int>{120, 199}));
+  EXPECT_EQ(jobs[2].offset, 200);
 }
 
 TEST(Slurm, ArraySpecAndSbatchCommandLine) {
@@ -972,11 +1337,11 @@ TEST(Slurm, ArraySpecAndSbatchCommandLine) {
   options.max_parallel = 4;
   options.slurm_args = {"--time=10", "--cpus-per-task=2"};
   const BatchLayout layout("/data/b");
-  EXPECT_EQ(SbatchCommand(layout, {0, 1, 2}, options, "/data/b/slurm/job.sh"),
-            (std::vector<std::string>{"sbatch", "--parsable", "--job-name=rangebayes-batch", "--array=0-2%4",
-                                      "--requeue", "--open-mode=append", "--output=/data/b/slurm/%A_%a.out",
-                                      "--chdir=/data/b", "--partition=gpu", "--time=10", "--cpus-per-task=2",
-                                      "/data/b/slurm/job.sh"}));
+  EXPECT_EQ(
+      SbatchCommand(layout, ArrayJob{0, {0, 1, 2}, ""}, options, "/data/b/slurm/job.sh"),
+      (std::vector<std::string>{"sbatch", "--parsable", "--job-name=rangebayes-batch", "--array=0-2%4", "--requeue",
+                                "--open-mode=append", "--output=/data/b/slurm/%A_%a.out", "--chdir=/data/b",
+                                "--partition=gpu", "--time=10", "--cpus-per-task=2", "/data/b/slurm/job.sh"}));
   EXPECT_EQ(ParseSbatchJobId("12\n"), "12");
   EXPECT_EQ(ParseSbatchJobId("Submitted\n345;cluster\n"), "345");
   EXPECT_THROW(ParseSbatchJobId(""), Error);
@@ -1009,7 +1374,7 @@ TEST(Slurm, MissingOrRefusingSbatchIsOneClearError) {
   }
   // After the refusal the same folder can be submitted again.
   options.sbatch = FakeProgram(dir.path() + "/accept", "echo 5");
-  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).submission.job_id, "5");
+  EXPECT_EQ(SubmitBatch(manifest, dir.path() + "/out2", options).JobIds(), "5");
 }
 
 TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
@@ -1024,8 +1389,9 @@ TEST(Slurm, SubmitRecordsTheJobAndResubmitTakesExactlyTheUnfinished) {
   options.squeue = FakeProgram(dir.path() + "/squeue", "echo 41");
   const std::string out = dir.path() + "/out";
   const BatchSubmitSummary first = SubmitBatch(manifest, out, options);
-  EXPECT_EQ(first.submission.job_id, "41");
-  EXPECT_NE(ReadText(out + "/slurm/job.sh").find("batch run-task " + BatchLayout(out).dir + " \"$SLURM_ARRAY_TASK_ID\""),
+  EXPECT_EQ(first.JobIds(), "41");
+  EXPECT_NE(ReadText(out + "/slurm/job.sh")
+                .find("batch run-task " + BatchLayout(out).dir + " \"$((${1:-0} + SLURM_ARRAY_TASK_ID))\""),
             std::string::npos)
       << ReadText(out + "/slurm/job.sh");
   EXPECT_EQ(ReadBatchRecord(BatchLayout(out)).submissions.at(0).job_id, "41");

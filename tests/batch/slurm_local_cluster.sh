@@ -2,8 +2,10 @@
 # (nothing in /etc, no systemd). Used by the Slurm tests (through slurm_test_harness.sh) and
 # bench/batch_slurm_bench.sh.
 #
-#   rb_cluster_start ROOT [NODES [CPUS]]  # ROOT: a new temporary folder; NODES slurmd on this machine (1),
-#                                         # each offering CPUS job slots (default: nproc)
+#   rb_cluster_start ROOT [NODES [CPUS [MAXARRAY]]]  # ROOT: a new temporary folder; NODES slurmd on this
+#                                         # machine (1), each offering CPUS job slots (default: nproc; more than
+#                                         # the machine has are taken: SlurmdParameters=config_overrides);
+#                                         # MAXARRAY: MaxArraySize (default: Slurm's, 1001)
 #   rb_cluster_stop               # kills what rb_cluster_start started (call it from an EXIT trap)
 #
 # Exports SLURM_CONF, so sbatch/squeue (and rangebayes batch) talk to this cluster. Needs root: slurmd runs
@@ -42,7 +44,7 @@ rb_cluster_free_port() {
 }
 
 rb_cluster_start() {
-  local root=$1 nodes=${2:-1} cpus=${3:-$(nproc)}
+  local root=$1 nodes=${2:-1} cpus=${3:-$(nproc)} max_array=${4:-}
   local t0; t0=$(date +%s%N)
   RB_CLUSTER_ROOT=$root
   mkdir -p "$root"/munge "$root"/munge-run "$root"/state "$root"/spool "$root"/log
@@ -93,7 +95,9 @@ SlurmctldTimeout=30
 SlurmdTimeout=30
 InactiveLimit=0
 MinJobAge=2
+SlurmdParameters=config_overrides
 CONF
+  [ -z "$max_array" ] || echo "MaxArraySize=$max_array" >>"$conf"
   local names=() port=$((ctld_port + 1)) n
   for n in $(seq "$nodes"); do
     port=$(rb_cluster_free_port "$port")
