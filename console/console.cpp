@@ -169,13 +169,16 @@ void Console::Consume(const PipelineResult& result) {
 
 void Console::Finish() {
   StopRecording();
-  const std::int64_t failed = control_ != nullptr ? control_->Snapshot().full_quality_failed : 0;
+  PipelineSnapshot snap;
+  if (control_ != nullptr) snap = control_->Snapshot();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     finished_ = true;
-    // Every result has been consumed: a capture still pending, with no full-quality result waiting to be saved
-    // and no failure counted, will never come.
-    if (capture_pending_ && full_quality_.empty() && failed == capture_failed_before_) {
+    // Every result has been consumed and counted: a capture still pending, with no full-quality result or failure
+    // counted since the request, will never come. (The counts, not full_quality_: the worker may be saving the
+    // last capture right now.)
+    if (capture_pending_ && snap.full_quality_done == capture_done_before_ &&
+        snap.full_quality_failed == capture_failed_before_) {
       capture_pending_ = false;
       last_capture_error_ = "the run ended before a frame was taken at full quality: no capture";
     }
@@ -203,8 +206,10 @@ void Console::Work() {
     {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait_until(lock, next_status, [&] { return stopping_ || latest_ || !full_quality_.empty(); });
-      if (stopping_) return;
-      result = std::move(latest_);
+      // A capture the pipeline delivered is saved even when the console is going away (a run stopped by Ctrl-C
+      // delivers the capture it had finished).
+      if (stopping_ && full_quality_.empty()) return;
+      if (!stopping_) result = std::move(latest_);
       latest_.reset();
       if (!full_quality_.empty()) {
         full = full_quality_.front();
@@ -474,10 +479,13 @@ HttpReply Console::Control(const HttpRequest& request) {
     if (cmd == "pause" || cmd == "resume") {
       control_->SetPaused(cmd == "pause");
     } else if (cmd == "capture_now") {
-      const std::int64_t failed = control_->Snapshot().full_quality_failed;
+      const PipelineSnapshot snap = control_->Snapshot();
       control_->RequestFullQuality();
       std::lock_guard<std::mutex> lock(mutex_);
-      if (!capture_pending_ || failed > capture_failed_before_) capture_failed_before_ = failed;
+      if (!capture_pending_ || snap.full_quality_failed > capture_failed_before_) {
+        capture_failed_before_ = snap.full_quality_failed;
+        capture_done_before_ = snap.full_quality_done;
+      }
       capture_pending_ = true;
       last_capture_error_.clear();
     } else if (cmd == "set") {

@@ -127,6 +127,7 @@ class Console : public PipelineSink {
   std::string last_capture_error_;
   bool capture_pending_ = false;            // "capture now" accepted, its mesh not saved yet
   std::int64_t capture_failed_before_ = 0;  // PipelineSnapshot::full_quality_failed when it was accepted
+  std::int64_t capture_done_before_ = 0;    // PipelineSnapshot::full_quality_done when it was accepted
   std::string instance_;                    // tells a page that the process it talks to was restarted
   std::int64_t started_unix_ms_ = 0;
 

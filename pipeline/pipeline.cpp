@@ -1,5 +1,7 @@
 #include "pipeline/pipeline.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -10,6 +12,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string_view>
 #include <thread>
 
 #include "core/error.h"
@@ -108,7 +111,7 @@ class Run {
     return true;
   }
 
-  // A plain one-in-one-out stage.
+  // A plain one-in-one-out stage; returns once `in` is closed and drained (the caller closes `out`).
   template <typename Work>
   void Stage(ItemQueue& in, ItemQueue& out, StageTiming* timing, const Work& work) {
     while (auto item = in.Pop()) {
@@ -118,7 +121,6 @@ class Run {
       }
       out.Push(std::move(*item));
     }
-    out.Close();
   }
 
   // Counts a full-quality result, done or failed (with its reason).
@@ -231,6 +233,33 @@ struct SmoothTally {
   double distance_sum = 0.0;  // relative E − E* estimates, over results with a finite one
   int distances = 0;
 };
+
+// Results whose search range looks too short (DisparityResult::range_end_fraction), for the summary's notice.
+struct RangeEndTally {
+  int results = 0;
+  double max = 0.0;
+};
+
+int MatcherSlot(PipelineMatcher matcher) { return matcher == PipelineMatcher::kSgbm ? 0 : 1; }
+
+// The matcher held in `slot`, made with `setup` when it is first needed.
+StereoMatcher& MatcherFor(PipelineMatcher matcher, const MatchSetup& setup, std::unique_ptr<StereoMatcher>* slot) {
+  if (!*slot) {
+    if (matcher == PipelineMatcher::kSgbm) {
+      *slot = std::make_unique<SgbmMatcher>(setup.sgbm);
+    } else {
+      *slot = std::make_unique<SpaceTimeMatcher>(setup.spacetime);
+    }
+  }
+  return **slot;
+}
+
+// The full-quality worker (Stages::FullQualityStage): captures that may wait for it (a further request waits for
+// room) and the threads its steps use. One thread leaves the live stages the other core of a 2-core rig; a lower
+// priority for it (nice +10) measured no faster live path and a capture 2.3 times as long (docs/console.md).
+constexpr size_t kMaxWaitingCaptures = 4;
+constexpr int kFullQualityThreads = 1;
+constexpr const char* kCaptureStopped = "stopped before the capture finished";
 
 }  // namespace
 
@@ -355,13 +384,12 @@ class Stages {
     // frame that would be thrown away, so the pipeline runs at the pace of its slowest stage and no CPU time
     // goes to frames that never come out. A source that is not real time (a recording played as fast as
     // possible) is never dropped from: it is simply asked for the next frame when there is room.
-    // A frame a control asked to see at full quality is never dropped (PipelineControl::RequestFullQuality).
+    // A frame a control asked to see at full quality goes to the full-quality worker instead, through a queue that
+    // never drops (CaptureStage takes a request only when that queue has room).
     const bool drop_at_capture = options.queue_policy == QueueFullPolicy::kDropOldest && source.realtime();
-    const auto requested = [](const ItemPtr& item) { return item->settings.full_quality; };
     for (int i = 0; i < 6; ++i) {
       queues.push_back(std::make_unique<ItemQueue>(
-          options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock,
-          requested));
+          options.queue_capacity, i == 0 && drop_at_capture ? QueueFullPolicy::kDropOldest : QueueFullPolicy::kBlock));
     }
     if (options.queue_policy == QueueFullPolicy::kDropOldest && !source.realtime()) {
       summary.notices.push_back(
@@ -410,7 +438,8 @@ class Stages {
       s.window = c.window_frames;
       s.step = c.window_frames == window ? step : c.window_frames;
       s.smooth_budget_ms = c.smooth_budget_ms;
-      if (control->TakeFullQualityRequest()) {
+      // A request waits (and later requests join it) while kMaxWaitingCaptures captures wait for the worker.
+      if (full_quality_queue.size() < kMaxWaitingCaptures && control->TakeFullQualityRequest()) {
         s.full_quality = true;
         s.ds = 1;
         s.window = 1;
@@ -486,61 +515,77 @@ class Stages {
         t_capture->max_ms = std::max(t_capture->max_ms, ms);
         ++summary.frames_captured;
       }
-      (*queues[0]).Push(std::move(item));
+      (item->settings.full_quality ? full_quality_queue : *queues[0]).Push(std::move(item));
     }
     (*queues[0]).Close();
+    full_quality_queue.Close();
+  }
+
+  // The work of each stage on one item, shared by the live stages and the full-quality worker.
+  void Rectify(Item& item) const {
+    const StereoFrame& f = item.frames.front();
+    RB_CHECK(f.left.size() == f.right.size(), "frame ", f.index, ": left is ", f.left.cols, "x", f.left.rows,
+             " but right is ", f.right.cols, "x", f.right.rows);
+    cv::Mat l, r;
+    rectifier.Rectify(ToMatcherInput(f.left), ToMatcherInput(f.right), &l, &r);
+    item.result.left_rectified = l;
+    item.left_rect.push_back(Shrink(l, item.settings.ds));
+    item.right_rect.push_back(Shrink(r, item.settings.ds));
+    item.frames.clear();  // the raw images are not needed downstream
+  }
+
+  void Match(Item& item, StereoMatcher& matcher, const MatchSetup& setup, RangeEndTally* range_end) const {
+    const int f = item.settings.ds;
+    DisparityResult d = matcher.Match(item.left_rect, item.right_rect);
+    if (d.range_end_fraction >= kRangeEndWarning) ++range_end->results;
+    range_end->max = std::max(range_end->max, d.range_end_fraction);
+    if (options.noise_model) {
+      const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
+      options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
+      if (options.noise_model->form == NoiseForm::kLearned) {
+        d.sigma_disparity_px = LearnedDisparitySigma(*options.noise_model, name, item.left_rect, item.right_rect,
+                                                     d.disparity_px, options.noise_model_name);
+      }
+    }
+    item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, setup.intrinsics,
+                                           rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
+    item.result.depth.frame_id = item.result.index;
+    item.result.depth.timestamp_ns = item.result.timestamp_ns;
+    item.left_rect.clear();
+    item.right_rect.clear();
+  }
+
+  static void Triangulate(Item& item, const MatchSetup& setup) {
+    TriangulateSummary ts;
+    const int f = item.settings.ds;
+    item.result.raw_mesh = TriangulateDepth(item.result.depth, setup.triangulate, &ts);
+    // pyrDown pixel x sits at full-resolution 2x (see DownsampledIntrinsics).
+    if (f > 1) item.result.raw_mesh.pixel *= static_cast<float>(f);
+    RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index, ": no surface (", ts.vertices,
+             " valid depth pixels, no triangle)");
+  }
+
+  void Decimate(Item& item, const ProgressCallback& progress) const {
+    const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
+    DecimateOptions decimation = options.decimation;
+    if (progress) decimation.progress = progress;
+    item.result.decimated = rangebayes::Decimate(input, decimation);
   }
 
   void RectifyStage() {
-    run.Stage((*queues[0]), (*queues[1]), t_rectify, [&](Item& item) {
-      const StereoFrame& f = item.frames.front();
-      RB_CHECK(f.left.size() == f.right.size(), "frame ", f.index, ": left is ", f.left.cols, "x", f.left.rows,
-               " but right is ", f.right.cols, "x", f.right.rows);
-      cv::Mat l, r;
-      rectifier.Rectify(ToMatcherInput(f.left), ToMatcherInput(f.right), &l, &r);
-      item.result.left_rectified = l;
-      item.left_rect.push_back(Shrink(l, item.settings.ds));
-      item.right_rect.push_back(Shrink(r, item.settings.ds));
-      item.frames.clear();  // the raw images are not needed downstream
-    });
+    run.Stage((*queues[0]), (*queues[1]), t_rectify, [&](Item& item) { Rectify(item); });
+    (*queues[1]).Close();
   }
 
   void StereoStage() {
     // One matcher per (matcher, downsample) pair, made when a frame first needs it.
     std::array<std::array<std::unique_ptr<StereoMatcher>, 4>, 2> matchers;
-    const auto matcher_for = [&](const ItemSettings& s) -> StereoMatcher& {
-      const MatchSetup& setup = s.full_quality ? full_quality_setup : setups[DsSlot(s.ds)];
-      const int kind = s.matcher == PipelineMatcher::kSgbm ? 0 : 1;
-      std::unique_ptr<StereoMatcher>& m = matchers[kind][DsSlot(s.ds)];
-      if (!m) {
-        if (kind == 0) {
-          m = std::make_unique<SgbmMatcher>(setup.sgbm);
-        } else {
-          m = std::make_unique<SpaceTimeMatcher>(setup.spacetime);
-        }
-      }
-      return *m;
-    };
     auto match = [&](Item& item) {
-      const int f = item.settings.ds;
-      const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
-      DisparityResult d = matcher_for(item.settings).Match(item.left_rect, item.right_rect);
-      if (d.range_end_fraction >= kRangeEndWarning) ++range_end_results;
-      range_end_max = std::max(range_end_max, d.range_end_fraction);
-      if (options.noise_model) {
-        const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
-        options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
-        if (options.noise_model->form == NoiseForm::kLearned) {
-          d.sigma_disparity_px = LearnedDisparitySigma(*options.noise_model, name, item.left_rect, item.right_rect,
-                                                       d.disparity_px, options.noise_model_name);
-        }
-      }
-      item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, setup.intrinsics,
-                                             rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
-      item.result.depth.frame_id = item.result.index;
-      item.result.depth.timestamp_ns = item.result.timestamp_ns;
-      item.left_rect.clear();
-      item.right_rect.clear();
+      const MatchSetup& setup = setups[DsSlot(item.settings.ds)];
+      Match(item,
+            MatcherFor(item.settings.matcher, setup,
+                       &matchers[MatcherSlot(item.settings.matcher)][DsSlot(item.settings.ds)]),
+            setup, &range_end);
     };
     // Frames wait here until a window is full; a window's result takes the first frame's index. A frame
     // whose settings differ from the waiting ones (a control changed them) discards the waiting frames.
@@ -554,7 +599,7 @@ class Stages {
         run.AddAbandoned();
         continue;
       }
-      if (!item->result.error.empty() || item->settings.window == 1 || item->settings.full_quality) {
+      if (!item->result.error.empty() || item->settings.window == 1) {
         run.Process(*item, t_stereo, match);
         (*queues[2]).Push(std::move(item));
         continue;
@@ -594,27 +639,13 @@ class Stages {
   }
 
   void TriangulateStage() {
-    run.Stage((*queues[2]), (*queues[3]), t_triangulate, [&](Item& item) {
-      TriangulateSummary ts;
-      const int f = item.settings.ds;
-      const MatchSetup& setup = item.settings.full_quality ? full_quality_setup : setups[DsSlot(f)];
-      item.result.raw_mesh = TriangulateDepth(item.result.depth, setup.triangulate, &ts);
-      // pyrDown pixel x sits at full-resolution 2x (see DownsampledIntrinsics).
-      if (f > 1) item.result.raw_mesh.pixel *= static_cast<float>(f);
-      RB_CHECK(item.result.raw_mesh.mesh.num_faces() > 0, "frame ", item.result.index,
-               ": no surface (", ts.vertices, " valid depth pixels, no triangle)");
-    });
+    run.Stage((*queues[2]), (*queues[3]), t_triangulate,
+              [&](Item& item) { Triangulate(item, setups[DsSlot(item.settings.ds)]); });
+    (*queues[3]).Close();
   }
 
   void SmoothStage() {
     run.Stage((*queues[3]), (*queues[4]), t_smooth, [&](Item& item) {
-      if (item.settings.full_quality) {
-        SmoothOptions smoothing = options.smoothing;
-        smoothing.tolerance = SmoothOptions{}.tolerance;
-        smoothing.progress = run.EndOnStop(smoothing.progress);
-        item.result.smoothed = Smooth(item.result.raw_mesh, smoothing);
-        return;
-      }
       if (!options.smooth) return;
       SmoothOptions smoothing = options.smoothing;
       smoothing.progress = run.EndOnStop(smoothing.progress);
@@ -673,23 +704,80 @@ class Stages {
         ++smooth_tally.timed;
       }
     });
+    (*queues[4]).Close();
   }
 
   void DecimateStage() {
     run.Stage((*queues[4]), (*queues[5]), t_decimate, [&](Item& item) {
-      if (!options.decimate && !item.settings.full_quality) return;
-      const Mesh& input = item.result.smoothed.has_value() ? *item.result.smoothed : item.result.raw_mesh.mesh;
-      DecimateOptions decimation = options.decimation;
-      decimation.progress = run.EndOnStop(decimation.progress);
-      item.result.decimated = Decimate(input, decimation);
+      if (options.decimate) Decimate(item, run.EndOnStop(options.decimation.progress));
     });
+    SinkInputDone();
+  }
+
+  // The full-quality path (PipelineControl::RequestFullQuality), beside the live stages so that they go on while a
+  // capture is made: one frame at a time, every step in a task arena of kFullQualityThreads on this thread, so the
+  // live stages keep the other core. Its result joins the live
+  // ones at the sinks. A stop request cancels the capture in progress at the next report of its smoothing or
+  // decimation (a capture waiting is not begun); it is then abandoned, with the reason kept as the full-quality
+  // error.
+  void FullQualityStage() {
+    tbb::task_arena arena(kFullQualityThreads);
+    std::array<std::unique_ptr<StereoMatcher>, 2> matchers;
+    const auto cancel_when_stopping = [&](double fraction, std::string_view stage, const ProgressCallback& also) {
+      if (also) also(fraction, stage);
+      if (run.Stopping()) throw Error(kCaptureStopped);
+    };
+    while (auto popped = full_quality_queue.Pop()) {
+      Item& item = **popped;
+      arena.execute([&] {
+        const auto step = [&](StageTiming* timing, const auto& work) {
+          if (item.result.error.empty() && run.Stopping()) {
+            item.result.error = StrCat(timing->name, ": ", kCaptureStopped);
+            item.result.error_stage = timing->name;
+          }
+          run.Process(item, timing, work);
+        };
+        step(t_rectify, [&](Item& it) { Rectify(it); });
+        step(t_stereo, [&](Item& it) {
+          Match(it, MatcherFor(it.settings.matcher, full_quality_setup, &matchers[MatcherSlot(it.settings.matcher)]),
+                full_quality_setup, &full_quality_range_end);
+        });
+        step(t_triangulate, [&](Item& it) { Triangulate(it, full_quality_setup); });
+        step(t_smooth, [&](Item& it) {
+          SmoothOptions smoothing = options.smoothing;
+          smoothing.tolerance = SmoothOptions{}.tolerance;
+          smoothing.num_threads = kFullQualityThreads;
+          smoothing.progress = [&](double f, std::string_view s) {
+            cancel_when_stopping(f, s, options.smoothing.progress);
+          };
+          it.result.smoothed = Smooth(it.result.raw_mesh, smoothing);
+        });
+        step(t_decimate, [&](Item& it) {
+          Decimate(it, [&](double f, std::string_view s) { cancel_when_stopping(f, s, options.decimation.progress); });
+        });
+      });
+      (*queues[5]).Push(std::move(*popped));
+    }
+    SinkInputDone();
+  }
+
+  // queues[5] has two producers, the decimate stage and the full-quality worker: the last one to finish closes it.
+  void SinkInputDone() {
+    if (sink_producers_left.fetch_sub(1) == 1) (*queues[5]).Close();
   }
 
   void SinkStage() {
     // The sink finishes the result it is writing even after a stop, so every file it wrote is complete.
+    // So is a capture (full-quality result) that was finished: the operator asked for it.
     while (auto popped = (*queues[5]).Pop()) {
       Item& item = **popped;
-      if (run.Stopping()) {
+      if (run.Stopping() && !(item.settings.full_quality && item.result.error.empty())) {
+        if (item.settings.full_quality) {
+          run.AddFullQuality(item.result);
+          std::lock_guard<std::mutex> lock(run.mutex());
+          summary.notices.push_back(
+              StrCat("the capture of frame ", item.result.index, " was abandoned: ", item.result.error));
+        }
         run.AddAbandoned();
         continue;
       }
@@ -782,9 +870,10 @@ class Stages {
       }
       summary.notices.push_back(notice);
     }
+    const int range_end_results = range_end.results + full_quality_range_end.results;
     if (range_end_results > 0) {
       char share[32];
-      std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * range_end_max);
+      std::snprintf(share, sizeof(share), "%.1f%%", 100.0 * std::max(range_end.max, full_quality_range_end.max));
       summary.notices.push_back(StrCat("in ", range_end_results, " of ", summary.results + summary.failed,
                                        " results many pixels matched best at an end of the disparities searched (up ",
                                        "to ", share, "): ", RangeEndAdvice()));
@@ -824,9 +913,11 @@ class Stages {
   std::optional<FrameResult> first;
   std::vector<std::unique_ptr<ItemQueue>> queues;
   SmoothTally smooth_tally;  // written by the smooth stage only, read after the join
-  // Stereo stage only: results whose search range looks too short (DisparityResult::range_end_fraction).
-  int range_end_results = 0;
-  double range_end_max = 0.0;
+  RangeEndTally range_end;   // stereo stage only
+  RangeEndTally full_quality_range_end;  // full-quality worker only
+  // Frames a control asked for at full quality, from the capture stage to the full-quality worker.
+  ItemQueue full_quality_queue{kMaxWaitingCaptures, QueueFullPolicy::kBlock};
+  std::atomic<int> sink_producers_left{2};  // SinkInputDone
   double smooth_overrun_ms = 0.0;  // smooth stage only: mean time a budgeted solve ran past its limit
   // Smooth stage only: the last budgeted result (pixels and smoothed positions), where the next frame starts.
   Eigen::Matrix<float, Eigen::Dynamic, 2, Eigen::RowMajor> earlier_pixel;
@@ -842,11 +933,11 @@ PipelineSummary RunPipeline(FrameSource& source, const StereoRig& rig, const Pip
   options.Check();
   Stages stages(source, rig, options, sinks);
   if (options.control != nullptr) options.control->Begin(options, [&stages]() { return stages.Snapshot(); });
-  std::array<std::thread, 7> threads = {
+  std::array<std::thread, 8> threads = {
       std::thread([&stages] { stages.CaptureStage(); }),     std::thread([&stages] { stages.RectifyStage(); }),
       std::thread([&stages] { stages.StereoStage(); }),      std::thread([&stages] { stages.TriangulateStage(); }),
       std::thread([&stages] { stages.SmoothStage(); }),      std::thread([&stages] { stages.DecimateStage(); }),
-      std::thread([&stages] { stages.SinkStage(); })};
+      std::thread([&stages] { stages.FullQualityStage(); }), std::thread([&stages] { stages.SinkStage(); })};
   for (std::thread& t : threads) t.join();
   if (options.control != nullptr) {
     PipelineSnapshot last = options.control->Snapshot();

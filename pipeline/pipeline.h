@@ -6,10 +6,17 @@
 // runs at its slowest stage's pace. A source that is not realtime() is never dropped from (it is read when
 // there is room). Every result carries its frame index and timestamp.
 //
+// A frame a PipelineControl asks for at full quality (a capture) leaves the live stages where it enters and goes
+// through every step on a worker thread of its own, using that thread only, so that the live stages go on meanwhile
+// with what CPU is left; its result joins the live results at the sinks when it is finished.
+//
 // Errors: a frame that fails in a stage (a corrupt image, a matcher or solver error) is counted, its reason
 // kept, and the run goes on; no exception leaves a stage thread. A lost device ends the run early with
 // PipelineSummary::fatal_error set, everything finished before it complete. The stop flag (Ctrl-C) ends the
-// capture; work already in flight is abandoned except the result the sink is writing, which is completed.
+// capture; work already in flight is abandoned except the result the sink is writing, which is completed, and a
+// finished full-quality result, which is delivered. A full-quality frame still being processed is cancelled (at
+// the next progress report of its smoothing or decimation) and counted as a full-quality failure with the reason.
+// The end of the source (or a fatal error) waits for every full-quality frame already taken.
 #pragma once
 
 #include <atomic>
@@ -65,7 +72,8 @@ struct PipelineResult {
   int smooth_warm_vertices = 0;  // vertices that started from the previous result (0: solved from the measurements)
 };
 
-// Receives finished results in frame order (from the sink thread; one call at a time).
+// Receives finished results from the sink thread, one call at a time: the live results in frame order, a
+// full-quality result when it is finished (after the results of the frames that came out while it was made).
 class PipelineSink {
  public:
   virtual ~PipelineSink() = default;
@@ -96,7 +104,7 @@ struct PipelineOptions {
   std::string noise_model_name = "noise model";  // names the model (its file) in errors
   TriangulateOptions triangulate;
   bool smooth = true;                // run Bayesian smoothing (bayes/smooth.h)
-  SmoothOptions smoothing;
+  SmoothOptions smoothing;           // its progress callback is also called from the full-quality worker, concurrently
   // ≥ 0 ms; 0: no budget. Else a deadline for each frame's smoothing (SmoothOptions::time_limit_s): it stops
   // there with the most converged result it reached and says how far from converged (PipelineResult). Results
   // then depend on timing.
@@ -117,7 +125,8 @@ struct PipelineOptions {
   // raw frames). Must be quick (hand the frame to another thread); an exception counts the frame as skipped.
   std::function<void(const StereoFrame&)> on_frame;
   // The full-quality path a control can ask for: stereo at full resolution, triangulation every this many
-  // pixels (1–64), smoothing to the library's default tolerance without a time budget, decimation on.
+  // pixels (1–64), smoothing to the library's default tolerance without a time budget on one thread, decimation on
+  // (decimation.progress is then called from that thread).
   int full_quality_triangulate_downsample = 1;
   ProgressCallback progress;         // from the sink thread; fraction of frames_total() when known
   void Check() const;

@@ -51,9 +51,11 @@ class PipelineControl {
   void SetSmoothBudgetMs(double budget_ms);
   void SetStereoDownsample(int factor);
   void SetMatcher(PipelineMatcher matcher, int window_frames);
-  // The next frame that enters goes alone through the full-quality path (PipelineOptions::full_quality);
-  // its result has PipelineResult::full_quality set. Requests made before it is taken count once. That frame is
-  // never dropped by a live queue; it ends as a result (full_quality_done) or a failure (full_quality_failed).
+  // The next frame that enters goes alone through the full-quality path (pipeline.h), beside the live stages;
+  // its result has PipelineResult::full_quality set. Requests made before it is taken count once. A request made
+  // while a capture is in progress is taken the same way, its frame waiting for the capture before it (while four
+  // wait, a request waits to be taken). That frame is never dropped; it ends as a result (full_quality_done) or a
+  // failure (full_quality_failed, also when a stop request cancelled it).
   void RequestFullQuality();
 
   PipelineSnapshot Snapshot() const;

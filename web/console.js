@@ -342,7 +342,7 @@ function onStatus(s) {
   if (s.capture_pending) {
     cs.className = 'pending';
     cs.textContent = s.settings.paused ? 'capture pending: resume the run to take the frame' :
-                                         'capturing a full-quality frame… (the live view waits for it)';
+                                         'capturing a full-quality frame… (the live view goes on meanwhile)';
   } else if (s.capture_error) {
     cs.className = 'err';
     cs.textContent = 'capture failed: ' + s.capture_error + ' - try again';

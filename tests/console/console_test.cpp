@@ -4,9 +4,13 @@
 // oldest messages (counted) while frames keep flowing through the pipeline.
 #include "console/console.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/time.h>
+#include <unistd.h>
 
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
@@ -362,6 +366,60 @@ TEST_F(ConsoleTest, CaptureNowOnTheLivePathArrives) {
   const PipelineSummary s = RunPipeline(source, *recording_.rig, options, {console_.get()});
   EXPECT_GE(s.results, 1);
   EXPECT_EQ(control_.Snapshot().full_quality_done, 1);
+  ASSERT_TRUE(WaitFor([&] { return console_->Status()["captures"].size() == 1; }));
+  EXPECT_FALSE(console_->Status()["capture_pending"]);
+  EXPECT_EQ(console_->Status()["capture_error"], "");
+}
+
+// A sink listed before the console whose Finish returns only once the console is writing the capture: its file is a
+// FIFO (written through, not replaced) with a one-page buffer that nobody reads yet, so the writer stays in the
+// middle of the file until Drain.
+class CaptureWriteGate : public PipelineSink {
+ public:
+  explicit CaptureWriteGate(std::string fifo) : fifo_(std::move(fifo)) {}
+  ~CaptureWriteGate() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  void Consume(const PipelineResult&) override {}
+  void Finish() override {
+    fd_ = ::open(fifo_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd_ < 0) return;
+    ::fcntl(fd_, F_SETPIPE_SZ, 4096);
+    pollfd p = {fd_, POLLIN, 0};
+    writing_ = ::poll(&p, 1, 60000 * RB_TEST_TIMEOUT_FACTOR) == 1;
+  }
+  bool writing() const { return writing_; }
+  // Reads the capture to its end, so that its writer finishes.
+  void Drain() {
+    if (fd_ < 0) return;
+    ::fcntl(fd_, F_SETFL, 0);
+    char buffer[65536];
+    while (::read(fd_, buffer, sizeof(buffer)) > 0) {
+    }
+  }
+
+ private:
+  std::string fifo_;
+  int fd_ = -1;
+  bool writing_ = false;
+};
+
+// The run ended while the console's thread was writing the capture it had just been given: Finish saw no capture
+// waiting and took the request for one that never came, and the page showed "the run ended before a frame was
+// taken" beside the capture. (A capture that ends the run, which the full-quality worker makes likely.)
+TEST_F(ConsoleTest, ACaptureBeingSavedWhenTheRunEndsIsNotReportedMissing) {
+  std::filesystem::create_directories(TestOptions(dir_).capture_dir);
+  const std::string fifo = TestOptions(dir_).capture_dir + "/capture_1.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ASSERT_EQ(StatusOf(Post(console_->port(), R"({"cmd":"capture_now"})", TestOptions(dir_).token)), 200);
+  PlaybackSource source(recording_);
+  PipelineOptions options = FastOptions();
+  options.control = &control_;
+  CaptureWriteGate gate(fifo);
+  RunPipeline(source, *recording_.rig, options, {&gate, console_.get()});
+  ASSERT_TRUE(gate.writing()) << "the console never wrote the capture";
+  EXPECT_EQ(console_->Status()["capture_error"], "");
+  gate.Drain();
   ASSERT_TRUE(WaitFor([&] { return console_->Status()["captures"].size() == 1; }));
   EXPECT_FALSE(console_->Status()["capture_pending"]);
   EXPECT_EQ(console_->Status()["capture_error"], "");

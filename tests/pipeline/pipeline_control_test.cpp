@@ -5,10 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <string_view>
 #include <thread>
 
 #include "capture/playback_source.h"
@@ -160,8 +162,8 @@ std::int64_t StageItems(const PipelineSnapshot& snap, const std::string& name) {
 
 // On the live path the queue after capture drops its oldest frame: the frame a "capture now" took was dropped by
 // the next one whenever the pipeline was busy, and the operator's capture never came. Here the pipeline is held
-// full (the sink waits), the request is taken by a frame that then waits in that queue, and two more frames
-// arrive behind it before the sink lets go.
+// full (the sink waits), the request is taken by a frame then, and two more frames arrive behind it (and are
+// dropped) before the sink lets go.
 TEST(PipelineControl, AFullQualityFrameIsNeverDroppedOnTheLivePath) {
   TempDir dir("control_full_quality_live");
   const Recording rec = OpenRecording(MakeSynthRecording(dir, 24));
@@ -205,6 +207,146 @@ TEST(PipelineControl, AFullQualityFrameIsNeverDroppedOnTheLivePath) {
   EXPECT_TRUE(sink.full_quality_seen()) << "the requested frame " << requested_at << " never came out";
   EXPECT_EQ(control.Snapshot().full_quality_done, 1);
   EXPECT_EQ(control.Snapshot().full_quality_failed, 0);
+}
+
+// Keeps the results in the order they reach the sinks, and lets another thread wait for them.
+class OrderSink : public PipelineSink {
+ public:
+  void Consume(const PipelineResult& r) override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      results_.push_back({r.index, r.stereo_downsample, r.full_quality, r.decimated.has_value()});
+    }
+    changed_.notify_all();
+  }
+  // Waits until `live` results that are not full-quality have arrived (or `seconds` pass); returns whether they did.
+  bool WaitForLiveResults(int live, double seconds) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return changed_.wait_for(lock, std::chrono::duration<double>(seconds), [&] {
+      return std::count_if(results_.begin(), results_.end(), [](const Seen& r) { return !r.full_quality; }) >= live;
+    });
+  }
+  std::vector<Seen> results() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return results_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<Seen> results_;
+};
+
+// Where the full-quality result of frame `index` lies in `results` (-1: absent).
+int FullQualityPosition(const std::vector<Seen>& results, std::int64_t index) {
+  for (size_t i = 0; i < results.size(); ++i) {
+    if (results[i].full_quality && results[i].index == index) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+// A capture (frame 2) ran on the stage threads in sequence with the live frames, so no live result came out while it
+// was processed: the operator's live view froze for the whole capture. Here the capture's smoothing is held (in its
+// progress callback: live smoothing is off, so every call is the capture's) until every other frame of the
+// recording has reached the sink, then let go. The live frames must come meanwhile, and the run, whose source has
+// ended by then, must wait for the capture and deliver it.
+TEST(PipelineControl, LiveResultsGoOnWhileACaptureRunsAndTheRunWaitsForIt) {
+  TempDir dir("control_capture_beside_live");
+  constexpr int kFrames = 10;
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, kFrames));
+  PlaybackSource source(rec);
+  PipelineControl control;
+  PipelineOptions options = SmallOptions();
+  options.smooth = false;
+  options.control = &control;
+  options.on_frame = [&](const StereoFrame& f) {
+    if (f.index == 2) control.RequestFullQuality();
+  };
+  OrderSink sink;
+  std::atomic<bool> held{false};
+  std::atomic<bool> live_went_on{false};
+  options.smoothing.progress = [&](double, std::string_view) {
+    if (held.exchange(true)) return;
+    live_went_on = sink.WaitForLiveResults(kFrames - 1, 60.0);
+  };
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  ASSERT_TRUE(held.load()) << "the capture was never smoothed";
+  EXPECT_TRUE(live_went_on.load()) << "no live result came while the capture was held";
+  EXPECT_EQ(s.results, kFrames);
+  const std::vector<Seen> results = sink.results();
+  ASSERT_EQ(results.size(), static_cast<size_t>(kFrames));
+  EXPECT_EQ(FullQualityPosition(results, 2), kFrames - 1) << "the capture is the last result";
+  EXPECT_TRUE(results.back().decimated);
+  EXPECT_EQ(control.Snapshot().full_quality_done, 1);
+  EXPECT_EQ(control.Snapshot().full_quality_failed, 0);
+}
+
+// A second request while a capture is in progress is taken by the next frame, which waits for the first capture to
+// finish: both come, each once, and every other frame comes once as a live result.
+TEST(PipelineControl, ASecondCaptureWhileOneRunsIsQueued) {
+  TempDir dir("control_capture_second");
+  constexpr int kFrames = 10;
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, kFrames));
+  PlaybackSource source(rec);
+  PipelineControl control;
+  PipelineOptions options = SmallOptions();
+  options.smooth = false;
+  options.control = &control;
+  options.on_frame = [&](const StereoFrame& f) {
+    if (f.index == 2 || f.index == 4) control.RequestFullQuality();
+  };
+  OrderSink sink;
+  std::atomic<bool> held{false};
+  std::atomic<bool> live_went_on{false};
+  options.smoothing.progress = [&](double, std::string_view) {
+    if (held.exchange(true)) return;
+    live_went_on = sink.WaitForLiveResults(kFrames - 2, 60.0);  // frame 4 was taken while frame 2's capture ran
+  };
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  EXPECT_TRUE(live_went_on.load()) << "no live result came while the capture was held";
+  EXPECT_EQ(s.results, kFrames);
+  const std::vector<Seen> results = sink.results();
+  const int first = FullQualityPosition(results, 2);
+  const int second = FullQualityPosition(results, 4);
+  EXPECT_GE(first, 0);
+  EXPECT_GT(second, first);
+  for (const Seen& r : results) EXPECT_EQ(r.full_quality, r.index == 2 || r.index == 4) << r.index;
+  EXPECT_EQ(control.Snapshot().full_quality_done, 2);
+}
+
+// A stop request (Ctrl-C) while a capture is smoothed cancels it at the solver's next report instead of finishing a
+// solve whose result would be thrown away, and says so: the capture counts as failed with the reason (what the
+// console shows as capture_error), not as silently gone.
+TEST(PipelineControl, AStopCancelsACaptureInProgressAndSaysSo) {
+  TempDir dir("control_capture_stop");
+  constexpr int kFrames = 6;
+  const Recording rec = OpenRecording(MakeSynthRecording(dir, kFrames));
+  PlaybackSource source(rec);
+  PipelineControl control;
+  PipelineOptions options = SmallOptions();
+  options.smooth = false;
+  options.control = &control;
+  std::atomic<bool> stop{false};
+  options.stop = &stop;
+  options.on_frame = [&](const StereoFrame& f) {
+    if (f.index == 1) control.RequestFullQuality();
+  };
+  OrderSink sink;
+  std::atomic<int> reports_after_stop{0};
+  options.smoothing.progress = [&](double, std::string_view) {
+    if (stop.exchange(true)) ++reports_after_stop;
+  };
+  const PipelineSummary s = RunPipeline(source, *rec.rig, options, {&sink});
+  EXPECT_TRUE(s.stopped);
+  EXPECT_EQ(reports_after_stop.load(), 0) << "the capture's solve went on after the stop";
+  EXPECT_EQ(FullQualityPosition(sink.results(), 1), -1);
+  const PipelineSnapshot snap = control.Snapshot();
+  EXPECT_EQ(snap.full_quality_done, 0);
+  EXPECT_EQ(snap.full_quality_failed, 1);
+  EXPECT_NE(snap.full_quality_error.find("frame 1: "), std::string::npos) << snap.full_quality_error;
+  EXPECT_NE(snap.full_quality_error.find("stopped"), std::string::npos) << snap.full_quality_error;
+  EXPECT_EQ(s.failed, 0) << "a cancelled capture is abandoned work, not a failed frame";
+  EXPECT_GE(s.abandoned, 1);
 }
 
 TEST(PipelineControl, RefusesSettingsOutOfRange) {
