@@ -32,6 +32,7 @@ struct FrameSourceStats {
   std::int64_t dropped_right = 0;
   std::int64_t unpaired_left = 0;   // images discarded because no partner arrived within the tolerance
   std::int64_t unpaired_right = 0;
+  std::int64_t gaps_shortened = 0;  // playback at recorded speed: waits cut to PlaybackOptions::max_gap_s
 };
 
 class FrameSource {

@@ -1,6 +1,7 @@
 #include "capture/playback_source.h"
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
 
 #include "core/error.h"
@@ -14,6 +15,8 @@ void PlaybackOptions::Check() const {
   RB_CHECK(count >= -1, "playback count must be >= -1, got ", count);
   RB_CHECK(repeats >= 1 && repeats <= 1'000'000, "playback repeats must be in 1..1000000, got ", repeats);
   RB_CHECK(speed != PlaybackSpeed::kStep || static_cast<bool>(step_gate), "step playback needs a step gate");
+  RB_CHECK(std::isfinite(max_gap_s) && max_gap_s > 0.0, "playback max_gap_s must be a finite number > 0, got ",
+           max_gap_s);
 }
 
 PlaybackSource::PlaybackSource(Recording recording, const PlaybackOptions& options)
@@ -90,11 +93,20 @@ FrameResult PlaybackSource::Next() {
       clock_started_ = true;
       wall_start_ = std::chrono::steady_clock::now();
       recorded_start_ns_ = t_ns;
+      gaps_cut_s_ = 0.0;
+      last_offset_s_ = 0.0;
     } else {
-      // At most ~30 years ahead, so that a damaged timestamp cannot overflow the clock's nanoseconds; the
-      // difference in double, which two timestamps of opposite sign cannot overflow.
-      const double offset_s = std::min(
-          1e9, (static_cast<double>(t_ns) - static_cast<double>(recorded_start_ns_)) * 1e-9 / options_.speed_factor);
+      // The difference in double, which two timestamps of opposite sign cannot overflow; a gap beyond max_gap_s
+      // after the last frame is cut to it (so no damaged timestamp can overflow the clock either).
+      double offset_s =
+          (static_cast<double>(t_ns) - static_cast<double>(recorded_start_ns_)) * 1e-9 / options_.speed_factor -
+          gaps_cut_s_;
+      if (offset_s - last_offset_s_ > options_.max_gap_s) {
+        gaps_cut_s_ += offset_s - last_offset_s_ - options_.max_gap_s;
+        offset_s = last_offset_s_ + options_.max_gap_s;
+        ++stats_.gaps_shortened;
+      }
+      last_offset_s_ = std::max(last_offset_s_, offset_s);
       if (offset_s > 0) {
         const auto until = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                              std::chrono::duration<double>(offset_s));

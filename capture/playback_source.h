@@ -27,6 +27,10 @@ struct PlaybackOptions {
   // kRecorded: the wait for a frame's recorded time polls this (every 20 ms) and ends the stream when it is set
   // (e.g. &StopFlag()), so that Ctrl-C or SIGTERM ends a long gap between two frames; null: never.
   const std::atomic<bool>* stop = nullptr;
+  // kRecorded: the longest wait between two frames (seconds of wall time); a longer gap between their recorded
+  // times (a pause, a damaged timestamp) is played as this and counted in FrameSourceStats::gaps_shortened.
+  // A timestamp 4e18 ns ahead made replay sleep without end. > 0.
+  double max_gap_s = 10.0;
   void Check() const;
 };
 
@@ -61,6 +65,8 @@ class PlaybackSource : public FrameSource {
   bool clock_started_ = false;
   std::chrono::steady_clock::time_point wall_start_;
   std::int64_t recorded_start_ns_ = 0;
+  double gaps_cut_s_ = 0.0;        // recorded time (scaled) left out by gaps cut to max_gap_s
+  double last_offset_s_ = 0.0;     // when the last frame was due, seconds after the first
   std::int64_t loop_index_offset_ = 0;
   int plays_done_ = 0;  // completed passes over the selection
 };

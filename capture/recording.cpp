@@ -226,6 +226,17 @@ void RecordingWriter::WriteMeta(const RecordingMeta& meta) const {
 
 void RecordingWriter::Write(const StereoFrame& frame) {
   RB_CHECK(!summary_.finished, folder_, ": Write after Finish");
+  try {
+    WriteFrame(frame);
+  } catch (const Error& e) {
+    // A recording that missed a frame is not complete (synth and the console's recordings cut short by a full
+    // disk said `complete: "true"`).
+    if (write_error_.empty()) write_error_ = e.what();
+    throw;
+  }
+}
+
+void RecordingWriter::WriteFrame(const StereoFrame& frame) {
   RB_CHECK(!index_cut_, folder_, ": frame ", frame.index,
            " not recorded: frames.csv was cut by an earlier write failure");
   RB_CHECK(!frame.empty(), folder_, ": frame ", frame.index, " has an empty image");
@@ -303,9 +314,19 @@ void RecordingWriter::Finish(const RecordingMeta& extra) {
   }
   for (const auto& [key, value] : extra) meta_[key] = value;
   meta_["frame_count"] = std::to_string(summary_.frames_written);
-  if (index_error.empty()) {
+  if (index_error.empty() && write_error_.empty()) {
     meta_["complete"] = "true";
     WriteMeta(meta_);
+    return;
+  }
+  if (index_error.empty()) {
+    meta_["complete"] = "false";
+    if (meta_.count("error") == 0) meta_["error"] = write_error_;
+    try {
+      WriteMeta(meta_);
+    } catch (const Error&) {
+      // The disk that refused the frame may refuse meta.yaml too; it keeps its earlier `complete: "false"`.
+    }
     return;
   }
   // The frames are still readable up to the last line that reached the disk; the recording is not complete.
@@ -412,6 +433,13 @@ Recording OpenRecording(const std::string& folder, RecordingReadSummary* summary
   rec.folder = folder;
   rec.frames = ParseRecordingIndex(text.str(), index_path.string(), &s);
   rec.meta = ReadRecordingMeta((root / "meta.yaml").string());
+  const auto complete = rec.meta.find("complete");
+  if (complete != rec.meta.end() && complete->second == "false") {
+    const auto error = rec.meta.find("error");
+    s.notices.push_back(StrCat(folder, ": the recording is marked incomplete (meta.yaml complete: false",
+                               error != rec.meta.end() ? "; error: " + error->second : std::string(),
+                               "): it may end early or still be written"));
+  }
   if (fs::exists(root / "rig.yaml")) rec.rig = ReadStereoRig((root / "rig.yaml").string());
   rec.files_present.resize(rec.frames.size(), true);
   for (size_t i = 0; i < rec.frames.size(); ++i) {

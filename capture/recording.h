@@ -81,9 +81,11 @@ class RecordingWriter {
   void Write(const StereoFrame& frame);
 
   // Rewrites meta.yaml with the frame count, `complete: "true"` and `extra` merged in, and closes the index.
-  // Safe to call twice; Write after Finish throws. When frames.csv could not be synced to disk or closed (now or
-  // at an earlier fsync), meta.yaml says `complete: "false"` and Finish throws Error naming frames.csv and the
-  // system's reason: its last lines may not have reached the disk.
+  // Safe to call twice; Write after Finish throws. After a Write that failed (the frame was not recorded: a full
+  // disk, a folder removed), meta.yaml says `complete: "false"` and `error:` that failure's message (unless
+  // `extra` has an error of its own), and Finish returns normally: the caller was told by Write. When frames.csv
+  // could not be synced to disk or closed (now or at an earlier fsync), meta.yaml says `complete: "false"` and
+  // Finish throws Error naming frames.csv and the system's reason: its last lines may not have reached the disk.
   void Finish(const RecordingMeta& extra = {});
 
   const std::string& folder() const { return folder_; }
@@ -91,6 +93,7 @@ class RecordingWriter {
 
  private:
   void WriteMeta(const RecordingMeta& meta) const;
+  void WriteFrame(const StereoFrame& frame);
 
   std::string folder_;
   RecordingMeta meta_;
@@ -101,6 +104,7 @@ class RecordingWriter {
   std::int64_t last_index_ = -1;
   bool index_cut_ = false;  // a write of frames.csv failed part-way: no line may follow
   std::string sync_error_;  // the first failed fsync of frames.csv during Write, for Finish to report
+  std::string write_error_;  // the first Write that threw (a frame not recorded), for meta.yaml
 };
 
 // What a reader found that is not fatal. Each notice is one line a user can read.

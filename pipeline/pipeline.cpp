@@ -833,6 +833,11 @@ class Stages {
     summary.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
     summary.stopped = options.stop != nullptr && options.stop->load();
     summary.source_stats = source.stats();
+    if (summary.source_stats.gaps_shortened > 0) {
+      summary.notices.push_back(StrCat(summary.source_stats.gaps_shortened,
+                                       " gap(s) between recorded timestamps were longer than the longest wait of "
+                                       "playback at recorded speed and were played shorter"));
+    }
     for (const auto& q : queues) {
       summary.dropped_per_queue.push_back(q->dropped());
       summary.dropped += q->dropped();
@@ -1004,7 +1009,8 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
                        {"dropped_left", summary.source_stats.dropped_left},
                        {"dropped_right", summary.source_stats.dropped_right},
                        {"unpaired_left", summary.source_stats.unpaired_left},
-                       {"unpaired_right", summary.source_stats.unpaired_right}};
+                       {"unpaired_right", summary.source_stats.unpaired_right},
+                       {"gaps_shortened", summary.source_stats.gaps_shortened}};
   nlohmann::json stages = nlohmann::json::array();
   for (const StageTiming& s : summary.stages) {
     stages.push_back({{"name", s.name},

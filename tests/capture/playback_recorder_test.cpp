@@ -135,6 +135,34 @@ TEST(Playback, StopEndsTheWaitForAFarTimestamp) {
   ExpectAStopEndsTheWaitForTheSecondFrame(rec);
 }
 
+// A gap between recorded timestamps longer than max_gap_s is played as max_gap_s and counted; the frames after it
+// keep their own gaps. A timestamp 4e18 ns ahead made `replay --speed recorded` sleep without end. (The stop
+// request is only the guard that ends the test if the wait is not cut.)
+TEST(Playback, AGapLongerThanTheLongestWaitIsPlayedShorter) {
+  const TempDir dir("gap");
+  Recording rec = OpenRecording(MakeRecording(dir, 3));
+  rec.frames[1].timestamp_left_ns = rec.frames[1].timestamp_right_ns = 4'000'000'000'000'000'000;
+  rec.frames[2].timestamp_left_ns = rec.frames[2].timestamp_right_ns = 4'000'000'000'001'000'000;  // 1 ms later
+  std::atomic<bool> stop{false};
+  PlaybackOptions o;
+  o.speed = PlaybackSpeed::kRecorded;
+  o.max_gap_s = 0.01;
+  o.stop = &stop;
+  PlaybackSource source(rec, o);
+  std::thread guard([&] {
+    for (int i = 0; i < 600 && !stop; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  std::vector<FrameStatus> got;
+  for (int i = 0; i < 3; ++i) got.push_back(source.Next().status);
+  stop = true;
+  guard.join();
+  EXPECT_EQ(got, std::vector<FrameStatus>(3, FrameStatus::kFrame));
+  EXPECT_EQ(source.stats().gaps_shortened, 1);
+  o.max_gap_s = 0.0;
+  EXPECT_THROW(PlaybackSource(rec, o), Error);
+}
+
 TEST(Playback, RepeatsPlayTheSelectionAgainWithIncreasingIndices) {
   const TempDir dir("repeat");
   const Recording rec = OpenRecording(MakeRecording(dir, 4));
@@ -484,6 +512,58 @@ std::vector<std::string> PartialFiles(const std::string& folder) {
   return found;
 }
 
+// Image writes fail with ENOSPC from the `fail_from`-th on (a large file that no longer fits where a small one
+// such as meta.yaml still does); every other call is the system's.
+class ImagesDoNotFit final : public FileSysCalls {
+ public:
+  explicit ImagesDoNotFit(int fail_from) : fail_from_(fail_from) {}
+  int Open(const std::string& path, int flags, mode_t mode) override {
+    const int fd = real_->Open(path, flags, mode);
+    if (fd >= 0) paths_[fd] = path;
+    return fd;
+  }
+  ssize_t Write(int fd, const void* data, size_t size) override {
+    if (paths_[fd].find(".png") != std::string::npos && ++writes_ >= fail_from_) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return real_->Write(fd, data, size);
+  }
+  int Fsync(int fd) override { return real_->Fsync(fd); }
+  int Close(int fd) override { return real_->Close(fd); }
+  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
+
+ private:
+  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
+  std::map<int, std::string> paths_;
+  int fail_from_;
+  int writes_ = 0;
+};
+
+// A writer whose caller goes on after a failed Write (synth, the console's recording) leaves a recording that says
+// it is not complete and why, and reading it says so; it said `complete: "true"` and replayed without a word.
+TEST(RecordingWriter, AFrameNotRecordedLeavesTheRecordingIncomplete) {
+  const TempDir dir("not_recorded");
+  const std::string folder = dir.path() + "/rec";
+  RecordingWriterOptions options;
+  options.files = std::make_shared<ImagesDoNotFit>(5);  // the left image of frame 2
+  RecordingWriter writer(folder, std::nullopt, {}, options);
+  for (int i = 0; i < 4; ++i) {
+    const std::string error = ErrorOf([&] { writer.Write(TestFrame(i, 32, 16, CV_8UC1)); });
+    EXPECT_EQ(error == "no error", i < 2) << i << ": " << error;
+  }
+  writer.Finish();
+  RecordingReadSummary read;
+  const Recording rec = OpenRecording(folder, &read);
+  EXPECT_EQ(rec.num_frames(), 2);
+  EXPECT_EQ(rec.meta.at("complete"), "false");
+  EXPECT_EQ(rec.meta.at("frame_count"), "2");
+  EXPECT_NE(rec.meta.at("error").find("frame 2 not recorded"), std::string::npos) << rec.meta.at("error");
+  ASSERT_EQ(read.notices.size(), 1u);
+  EXPECT_NE(read.notices[0].find("marked incomplete (meta.yaml complete: false; error: "), std::string::npos)
+      << read.notices[0];
+}
+
 TEST(Recorder, DiskFullDuringAnImageLosesOnlyThatFrameAndSaysSo) {
   const TempDir dir("full_image");
   FakeFrameSource source(32, 16, 8);
@@ -556,8 +636,10 @@ TEST(Recorder, DiskFullInTheIndexLeavesACutLineTheReaderDrops) {
   RecordingReadSummary read;
   const Recording rec = OpenRecording(dir.path() + "/rec", &read);
   EXPECT_TRUE(read.truncated_last_line);
-  ASSERT_EQ(read.notices.size(), 1u);
+  ASSERT_EQ(read.notices.size(), 2u);
   EXPECT_NE(read.notices[0].find("truncated"), std::string::npos) << read.notices[0];
+  // meta.yaml could not be written at Finish either: it says what it said from the start, not complete.
+  EXPECT_NE(read.notices[1].find("marked incomplete"), std::string::npos) << read.notices[1];
   EXPECT_EQ(rec.num_frames(), 2);
   ExpectRecordingHoldsTestFrames(rec, 32, 16, CV_8UC1);
 }
