@@ -397,11 +397,13 @@ void AddEvalDepth(CLI::App& app) {
   sub->add_option("GROUND_TRUTH", o->ground_truth,
                   "Ground-truth disparity (PFM, or PNG/PGM with --gt-scale), or a Middlebury scene folder");
   sub->add_option("--scene", o->scene, "Middlebury scene folder: ground truth, scale and non-occluded mask from it");
-  sub->add_option("--scale", o->scale, "Estimate PNG: disparity = value / scale");
+  sub->add_option("--scale", o->scale, "Estimate PNG/PGM: disparity = value / scale (a PFM holds disparities)");
   sub->add_option("--gt-scale", o->gt_scale, "Ground-truth PNG: disparity = value / scale (0: 1 for PFM)")
       ->check(RealRange(0.0, 1e6));
   sub->add_option("--estimate-scale", o->estimate_scale,
-                  "Multiply the estimate by this before scoring (e.g. 0.25 for full-size vs quarter-size)");
+                  "Multiply the estimate's disparities by this before scoring (e.g. 0.25 for a map resized to the "
+                  "quarter-size ground truth but still in full-size pixels; the sizes must match)")
+      ->check(PositiveReal());
   sub->add_option("--mask", o->mask, "Mask image: only pixels equal to --mask-value are scored");
   sub->add_option("--mask-value", o->mask_value, "Mask value of the pixels to score (0-65535)")
       ->check(CLI::Range(0, 65535));

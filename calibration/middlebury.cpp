@@ -94,6 +94,13 @@ MiddleburyCalib ReadMiddleburyCalib(const std::string& path) {
   if (values.count("vmin")) c.vmin = ParseNumber(path, "vmin", values["vmin"]);
   if (values.count("vmax")) c.vmax = ParseNumber(path, "vmax", values["vmax"]);
   RB_CHECK(c.cam0(0, 0) > 0 && c.cam1(0, 0) > 0, path, ": focal length must be positive");
+  // The pair is rectified: one focal length and one principal row for both views, only cx may differ (doffs).
+  // cam1's own values were dropped without a word.
+  const auto same = [](double a, double b) { return std::abs(a - b) <= 1e-3 * std::max(std::abs(a), std::abs(b)); };
+  RB_CHECK(same(c.cam0(0, 0), c.cam1(0, 0)) && same(c.cam0(1, 1), c.cam1(1, 1)) && same(c.cam0(1, 2), c.cam1(1, 2)),
+           path, ": cam0 and cam1 differ in focal length or principal row (fx ", c.cam0(0, 0), " / ", c.cam1(0, 0),
+           ", fy ", c.cam0(1, 1), " / ", c.cam1(1, 1), ", cy ", c.cam0(1, 2), " / ", c.cam1(1, 2),
+           "): not the calibration of a rectified pair");
   RB_CHECK(c.baseline_mm > 0, path, ": baseline must be positive");
   RB_CHECK(c.width > 0 && c.height > 0, path, ": width/height must be positive");
   return c;

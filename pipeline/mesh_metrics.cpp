@@ -17,6 +17,25 @@ namespace {
 
 Eigen::Vector3d Row(const Vertices& V, int i) { return V.row(i).transpose(); }
 
+// Per vertex, whether some face uses it: the surface. An unused vertex (a stereo mesh's pixel whose triangles were
+// cut, a file's stray point) is not, and counted as surface it set the Hausdorff distance and the box's diagonal.
+std::vector<char> UsedVertices(const Mesh& mesh) {
+  std::vector<char> used(static_cast<size_t>(mesh.num_vertices()), 0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) used[static_cast<size_t>(mesh.F(f, k))] = 1;
+  }
+  return used;
+}
+
+Vertices Select(const Vertices& V, const std::vector<char>& keep) {
+  Vertices out(std::count(keep.begin(), keep.end(), 1), 3);
+  Eigen::Index row = 0;
+  for (Eigen::Index v = 0; v < V.rows(); ++v) {
+    if (keep[static_cast<size_t>(v)]) out.row(row++) = V.row(v);
+  }
+  return out;
+}
+
 }  // namespace
 
 Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface) {
@@ -33,11 +52,21 @@ Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface) {
 
 SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth) {
   SurfaceErrors errors;
-  errors.bbox_diagonal = BoundingBoxExtent(ground_truth.V).norm();
+  const Vertices gt_surface = Select(ground_truth.V, UsedVertices(ground_truth));
+  errors.bbox_diagonal = BoundingBoxExtent(gt_surface).norm();
+  const std::vector<char> result_used = UsedVertices(result);
   const Eigen::VectorXd to_gt = DistanceToSurface(result.V, ground_truth);
-  const Eigen::VectorXd to_result = DistanceToSurface(ground_truth.V, result);
-  errors.hausdorff = std::max(to_gt.size() > 0 ? to_gt.maxCoeff() : 0.0, to_result.size() > 0 ? to_result.maxCoeff() : 0.0);
-  errors.mean_distance = to_gt.size() > 0 ? to_gt.mean() : 0.0;
+  const Eigen::VectorXd to_result = DistanceToSurface(gt_surface, result);
+  double to_gt_max = 0.0, to_gt_sum = 0.0;
+  int used = 0;
+  for (Eigen::Index v = 0; v < to_gt.size(); ++v) {
+    if (!result_used[static_cast<size_t>(v)]) continue;
+    to_gt_max = std::max(to_gt_max, to_gt[v]);
+    to_gt_sum += to_gt[v];
+    ++used;
+  }
+  errors.hausdorff = std::max(to_gt_max, to_result.size() > 0 ? to_result.maxCoeff() : 0.0);
+  errors.mean_distance = used > 0 ? to_gt_sum / used : 0.0;
   double weighted = 0, area_sum = 0;
   for (int f = 0; f < result.num_faces(); ++f) {
     const Eigen::Vector3d a = Row(result.V, result.F(f, 0)), b = Row(result.V, result.F(f, 1)),

@@ -19,6 +19,7 @@ Eigen::VectorXd DistanceToSurface(const Vertices& points, const Mesh& surface);
 struct SurfaceErrors {
   double ev = 0;                   // Ev of Sun et al. 2007, model units: sqrt(Σ_i Σ_(f∋i) A_f d_i² / (3 Σ_f A_f)),
                                    // A_f the result's face areas, d_i the distance of result vertex i to the GT
+  // Over the vertices some face uses (an unused vertex is not surface):
   double hausdorff = 0;            // symmetric Hausdorff distance over vertices (result→GT, GT→result), model units
   double bbox_diagonal = 0;        // of the ground truth
   double mean_distance = 0;        // mean result-vertex distance to the GT surface

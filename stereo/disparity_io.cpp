@@ -1,10 +1,13 @@
 #include "stereo/disparity_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <vector>
 
 #include "calibration/middlebury.h"
 #include "core/error.h"
@@ -12,7 +15,6 @@
 #include "stereo/pfm.h"
 
 namespace rangebayes {
-namespace {
 
 namespace fs = std::filesystem;
 
@@ -21,8 +23,6 @@ bool EndsWithPfm(const std::string& path) {
   for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext == ".pfm";
 }
-
-}  // namespace
 
 cv::Mat ReadImage(const std::string& path, int flags) {
   CheckFileToRead(path, "image");
@@ -39,6 +39,8 @@ cv::Mat ReadImage(const std::string& path, int flags) {
 cv::Mat ReadDisparityMap(const std::string& path, double scale) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   if (EndsWithPfm(path)) {
+    // It was divided by a scale > 0 and read as stored for any other, where the help and the docs said PNG only.
+    RB_CHECK(scale == 1.0, path, ": a PFM holds disparities; a scale (", scale, ") is for PNG/PGM maps");
     CheckFileToRead(path, "disparity map");
     cv::Mat d = ReadPfm(path);
     RB_CHECK(d.channels() == 1, path, ": disparity PFM must have one channel");
@@ -48,12 +50,22 @@ cv::Mat ReadDisparityMap(const std::string& path, double scale) {
         if (!std::isfinite(p[x])) p[x] = nan;
       }
     }
-    if (scale != 1.0 && scale > 0.0) d /= scale;
     return d;
   }
   RB_CHECK(scale > 0.0, path, ": a disparity image needs a positive scale (got ", scale, ")");
   cv::Mat image = ReadImage(path, cv::IMREAD_UNCHANGED);
-  if (image.channels() > 1) cv::extractChannel(image, image, 0);
+  if (image.channels() > 1) {
+    // A grey map stored with equal channels is read; a colour picture (stereo's disparity.png) was read as data
+    // from its first channel and scored without a word.
+    std::vector<cv::Mat> channels;
+    cv::split(image, channels);
+    for (size_t c = 1; c < std::min<size_t>(channels.size(), 3); ++c) {
+      RB_CHECK(cv::countNonZero(channels[c] != channels[0]) == 0, path,
+               ": a colour image, not a disparity map (its channels differ; the disparity.png that `stereo` writes "
+               "is a picture: use its disparity.pfm)");
+    }
+    image = channels[0];
+  }
   cv::Mat d;
   image.convertTo(d, CV_32F, 1.0 / scale);
   d.setTo(nan, image == 0);

@@ -13,10 +13,13 @@ namespace rangebayes {
 // file when it is missing, not a file, or not a readable image.
 cv::Mat ReadImage(const std::string& path, int flags);
 
-// Reads a disparity map as CV_32F pixels with NaN where unknown. PFM: values as stored, non-finite → NaN.
-// PNG/PGM/PPM (8 or 16 bit, first channel): value / scale, 0 → NaN (Middlebury's "unknown"); scale must be
-// > 0 for these. Throws Error naming the file when it is missing or unreadable.
+// Reads a disparity map as CV_32F pixels with NaN where unknown. PFM: values as stored, non-finite → NaN (scale
+// must be 1). PNG/PGM/PPM (8 or 16 bit; one channel, or channels that are all equal): value / scale, 0 → NaN
+// (Middlebury's "unknown"); scale must be > 0 for these. Throws Error naming the file when it is missing or
+// unreadable, a colour image, or a PFM given a scale.
 cv::Mat ReadDisparityMap(const std::string& path, double scale = 1.0);
+
+bool EndsWithPfm(const std::string& path);  // the .pfm extension, in any case
 
 // Reads a mask image (8/16-bit): returns CV_8U with 255 where the pixel equals `value` (e.g. 255 in
 // Middlebury's nonocc masks), 0 elsewhere. Throws Error naming the file.

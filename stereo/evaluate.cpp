@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <limits>
 
 #include "core/error.h"
 
@@ -53,12 +54,15 @@ DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& gr
     }
   }
   // No pixel scored would read as a perfect score (every bad-x 0%).
-  RB_CHECK(ev.evaluated_pixels > 0, "no pixel to score: the ground truth has no value where the mask selects");
+  RB_CHECK(ev.evaluated_pixels > 0, "no pixel to score: the ground truth has no value",
+           mask.empty() ? "" : " where the mask selects");
   ev.thresholds_px = options.bad_thresholds_px;
   ev.bad_with_holes.resize(n);
   ev.bad_valid_only.resize(n);
-  const double ne = static_cast<double>(std::max(1L, ev.evaluated_pixels));
-  const double nv = static_cast<double>(std::max(1L, ev.estimated_pixels));
+  const double ne = static_cast<double>(ev.evaluated_pixels);
+  // Without an estimated pixel the statistics over estimated pixels are unknown (NaN), not a perfect 0.
+  const double nv =
+      ev.estimated_pixels > 0 ? static_cast<double>(ev.estimated_pixels) : std::numeric_limits<double>::quiet_NaN();
   for (size_t i = 0; i < n; ++i) {
     ev.bad_with_holes[i] = static_cast<double>(bad[i]) / ne;
     ev.bad_valid_only[i] = static_cast<double>(bad_valid[i]) / nv;
@@ -72,16 +76,22 @@ DisparityEvaluation EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& gr
 std::string DisparityEvaluation::BriefReport() const {
   std::string out;
   char line[256];
-  std::snprintf(line, sizeof(line), "evaluated %ld pixels, coverage %.2f%%, RMS %.3f px, mean |error| %.3f px\n",
-                evaluated_pixels, 100.0 * coverage, rms_px, mean_abs_px);
+  if (estimated_pixels > 0) {
+    std::snprintf(line, sizeof(line), "evaluated %ld pixels, coverage %.2f%%, RMS %.3f px, mean |error| %.3f px\n",
+                  evaluated_pixels, 100.0 * coverage, rms_px, mean_abs_px);
+  } else {
+    std::snprintf(line, sizeof(line), "evaluated %ld pixels, coverage 0%%: no estimated pixel (RMS n/a)\n",
+                  evaluated_pixels);
+  }
   out += line;
   std::snprintf(line, sizeof(line), "%-10s %18s %18s\n", "threshold", "holes as errors", "holes excluded");
   out += line;
   for (size_t i = 0; i < thresholds_px.size(); ++i) {
     char name[32];
     std::snprintf(name, sizeof name, "bad-%g", thresholds_px[i]);
-    std::snprintf(line, sizeof(line), "%-10s %17.2f%% %17.2f%%\n", name, 100.0 * bad_with_holes[i],
-                  100.0 * bad_valid_only[i]);
+    char excluded[32] = "n/a";
+    if (estimated_pixels > 0) std::snprintf(excluded, sizeof excluded, "%.2f%%", 100.0 * bad_valid_only[i]);
+    std::snprintf(line, sizeof(line), "%-10s %17.2f%% %18s\n", name, 100.0 * bad_with_holes[i], excluded);
     out += line;
   }
   return out;

@@ -26,7 +26,7 @@ struct DisparityEvaluation {
   std::vector<double> thresholds_px;
   std::vector<double> bad_with_holes;
   std::vector<double> bad_valid_only;
-  double rms_px = 0.0;         // over estimated pixels
+  double rms_px = 0.0;         // over estimated pixels (with bad_valid_only and mean_abs_px: NaN when none)
   double mean_abs_px = 0.0;    // over estimated pixels
 
   // Pixels, coverage, RMS and mean error, then a table of bad-x with holes as errors and holes excluded.

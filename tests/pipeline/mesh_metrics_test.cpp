@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "core/error.h"
 
@@ -19,6 +20,23 @@ Mesh Square(double height) {
   m.F.resize(2, 3);
   m.F << 0, 1, 2, 0, 2, 3;
   return m;
+}
+
+// A vertex no face uses is not surface: a stray point far away, in either mesh, changed the Hausdorff distance, the
+// mean distance and the box's diagonal (85 of an 87-unit diagonal for two equal squares).
+TEST(EvaluateMesh, UnusedVerticesAreNotSurface) {
+  const auto with_stray = [](Mesh m) {
+    m.V.conservativeResize(5, 3);
+    m.V.row(4) << 50, 50, 50;
+    return m;
+  };
+  for (const auto& [result, truth] :
+       {std::pair<Mesh, Mesh>{with_stray(Square(0.25)), Square(0)}, {Square(0.25), with_stray(Square(0))}}) {
+    const SurfaceErrors e = ComputeSurfaceErrors(result, truth);
+    EXPECT_DOUBLE_EQ(e.hausdorff, 0.25);
+    EXPECT_DOUBLE_EQ(e.mean_distance, 0.25);
+    EXPECT_DOUBLE_EQ(e.bbox_diagonal, std::sqrt(2.0));
+  }
 }
 
 TEST(EvaluateMesh, AParallelCopyIsItsOffsetAwayWithTheSameNormals) {

@@ -6,10 +6,12 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
 #include "stereo/disparity_io.h"
 #include "stereo/evaluate.h"
+#include "stereo/pfm.h"
 #include "tests/temp_dir.h"
 
 namespace rangebayes {
@@ -76,6 +78,19 @@ TEST(Middlebury, CalibErrorsNameTheKey) {
       EXPECT_NE(std::string(e.what()).find("is not a whole number in"), std::string::npos) << e.what();
     }
   }
+  // cam1 of another focal length or principal row is not a rectified pair's (its values were dropped silently).
+  for (const char* cam1 : {"cam1=[1038 0 20; 0 1038 30; 0 0 1]", "cam1=[1000 0 20; 0 1000 31; 0 0 1]"}) {
+    {
+      std::ofstream out(path, std::ios::trunc);
+      out << "cam0=[1000 0 10; 0 1000 30; 0 0 1]\n" << cam1 << "\nbaseline=10\nwidth=5\nheight=5\n";
+    }
+    try {
+      ReadMiddleburyCalib(path);
+      ADD_FAILURE() << cam1;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("not the calibration of a rectified pair"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Middlebury, V2SceneReadsWithScaleAndMask) {
@@ -110,6 +125,43 @@ TEST(Evaluate, CountsHolesBothWays) {
   EXPECT_THROW(EvaluateDisparity(est, cv::Mat(2, 4, CV_32F), {}), Error);
   // A mask that selects no pixel scored nothing and reported every bad-x as 0%, a perfect score.
   EXPECT_THROW(EvaluateDisparity(est, gt, cv::Mat::zeros(est.size(), CV_8U)), Error);
+}
+
+// No estimated pixel: the statistics over estimated pixels are unknown, not a perfect 0 (the report said "RMS 0.000
+// px" and bad-x with holes excluded 0.00% for an all-NaN map).
+TEST(Evaluate, AnEmptyEstimateHasNoRms) {
+  const cv::Mat gt(2, 3, CV_32F, cv::Scalar(10.0f)), est(2, 3, CV_32F, cv::Scalar(NAN));
+  const DisparityEvaluation ev = EvaluateDisparity(est, gt, {});
+  EXPECT_EQ(ev.evaluated_pixels, 6);
+  EXPECT_EQ(ev.estimated_pixels, 0);
+  EXPECT_DOUBLE_EQ(ev.bad_with_holes[0], 1.0);
+  EXPECT_TRUE(std::isnan(ev.rms_px) && std::isnan(ev.mean_abs_px) && std::isnan(ev.bad_valid_only[0]));
+  const std::string report = ev.BriefReport();
+  EXPECT_NE(report.find("no estimated pixel (RMS n/a)"), std::string::npos) << report;
+  EXPECT_EQ(report.find("nan"), std::string::npos) << report;
+}
+
+// A colour picture (the disparity.png that `stereo` writes) is not read as a disparity map from its first channel,
+// a grey map stored with three equal channels is; a PFM refuses a scale (it divided by one, undocumented).
+TEST(Evaluate, ColourPicturesAndScaledPfmsAreRefused) {
+  const TempDir dir("disparity_io");
+  cv::Mat grey(4, 5, CV_8U, cv::Scalar(32)), colour;
+  cv::Mat channels[] = {grey, grey, grey};
+  cv::merge(channels, 3, colour);
+  ASSERT_TRUE(cv::imwrite(dir.path() + "/grey3.png", colour));
+  const cv::Mat d = ReadDisparityMap(dir.path() + "/grey3.png", 16.0);
+  EXPECT_FLOAT_EQ(d.at<float>(0, 0), 2.0f);
+  colour.at<cv::Vec3b>(1, 1)[2] = 200;
+  ASSERT_TRUE(cv::imwrite(dir.path() + "/colour.png", colour));
+  try {
+    ReadDisparityMap(dir.path() + "/colour.png", 1.0);
+    ADD_FAILURE() << "a colour image was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("a colour image, not a disparity map"), std::string::npos) << e.what();
+  }
+  WritePfm(cv::Mat(2, 2, CV_32F, cv::Scalar(3.0f)), dir.path() + "/d.pfm");
+  EXPECT_FLOAT_EQ(ReadDisparityMap(dir.path() + "/d.pfm").at<float>(0, 0), 3.0f);
+  EXPECT_THROW(ReadDisparityMap(dir.path() + "/d.pfm", 256.0), Error);
 }
 
 // A slanted plane stored in steps of 1/3 px (as Middlebury's third-size maps are) beside another plane 6 px nearer:
