@@ -494,6 +494,9 @@ void MeasureRectification(const std::vector<PairDetection>& kept, const StageRes
   }
   sum.epipolar_error_mean_px = count ? sum_dy / static_cast<double>(count) : -1.0;
   sum.epipolar_error_max_px = max_dy;
+  // x_right = R x_left + T: the right centre is at −RᵀT in the left frame, on the left's right for a proper pair.
+  const cv::Mat centre = -stage.R.t() * stage.T;
+  sum.right_camera_on_the_left = centre.at<double>(0) < 0.0;
   Coverage(all_left, size, options.coverage_grid, &sum.coverage_left, &sum.grid_coverage_left);
   Coverage(all_right, size, options.coverage_grid, &sum.coverage_right, &sum.grid_coverage_right);
 }
@@ -681,6 +684,9 @@ std::string StereoCalibrationSummary::BriefReport() const {
   std::snprintf(line, sizeof(line), "epipolar error after rectification: mean %.3f px, max %.3f px\n",
                 epipolar_error_mean_px, epipolar_error_max_px);
   out += line;
+  if (right_camera_on_the_left) {
+    out += "warning: the right camera sits to the left of the left one: are --left and --right swapped?\n";
+  }
   return out;
 }
 

@@ -103,6 +103,9 @@ struct StereoCalibrationSummary {
   // |y_left − y_right| of the board corners after rectification, over all used views, pixels.
   double epipolar_error_mean_px = -1.0;
   double epipolar_error_max_px = -1.0;
+  // The right camera's centre lies on the left camera's left (T_x > 0 in the left frame): the images were most
+  // likely given swapped (--left / --right), and stereo would match the wrong way round.
+  bool right_camera_on_the_left = false;
   // The detector the result comes from (kBest: the one kept) and, for kBest, each candidate's final stereo
   // RMS (−1: fewer than min_pairs pairs found with it).
   ChessboardDetector detector_used = ChessboardDetector::kSectorBased;

@@ -294,6 +294,7 @@ class StereoCalibrationSummary:
     rms_stereo_px: float
     epipolar_error_mean_px: float
     epipolar_error_max_px: float
+    right_camera_on_the_left: bool
     views: list[dict[str, Any]]
     def brief_report(self) -> str: ...
 

@@ -69,6 +69,8 @@ void BindCalibration(py::module_& m) {
       .def_readonly("rms_stereo_px", &StereoCalibrationSummary::rms_stereo_px)
       .def_readonly("epipolar_error_mean_px", &StereoCalibrationSummary::epipolar_error_mean_px)
       .def_readonly("epipolar_error_max_px", &StereoCalibrationSummary::epipolar_error_max_px)
+      .def_readonly("right_camera_on_the_left", &StereoCalibrationSummary::right_camera_on_the_left,
+                    "the images were most likely given swapped (left for right)")
       .def_property_readonly(
           "views",
           [](const StereoCalibrationSummary& s) {

@@ -95,6 +95,8 @@ TEST(CalibrateStereoRig, OpenCvSamplesBeatTwoStageBar) {
   EXPECT_GT(s.grid_coverage_left, 0.5);
   // With good corners no view is far above the rest.
   for (const auto& v : s.views) EXPECT_FALSE(v.flagged) << v.left << " " << v.rms_stereo_px;
+  EXPECT_FALSE(s.right_camera_on_the_left);
+  EXPECT_EQ(s.BriefReport().find("swapped"), std::string::npos);
 
   // rig.yaml round trip.
   {
@@ -161,6 +163,17 @@ TEST(CalibrateStereoRig, RationalModelGivesAUsableRig) {
   EXPECT_LT(s.epipolar_error_mean_px, 0.2);
   EXPECT_NEAR(rig.baseline_m() / 0.025, 3.33, 0.1);
   EXPECT_EQ(CalibrationProblem(s, o), "");
+}
+
+// Left and right given the wrong way round calibrate just as well, with the right camera on the left: the report says
+// so (stereo then matched a quarter of the pixels instead of half, without a word).
+TEST(CalibrateStereoRig, SwappedImagesAreNamed) {
+  StereoCalibrationOptions o = SampleOptions();
+  o.board.detector = ChessboardDetector::kSectorBased;
+  StereoCalibrationSummary s;
+  CalibrateStereoRig(PairCalibrationImages({kRight}, {kLeft}), o, &s);
+  EXPECT_TRUE(s.right_camera_on_the_left);
+  EXPECT_NE(s.BriefReport().find("are --left and --right swapped?"), std::string::npos) << s.BriefReport();
 }
 
 // A calibration above the limit (one right view turned upside down: its corners are matched to the wrong board
