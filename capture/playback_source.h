@@ -65,8 +65,8 @@ class PlaybackSource : public FrameSource {
   bool clock_started_ = false;
   std::chrono::steady_clock::time_point wall_start_;
   std::int64_t recorded_start_ns_ = 0;
-  double gaps_cut_s_ = 0.0;        // recorded time (scaled) left out by gaps cut to max_gap_s
-  double last_offset_s_ = 0.0;     // when the last frame was due, seconds after the first
+  double gaps_cut_s_ = 0.0;     // recorded time (scaled) left out by gaps cut to max_gap_s
+  double last_offset_s_ = 0.0;  // when the last frame was due, seconds after the first
   std::int64_t loop_index_offset_ = 0;
   int plays_done_ = 0;  // completed passes over the selection
 };
