@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "apps/command.h"
@@ -177,10 +178,19 @@ void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool qui
   if (quiet) return;
   std::fputs(s.BriefReport().c_str(), stderr);
   if (!out_dir.empty()) {
-    std::fprintf(stderr,
-                 "results in %s: shaded/ (raw | smoothed | decimated renderings), depth/, raw/ and smoothed/ (PLY), "
-                 "decimated/ (OBJ), results.csv, summary.json\n",
-                 out_dir.c_str());
+    // What this run wrote: a folder exists once its first file is written (an output that is off has none).
+    std::string parts;
+    for (const auto& [folder, what] : {std::pair<const char*, const char*>{"shaded",
+                                                                           "shaded/ (raw | smoothed | "
+                                                                           "decimated renderings)"},
+                                       {"depth", "depth/"},
+                                       {"raw", "raw/ (PLY)"},
+                                       {"smoothed", "smoothed/ (PLY)"},
+                                       {"decimated", "decimated/ (OBJ)"}}) {
+      std::error_code ec;
+      if (std::filesystem::is_directory(std::filesystem::path(out_dir) / folder, ec)) parts += StrCat(what, ", ");
+    }
+    std::fprintf(stderr, "results in %s: %sresults.csv, summary.json\n", out_dir.c_str(), parts.c_str());
   }
 }
 

@@ -88,9 +88,7 @@ FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : 
       RB_CHECK(!ec, folder_, "/", name, ": cannot remove the earlier result (", ec.message(), ")");
     }
   }
-  for (const char* sub : {"raw", "smoothed", "decimated", "depth", "shaded"}) {
-    CreateFolder((fs::path(folder_) / sub).string());
-  }
+  CreateFolder(folder_);
   const std::string index = (fs::path(folder_) / "results.csv").string();
   index_fd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index, ": cannot create (", std::strerror(errno), ")");
@@ -116,18 +114,26 @@ void FileSink::Consume(const PipelineResult& result) {
     written.push_back(relative);
     ++files_written_;
   };
+  // Each output's folder when its first file is written: a run with an output off (or smoothing, decimation off)
+  // left an empty folder that the closing line listed as results.
+  const auto folder = [&](const char* sub) {
+    if (made_.insert(sub).second) CreateFolder((root / sub).string());
+  };
   try {
     if (options_.raw_ply) {
+      folder("raw");
       raw = "raw/" + Name(result.index, "ply");
       WriteNoisyMesh(result.raw_mesh, (root / raw).string());
       wrote(raw);
     }
     if (options_.smoothed_ply && result.smoothed.has_value()) {
+      folder("smoothed");
       smoothed = "smoothed/" + Name(result.index, "ply");
       WriteMesh(*result.smoothed, (root / smoothed).string());
       wrote(smoothed);
     }
     if (options_.decimated_obj && result.decimated.has_value()) {
+      folder("decimated");
       decimated = "decimated/" + Name(result.index, "obj");
       MeshWriteOptions w;
       w.corner_normals = result.decimated->corner_normals;
@@ -135,6 +141,7 @@ void FileSink::Consume(const PipelineResult& result) {
       wrote(decimated);
     }
     if (options_.depth_png && !result.depth.empty()) {
+      folder("depth");
       depth = "depth/" + Name(result.index, "png");
       ColorMapOptions c;
       c.reverse = true;
@@ -158,6 +165,7 @@ void FileSink::Consume(const PipelineResult& result) {
         }
         panels.push_back(RenderMesh(d.mesh, smooth_view));
       }
+      folder("shaded");
       shaded = "shaded/" + Name(result.index, "png");
       WritePng(SideBySide(panels), (root / shaded).string());
       wrote(shaded);

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <set>
 #include <string>
 
 #include "pipeline/pipeline.h"
@@ -42,6 +43,7 @@ class FileSink : public PipelineSink {
   FileSinkOptions options_;
   std::int64_t files_written_ = 0;
   int index_fd_ = -1;
+  std::set<std::string> made_;  // output folders created (each when its first file is written)
 };
 
 }  // namespace rangebayes

@@ -76,6 +76,27 @@ TEST(ReplayCli, BundledRecordingEndToEnd) {
   }
   EXPECT_NE(r.output.find("frames/s end to end"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("triangulate"), std::string::npos);
+  EXPECT_NE(r.output.find("shaded/ (raw | smoothed | decimated renderings), depth/, raw/ (PLY), smoothed/ (PLY), "
+                          "decimated/ (OBJ), results.csv"),
+            std::string::npos)
+      << r.output;
+}
+
+// With outputs off, their folders are not made and the closing line lists only what was written (it named five
+// folders, three of them empty).
+TEST(ReplayCli, OutputsThatAreOffLeaveNoFolder) {
+  const TempDir dir("cli_replay_off");
+  const RunResult r =
+      RunRangebayes(std::string("replay ") + kBundled +
+                    " --count 1 --downsample 4 --no-smooth --no-decimate --no-previews --out " + dir.path() + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path() + "/out/raw/000000.ply"));
+  for (const char* folder : {"smoothed", "decimated", "shaded"}) {
+    EXPECT_FALSE(fs::exists(dir.path() + "/out/" + folder)) << folder;
+  }
+  EXPECT_NE(r.output.find("/out: "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("smoothed/"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("shaded/"), std::string::npos) << r.output;
 }
 
 // A second run into the folder of a first is refused (its frames would mix with the first run's, which it would
