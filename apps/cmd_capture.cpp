@@ -248,7 +248,11 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
   if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
     RB_CHECK(!summary.stopped, "stopped by request before the first result");
-    RB_FAIL("no frame went through the pipeline (see the errors above)");
+    // The reason is above: the frames' errors, else the notes (a space-time window longer than the recording); it
+    // said "see the errors above" when there was none.
+    RB_FAIL("no frame went through the pipeline", !summary.errors.empty()    ? " (see the errors above)"
+                                                  : !summary.notices.empty() ? " (see the notes above)"
+                                                                             : "");
   }
   if (summary.failed > 0 || summary.frames_skipped > 0) SetExitCode(3);
 }

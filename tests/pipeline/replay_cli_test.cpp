@@ -82,6 +82,19 @@ TEST(ReplayCli, BundledRecordingEndToEnd) {
       << r.output;
 }
 
+// A space-time window longer than the recording matches nothing: the error points at the note that says why (it
+// pointed at "the errors above", of which there were none).
+TEST(ReplayCli, AWindowLongerThanTheRecordingPointsAtTheNote) {
+  const TempDir dir("cli_replay_window");
+  const RunResult r = RunRangebayes(std::string("replay ") + kBundled +
+                                    " --matcher spacetime --window-frames 9 --out " + dir.path() + "/out");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("note: the last 8 frame(s) did not fill a 9-frame space-time window"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("error: no frame went through the pipeline (see the notes above)"), std::string::npos)
+      << r.output;
+}
+
 // With outputs off, their folders are not made and the closing line lists only what was written (it named five
 // folders, three of them empty).
 TEST(ReplayCli, OutputsThatAreOffLeaveNoFolder) {
