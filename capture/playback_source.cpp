@@ -43,8 +43,12 @@ std::string PlaybackSource::Describe() const {
 RecordingMeta PlaybackSource::Meta() const {
   RecordingMeta meta = recording_.meta;
   meta["source"] = Describe();
+  // What describes the source recording as a whole, not a recording made from it: its state, its count, and synth's
+  // frame count (a console recording of a replayed synth recording said frames: "8" beside frame_count: "133").
   meta.erase("complete");
+  meta.erase("error");
   meta.erase("frame_count");
+  meta.erase("frames");
   return meta;
 }
 

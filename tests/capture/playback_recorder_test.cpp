@@ -50,6 +50,18 @@ TEST(Playback, FastestDeliversEveryFrameInOrder) {
   EXPECT_EQ(source.stats().frames_delivered, 5);
 }
 
+// A recording made from a playback (the console's record button during replay) describes itself: the source's
+// state and counts are not copied into its meta.yaml.
+TEST(Playback, MetaLeavesOutTheSourcesStateAndCounts) {
+  const TempDir dir("play_meta");
+  Recording rec = OpenRecording(MakeRecording(dir, 2));
+  rec.meta["frames"] = "8";  // as synth writes it
+  rec.meta["error"] = "frame 3 not recorded";
+  const RecordingMeta meta = PlaybackSource(rec).Meta();
+  for (const char* key : {"complete", "error", "frame_count", "frames"}) EXPECT_EQ(meta.count(key), 0u) << key;
+  EXPECT_NE(meta.at("source").find("(2 frames)"), std::string::npos) << meta.at("source");
+}
+
 TEST(Playback, MissingAndCorruptFramesAreSkippedWithTheirIndex) {
   const TempDir dir("skip");
   const std::string folder = MakeRecording(dir, 4);
