@@ -64,11 +64,15 @@ class Run {
   }
   void Halt() { halt_.store(true); }
 
-  // `progress` that first ends the call with StopRequested once a stop was requested: a converged solve of a
-  // full-resolution frame runs for minutes, and Ctrl-C waited for it (15-20 s on a 320x240 replay).
-  ProgressCallback EndOnStop(ProgressCallback progress) const {
-    return [this, progress = std::move(progress)](double fraction, std::string_view stage) {
-      if (Stopping()) throw StopRequested{};
+  // `progress` that first ends the call once a stop was requested: a converged solve of a full-resolution frame
+  // runs for minutes, and Ctrl-C waited for it (15-20 s on a 320x240 replay). It throws StopRequested (the item is
+  // abandoned), or Error(reason) when a reason is given (a capture, whose failure is reported with it).
+  ProgressCallback EndOnStop(ProgressCallback progress, const char* reason = nullptr) const {
+    return [this, progress = std::move(progress), reason](double fraction, std::string_view stage) {
+      if (Stopping()) {
+        if (reason != nullptr) throw Error(reason);
+        throw StopRequested{};
+      }
       if (progress) progress(fraction, stage);
     };
   }
@@ -723,10 +727,6 @@ class Stages {
   void FullQualityStage() {
     tbb::task_arena arena(kFullQualityThreads);
     std::array<std::unique_ptr<StereoMatcher>, 2> matchers;
-    const auto cancel_when_stopping = [&](double fraction, std::string_view stage, const ProgressCallback& also) {
-      if (also) also(fraction, stage);
-      if (run.Stopping()) throw Error(kCaptureStopped);
-    };
     while (auto popped = full_quality_queue.Pop()) {
       Item& item = **popped;
       arena.execute([&] {
@@ -747,14 +747,10 @@ class Stages {
           SmoothOptions smoothing = options.smoothing;
           smoothing.tolerance = SmoothOptions{}.tolerance;
           smoothing.num_threads = kFullQualityThreads;
-          smoothing.progress = [&](double f, std::string_view s) {
-            cancel_when_stopping(f, s, options.smoothing.progress);
-          };
+          smoothing.progress = run.EndOnStop(options.smoothing.progress, kCaptureStopped);
           it.result.smoothed = Smooth(it.result.raw_mesh, smoothing);
         });
-        step(t_decimate, [&](Item& it) {
-          Decimate(it, [&](double f, std::string_view s) { cancel_when_stopping(f, s, options.decimation.progress); });
-        });
+        step(t_decimate, [&](Item& it) { Decimate(it, run.EndOnStop(options.decimation.progress, kCaptureStopped)); });
       });
       (*queues[5]).Push(std::move(*popped));
     }
