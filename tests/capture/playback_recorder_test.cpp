@@ -397,35 +397,50 @@ TEST(Recorder, SigkillLeavesReadableRecording) {
 namespace rangebayes {
 namespace {
 
-// The file system calls with a disk that fills up: from the `fail_at`-th write to a file whose name contains
-// `pattern` (counting from 1), that write stores half of its bytes and every later write to any file of the
-// recording fails with ENOSPC, as on a full disk.
-class FullDisk final : public FileSysCalls {
+// The system's file calls, remembering the path of each descriptor opened: the base of the failing file systems
+// below, each of which overrides the calls it makes fail.
+class SystemCalls : public FileSysCalls {
  public:
-  FullDisk(std::string pattern, int fail_at) : pattern_(std::move(pattern)), fail_at_(fail_at) {}
   int Open(const std::string& path, int flags, mode_t mode) override {
     const int fd = real_->Open(path, flags, mode);
     if (fd >= 0) paths_[fd] = path;
     return fd;
   }
+  ssize_t Write(int fd, const void* data, size_t size) override { return real_->Write(fd, data, size); }
+  int Fsync(int fd) override { return real_->Fsync(fd); }
+  int Close(int fd) override { return real_->Close(fd); }
+  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
+
+ protected:
+  bool PathHas(int fd, const std::string& part) const {
+    const auto it = paths_.find(fd);
+    return it != paths_.end() && it->second.find(part) != std::string::npos;
+  }
+  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
+
+ private:
+  std::map<int, std::string> paths_;
+};
+
+// The file system calls with a disk that fills up: from the `fail_at`-th write to a file whose name contains
+// `pattern` (counting from 1), that write stores half of its bytes and every later write to any file of the
+// recording fails with ENOSPC, as on a full disk.
+class FullDisk final : public SystemCalls {
+ public:
+  FullDisk(std::string pattern, int fail_at) : pattern_(std::move(pattern)), fail_at_(fail_at) {}
   ssize_t Write(int fd, const void* data, size_t size) override {
     if (full_) {
       errno = ENOSPC;
       return -1;
     }
-    if (paths_[fd].find(pattern_) != std::string::npos && ++writes_ == fail_at_) {
+    if (PathHas(fd, pattern_) && ++writes_ == fail_at_) {
       full_ = true;
       return real_->Write(fd, data, size / 2);
     }
     return real_->Write(fd, data, size);
   }
-  int Fsync(int fd) override { return real_->Fsync(fd); }
-  int Close(int fd) override { return real_->Close(fd); }
-  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
 
  private:
-  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
-  std::map<int, std::string> paths_;
   std::string pattern_;
   int fail_at_;
   int writes_ = 0;
@@ -435,15 +450,14 @@ class FullDisk final : public FileSysCalls {
 // The system's file calls, except that fsync of frames.csv fails with EIO from its `fail_fsync_from`-th call on
 // (0: never), and closing frames.csv reports EIO when `fail_close` (the descriptor is closed all the same), as a
 // disk or network file system that loses writes does.
-class FailingIndexSync final : public FileSysCalls {
+class FailingIndexSync final : public SystemCalls {
  public:
   FailingIndexSync(int fail_fsync_from, bool fail_close) : fail_fsync_from_(fail_fsync_from), fail_close_(fail_close) {}
   int Open(const std::string& path, int flags, mode_t mode) override {
-    const int fd = real_->Open(path, flags, mode);
+    const int fd = SystemCalls::Open(path, flags, mode);
     if (fd >= 0 && path.find("frames.csv") != std::string::npos) index_fd_ = fd;
     return fd;
   }
-  ssize_t Write(int fd, const void* data, size_t size) override { return real_->Write(fd, data, size); }
   int Fsync(int fd) override {
     if (fd == index_fd_ && fail_fsync_from_ > 0 && ++fsyncs_ >= fail_fsync_from_) {
       errno = EIO;
@@ -459,10 +473,8 @@ class FailingIndexSync final : public FileSysCalls {
     errno = EIO;
     return -1;
   }
-  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
 
  private:
-  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
   int fail_fsync_from_;
   bool fail_close_;
   int index_fd_ = -1;
@@ -526,28 +538,18 @@ std::vector<std::string> PartialFiles(const std::string& folder) {
 
 // Image writes fail with ENOSPC from the `fail_from`-th on (a large file that no longer fits where a small one
 // such as meta.yaml still does); every other call is the system's.
-class ImagesDoNotFit final : public FileSysCalls {
+class ImagesDoNotFit final : public SystemCalls {
  public:
   explicit ImagesDoNotFit(int fail_from) : fail_from_(fail_from) {}
-  int Open(const std::string& path, int flags, mode_t mode) override {
-    const int fd = real_->Open(path, flags, mode);
-    if (fd >= 0) paths_[fd] = path;
-    return fd;
-  }
   ssize_t Write(int fd, const void* data, size_t size) override {
-    if (paths_[fd].find(".png") != std::string::npos && ++writes_ >= fail_from_) {
+    if (PathHas(fd, ".png") && ++writes_ >= fail_from_) {
       errno = ENOSPC;
       return -1;
     }
     return real_->Write(fd, data, size);
   }
-  int Fsync(int fd) override { return real_->Fsync(fd); }
-  int Close(int fd) override { return real_->Close(fd); }
-  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
 
  private:
-  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
-  std::map<int, std::string> paths_;
   int fail_from_;
   int writes_ = 0;
 };
@@ -596,10 +598,10 @@ TEST(Recorder, DiskFullDuringAnImageLosesOnlyThatFrameAndSaysSo) {
 }
 
 // The system's file calls, counting the descriptors of frames.csv still open; its first write fails with ENOSPC.
-class IndexHeaderFails final : public FileSysCalls {
+class IndexHeaderFails final : public SystemCalls {
  public:
   int Open(const std::string& path, int flags, mode_t mode) override {
-    const int fd = real_->Open(path, flags, mode);
+    const int fd = SystemCalls::Open(path, flags, mode);
     if (fd >= 0 && path.find("frames.csv") != std::string::npos) index_fds.insert(fd);
     return fd;
   }
@@ -610,16 +612,11 @@ class IndexHeaderFails final : public FileSysCalls {
     }
     return real_->Write(fd, data, size);
   }
-  int Fsync(int fd) override { return real_->Fsync(fd); }
   int Close(int fd) override {
     index_fds.erase(fd);
     return real_->Close(fd);
   }
-  int Rename(const std::string& from, const std::string& to) override { return real_->Rename(from, to); }
   std::set<int> index_fds;
-
- private:
-  std::shared_ptr<FileSysCalls> real_ = RealFileSysCalls();
 };
 
 // A recording whose frames.csv header cannot be written is an error, and the file is closed (the constructor
