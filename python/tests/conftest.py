@@ -61,3 +61,18 @@ def ticks_during():
         return result, [x for x in ticks if start < x < end]
 
     return run
+
+
+@pytest.fixture
+def ctrl_c():
+    """Ctrl-C as an interactive Python has it: SIGINT raises KeyboardInterrupt for the test's duration. A shell
+    that runs the suite in the background (`cmd &`, nohup, some batch systems) starts it with SIGINT ignored, and
+    Python then installs no handler, so a test of Ctrl-C would see nothing. Its value: the preexec_fn for a child
+    Python, which likewise needs SIGINT at its default to install its handler."""
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)
+    finally:
+        signal.signal(signal.SIGINT, previous)

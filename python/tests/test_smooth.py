@@ -140,7 +140,7 @@ def cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def test_ctrl_c_stops_smooth_without_a_progress_function():
+def test_ctrl_c_stops_smooth_without_a_progress_function(ctrl_c):
     # SIGINT (Ctrl-C) to a process inside smooth() with no progress function: KeyboardInterrupt from inside the
     # call. Before the fix the signal waited for the solve to end (600 s here), so the 120 s guard would fail.
     # The signal goes once the child has spent 0.3 s of CPU after printing "smoothing": the one thing it does after
@@ -151,7 +151,7 @@ def test_ctrl_c_stops_smooth_without_a_progress_function():
     import time
 
     child = subprocess.Popen([sys.executable, "-c", CTRL_C_CHILD], stdout=subprocess.PIPE, text=True,
-                             env=dict(os.environ))
+                             env=dict(os.environ), preexec_fn=ctrl_c)
     try:
         assert child.stdout.readline().strip() == "smoothing"
         start, deadline = cpu_seconds(child.pid), time.monotonic() + 60

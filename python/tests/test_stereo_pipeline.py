@@ -280,7 +280,7 @@ def test_replay_live_path_preset(recording_dir):
         rb.replay(str(recording_dir), live_path="yes please")
 
 
-def test_replay_stops_on_ctrl_c(recording_dir):
+def test_replay_stops_on_ctrl_c(recording_dir, ctrl_c):
     sent = []
 
     def interrupt_once(fraction, stage):  # on the pipeline's sink thread: SIGINT as from Ctrl-C

@@ -340,9 +340,11 @@ def main():
         assert cdp.evaluate("rbConsole.lastStatus.capture_error") == "", "the capture reported an error"
         print("browser_test: capture now on the live path arrived")
 
-        # The process stops: the page says so, marks what it shows as stale and retries.
+        # The process vanishes (killed: a crash, a pulled cable): the page says so, marks what it shows as stale and
+        # retries. Not SIGINT: a run that ends in order sends a last status with finished set, which disables the
+        # controls, so whether a control could still be clicked would race that message against the closing socket.
         port = re.search(r":(\d+)/$", url).group(1)
-        stop_process(replay)
+        stop_process(replay, signal.SIGKILL)
         cdp.wait_for("document.body.classList.contains('disconnected')"
                      " && document.getElementById('run').textContent !== 'running'"
                      " && document.getElementById('fps').textContent === '-'"
