@@ -59,6 +59,8 @@ void RunInfo(const InfoArgs& args) {
                          {"zero_area_faces", v.zero_area_faces},
                          {"duplicate_faces", v.duplicate_faces},
                          {"non_finite_vertices", v.non_finite_vertices},
+                         {"out_of_scale_vertices", v.out_of_scale_vertices},
+                         {"below_scale_extent", v.below_scale_extent},
                          {"unreferenced_vertices", v.unreferenced_vertices},
                          {"non_manifold_edges", v.non_manifold_edges},
                          {"non_manifold_vertices", v.non_manifold_vertices},

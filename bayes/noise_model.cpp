@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/topology.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 namespace {
@@ -186,20 +187,8 @@ double NoiseResidualTailRatio(const Mesh& mesh) {
   return TailRatio(residuals.by_ring[0]);
 }
 
-namespace {
-
-// The noise model of a mesh with a non-finite vertex would be NaN or a silent 0: refused, with the vertex.
-void CheckFiniteVertices(const Mesh& mesh) {
-  for (int v = 0; v < mesh.num_vertices(); ++v) {
-    RB_CHECK(mesh.V.row(v).allFinite(), "noise model: vertex ", v, " has non-finite coordinates (", mesh.V(v, 0), ", ",
-             mesh.V(v, 1), ", ", mesh.V(v, 2), ")");
-  }
-}
-
-}  // namespace
-
 double EstimateNoiseLevel(const Mesh& mesh, NoiseEstimateDetails* details) {
-  CheckFiniteVertices(mesh);
+  CheckComputableScale(mesh.V, "noise model");  // else a NaN or a silent 0
   ResidualDistances residuals = ComputeResidualDistances(mesh, 2);
   NoiseEstimateDetails d;
   const std::vector<double> profile = Profile(residuals);
@@ -223,7 +212,7 @@ double EstimateNoiseLevel(const Mesh& mesh, NoiseEstimateDetails* details) {
 
 NoisyMesh MakeGenericNoisyMesh(const Mesh& mesh, const GenericNoiseOptions& options, GenericNoiseSummary* summary) {
   options.Check();
-  CheckFiniteVertices(mesh);
+  CheckComputableScale(mesh.V, "noise model");  // else a NaN or a silent 0
   GenericNoiseSummary s;
   s.across_ratio = options.across_ratio;
   s.mean_edge_length = MeanEdgeLength(mesh);

@@ -10,21 +10,22 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <utility>
-#include <cmath>
 #include <deque>
 #include <limits>
 #include <memory>
 #include <optional>
 #include <unordered_map>
+#include <utility>
 
 #include "bayes/adaptive_epsilon.h"
 #include "bayes/grid_hierarchy.h"
 #include "bayes/ray_preconditioner.h"
 #include "bayes/smoothing_energy.h"
 #include "core/error.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 namespace {
@@ -628,7 +629,7 @@ std::unique_ptr<PreparedEnergy> Prepare(const NoisyMesh& noisy, const SmoothOpti
   prepared->potential = potential;
   summary->potential_name = potential->Name();
   // Checked here, before the reordering, so that messages name the caller's indices.
-  RB_CHECK(mesh.V.allFinite(), "smoothing: the input mesh has non-finite vertex coordinates");
+  CheckComputableScale(mesh.V, "smoothing");
   for (int f = 0; f < mesh.num_faces(); ++f) {
     for (int k = 0; k < 3; ++k) {
       const int v = mesh.F(f, k);

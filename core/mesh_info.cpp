@@ -60,7 +60,9 @@ std::string MeshInfo::BriefReport() const {
                   box_min(0), box_min(1), box_min(2), box_max(0), box_max(1), box_max(2), size(0), size(1), size(2));
     out += line;
   }
-  const std::string edge_length = std::isfinite(mean_edge_length) ? StrCat(mean_edge_length) : "n/a (no edges)";
+  const std::string edge_length = std::isfinite(mean_edge_length) ? StrCat(mean_edge_length)
+                                  : edges == 0                    ? "n/a (no edges)"
+                                                                  : "n/a (non-finite vertices)";
   std::snprintf(line, sizeof(line), "mean edge length: %s\ncomponents:       %d\nboundary loops:   %d\n",
                 edge_length.c_str(), components, boundary_loops);
   out += line;

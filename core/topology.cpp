@@ -1,6 +1,7 @@
 #include "core/topology.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <numeric>
 
@@ -272,11 +273,19 @@ Components ComputeComponents(const Mesh& mesh, Connectivity connectivity) {
 
 double MeanEdgeLength(const Mesh& mesh, const EdgeTopology& topology) {
   if (topology.edges.rows() == 0) return 0.0;
+  const auto n = static_cast<double>(topology.edges.rows());
+  auto length = [&](Eigen::Index e) {
+    const Eigen::RowVector3d d = mesh.V.row(topology.edges(e, 0)) - mesh.V.row(topology.edges(e, 1));
+    const double plain = d.norm();
+    // The squares of lengths beyond about 1e±154 overflow or underflow; stableNorm scales first.
+    return plain > 1e-150 && plain < 1e150 ? plain : d.stableNorm();
+  };
   double sum = 0.0;
-  for (Eigen::Index e = 0; e < topology.edges.rows(); ++e) {
-    sum += (mesh.V.row(topology.edges(e, 0)) - mesh.V.row(topology.edges(e, 1))).norm();
-  }
-  return sum / static_cast<double>(topology.edges.rows());
+  for (Eigen::Index e = 0; e < topology.edges.rows(); ++e) sum += length(e);
+  if (std::isfinite(sum) || std::isnan(sum)) return sum / n;
+  sum = 0.0;  // the sum overflowed: lengths near the largest double; the mean of the shares does not
+  for (Eigen::Index e = 0; e < topology.edges.rows(); ++e) sum += length(e) / n;
+  return sum;
 }
 
 double MeanEdgeLength(const Mesh& mesh) { return MeanEdgeLength(mesh, ComputeEdgeTopology(mesh)); }

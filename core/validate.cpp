@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "core/error.h"
@@ -17,8 +18,8 @@ void ValidateMeshOptions::Check() const {
 
 bool MeshValidation::clean() const {
   return out_of_range_indices == 0 && degenerate_faces == 0 && zero_area_faces == 0 && duplicate_faces == 0 &&
-         non_finite_vertices == 0 && unreferenced_vertices == 0 && non_manifold_edges == 0 &&
-         non_manifold_vertices == 0 && inconsistent_edges == 0;
+         non_finite_vertices == 0 && out_of_scale_vertices == 0 && below_scale_extent == 0 &&
+         unreferenced_vertices == 0 && non_manifold_edges == 0 && non_manifold_vertices == 0 && inconsistent_edges == 0;
 }
 
 namespace {
@@ -45,12 +46,19 @@ std::vector<int> CountVertexAndFaceProblems(const Mesh& mesh, const ValidateMesh
   const int64_t nv = mesh.V.rows();
   const int64_t nf = mesh.F.rows();
   std::vector<char> finite(static_cast<size_t>(nv), 1);
+  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::RowVector3d hi = -lo;
   for (int64_t v = 0; v < nv; ++v) {
     if (!mesh.V.row(v).allFinite()) {
       finite[static_cast<size_t>(v)] = 0;
       ++result.non_finite_vertices;
+      continue;
     }
+    if (mesh.V.row(v).cwiseAbs().maxCoeff() > kMaxCoordinate) ++result.out_of_scale_vertices;
+    lo = lo.cwiseMin(mesh.V.row(v));
+    hi = hi.cwiseMax(mesh.V.row(v));
   }
+  if ((lo.array() < hi.array()).any() && (hi - lo).stableNorm() < kMinExtent) result.below_scale_extent = 1;
 
   std::vector<int> good;
   good.reserve(static_cast<size_t>(nf));
@@ -75,7 +83,11 @@ std::vector<int> CountVertexAndFaceProblems(const Mesh& mesh, const ValidateMesh
     }
     good.push_back(static_cast<int>(f));
     if (finite[static_cast<size_t>(a)] && finite[static_cast<size_t>(b)] && finite[static_cast<size_t>(c)]) {
-      const Eigen::RowVector3d pa = mesh.V.row(a), pb = mesh.V.row(b), pc = mesh.V.row(c);
+      // Scaled by a power of two (exact) so that the products below neither overflow nor underflow.
+      const double largest = std::max({mesh.V.row(a).cwiseAbs().maxCoeff(), mesh.V.row(b).cwiseAbs().maxCoeff(),
+                                       mesh.V.row(c).cwiseAbs().maxCoeff()});
+      const double scale = largest > 0 ? std::ldexp(1.0, -std::ilogb(largest)) : 1.0;
+      const Eigen::RowVector3d pa = scale * mesh.V.row(a), pb = scale * mesh.V.row(b), pc = scale * mesh.V.row(c);
       const double area = 0.5 * (pb - pa).cross(pc - pa).norm();
       const double longest =
           std::max({(pb - pa).squaredNorm(), (pc - pb).squaredNorm(), (pa - pc).squaredNorm()});
@@ -181,9 +193,31 @@ MeshValidation ValidateMesh(const Mesh& mesh, const ValidateMeshOptions& options
   return result;
 }
 
+void CheckComputableScale(const Vertices& V, std::string_view what) {
+  Eigen::Index first = -1, count = 0;
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    if (V.row(i).allFinite()) continue;
+    if (first < 0) first = i;
+    ++count;
+  }
+  RB_CHECK(count == 0, what, ": ", count, " of ", V.rows(), " vertices have non-finite coordinates (the first: vertex ",
+           first, " at (", first < 0 ? 0.0 : V(first, 0), ", ", first < 0 ? 0.0 : V(first, 1), ", ",
+           first < 0 ? 0.0 : V(first, 2), "))");
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    RB_CHECK(V.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate, what, ": vertex ", i, " lies at (", V(i, 0), ", ",
+             V(i, 1), ", ", V(i, 2), "), beyond ±", kMaxCoordinate,
+             ", where lengths squared and areas overflow: rescale the mesh (for example to metres)");
+  }
+  if (V.rows() == 0) return;
+  const Eigen::RowVector3d extent = V.colwise().maxCoeff() - V.colwise().minCoeff();
+  RB_CHECK(!(extent.array() > 0).any() || extent.stableNorm() >= kMinExtent, what, ": the mesh spans only ",
+           extent.stableNorm(), ", below ", kMinExtent,
+           ", where lengths squared and areas underflow: rescale the mesh (for example to millimetres)");
+}
+
 std::vector<std::string> DescribeFindings(const MeshValidation& v) {
   std::vector<std::string> lines;
-  auto add = [&lines](int64_t count, const char* what) {
+  auto add = [&lines](int64_t count, const std::string& what) {
     if (count > 0) lines.push_back(StrCat(count, " ", what));
   };
   add(v.out_of_range_indices, "face indices out of range");
@@ -191,6 +225,11 @@ std::vector<std::string> DescribeFindings(const MeshValidation& v) {
   add(v.zero_area_faces, "zero-area faces");
   add(v.duplicate_faces, "duplicate faces");
   add(v.non_finite_vertices, "vertices with non-finite coordinates");
+  add(v.out_of_scale_vertices,
+      StrCat("vertices with a coordinate beyond ±", kMaxCoordinate, " (too large to compute with: rescale the mesh)"));
+  if (v.below_scale_extent > 0) {
+    lines.push_back(StrCat("an extent below ", kMinExtent, " (too small to compute with: rescale the mesh)"));
+  }
   add(v.unreferenced_vertices, "unreferenced vertices");
   add(v.non_manifold_edges, "non-manifold edges (three or more faces)");
   add(v.non_manifold_vertices, "non-manifold vertices (more than one fan)");

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/render.h"
 #include "core/topology.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 namespace {
@@ -262,29 +263,13 @@ void RangeGridScanOptions::Check() const {
   RB_CHECK(max_slope_deg >= 0 && max_slope_deg < 89.95, "max_slope_deg ", max_slope_deg, " is outside 0–89.9");
 }
 
-namespace {
-
-// A scan with non-finite vertices is refused, naming how many and the first.
-void CheckFiniteVertices(const Vertices& V, const std::string& name) {
-  Eigen::Index first = -1, count = 0;
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
-    if (V.row(i).allFinite()) continue;
-    if (first < 0) first = i;
-    ++count;
-  }
-  RB_CHECK(count == 0, name, ": ", count, " of ", V.rows(), " vertices have non-finite coordinates (the first: vertex ",
-           first, ")");
-}
-
-}  // namespace
-
 Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const RangeGridScanOptions& options,
                        RangeGridScanSummary* summary) {
   options.Check();
   RB_CHECK(grid.has_grid(), name, ": no range_grid element (not an organized scan)");
   const Vertices& V = grid.mesh.mesh.V;
   RB_CHECK(V.rows() > 0, name, ": empty scan (no vertices)");
-  CheckFiniteVertices(V, name);
+  CheckComputableScale(V, name);
   Scan scan;
   scan.name = name;
   scan.noisy.mesh.V = V;
@@ -316,7 +301,7 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
 Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   RB_CHECK(mesh.mesh.num_vertices() > 0 && mesh.mesh.num_faces() > 0, name,
            ": empty scan (", mesh.mesh.num_vertices(), " vertices, ", mesh.mesh.num_faces(), " faces)");
-  CheckFiniteVertices(mesh.mesh.V, name);
+  CheckComputableScale(mesh.mesh.V, name);
   Scan scan;
   scan.name = name;
   const int nv = mesh.mesh.num_vertices();

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/triangle_tree.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 namespace {
@@ -80,18 +81,12 @@ SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth)
   return errors;
 }
 
-int CountNonFiniteVertices(const Mesh& mesh) {
-  return static_cast<int>((!mesh.V.array().isFinite()).rowwise().any().count());
-}
-
 MeshEvaluation EvaluateMesh(const Mesh& result, const Mesh& ground_truth, bool normals, const std::string& result_name,
                             const std::string& ground_truth_name) {
   for (const auto& [name, mesh] : {std::pair<const std::string&, const Mesh&>{ground_truth_name, ground_truth},
                                    std::pair<const std::string&, const Mesh&>{result_name, result}}) {
     RB_CHECK(mesh.num_faces() > 0, name, ": no faces (eval compares surfaces)");
-    const int non_finite = CountNonFiniteVertices(mesh);
-    RB_CHECK(non_finite == 0, name, ": ", non_finite, " of ", mesh.num_vertices(),
-             " vertices not finite (eval needs finite meshes)");
+    CheckComputableScale(mesh.V, name);
   }
   MeshEvaluation e;
   if (normals) {

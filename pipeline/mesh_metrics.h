@@ -30,9 +30,6 @@ struct SurfaceErrors {
 // Connectivity-independent surface errors (works for decimated results too).
 SurfaceErrors ComputeSurfaceErrors(const Mesh& result, const Mesh& ground_truth);
 
-// Vertices with a NaN or infinite coordinate.
-int CountNonFiniteVertices(const Mesh& mesh);
-
 // What `rangebayes eval` and Python's evaluate() report: the surface errors and, with `normals`, the mean angular
 // error of the face normals, which needs SameConnectivity. Error for a mesh without faces or with a vertex that is
 // not finite (its distances, the bounding box and the face angles would be NaN or quietly left out).

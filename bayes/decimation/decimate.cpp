@@ -1,5 +1,9 @@
 #include "bayes/decimation/decimate.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <algorithm>
@@ -12,15 +16,12 @@
 #include <string>
 #include <unordered_map>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
-
 #include "bayes/decimation/decimate_geometry.h"
 #include "bayes/decimation/decimate_partition.h"
 #include "bayes/decimation/decimate_refit.h"
 #include "core/error.h"
 #include "core/topology.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 namespace {
@@ -51,7 +52,7 @@ int Find(std::vector<int>& parent, int i) {
   return i;
 }
 
-// Throws unless every pose has pose 1's connectivity and finite positions.
+// Throws unless every pose has pose 1's connectivity and positions within the scale of CheckComputableScale.
 void CheckPoses(const std::vector<Mesh>& poses) {
   const Mesh& base = poses[0];
   const int nv = base.num_vertices();
@@ -60,7 +61,7 @@ void CheckPoses(const std::vector<Mesh>& poses) {
                  (poses[m].F.array() == base.F.array()).all(),
              "decimate: pose ", m + 1, " does not have the connectivity of pose 1 (", poses[m].num_vertices(),
              " vertices, ", poses[m].num_faces(), " faces vs ", nv, ", ", base.num_faces(), ")");
-    RB_CHECK(poses[m].V.allFinite(), "decimate: pose ", m + 1, " has non-finite vertex positions");
+    CheckComputableScale(poses[m].V, StrCat("decimate: pose ", m + 1));
   }
 }
 

@@ -135,8 +135,7 @@ TEST_F(MeshCliTest, EvalNamesMeshesItCannotCompare) {
   for (const std::string& order : {std::string(kAngel) + " " + Path("broken.ply"), Path("broken.ply") + " " + kAngel}) {
     const RunResult nan = RunRangebayes("eval " + order);
     EXPECT_EQ(nan.exit_code, 1);
-    EXPECT_NE(nan.output.find("broken.ply: 1 of 24566 vertices not finite (eval needs finite meshes)"),
-              std::string::npos)
+    EXPECT_NE(nan.output.find("broken.ply: 1 of 24566 vertices have non-finite coordinates"), std::string::npos)
         << nan.output;
   }
 }
@@ -227,6 +226,28 @@ TEST_F(MeshCliTest, InfoOfPointsHasNoMeanEdgeLength) {
   r = RunRangebayes("info " + Path("points.off") + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(nlohmann::json::parse(r.output)["mean_edge_length"].is_null()) << r.output;
+}
+
+// A mesh at 1e300 (any unit system's coordinates are far below): `info` names it, and the commands that compute
+// refuse it in one line, where `smooth` failed on a "not finite" covariance after printing "sigma -nan" and
+// `decimate` wrote a mesh with a summary of NaN.
+TEST_F(MeshCliTest, AMeshBeyondTheComputableScaleIsNamedAndRefused) {
+  std::ofstream(Path("huge.off")) << "OFF\n4 2 0\n0 0 0\n1e300 0 0\n0 1e300 0\n1e300 1e300 0\n3 0 1 2\n3 1 3 2\n";
+  RunResult r = RunRangebayes("info " + Path("huge.off"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("mean edge length: 1.08284e+300"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("3 vertices with a coordinate beyond ±1e+60"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("zero-area"), std::string::npos) << r.output;
+  for (const std::string command : {"smooth", "decimate"}) {
+    r = RunRangebayes(command + " " + Path("huge.off") + " " + Path("out.ply"));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("vertex 1 lies at (1e+300, 0, 0), beyond ±1e+60, where lengths squared and areas "
+                            "overflow: rescale the mesh"),
+              std::string::npos)
+        << r.output;
+    EXPECT_EQ(r.output.find("nan"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(Path("out.ply"))) << command;
+  }
 }
 
 }  // namespace

@@ -2,9 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
+#include <string>
 
 #include "core/error.h"
+#include "core/topology.h"
 #include "tests/test_meshes.h"
 
 namespace rangebayes {
@@ -103,6 +106,43 @@ TEST(ValidateMesh, CountsFaceAndVertexDefects) {
   EXPECT_FALSE(v.clean());
   EXPECT_EQ(DescribeFindings(v).size(), 7u);  // plus the non-manifold edge 0-1 (faces 0, 1, 2)
   EXPECT_EQ(v.non_manifold_edges, 1);
+}
+
+// A unit square's two triangles moved to a scale (1e300: `info` read a mean edge length of "n/a (no edges)" and two
+// zero-area faces; 1e-200: a mean edge length of 0 and `smooth` returned the input as converged).
+Mesh SquareAtScale(double scale) {
+  return MakeMesh({{0, 0, 0}, {scale, 0, 0}, {0, scale, 0}, {scale, scale, 0}}, {{0, 1, 2}, {1, 3, 2}});
+}
+
+TEST(ValidateMesh, MeshesBeyondTheComputableScaleAreNamed) {
+  for (const double scale : {1e300, 1e-200}) {
+    SCOPED_TRACE(scale);
+    const Mesh mesh = SquareAtScale(scale);
+    const MeshValidation v = ValidateMesh(mesh);
+    EXPECT_EQ(v.zero_area_faces, 0);  // areas are compared in a scaled copy
+    EXPECT_EQ(v.out_of_scale_vertices, scale > 1 ? 3 : 0);
+    EXPECT_EQ(v.below_scale_extent, scale < 1 ? 1 : 0);
+    EXPECT_FALSE(v.clean());
+    ASSERT_EQ(DescribeFindings(v).size(), 1u);
+    EXPECT_NE(DescribeFindings(v)[0].find("rescale the mesh"), std::string::npos) << DescribeFindings(v)[0];
+    EXPECT_NEAR(MeanEdgeLength(mesh) / scale, (4.0 + std::sqrt(2.0)) / 5.0, 1e-12);
+    try {
+      CheckComputableScale(mesh.V, "square");
+      ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+      const std::string why = e.what();
+      EXPECT_NE(why.find(scale > 1 ? "square: vertex 1 lies at (1e+300, 0, 0), beyond ±1e+60"
+                                   : "square: the mesh spans only 1.41421e-200, below 1e-60"),
+                std::string::npos)
+          << why;
+    }
+  }
+  // Just within the scale, and a mesh whose positions all coincide: clean as far as the scale goes.
+  EXPECT_NO_THROW(CheckComputableScale(SquareAtScale(kMaxCoordinate).V, "square"));
+  EXPECT_NO_THROW(CheckComputableScale(SquareAtScale(kMinExtent).V, "square"));
+  EXPECT_NO_THROW(CheckComputableScale(SquareAtScale(0).V, "square"));
+  EXPECT_EQ(ValidateMesh(SquareAtScale(kMaxCoordinate)).out_of_scale_vertices, 0);
+  EXPECT_EQ(ValidateMesh(SquareAtScale(kMinExtent)).below_scale_extent, 0);
 }
 
 TEST(ValidateMesh, RejectsBadOptions) {

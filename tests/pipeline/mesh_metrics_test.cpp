@@ -115,13 +115,11 @@ TEST(EvaluateMesh, MeshesItCannotCompareAreRefused) {
   EXPECT_THROW(EvaluateMesh(Square(0), points, false), Error);
   Mesh broken = Square(0);
   broken.V(2, 0) = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_EQ(CountNonFiniteVertices(broken), 1);
   try {
     EvaluateMesh(broken, Square(0), false);
     FAIL() << "no error";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("the result: 1 of 4 vertices not finite (eval needs finite meshes)"),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("the result: 1 of 4 vertices have non-finite coordinates"), std::string::npos)
         << e.what();
   }
   EXPECT_THROW(EvaluateMesh(Square(0), broken, false), Error);
