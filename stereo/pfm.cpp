@@ -29,6 +29,37 @@ std::string Token(std::istream& in) {
   return token;  // the single whitespace after the token has been consumed
 }
 
+// A float's bits as a value a PFM would hold: 0 for zero, NaN and inf (they say nothing about the byte order),
+// 1 for a magnitude within 1e±20, -1 beyond (denormals included): what the bytes of a float read in the wrong
+// order mostly give.
+int Plausible(std::uint32_t bits) {
+  const std::uint32_t exponent = (bits >> 23) & 0xffu;
+  if (exponent == 0xffu || (bits & 0x7fffffffu) == 0) return 0;
+  return exponent >= 127 - 66 && exponent <= 127 + 66 ? 1 : -1;
+}
+
+// Throws when the data is implausible in the declared byte order and plausible in the other: a header whose
+// scale has the wrong sign (Middlebury's files are little-endian with scale -1).
+void CheckByteOrder(const std::vector<std::uint32_t>& data, bool swapped, bool little, const std::string& path) {
+  int64_t bad[2] = {0, 0}, told[2] = {0, 0};  // [0]: as declared, [1]: the other order
+  for (const std::uint32_t raw : data) {
+    const std::uint32_t other = __builtin_bswap32(raw);
+    const std::uint32_t as_declared = swapped ? other : raw, as_other = swapped ? raw : other;
+    for (int k = 0; k < 2; ++k) {
+      const int p = Plausible(k == 0 ? as_declared : as_other);
+      told[k] += p != 0 ? 1 : 0;
+      bad[k] += p < 0 ? 1 : 0;
+    }
+  }
+  RB_CHECK(!(told[0] > 0 && bad[0] * 4 > told[0] && told[1] >= 16 && bad[1] * 100 < told[1]), path, ": ", bad[0],
+           " of ", told[0], " values read ", little ? "little" : "big",
+           "-endian, as the scale's sign declares, are "
+           "beyond 1e±20, and ",
+           bad[1], " read ", little ? "big" : "little",
+           "-endian: the header's scale probably "
+           "has the wrong sign (negative means little-endian)");
+}
+
 }  // namespace
 
 cv::Mat ReadPfm(const std::string& path) {
@@ -57,16 +88,17 @@ cv::Mat ReadPfm(const std::string& path) {
   RB_CHECK(file_size >= static_cast<uintmax_t>(data_start) + need, path, ": PFM data is truncated (", file_size,
            " bytes, header says ", width, "x", height, "x", channels, ")");
   cv::Mat image(height, width, channels == 3 ? CV_32FC3 : CV_32F);
-  std::vector<std::uint32_t> row(row_floats);
+  std::vector<std::uint32_t> data(row_floats * height);
+  in.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(need));
+  RB_CHECK(in.good(), path, ": PFM data is truncated");
   const bool swap = little != (std::endian::native == std::endian::little);
+  CheckByteOrder(data, swap, little, path);
   for (int r = 0; r < height; ++r) {
-    in.read(reinterpret_cast<char*>(row.data()), static_cast<std::streamsize>(row_floats * 4));
-    RB_CHECK(in.good(), path, ": PFM data is truncated at row ", r);
+    std::uint32_t* row = data.data() + static_cast<size_t>(r) * row_floats;
     if (swap) {
-      for (auto& v : row) v = __builtin_bswap32(v);
+      for (size_t i = 0; i < row_floats; ++i) row[i] = __builtin_bswap32(row[i]);
     }
-    float* out = image.ptr<float>(height - 1 - r);
-    std::memcpy(out, row.data(), row_floats * 4);
+    std::memcpy(image.ptr<float>(height - 1 - r), row, row_floats * 4);
   }
   if (channels == 3) {
     // PFM stores RGB; OpenCV's convention is BGR.

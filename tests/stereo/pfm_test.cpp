@@ -9,6 +9,9 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <string>
+#include <tuple>
+#include <vector>
 
 #include "core/error.h"
 #include "tests/temp_dir.h"
@@ -60,6 +63,44 @@ TEST(Pfm, ReadsRowsBottomToTopAndBigEndian) {
     EXPECT_EQ(m.at<float>(0, 1), 2.0f);
     EXPECT_EQ(m.at<float>(1, 0), 3.0f);
     EXPECT_EQ(m.at<float>(1, 1), 4.0f);
+  }
+}
+
+// A disparity map written little-endian under a header that says big-endian (scale 1) was read as values up to
+// 1e36: refused, naming the likely cause. The same bytes under the right header, and the map written big-endian
+// under scale 1, read as written.
+TEST(Pfm, DataInTheOtherByteOrderThanDeclaredIsNamed) {
+  std::vector<float> values;
+  for (int i = 0; i < 64; ++i)
+    values.push_back(i % 9 == 0 ? std::numeric_limits<float>::infinity() : 20.0f + 0.37f * i);
+  auto write = [&](const std::string& name, const char* scale, bool big_endian_data) {
+    const std::string path = TempPath(name);
+    std::ofstream out(path, std::ios::binary);
+    out << "Pf\n8 8\n" << scale << "\n";
+    for (const float v : values) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &v, 4);
+      if (big_endian_data) bits = __builtin_bswap32(bits);
+      out.write(reinterpret_cast<const char*>(&bits), 4);
+    }
+    return path;
+  };
+  const std::string wrong = write("wrong_sign.pfm", "1.0", false);
+  try {
+    ReadPfm(wrong);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string why = e.what();
+    EXPECT_NE(why.find("wrong_sign.pfm: "), std::string::npos) << why;
+    EXPECT_NE(why.find("read big-endian, as the scale's sign declares, are beyond 1e±20, and 0 read little-endian: "
+                       "the header's scale probably has the wrong sign"),
+              std::string::npos)
+        << why;
+  }
+  for (const auto& [name, scale, big] : {std::tuple{"le.pfm", "-1.0", false}, std::tuple{"be.pfm", "1.0", true}}) {
+    const cv::Mat m = ReadPfm(write(name, scale, big));
+    EXPECT_EQ(m.at<float>(7, 1), values[1]) << name;  // stored bottom row first
+    EXPECT_TRUE(std::isinf(m.at<float>(7, 0))) << name;
   }
 }
 
