@@ -21,6 +21,7 @@
 
 #include "core/error.h"
 #include "core/files.h"
+#include "core/image_file.h"
 
 #ifdef RB_HAVE_ARUCO
 #include <opencv2/aruco/charuco.hpp>
@@ -204,8 +205,13 @@ PairDetection Combine(const Detection& l, const Detection& r, const BoardModel& 
 }
 
 cv::Mat ReadGray(const std::string& path) {
-  CheckFileToRead(path, "image");
-  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  CheckImageFile(path, "image");
+  cv::Mat img;
+  try {
+    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception& e) {
+    RB_FAIL(path, ": not a readable image (", e.err, ")");
+  }
   RB_CHECK(!img.empty(), path, ": not a readable image");
   return img;
 }

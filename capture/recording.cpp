@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/files.h"
+#include "core/image_file.h"
 
 namespace rangebayes {
 namespace fs = std::filesystem;
@@ -131,37 +132,6 @@ bool IsSafeRelativePath(const std::string& name) {
     if (part == "..") return false;
   }
   return true;
-}
-
-// Why `bytes` cannot be a recording's image, or empty when they can: a PNG whose declared size its zlib
-// stream can hold. Deflate expands at most 1032:1, so a header that declares more raw bytes than that is
-// refused before anything is allocated for it.
-std::string PngProblem(const std::vector<uchar>& bytes) {
-  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (bytes.size() < 33 || std::memcmp(bytes.data(), kSignature, 8) != 0 || std::memcmp(&bytes[12], "IHDR", 4) != 0) {
-    return "not a PNG image";
-  }
-  auto u32 = [&](size_t at) {
-    return (std::uint64_t{bytes[at]} << 24) | (std::uint64_t{bytes[at + 1]} << 16) |
-           (std::uint64_t{bytes[at + 2]} << 8) | std::uint64_t{bytes[at + 3]};
-  };
-  const std::uint64_t width = u32(16), height = u32(20);
-  const int bit_depth = bytes[24], color_type = bytes[25];
-  const int channels = color_type == 0   ? 1
-                       : color_type == 2 ? 3
-                       : color_type == 3 ? 1
-                       : color_type == 4 ? 2
-                       : color_type == 6 ? 4
-                                         : 0;
-  if (channels == 0 || width == 0 || height == 0 || width > (1u << 20) || height > (1u << 20) ||
-      (bit_depth != 1 && bit_depth != 2 && bit_depth != 4 && bit_depth != 8 && bit_depth != 16)) {
-    return "PNG header is invalid";
-  }
-  const std::uint64_t raw = height * (1 + (width * channels * bit_depth + 7) / 8);
-  if (raw > 1032 * static_cast<std::uint64_t>(bytes.size()) + 1024) {
-    return StrCat("PNG declares ", width, "x", height, " pixels, more than its ", bytes.size(), " bytes can hold");
-  }
-  return {};
 }
 
 void FrameName(std::int64_t index, char* buffer, size_t size) {

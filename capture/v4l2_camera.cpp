@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/image_file.h"
 
 namespace rangebayes {
 
@@ -234,7 +235,10 @@ std::optional<TimedImage> V4l2Camera::Dequeue() {
       }
     } else {
       const cv::Mat encoded(1, static_cast<int>(used), CV_8UC1, const_cast<std::uint8_t*>(data));
-      out.image = cv::imdecode(encoded, options_.colour ? cv::IMREAD_COLOR : cv::IMREAD_GRAYSCALE);
+      // A frame cut short (lost USB packets) decodes with its missing part grey: not delivered.
+      if (JpegProblem({data, used}).empty()) {
+        out.image = cv::imdecode(encoded, options_.colour ? cv::IMREAD_COLOR : cv::IMREAD_GRAYSCALE);
+      }
       if (!out.image.empty() && (out.image.cols != w || out.image.rows != h)) out.image.release();
     }
   } catch (const cv::Exception&) {

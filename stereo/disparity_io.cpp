@@ -12,6 +12,7 @@
 #include "calibration/middlebury.h"
 #include "core/error.h"
 #include "core/files.h"
+#include "core/image_file.h"
 #include "stereo/pfm.h"
 
 namespace rangebayes {
@@ -25,7 +26,7 @@ bool EndsWithPfm(const std::string& path) {
 }
 
 cv::Mat ReadImage(const std::string& path, int flags) {
-  CheckFileToRead(path, "image");
+  CheckImageFile(path, "image");
   cv::Mat image;
   try {
     image = cv::imread(path, flags);

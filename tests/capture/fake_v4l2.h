@@ -19,7 +19,9 @@
 namespace rangebayes {
 
 struct FakeEvent {
-  enum Kind { kFrame, kStall, kUnplug, kCorrupt } kind = kFrame;
+  // kCorrupt: a buffer too short for the format (MJPEG: 100 bytes that are no JPEG); kTruncated (MJPEG): the first
+  // half of the frame's JPEG, the rest of the buffer zeros, as a camera that lost USB packets delivers it.
+  enum Kind { kFrame, kStall, kUnplug, kCorrupt, kTruncated } kind = kFrame;
   std::int64_t timestamp_ns = 0;
   std::uint32_t sequence = 0;
   std::uint8_t value = 0;  // kFrame: pixel value (the frame fills with value + x % 7)
@@ -225,6 +227,7 @@ class FakeV4l2 : public V4l2SysCalls {
     std::vector<std::uint8_t> jpeg;
     cv::imencode(".jpg", grey, jpeg, {cv::IMWRITE_JPEG_QUALITY, 100});
     std::memcpy(out.data(), jpeg.data(), jpeg.size());
+    if (e.kind == FakeEvent::kTruncated) std::memset(out.data() + jpeg.size() / 2, 0, jpeg.size() - jpeg.size() / 2);
     return static_cast<std::uint32_t>(jpeg.size());
   }
 

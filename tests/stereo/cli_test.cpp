@@ -347,5 +347,22 @@ TEST(StereoCli, ErrorsAreOneLine) {
   EXPECT_NE(r.output.find("tests/data: is a directory"), std::string::npos) << r.output;
 }
 
+// An image cut short (a copy that stopped, a frame written half-way) is one error line: a PNG also printed
+// libpng's "Read Error", and a JPEG was matched as a whole image, its missing part grey, after libjpeg's warning.
+TEST(StereoCli, ImagesCutShortAreOneErrorLine) {
+  for (const std::string name :
+       {"tests/data/stereo/tsukuba/imL.png", "tests/data/calibration/opencv_stereo/left01.jpg"}) {
+    std::ifstream in(name, std::ios::binary);
+    const std::string whole((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string cut = Temp("cut" + fs::path(name).extension().string());
+    std::ofstream(cut, std::ios::binary) << whole.substr(0, whole.size() / 2);
+    RunResult r = RunRangebayes("stereo " + cut + " " + cut + " --out " + Temp("cut_out"));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(cut + ": "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(" data is cut short"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  }
+}
+
 }  // namespace
 }  // namespace rangebayes
