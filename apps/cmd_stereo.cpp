@@ -159,8 +159,8 @@ void ApplyNoiseModelAfterMatch(const MatchCliOptions& o, const std::string& matc
     const DisparityNoiseModel& model = *o.model;
     model.CheckApplicable(matcher, result->disparity_px.cols, o.noise_model);
     if (model.form == NoiseForm::kLearned) {
-      result->sigma_disparity_px =
-          LearnedDisparitySigma(model, matcher, left, right, result->disparity_px, o.noise_model);
+      result->sigma_disparity_px = LearnedDisparitySigma(model, matcher, left, right, result->disparity_px,
+                                                         o.noise_model, &result->edge_sigma_disparity_px);
       given_here = true;
     } else if (model.form == NoiseForm::kConstant && result->sigma_disparity_px.empty()) {
       const cv::Mat valid = result->disparity_px == result->disparity_px;
@@ -206,8 +206,8 @@ void WriteOutputs(const DisparityResult& result, const std::optional<Rectifier>&
     Notice(o.quiet, "no rig given: wrote disparity only (no depth, no mesh)");
     return;
   }
-  DepthFrame frame = DepthFromDisparity(result.disparity_px, result.sigma_disparity_px, rectifier->intrinsics(),
-                                        rectifier->baseline_m(), rectifier->doffs_px());
+  DepthFrame frame =
+      DepthFromDisparity(result, rectifier->intrinsics(), rectifier->baseline_m(), rectifier->doffs_px());
   frame.frame_id = frame_id;
   frame.timestamp_ns = timestamp_ns;
   WritePfm(frame.depth_m, (out / "depth.pfm").string());

@@ -547,12 +547,13 @@ class Stages {
       const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
       options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
       if (options.noise_model->form == NoiseForm::kLearned) {
-        d.sigma_disparity_px = LearnedDisparitySigma(*options.noise_model, name, item.left_rect, item.right_rect,
-                                                     d.disparity_px, options.noise_model_name);
+        d.sigma_disparity_px =
+            LearnedDisparitySigma(*options.noise_model, name, item.left_rect, item.right_rect, d.disparity_px,
+                                  options.noise_model_name, &d.edge_sigma_disparity_px);
       }
     }
-    item.result.depth = DepthFromDisparity(d.disparity_px, d.sigma_disparity_px, setup.intrinsics,
-                                           rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
+    item.result.depth =
+        DepthFromDisparity(d, setup.intrinsics, rectifier.baseline_m(), rectifier.doffs_px() / f, options.depth);
     item.result.depth.frame_id = item.result.index;
     item.result.depth.timestamp_ns = item.result.timestamp_ns;
     item.left_rect.clear();

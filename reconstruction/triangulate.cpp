@@ -31,6 +31,7 @@ namespace {
 struct DepthGrid {
   int s = 1, gw = 0, gh = 0;
   std::vector<float> z, sz;
+  std::vector<float> edge_sz;     // the discontinuity test's σ_Z (DepthFrame::edge_sigma_depth_m); empty: sz
   std::vector<int> row_vertices;  // gh + 1 prefix sums
   int num_vertices() const { return row_vertices.back(); }
 };
@@ -46,6 +47,8 @@ DepthGrid SampleDepthGrid(const DepthFrame& frame, const TriangulateOptions& opt
   std::vector<float>& sz = grid.sz;
   z.resize(static_cast<size_t>(gw) * gh);
   sz.resize(z.size());
+  const bool edge = !frame.edge_sigma_depth_m.empty();
+  if (edge) grid.edge_sz.resize(z.size());
   std::vector<int>& row_vertices = grid.row_vertices;
   row_vertices.assign(gh + 1, 0);
   tbb::parallel_for(0, gh, [&](int gy) {
@@ -62,6 +65,11 @@ DepthGrid SampleDepthGrid(const DepthFrame& frame, const TriangulateOptions& opt
       const bool ok = std::isfinite(d) && d > 0.0f && std::isfinite(sd) && sd > 0.0f;
       z[static_cast<size_t>(gy) * gw + gx] = ok ? d : NAN;
       sz[static_cast<size_t>(gy) * gw + gx] = ok ? sd : NAN;
+      if (edge) {
+        // Where the edge σ is missing or zero, the covariance's σ.
+        const float e = frame.edge_sigma_depth_m.ptr<float>(gy * s)[gx * s];
+        grid.edge_sz[static_cast<size_t>(gy) * gw + gx] = ok ? (std::isfinite(e) && e > 0.0f ? e : sd) : NAN;
+      }
       count += ok;
     }
     row_vertices[gy + 1] = count;
@@ -136,7 +144,7 @@ void BackProject(const DepthFrame& frame, const DepthGrid& grid, double sigma_px
 std::vector<std::uint8_t> ConnectedEdges(const DepthGrid& grid, double slope, double k2) {
   const int gw = grid.gw, gh = grid.gh;
   const std::vector<float>& z = grid.z;
-  const std::vector<float>& sz = grid.sz;
+  const std::vector<float>& sz = grid.edge_sz.empty() ? grid.sz : grid.edge_sz;
   const auto connected = [&](size_t a, size_t b) {
     const double za = z[a], zb = z[b];
     if (!(za == za) || !(zb == zb)) return false;  // NaN: no vertex
@@ -287,6 +295,9 @@ NoisyMesh TriangulateDepth(const DepthFrame& frame, const TriangulateOptions& op
   RB_CHECK(!frame.empty() && frame.depth_m.type() == CV_32F, "depth frame ", frame.frame_id, " is empty");
   RB_CHECK(frame.sigma_depth_m.size() == frame.depth_m.size() && frame.sigma_depth_m.type() == CV_32F,
            "depth frame ", frame.frame_id, ": sigma_depth size differs from the depth");
+  RB_CHECK(frame.edge_sigma_depth_m.empty() ||
+               (frame.edge_sigma_depth_m.size() == frame.depth_m.size() && frame.edge_sigma_depth_m.type() == CV_32F),
+           "depth frame ", frame.frame_id, ": edge_sigma_depth size differs from the depth");
   const CameraIntrinsics& K = frame.intrinsics;
   K.Check();
   RB_CHECK(K.width == frame.width() && K.height == frame.height(), "depth frame ", frame.frame_id,

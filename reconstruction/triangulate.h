@@ -19,7 +19,7 @@ struct TriangulateOptions {
   //   |Z_a − Z_b| > max_jump_sigma · sqrt(σ_Z,a² + σ_Z,b²) + (Z_a + Z_b)/2 · step/f · tan(max_slope_deg),
   // i.e. when the jump is far outside the expected depth noise AND steeper than a surface seen at
   // max_slope_deg from the viewing direction (without the slope term a tilted plane whose depth changes by
-  // more than a few σ per pixel would be cut into pieces).
+  // more than a few σ per pixel would be cut into pieces). σ_Z is the frame's edge_sigma_depth_m where it has one.
   double max_jump_sigma = 6.0;      // > 0
   double max_slope_deg = 80.0;      // 0–89.9
   double default_sigma_disparity_px = 0.5;  // > 0: σ_d for pixels whose σ is NaN (matchers without σ)

@@ -63,4 +63,27 @@ DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_
   return frame;
 }
 
+DepthFrame DepthFromDisparity(const DisparityResult& result, const CameraIntrinsics& intrinsics, double baseline_m,
+                              double doffs_px, const DepthFromDisparityOptions& options) {
+  DepthFrame frame =
+      DepthFromDisparity(result.disparity_px, result.sigma_disparity_px, intrinsics, baseline_m, doffs_px, options);
+  if (result.edge_sigma_disparity_px.empty()) return frame;
+  RB_CHECK(result.edge_sigma_disparity_px.type() == CV_32F &&
+               result.edge_sigma_disparity_px.size() == result.disparity_px.size(),
+           "edge_sigma_disparity size ", result.edge_sigma_disparity_px.cols, "x", result.edge_sigma_disparity_px.rows,
+           " differs from the disparity");
+  // σ_Z = σ_d · Z² / (f·B), as above, where there is a depth.
+  const double fb = intrinsics.fx_px * baseline_m;
+  frame.edge_sigma_depth_m.create(frame.depth_m.size(), CV_32F);
+  for (int y = 0; y < frame.depth_m.rows; ++y) {
+    const float* z = frame.depth_m.ptr<float>(y);
+    const float* s = result.edge_sigma_disparity_px.ptr<float>(y);
+    float* o = frame.edge_sigma_depth_m.ptr<float>(y);
+    for (int x = 0; x < frame.depth_m.cols; ++x) {
+      o[x] = static_cast<float>(static_cast<double>(z[x]) * z[x] / fb * s[x]);
+    }
+  }
+  return frame;
+}
+
 }  // namespace rangebayes

@@ -5,6 +5,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "stereo/matcher.h"
 
 namespace rangebayes {
 
@@ -18,6 +19,10 @@ struct DepthFrame {
   cv::Mat sigma_depth_m;
   cv::Mat disparity_px;
   cv::Mat sigma_disparity_px;
+  // Optional: the σ_Z the mesh's discontinuity test reads where it differs from sigma_depth_m (empty: that one). A
+  // learned noise model's σ grows with the jump to a neighbour and so would hide every jump from a test in units of
+  // itself (a Teddy mesh went from 971 edges cut to none); this is its σ without that term.
+  cv::Mat edge_sigma_depth_m;
   std::int64_t frame_id = 0;
   std::int64_t timestamp_ns = 0;
   CameraIntrinsics intrinsics;  // the rectified left camera
@@ -44,5 +49,10 @@ struct DepthFromDisparityOptions {
 DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_disparity_px,
                               const CameraIntrinsics& intrinsics, double baseline_m, double doffs_px,
                               const DepthFromDisparityOptions& options = {});
+
+// The same from a matcher's result, its edge_sigma_disparity_px (when there is one) converted into
+// DepthFrame::edge_sigma_depth_m as σ_d into σ_Z.
+DepthFrame DepthFromDisparity(const DisparityResult& result, const CameraIntrinsics& intrinsics, double baseline_m,
+                              double doffs_px, const DepthFromDisparityOptions& options = {});
 
 }  // namespace rangebayes

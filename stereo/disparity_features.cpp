@@ -101,7 +101,7 @@ DisparityFeatures ComputeDisparityFeatures(const std::vector<cv::Mat>& left, con
 
 cv::Mat LearnedDisparitySigma(const DisparityNoiseModel& model, const std::string& matcher_name,
                               const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
-                              const cv::Mat& disparity_px, const std::string& what) {
+                              const cv::Mat& disparity_px, const std::string& what, cv::Mat* without_jump) {
   RB_CHECK(model.form == NoiseForm::kLearned, what, ": a noise model of form '", NoiseFormName(model.form),
            "' has no per-pixel features (learned form expected)");
   model.CheckApplicable(matcher_name, disparity_px.cols, what);
@@ -109,13 +109,18 @@ cv::Mat LearnedDisparitySigma(const DisparityNoiseModel& model, const std::strin
   options.window_px = model.window_px;
   if (model.image_noise_gray > 0) options.image_noise_gray = model.image_noise_gray;
   const DisparityFeatures f = ComputeDisparityFeatures(left, right, disparity_px, options);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
   cv::Mat sigma(disparity_px.size(), CV_32F);
+  if (without_jump != nullptr) without_jump->create(disparity_px.size(), CV_32F);
   for (int y = 0; y < sigma.rows; ++y) {
     const float* sp = f.sigma_pred_px.ptr<float>(y);
     const float* jp = f.jump_px.ptr<float>(y);
     float* o = sigma.ptr<float>(y);
-    for (int x = 0; x < sigma.cols; ++x)
-      o[x] = std::isfinite(sp[x]) ? static_cast<float>(model.Apply(sp[x], jp[x])) : std::numeric_limits<float>::quiet_NaN();
+    float* o0 = without_jump != nullptr ? without_jump->ptr<float>(y) : nullptr;
+    for (int x = 0; x < sigma.cols; ++x) {
+      o[x] = std::isfinite(sp[x]) ? static_cast<float>(model.Apply(sp[x], jp[x])) : nan;
+      if (o0 != nullptr) o0[x] = std::isfinite(sp[x]) ? static_cast<float>(model.Apply(sp[x], 0.0)) : nan;
+    }
   }
   return sigma;
 }

@@ -35,8 +35,11 @@ DisparityFeatures ComputeDisparityFeatures(const std::vector<cv::Mat>& left, con
 // σ_d (CV_32F, NaN where the disparity is NaN) of a learned model for the disparity of `matcher_name` from these
 // frames: checks the model applies (DisparityNoiseModel::CheckApplicable; `what` names the model file) and
 // computes the features with the model's window and image noise. Throws Error for another form than learned.
+// without_jump, when given, receives σ_d without the neighbour-jump term: what the mesh's discontinuity test reads
+// (DepthFrame::edge_sigma_depth_m), since a σ that grows with the jump to a neighbour hides every jump from a test
+// in units of itself.
 cv::Mat LearnedDisparitySigma(const DisparityNoiseModel& model, const std::string& matcher_name,
                               const std::vector<cv::Mat>& left, const std::vector<cv::Mat>& right,
-                              const cv::Mat& disparity_px, const std::string& what);
+                              const cv::Mat& disparity_px, const std::string& what, cv::Mat* without_jump = nullptr);
 
 }  // namespace rangebayes

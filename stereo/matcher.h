@@ -14,6 +14,8 @@ namespace rangebayes {
 struct DisparityResult {
   cv::Mat disparity_px;
   cv::Mat sigma_disparity_px;
+  // Optional (a learned noise model): σ_d for the mesh's discontinuity test, as DepthFrame::edge_sigma_depth_m.
+  cv::Mat edge_sigma_disparity_px;
   double match_ms = 0.0;      // wall time of the matching itself
   int frames_used = 0;
   double valid_fraction = 0.0;

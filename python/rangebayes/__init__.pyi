@@ -383,6 +383,7 @@ class DepthFrame:
     sigma_depth_m: npt.NDArray[np.float32]
     disparity_px: npt.NDArray[np.float32]
     sigma_disparity_px: npt.NDArray[np.float32]
+    edge_sigma_depth_m: Optional[npt.NDArray[np.float32]]
     frame_id: int
     timestamp_ns: int
     intrinsics: CameraIntrinsics

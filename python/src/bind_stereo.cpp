@@ -172,7 +172,8 @@ numpy arrays (copies on read; assign a whole array to change one). Translations 
 
   py::class_<DepthFrame> depth_frame(m, "DepthFrame", R"(A depth image in the rectified left view. depth_m (metres),
 sigma_depth_m, disparity_px, sigma_disparity_px: float32 (h, w) numpy views of the C++ images (no copy), NaN where
-invalid.)");
+invalid. edge_sigma_depth_m: None, or (a learned noise model) the σ_Z the mesh's discontinuity test reads, σ without
+the model's neighbour-jump term.)");
   depth_frame.def_property_readonly("width", &DepthFrame::width).def_property_readonly("height", &DepthFrame::height);
   // The images pickle as float32 copies and come back as the arrays they were (a map of another type or shape
   // from a hand-made state is refused).
@@ -190,7 +191,8 @@ invalid.)");
   for (const auto& [name, member] : {std::pair{"depth_m", &DepthFrame::depth_m},
                                      {"sigma_depth_m", &DepthFrame::sigma_depth_m},
                                      {"disparity_px", &DepthFrame::disparity_px},
-                                     {"sigma_disparity_px", &DepthFrame::sigma_disparity_px}}) {
+                                     {"sigma_disparity_px", &DepthFrame::sigma_disparity_px},
+                                     {"edge_sigma_depth_m", &DepthFrame::edge_sigma_depth_m}}) {
     depth_frame.def_property_readonly(name, [member = member](const DepthFrame& f) { return ArrayFromMat(f.*member); });
     const auto [get, set] = image(member, name);
     depth_fields.State(name, get, set);
@@ -259,8 +261,8 @@ num_disparities_searched (when other than asked: SGBM searches a multiple of 16;
         }
         const DisparityResult result = MatchImages(lr, rr, matcher, kw, "stereo", "depth");
         py::gil_scoped_release nogil;
-        return DepthFromDisparity(result.disparity_px, result.sigma_disparity_px, rectifier->intrinsics(),
-                                  rectifier->baseline_m(), rectifier->doffs_px(), depth_options);
+        return DepthFromDisparity(result, rectifier->intrinsics(), rectifier->baseline_m(), rectifier->doffs_px(),
+                                  depth_options);
       },
       py::arg("rig"), py::arg("left"), py::arg("right"), py::arg("matcher") = "sgbm", py::arg("depth") = py::dict(),
       R"(Rectify with the rig, match (matcher 'sgbm' or 'spacetime', keywords as for match()), and convert to

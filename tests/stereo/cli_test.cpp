@@ -347,6 +347,31 @@ TEST(StereoCli, ErrorsAreOneLine) {
   EXPECT_NE(r.output.find("tests/data: is a directory"), std::string::npos) << r.output;
 }
 
+// The edges cut at discontinuities in a mesh made with a learned noise model: its σ_d grows with the jump to a
+// neighbour (jump_scale 1.78 fitted on Tsukuba), so a test in units of it never cut (0 edges against the default's
+// 1,442 on the bundled ArtL frame); the test reads the model's σ without that term.
+TEST(StereoCli, ALearnedNoiseModelStillCutsTheMeshAtDiscontinuities) {
+  const std::string out = Temp("learned_cut"), model = Temp("learned_cut.yaml");
+  RunResult r = RunRangebayes("calibrate noise --target ground-truth tests/data/stereo/tsukuba -q -o " + model);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string rec = "recordings/middlebury2014_artl_quarter";
+  const std::string stereo =
+      "stereo " + rec + "/left/000000.png " + rec + "/right/000000.png --rig " + rec + "/rig.yaml -q -o " + out;
+  auto cut_edges = [](const RunResult& run) {
+    const size_t at = run.output.find(" edges cut at discontinuities");
+    EXPECT_NE(at, std::string::npos) << run.output;
+    if (at == std::string::npos) return -1;
+    return std::stoi(run.output.substr(run.output.rfind(", ", at) + 2));
+  };
+  r = RunRangebayes(stereo);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const int by_default = cut_edges(r);
+  r = RunRangebayes(stereo + " --noise-model " + model);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_GT(by_default, 1000) << r.output;
+  EXPECT_GE(cut_edges(r), by_default / 2) << r.output;
+}
+
 // An image cut short (a copy that stopped, a frame written half-way) is one error line: a PNG also printed
 // libpng's "Read Error", and a JPEG was matched as a whole image, its missing part grey, after libjpeg's warning.
 TEST(StereoCli, ImagesCutShortAreOneErrorLine) {
