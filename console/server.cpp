@@ -64,12 +64,28 @@ struct Outgoing {
 // more only makes the server remember them (a page sending new names in a loop grew the process without bound).
 constexpr size_t kMaxSubscriptionGroups = 16;
 
+// On a loopback address every request must name a loopback host in Host: a page of another site whose DNS name is
+// rebound to 127.0.0.1 sends its own name there, and so reads neither the status nor the meshes (the WebSocket
+// upgrade was checked alone: the status page and the capture downloads answered such a page). A request without
+// Host (an HTTP/1.0 program, not a browser) is let be.
+bool HostAllowed(const http::request<http::string_body>& request, const std::string& bound_address) {
+  boost::system::error_code ec;
+  const net::ip::address bound = net::ip::make_address(bound_address, ec);
+  if (ec || !bound.is_loopback()) return true;
+  const auto host_field = request.find(http::field::host);
+  if (host_field == request.end()) return true;
+  const std::string authority(host_field->value());
+  const size_t port_colon = authority.rfind(':');
+  const bool has_port = port_colon != std::string::npos && authority.find(']', port_colon) == std::string::npos;
+  const std::string host = has_port ? authority.substr(0, port_colon) : authority;
+  return host == "localhost" || host == "127.0.0.1" || host == "[::1]" || host == bound_address;
+}
+
 // A WebSocket upgrade a browser makes for a page of another site is refused: browsers send Origin with every
 // upgrade and do not apply the same-origin rule to WebSockets, so any page open in the operator's browser could
 // otherwise read the camera images and meshes. Accepted: no Origin (a program, not a browser page), or an Origin
-// whose host and port are the request's Host; on a loopback address that host must also be a loopback name (a
-// site whose DNS name is rebound to 127.0.0.1 sends its own name in both).
-bool WebSocketOriginAllowed(const http::request<http::string_body>& request, const std::string& bound_address) {
+// whose host and port are the request's Host (which HostAllowed has checked).
+bool WebSocketOriginAllowed(const http::request<http::string_body>& request) {
   const auto origin_field = request.find(http::field::origin);
   if (origin_field == request.end()) return true;
   const std::string origin(origin_field->value());
@@ -78,14 +94,7 @@ bool WebSocketOriginAllowed(const http::request<http::string_body>& request, con
   const std::string scheme = origin.substr(0, scheme_end);
   const std::string authority = origin.substr(scheme_end + 3);
   if ((scheme != "http" && scheme != "https") || authority.empty()) return false;
-  if (authority != std::string(request[http::field::host])) return false;
-  boost::system::error_code ec;
-  const net::ip::address bound = net::ip::make_address(bound_address, ec);
-  if (ec || !bound.is_loopback()) return true;
-  const size_t port_colon = authority.rfind(':');
-  const bool has_port = port_colon != std::string::npos && authority.find(']', port_colon) == std::string::npos;
-  const std::string host = has_port ? authority.substr(0, port_colon) : authority;
-  return host == "localhost" || host == "127.0.0.1" || host == "[::1]" || host == bound_address;
+  return authority == std::string(request[http::field::host]);
 }
 
 bool TopicWanted(const std::map<std::string, std::string>& subscriptions, const std::string& topic) {
@@ -355,10 +364,15 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     http::request<http::string_body>& req = parser_->get();
     HttpParseResult parsed = CheckRequest(req, state_->options);
     if (parsed.refuse_status != 0) return Refuse(parsed.refuse_status, parsed.refuse_reason);
+    if (!HostAllowed(req, state_->options.address)) {
+      return Refuse(403,
+                    "Host names no loopback host (the console answers on this address to localhost, 127.0.0.1 "
+                    "and [::1] only)");
+    }
     if (parsed.websocket_upgrade) {
       const std::string path = parsed.request.target.substr(0, parsed.request.target.find('?'));
       if (path != "/ws" || req.method() != http::verb::get) return Refuse(404, "no WebSocket here");
-      if (!WebSocketOriginAllowed(req, state_->options.address)) return Refuse(403, "WebSocket from another origin");
+      if (!WebSocketOriginAllowed(req)) return Refuse(403, "WebSocket from another origin");
       if (state_->clients.load() >= state_->options.max_clients) return Refuse(503, "too many clients");
       std::make_shared<WsSession>(stream_.release_socket(), state_)->Run(parser_->release());
       return;

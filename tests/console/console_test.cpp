@@ -228,9 +228,31 @@ TEST_F(ConsoleTest, ServesThePageAndNothingElse) {
     EXPECT_EQ(StatusOf(r), 404) << bad;
     EXPECT_EQ(r.find("root:"), std::string::npos) << bad;
   }
-  EXPECT_EQ(StatusOf(Exchange(console_->port(), "GET ../etc/passwd HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")),
+  EXPECT_EQ(StatusOf(Exchange(console_->port(),
+                              "GET ../etc/passwd HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")),
             404);
-  EXPECT_EQ(StatusOf(Exchange(console_->port(), "DELETE / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")), 405);
+  EXPECT_EQ(StatusOf(Exchange(console_->port(), "DELETE / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")),
+            405);
+}
+
+// DNS rebinding: a page of another site whose name resolves to 127.0.0.1 sends that name in Host. It read the status
+// (folders, errors) and the page (the WebSocket upgrade alone was checked); every request now names a loopback host
+// or is refused.
+TEST_F(ConsoleTest, RequestsNamingAnotherHostAreRefusedOnLoopback) {
+  const std::string port = std::to_string(console_->port());
+  for (const std::string target : {"/", "/api/status", "/console.js"}) {
+    const std::string r = Exchange(console_->port(), "GET " + target + " HTTP/1.1\r\nHost: attacker.example:" + port +
+                                                         "\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(StatusOf(r), 403) << target;
+    EXPECT_NE(BodyOf(r).find("Host names no loopback host"), std::string::npos) << r;
+    for (const std::string& host :
+         std::vector<std::string>{"127.0.0.1:" + port, "localhost:" + port, "localhost", "[::1]:" + port}) {
+      EXPECT_EQ(StatusOf(Exchange(console_->port(),
+                                  "GET " + target + " HTTP/1.1\r\nHost: " + host + "\r\nConnection: close\r\n\r\n")),
+                200)
+          << target << " " << host;
+    }
+  }
 }
 
 // HEAD gets the headers of GET and no body: a body after them was read by a keep-alive client as the start of the
