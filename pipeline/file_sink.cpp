@@ -1,6 +1,7 @@
 #include "pipeline/file_sink.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -75,6 +76,14 @@ void FileSinkOptions::Check() const {
 
 FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : folder_(folder), options_(options) {
   options_.Check();
+  // One run at a time per folder: a second replay into it removed or truncated the first one's results.csv while
+  // that run appended to it (both ended "ok", the first run's results unlisted). The lock (on the folder itself)
+  // goes with the process, however it ends.
+  CreateFolder(folder_);
+  lock_fd_ = ::open(folder_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  RB_CHECK(lock_fd_ >= 0, folder_, ": cannot open (", std::strerror(errno), ")");
+  RB_CHECK(::flock(lock_fd_, LOCK_EX | LOCK_NB) == 0, folder_,
+           ": another run is writing its results here; wait for it or choose another folder");
   std::error_code ec;
   const fs::path earlier_index = fs::path(folder_) / "results.csv";
   if (fs::exists(earlier_index, ec)) {
@@ -88,13 +97,17 @@ FileSink::FileSink(const std::string& folder, const FileSinkOptions& options) : 
       RB_CHECK(!ec, folder_, "/", name, ": cannot remove the earlier result (", ec.message(), ")");
     }
   }
-  CreateFolder(folder_);
   const std::string index = (fs::path(folder_) / "results.csv").string();
   index_fd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
   RB_CHECK(index_fd_ >= 0, index, ": cannot create (", std::strerror(errno), ")");
   AppendLine(index_fd_,
              "index,last_index,timestamp_ns,frames,raw_vertices,raw_faces,decimated_faces,raw,smoothed,decimated,"
              "depth,shaded\n");
+}
+
+FileSink::~FileSink() {
+  Finish();
+  if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
 void FileSink::Finish() {

@@ -31,9 +31,13 @@ struct FileSinkOptions {
 
 class FileSink : public PipelineSink {
  public:
-  // Creates the folder; throws Error naming it when it cannot, or when it holds an earlier run's results and
-  // options.overwrite is false.
+  // Creates the folder; throws Error naming it when it cannot, when another FileSink (of any process) writes into
+  // it, or when it holds an earlier run's results and options.overwrite is false. The folder stays locked until
+  // this sink is destroyed.
   FileSink(const std::string& folder, const FileSinkOptions& options = {});
+  ~FileSink() override;
+  FileSink(const FileSink&) = delete;
+  FileSink& operator=(const FileSink&) = delete;
   void Consume(const PipelineResult& result) override;
   void Finish() override;
   std::int64_t files_written() const { return files_written_; }
@@ -43,6 +47,7 @@ class FileSink : public PipelineSink {
   FileSinkOptions options_;
   std::int64_t files_written_ = 0;
   int index_fd_ = -1;
+  int lock_fd_ = -1;
   std::set<std::string> made_;  // output folders created (each when its first file is written)
 };
 

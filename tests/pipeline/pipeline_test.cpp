@@ -255,6 +255,26 @@ TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
   }
 }
 
+// Two runs into one folder: the second removed (or truncated) the first one's results.csv while it appended to it,
+// and both ended "ok" with the first run's results unlisted. The second is refused while the first's sink lives;
+// after it, the folder takes a new run (here: the first's index lists nothing yet, so nothing is lost).
+TEST(FileSink, ASecondRunIntoTheSameFolderIsRefusedWhileTheFirstWrites) {
+  const TempDir dir("file_sink_lock");
+  const std::string out = dir.path() + "/out";
+  {
+    FileSink first(out);
+    try {
+      FileSink second(out);
+      ADD_FAILURE() << "a second sink took the folder";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(out + ": another run is writing its results here"), std::string::npos)
+          << e.what();
+    }
+    EXPECT_TRUE(fs::exists(out + "/results.csv"));
+  }
+  EXPECT_NO_THROW(FileSink again(out));
+}
+
 // A stop requested while a frame is being smoothed or decimated ends that call at its next progress report (a
 // converged full-resolution solve runs for minutes; Ctrl-C waited for it): the library reports nothing more
 // after the stop, and the frame is abandoned, not failed. The stop is set from the stage's own progress, so the
