@@ -128,8 +128,10 @@ void Run(const DecimateArgs& a) {
   if (animated) {
     CreateFolder(a.out_dir);
     for (const std::string& out : outputs) CheckFileToWrite(out);
+    for (const std::string& out : outputs) RequireDistinctOutputs({{"an output pose", out}, {"--png", a.png}});
   } else {
     CheckOutputMesh(a.files[1]);
+    RequireDistinctOutputs({{"OUT", a.files[1]}, {"--png", a.png}});
   }
   if (!a.png.empty()) CheckFileToWrite(a.png);
 

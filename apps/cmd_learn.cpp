@@ -142,6 +142,7 @@ void RunLearn(const LearnArgs& args) {
   };
   options.Check();
   const std::string plot = args.plot.empty() ? DefaultPlotPath(args.out) : args.plot;
+  RequireDistinctOutputs({{"--out", args.out}, {args.plot.empty() ? "the plot beside it" : "--plot", plot}});
   CheckFileToWrite(args.out);
   CheckFileToWrite(plot);
 

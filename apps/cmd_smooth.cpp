@@ -88,6 +88,7 @@ void RunSmooth(const SmoothArgs& args) {
   options.num_threads = args.threads;
   options.Check();
   CheckOutputMesh(args.output);
+  RequireDistinctOutputs({{"OUT", args.output}, {"--png", args.png}});
   if (!args.png.empty()) CheckFileToWrite(args.png);
 
   NoisyMesh noisy = ReadInputMesh(args.input, args.quiet);
@@ -107,7 +108,12 @@ void RunSmooth(const SmoothArgs& args) {
   if (!choice.from_file && choice.generic.estimated && !(choice.generic.noise_edge_multiple > 0)) {
     Notice(false, "warning: no noise measurable in this mesh; give --noise or --sigma");
   }
-  std::printf("prior:      %s, beta %.4g%s\n", args.prior.c_str(), options.prior_weight,
+  // Where β came from when it is not the prior's own: a prior.yaml with prior_weight 0 records none.
+  const std::string beta_source = args.prior_weight.has_value() ? " (--prior-weight)"
+                                  : prior && !(prior->prior_weight > 0)
+                                      ? " (the default: " + args.prior + " records no prior_weight)"
+                                      : "";
+  std::printf("prior:      %s, beta %.4g%s%s\n", args.prior.c_str(), options.prior_weight, beta_source.c_str(),
               !learned && options.prior == PriorKind::kSqrt
                   ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
                   : "");

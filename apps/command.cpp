@@ -1,6 +1,8 @@
 #include "apps/command.h"
 
 #include <algorithm>
+#include <filesystem>
+#include <system_error>
 #include <utility>
 #include <vector>
 
@@ -72,5 +74,23 @@ void SetExitCode(int code) { ExitCodeStorage() = code; }
 int ExitCode() { return ExitCodeStorage(); }
 
 void UsageError(const std::string& message) { throw CLI::ValidationError(message); }
+
+void RequireDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& outputs) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> resolved;
+  for (const auto& [option, path] : outputs) {
+    std::error_code ec;
+    fs::path p = path.empty() ? fs::path() : fs::weakly_canonical(fs::absolute(path), ec);
+    if (ec) p = fs::absolute(path).lexically_normal();
+    resolved.push_back(p);
+  }
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    for (size_t k = 0; k < i; ++k) {
+      if (resolved[i].empty() || resolved[i] != resolved[k]) continue;
+      UsageError(outputs[k].first + " and " + outputs[i].first + " name the same file (" + outputs[i].second +
+                 "): the second would replace the first");
+    }
+  }
+}
 
 }  // namespace rangebayes::apps

@@ -10,6 +10,8 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace rangebayes::apps {
 
@@ -32,6 +34,11 @@ int ExitCode();
 
 // Usage error from inside a callback (a combination of options CLI11 cannot check): exit code 2.
 [[noreturn]] void UsageError(const std::string& message);
+
+// A usage error when two of the files a command will write (each named by its option, e.g. {"--out", path}) are
+// one file (the same path after resolving links and ".."): the second write replaced the first (`learn-prior
+// --out p.png` wrote its plot over its prior, exit 0). Empty paths are skipped.
+void RequireDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& outputs);
 
 }  // namespace rangebayes::apps
 

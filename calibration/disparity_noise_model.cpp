@@ -10,6 +10,7 @@
 #include <limits>
 #include <numeric>
 #include <opencv2/core.hpp>
+#include <utility>
 
 #include "calibration/opencv_yaml.h"
 #include "core/error.h"
@@ -188,15 +189,22 @@ void DisparityNoiseModel::CheckApplicable(const std::string& matcher_name, int w
 }
 
 void DisparityNoiseModel::Check() const {
+  // σ_d is stored in float maps: a finite double beyond them (floor_px 1e300 in a hand-edited file) made every σ
+  // infinite. No disparity σ, and no weight of one, is meaningful beyond kMaxNoiseValue.
+  constexpr double kMaxNoiseValue = 1e4;
   if (form == NoiseForm::kConstant) {
-    RB_CHECK(sigma_px > 0 && std::isfinite(sigma_px), "noise model: sigma_px ", sigma_px, " must be positive");
+    RB_CHECK(sigma_px > 0 && sigma_px <= kMaxNoiseValue, "noise model: sigma_px ", sigma_px, " must be in (0, ",
+             kMaxNoiseValue, "] px");
   } else {
-    RB_CHECK(floor_px >= 0 && std::isfinite(floor_px), "noise model: floor_px ", floor_px, " must be ≥ 0");
-    RB_CHECK(scale >= 0 && std::isfinite(scale), "noise model: scale ", scale, " must be ≥ 0");
+    RB_CHECK(floor_px >= 0 && floor_px <= kMaxNoiseValue, "noise model: floor_px ", floor_px, " must be in [0, ",
+             kMaxNoiseValue, "] px");
+    RB_CHECK(scale >= 0 && scale <= kMaxNoiseValue, "noise model: scale ", scale, " must be in [0, ", kMaxNoiseValue,
+             "]");
     RB_CHECK(floor_px > 0 || scale > 0, "noise model: floor_px and scale are both 0");
   }
   if (form == NoiseForm::kLearned) {
-    RB_CHECK(jump_scale >= 0 && std::isfinite(jump_scale), "noise model: jump_scale ", jump_scale, " must be ≥ 0");
+    RB_CHECK(jump_scale >= 0 && jump_scale <= kMaxNoiseValue, "noise model: jump_scale ", jump_scale,
+             " must be in [0, ", kMaxNoiseValue, "]");
     RB_CHECK(!matcher.empty(), "noise model: the learned form needs the matcher it was fitted for");
     RB_CHECK(width_min_px > 0 && width_max_px >= width_min_px, "noise model: the learned form needs the widths it "
              "was fitted on (width_min_px ", width_min_px, ", width_max_px ", width_max_px, ")");
@@ -269,6 +277,11 @@ DisparityNoiseModel ReadDisparityNoiseModel(const std::string& path) {
     read("width_min_px", &w0, learned);
     read("width_max_px", &w1, learned);
     read("window_px", &win, learned);
+    // Whole numbers of pixels within any image's size, before the cast (window_px 1e10 read as -2147483648).
+    for (const auto& [name, value] : {std::pair{"width_min_px", w0}, {"width_max_px", w1}, {"window_px", win}}) {
+      RB_CHECK(value >= 0 && value <= 1 << 20 && value == std::floor(value), path, ": ", name, " ", value,
+               " is not a whole number of pixels in [0, 1048576]");
+    }
     m.width_min_px = static_cast<int>(w0);
     m.width_max_px = static_cast<int>(w1);
     m.window_px = static_cast<int>(win);

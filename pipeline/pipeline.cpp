@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "core/json_text.h"
 #include "pipeline/pipeline_control.h"
 #include "stereo/disparity_features.h"
@@ -375,7 +376,7 @@ class Stages {
     {
       const auto start = Clock::now();
       FrameResult r = source.Next();
-      t_capture->total_ms += MsSince(start);
+      first_read_ms = MsSince(start);
       if (r.status == FrameStatus::kFrame) {
         RB_CHECK(r.frame.left.cols == rig.width && r.frame.left.rows == rig.height, "the rig is for ", rig.width, "x",
                  rig.height, " images but frame ", r.frame.index, " is ", r.frame.left.cols, "x", r.frame.left.rows,
@@ -463,10 +464,12 @@ class Stages {
       }
       FrameResult r;
       const auto start = Clock::now();
+      double earlier_ms = 0.0;  // the first frame's read, before the threads started
       try {
         if (first.has_value()) {
           r = std::move(*first);
           first.reset();
+          earlier_ms = first_read_ms;
         } else {
           r = source.Next();
         }
@@ -507,7 +510,7 @@ class Stages {
           continue;
         }
       }
-      const double ms = MsSince(start);
+      const double ms = MsSince(start) + earlier_ms;
       ItemPtr item = MakeItem(std::move(r.frame));
       item->settings = SettingsNow();
       item->result.full_quality = item->settings.full_quality;
@@ -809,10 +812,13 @@ class Stages {
             frames_total.has_value() && *frames_total > 0
                 ? std::min(1.0, static_cast<double>(consumed) / static_cast<double>(*frames_total))
                 : 0.0;
-        const std::string total = frames_total.has_value() ? StrCat("/", *frames_total) : std::string();
+        // With a known total, how many of it went through ("frame 5/4" once counted a window's frame indices from
+        // --first against its --count); without one, the source's frame index.
+        const std::string done =
+            frames_total.has_value() ? StrCat(consumed, "/", *frames_total) : StrCat(item.result.last_index + 1);
         char rate[32];
         std::snprintf(rate, sizeof(rate), "%.2f", fps);
-        options.progress(fraction, StrCat("frame ", item.result.last_index + 1, total, ", ", rate, " frames/s"));
+        options.progress(fraction, StrCat("frame ", done, ", ", rate, " frames/s"));
       }
     }
     for (PipelineSink* sink : sinks) {
@@ -913,6 +919,7 @@ class Stages {
   StageTiming* t_sinks = nullptr;
   Clock::time_point run_start;
   std::optional<FrameResult> first;
+  double first_read_ms = 0.0;  // the read of `first`, counted with its frame
   std::vector<std::unique_ptr<ItemQueue>> queues;
   SmoothTally smooth_tally;  // written by the smooth stage only, read after the join
   RangeEndTally range_end;   // stereo stage only
@@ -1019,14 +1026,9 @@ void WritePipelineSummaryJson(const PipelineSummary& summary, const std::string&
                       {"items_per_s", s.total_ms > 0 ? 1000.0 * static_cast<double>(s.items) / s.total_ms : 0.0}});
   }
   j["stages"] = stages;
-  // The text first: the file is truncated when it opens, and an error message or source name may hold bytes
-  // that are not UTF-8 (a file name from frames.csv).
-  const std::string text = JsonText(j, 2) + "\n";
-  std::ofstream out(path);
-  RB_CHECK(out.good(), path, ": cannot write the pipeline summary");
-  out << text;
-  out.close();  // a full disk may only show when the buffer is flushed
-  RB_CHECK(!out.fail(), path, ": write failed");
+  // An error message or source name may hold bytes that are not UTF-8 (a file name from frames.csv). Written
+  // whole or not at all (a full disk left a summary.json of 0 bytes), with the reason when not.
+  WriteFileAtomically(path, JsonText(j, 2) + "\n");
 }
 
 }  // namespace rangebayes

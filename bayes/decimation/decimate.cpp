@@ -1015,6 +1015,14 @@ class LambdaSearch {
       *lambda = hi_;
       best = std::move(fits_);
       if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
+      // No λ tried had too many: the patches need fewer faces than the target even at the smallest λ (a mesh
+      // whose flat regions merge at any λ), which the output's count alone does not say.
+      if (lo_ <= 0.0 && FacesOf(best) < target_ - 1) {
+        s_.notices.push_back(StrCat("target ", target_, " faces not reached: ", FacesOf(best), " faces at lambda ",
+                                    *lambda,
+                                    ", the smallest tried; the patches fit in fewer "
+                                    "faces at every lambda (flat regions merge at any lambda)"));
+      }
     } else {
       // No λ tried fits the budget: the attempt with the fewest faces (at the largest λ among equals).
       *lambda = lo_;

@@ -7,6 +7,7 @@
 #include "bayes/noise_model.h"
 #include "core/error.h"
 #include "core/mesh_io.h"
+#include "core/validate.h"
 
 namespace rangebayes {
 
@@ -30,6 +31,8 @@ TrainingSet ReadTrainingSet(const std::string& pairs_list_path, const TrainingSe
     pair.truth = ReadMesh(list.truth[i]);
     RB_CHECK(SameConnectivity(pair.truth, pair.noisy.mesh), "pair ", i + 1, ": '", list.noisy[i], "' and '",
              list.truth[i], "' differ in vertices or faces");
+    // The noisy mesh is checked by the smoother; a truth with a non-finite vertex made every loss NaN, written.
+    CheckComputableScale(pair.truth.V, StrCat("pair ", i + 1, ": ", list.truth[i]));
     if (!pair.noisy.has_covariance()) {
       GenericNoiseOptions noise;
       if (!std::isnan(k)) noise.noise_edge_multiple = k;  // else estimated from the mesh

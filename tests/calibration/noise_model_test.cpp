@@ -3,7 +3,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
+#include <string>
+#include <utility>
 
 #include "calibration/disparity_noise_model.h"
 #include "calibration/plane_target.h"
@@ -206,6 +209,23 @@ TEST(DisparityNoiseModel, LearnedYamlRoundTripAndRequiredFields) {
     FAIL() << "expected an error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("width_min_px"), std::string::npos) << e.what();
+  }
+  // Hand-edited values beyond what a σ in pixels can be (floor_px 1e300 made every σ of the float maps infinite)
+  // or pixel counts that are no whole number in range (window_px 1e10 was read as -2147483648): refused by name.
+  for (const auto& [field, value] :
+       {std::pair{"floor_px", "1e300"}, {"jump_scale", "1e5"}, {"window_px", "1e10"}, {"width_max_px", "700.5"}}) {
+    std::ifstream in(path);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t at = text.find(std::string(field) + ":");
+    ASSERT_NE(at, std::string::npos) << field;
+    text.replace(at, text.find('\n', at) - at, std::string(field) + ": " + value);
+    std::ofstream(bad) << text;
+    try {
+      ReadDisparityNoiseModel(bad);
+      ADD_FAILURE() << field << " " << value << " was read";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(field) + " "), std::string::npos) << e.what();
+    }
   }
   // Other matcher, other resolution: errors; the old forms only check the matcher.
   EXPECT_THROW(back.CheckApplicable("spacetime", 500, path), Error);

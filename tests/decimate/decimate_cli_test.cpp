@@ -104,6 +104,13 @@ TEST(DecimateCli, PolygonsAndTargetFaces) {
   EXPECT_LE(out.num_faces(), 400);
   EXPECT_GE(out.num_faces(), 399);
   EXPECT_NE(r.output.find("lambda search"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("not reached"), std::string::npos) << r.output;
+  // More faces than the patches need at any λ (fandisk's flat faces merge at the smallest): fewer faces, said so
+  // (it was 8,814 for 12,000 without a word).
+  r = RunRangebayes("decimate tests/data/meshes/fandisk_gt.obj " + dir + "/t12k.ply --target-faces 12000");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(ReadMesh(dir + "/t12k.ply").num_faces(), 12000 - 1);
+  EXPECT_NE(r.output.find("target 12000 faces not reached: "), std::string::npos) << r.output;
 }
 
 // A smoothed stereo mesh (one frame of a synthetic recording through `replay`): the λ search's guide, calibrated
@@ -169,7 +176,10 @@ TEST(DecimateCli, UsageAndInputErrors) {
   const std::pair<std::string, std::string> usage[] = {
       {"decimate tests/data/meshes/fandisk_gt.obj", "give IN OUT, or several poses with --out DIR (got 1 files)"},
       {"decimate a.obj b.obj --lambda 1 --target-faces 5", "--lambda excludes --target-faces"},
-      {"decimate a.obj b.obj --lambda -1", "--lambda: must be a finite number > 0, got -1"}};
+      {"decimate a.obj b.obj --lambda -1", "--lambda: must be a finite number > 0, got -1"},
+      // The picture over the mesh: the mesh was lost, exit 0.
+      {"decimate tests/data/meshes/fandisk_gt.obj /tmp/rb_same.obj --png /tmp/rb_same.obj",
+       "OUT and --png name the same file (/tmp/rb_same.obj): the second would replace the first"}};
   for (const auto& [arguments, message] : usage) {
     const RunResult r = RunRangebayes(arguments);
     EXPECT_EQ(r.exit_code, 2) << arguments;

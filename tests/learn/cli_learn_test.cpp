@@ -3,6 +3,10 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
 
 #include "bayes/learn_prior_io.h"
 #include "bayes/learning/training_set.h"
@@ -60,10 +64,49 @@ TEST(LearnCli, SynthThenLearn) {
   std::printf("mean angular error: noisy %.2f°, learned prior %.2f°, square root %.2f°\n", mae_noisy, mae_learned,
               MeanAngularErrorDeg(sqrt_prior, truth));
   EXPECT_LT(mae_learned, 0.5 * mae_noisy);
+  // A prior that records no β (prior_weight 0, as a hand-edited file may say): the default β, and the summary
+  // says so (it printed "beta 2.4" as if the prior's own).
+  {
+    std::ifstream in(prior);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t at = text.find("prior_weight:");
+    ASSERT_NE(at, std::string::npos) << text;
+    text.replace(at, text.find('\n', at) - at, "prior_weight: 0");
+    std::ofstream((dir / "no_beta.yaml").string()) << text;
+    const RunResult no_beta = RunRangebayes("smooth '" + list.noisy[0] + "' '" + (dir / "no_beta.ply").string() +
+                                            "' --noise 0.3 --prior '" + (dir / "no_beta.yaml").string() + "' -q");
+    ASSERT_EQ(no_beta.exit_code, 0) << no_beta.output;
+    EXPECT_NE(
+        no_beta.output.find("beta 2.4 (the default: " + (dir / "no_beta.yaml").string() + " records no prior_weight)"),
+        std::string::npos)
+        << no_beta.output;
+  }
   const RunResult not_a_prior =
       RunRangebayes("smooth '" + list.noisy[0] + "' x.ply --prior '" + (dir / "train_pairs.txt").string() + "'");
   EXPECT_EQ(not_a_prior.exit_code, 2) << not_a_prior.output;
 
+  // A truth with an infinite vertex: one error naming it (every loss was NaN, and the prior was written with
+  // training_mse_le2 .nan, exit 0).
+  {
+    Mesh broken = ReadMesh(list.truth[0]);
+    broken.V(4, 0) = std::numeric_limits<double>::infinity();
+    WriteMesh(broken, (dir / "truth_inf.obj").string());
+    std::ofstream((dir / "inf_pairs.txt").string()) << list.noisy[0] << " " << (dir / "truth_inf.obj").string() << "\n";
+    const RunResult inf = RunRangebayes("learn-prior --pairs '" + (dir / "inf_pairs.txt").string() + "' --out '" +
+                                        (dir / "inf.yaml").string() + "' --time-limit 2 -q");
+    EXPECT_EQ(inf.exit_code, 1) << inf.output;
+    EXPECT_NE(inf.output.find("pair 1: " + (dir / "truth_inf.obj").string() + ": 1 of "), std::string::npos)
+        << inf.output;
+    EXPECT_FALSE(std::filesystem::exists(dir / "inf.yaml"));
+  }
+  // The plot named as the prior (or the prior named .png, where the plot goes beside it): the plot replaced the
+  // prior, exit 0.
+  for (const std::string outputs : {"--out same.yaml --plot same.yaml", "--out same.png"}) {
+    const RunResult same = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' " + outputs +
+                                         " --time-limit 2 -q");
+    EXPECT_EQ(same.exit_code, 2) << same.output;
+    EXPECT_NE(same.output.find("name the same file"), std::string::npos) << same.output;
+  }
   const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
