@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -116,18 +117,21 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
                 "Live preview settings: drop the oldest frame when a stage is busy (queues of 1 unless --queue), "
                 "match at half resolution, triangulate every 4th pixel, fast smoothing tolerance within an 80 ms "
                 "budget, no decimation (overrides --downsample and --tolerance)");
-  sub->add_option("--preview-width", o->preview_width_px,
-                  "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
-  sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)");
+  CLI::Option* preview_width = sub->add_option(
+      "--preview-width", o->preview_width_px,
+      "Width of each rendered preview panel (px; 0: frame width, or the matched width with --live-path)");
+  sub->add_flag("--no-previews", o->no_previews, "Write meshes only (no depth or shaded PNG)")->excludes(preview_width);
   sub->add_flag("--overwrite", o->overwrite,
                 "OUT may hold an earlier run's results: they are removed first (without it such a folder is refused)");
   AddQuietFlag(sub, &o->quiet);
-  sub->add_option("--ui", o->ui,
-                  "Serve the operator's console (a live web page with controls) on [ADDR:]PORT (ADDR default "
-                  "127.0.0.1; 0.0.0.0 exposes it to the network); the control token is printed at start; the "
-                  "page stays up after the run until Ctrl-C");
+  CLI::Option* ui =
+      sub->add_option("--ui", o->ui,
+                      "Serve the operator's console (a live web page with controls) on [ADDR:]PORT (ADDR default "
+                      "127.0.0.1; 0.0.0.0 exposes it to the network); the control token is printed at start; the "
+                      "page stays up after the run until Ctrl-C");
   sub->add_option("--ui-record-dir", o->ui_record_dir,
-                  "Folder for recordings started from the console (default: OUT/recordings)");
+                  "Folder for recordings started from the console (default: OUT/recordings)")
+      ->needs(ui);
 }
 
 PipelineOptions MakePipelineOptions(const PipelineCli& o) {
@@ -194,6 +198,12 @@ void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool qui
   }
 }
 
+// Set when q or the end of stdin ended a step replay.
+std::atomic<bool>& StepQuit() {
+  static std::atomic<bool> quit{false};
+  return quit;
+}
+
 // Runs the pipeline with a file sink into out_dir (and the console with --ui), prints the summary, writes
 // summary.json, sets the exit code.
 void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions options, const PipelineCli& cli,
@@ -234,6 +244,7 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   if (console) sinks.push_back(console.get());
   PipelineSummary summary = RunPipeline(source, rig, options, sinks);
   progress.Finish();
+  if (StepQuit().load()) summary.stopped = true;
   if (cli.live_path && !options.decimate && !cli.no_decimate) {
     summary.notices.push_back(
         "live path: decimation is off by default (about 70 ms of CPU per frame on a 640x480 live mesh, which "
@@ -246,8 +257,8 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
     while (!StopFlag().load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
+  RB_CHECK(summary.results > 0 || !summary.stopped, "stopped by request before the first result");
   if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
-    RB_CHECK(!summary.stopped, "stopped by request before the first result");
     // The reason is above: the frames' errors, else the notes (a space-time window longer than the recording); it
     // said "see the errors above" when there was none.
     RB_FAIL("no frame went through the pipeline", !summary.errors.empty()    ? " (see the errors above)"
@@ -362,10 +373,10 @@ void AddCameras(CLI::App& app) {
   });
 }
 
-// The step gate of `replay --speed step`, on the capture thread: true when a line is entered, false for a line
-// that starts with q, the end of stdin, or a stop request. stdin is polled (not read blocking) so that Ctrl-C or
-// SIGTERM ends the wait within 100 ms, whether or not anything is typed.
-bool WaitForEnter() {
+// One line from stdin for the step gate: true for a line that does not start with q; false for one that does, the
+// end of stdin, or a stop request. stdin is polled (not read blocking) so that Ctrl-C or SIGTERM ends the wait
+// within 100 ms, whether or not anything is typed.
+bool WaitForEnterLine() {
   std::fprintf(stderr, "rangebayes: Enter for the next frame, q then Enter to stop\n");
   std::string line;
   while (!StopRequested()) {
@@ -381,6 +392,15 @@ bool WaitForEnter() {
     line += c;
   }
   return false;
+}
+
+// The step gate of `replay --speed step`, on the capture thread. q and the end of stdin end the recording there
+// (the frames in flight go through) and the run counts as stopped by request: they ended it as if the recording
+// had ended (exit 0, "stopped": false, also after 0 of 8 frames).
+bool WaitForEnter() {
+  const bool next = WaitForEnterLine();
+  if (!next && !StopRequested()) StepQuit().store(true);
+  return next;
 }
 
 std::optional<StereoRig> ReadOptionalRig(const std::string& path) {
@@ -481,7 +501,10 @@ void AddReplay(CLI::App& app) {
                   "Play the entries this many times (frame indices keep increasing; for live-path timing)")
       ->check(CLI::Range(1, 1000000));
   AddPipelineOptions(sub, &o->pipeline);
-  sub->callback([o] {
+  sub->callback([o, sub] {
+    if (sub->count("--speed-factor") > 0 && o->speed != "recorded") {
+      UsageError("--speed-factor applies to --speed recorded (it was ignored)");
+    }
     RecordingReadSummary read_summary;
     Recording recording = OpenRecording(o->recording, &read_summary);
     for (const std::string& n : read_summary.notices) Notice(o->pipeline.quiet, n);
@@ -489,6 +512,12 @@ void AddReplay(CLI::App& app) {
     RB_CHECK(recording.rig.has_value(), o->recording,
              ": has no rig.yaml (uncalibrated); give one with --rig (see rangebayes calibrate)");
     RB_CHECK(recording.num_frames() > 0, o->recording, ": frames.csv lists no frame");
+    if (o->count >= 0 && static_cast<std::int64_t>(o->first) + o->count > recording.num_frames() &&
+        o->first < recording.num_frames()) {
+      Notice(o->pipeline.quiet,
+             StrCat("--count ", o->count, " from --first ", o->first, ": the recording has ", recording.num_frames(),
+                    " entries, so ", recording.num_frames() - o->first, " are played"));
+    }
     const StereoRig rig = *recording.rig;
     PlaybackOptions playback;
     playback.speed = o->speed == "recorded" ? PlaybackSpeed::kRecorded

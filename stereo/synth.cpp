@@ -495,15 +495,6 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
       GeometrySamples(scene, proj, Vector3d::Zero(), f, cx, cy, w, h, ss, jitter, /*right_camera=*/false);
   const std::vector<Sample> right =
       GeometrySamples(scene, proj, Vector3d(B, 0, 0), f, cx, cy, w, h, ss, jitter, /*right_camera=*/true);
-  for (int t = 0; t < options.frames; ++t) {
-    const PatternImage pattern(options.pattern, t, options.frames, pw, ph, options.seed);
-    const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
-    rec.left.push_back(Shade(left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed));
-    rec.right.push_back(Shade(right, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray,
-                                noise_seed + 1));
-    rec.pattern_ids.push_back(pattern.pattern_id());
-  }
-
   const float nan = std::numeric_limits<float>::quiet_NaN();
   rec.depth_m.create(h, w, CV_32F);
   rec.disparity_px.create(h, w, CV_32F);
@@ -521,6 +512,23 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
       rec.disparity_px.at<float>(v, u) = ok ? static_cast<float>(f * B / hit.t) : nan;
     }
   });
+  // The scene's disparities must leave it in view of both cameras: at d ≥ the width no pixel of the left image
+  // is seen by the right camera (a --baseline 5 at 64 px wide gave 198–400 px and an empty recording).
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(rec.disparity_px, &lo, &hi, nullptr, nullptr, rec.disparity_px == rec.disparity_px);
+  RB_CHECK(hi < w, "synth: the scene's disparities reach ", hi, " px at ", w,
+           " px wide: no pixel is seen by both "
+           "cameras (a smaller baseline or focal length)");
+  for (int t = 0; t < options.frames; ++t) {
+    const PatternImage pattern(options.pattern, t, options.frames, pw, ph, options.seed);
+    const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
+    rec.left.push_back(
+        Shade(left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed));
+    rec.right.push_back(Shade(right, pattern, w, h, ss, options.ambient, options.optics_blur_px,
+                              options.image_noise_gray, noise_seed + 1));
+    rec.pattern_ids.push_back(pattern.pattern_id());
+  }
+
   return rec;
 }
 

@@ -366,5 +366,42 @@ TEST(ReplayCli, SigtermEndsAStepReplayWaitingForEnter) {
   EXPECT_EQ(CountLines(out + "/results.csv"), 2);
 }
 
+// Options that had no effect in the combination given were read and ignored (exit 0): now usage errors, or (a
+// window cut at the recording's end) a note.
+TEST(ReplayCli, OptionsWithoutEffectAreRefusedOrNoted) {
+  const TempDir dir("cli_ignored");
+  const std::string replay = std::string("replay ") + kBundled + " --downsample 4 --no-smooth --no-decimate --out ";
+  for (const auto& [options, message] :
+       {std::pair{"--speed-factor 2", "--speed-factor applies to --speed recorded"},
+        {"--no-previews --preview-width 100", "--preview-width excludes --no-previews"},
+        {"--ui-record-dir rec", "--ui-record-dir requires --ui"}}) {
+    const RunResult r = RunRangebayes(replay + dir.path() + "/x " + options);
+    EXPECT_EQ(r.exit_code, 2) << options << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
+  }
+  const RunResult r = RunRangebayes(replay + dir.path() + "/cut --first 7 --count 5 --no-previews");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("--count 5 from --first 7: the recording has 8 entries, so 1 are played"), std::string::npos)
+      << r.output;
+}
+
+// q, or the end of stdin, in `replay --speed step` is a stop: it ended the run as if the recording had ended (exit
+// 0, summary "stopped": false, also with no frame through).
+TEST(ReplayCli, QOrTheEndOfInputStopsAStepReplay) {
+  const TempDir dir("cli_step_q");
+  const std::string keys = dir.path() + "/keys.txt";
+  std::ofstream(keys) << "\nq\n";
+  const std::string replay = std::string("replay ") + kBundled +
+                             " --speed step --count 3 --downsample 4 --no-smooth --no-decimate --no-previews --out ";
+  RunResult r = RunRangebayes(replay + dir.path() + "/q < " + keys);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("stopped by request"), std::string::npos) << r.output;
+  EXPECT_EQ(CountLines(dir.path() + "/q/results.csv"), 2) << r.output;  // frame 0, then q
+  EXPECT_NE(ReadAll(dir.path() + "/q/summary.json").find("\"stopped\": true"), std::string::npos);
+  r = RunRangebayes(replay + dir.path() + "/eof < /dev/null");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("stopped by request before the first result"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace rangebayes

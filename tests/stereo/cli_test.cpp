@@ -332,6 +332,11 @@ TEST(StereoCli, ErrorsAreOneLine) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   r = RunRangebayes("synth --scene teapot --out " + Temp("err4"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
+  // A scene out of view of the right camera (it wrote a recording in which nothing can be matched).
+  r = RunRangebayes("synth --scene stairs --baseline 5 --width 64 --height 48 --out " + Temp("err4b"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("no pixel is seen by both cameras"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Temp("err4b") + "/frames.csv"));
   // A folder or a device where a file is expected is named as such, not reported missing.
   r = RunRangebayes("stereo tests/data/stereo/tsukuba tests/data/stereo/tsukuba/imR.png --out " + Temp("err5"));
   EXPECT_EQ(r.exit_code, 1) << r.output;
