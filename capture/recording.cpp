@@ -312,7 +312,9 @@ void RecordingWriter::Finish(const RecordingMeta& extra) {
 std::vector<RecordingEntry> ParseRecordingIndex(const std::string& text, const std::string& source,
                                                 RecordingReadSummary* summary) {
   std::vector<RecordingEntry> entries;
-  size_t pos = 0;
+  // A UTF-8 byte order mark (an editor's) before the header is skipped: the header was refused with two strings
+  // that printed alike.
+  size_t pos = text.starts_with("\xEF\xBB\xBF") ? 3 : 0;
   int line_number = 0;
   bool header_seen = false;
   while (pos < text.size()) {
@@ -409,6 +411,14 @@ Recording OpenRecording(const std::string& folder, RecordingReadSummary* summary
     s.notices.push_back(StrCat(folder, ": the recording is marked incomplete (meta.yaml complete: false",
                                error != rec.meta.end() ? "; error: " + error->second : std::string(),
                                "): it may end early or still be written"));
+  } else if (complete == rec.meta.end() || complete->second != "true") {
+    // A recording made by hand, or a meta.yaml that is missing or damaged: nothing says the writer finished (it
+    // was read without a word).
+    std::error_code ec;
+    const std::string why = !fs::is_regular_file(root / "meta.yaml", ec) ? "no meta.yaml"
+                            : complete == rec.meta.end()                 ? "meta.yaml has no 'complete'"
+                                                                         : "meta.yaml complete: " + complete->second;
+    s.notices.push_back(StrCat(folder, ": whether the recording is complete is unknown (", why, ")"));
   }
   if (fs::exists(root / "rig.yaml")) rec.rig = ReadStereoRig((root / "rig.yaml").string());
   rec.files_present.resize(rec.frames.size(), true);

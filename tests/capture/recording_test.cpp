@@ -116,6 +116,16 @@ TEST(RecordingIndex, CompleteLastLineWithoutNewlineIsKept) {
   EXPECT_FALSE(s.truncated_last_line);
 }
 
+// An index saved by an editor that puts a UTF-8 byte order mark first: read (the header was refused with
+// "expected header 'index,…' got 'index,…'", two strings that printed alike).
+TEST(RecordingIndex, AByteOrderMarkBeforeTheHeaderIsSkipped) {
+  RecordingReadSummary s;
+  const auto entries =
+      ParseRecordingIndex("\xEF\xBB\xBF" + std::string(kRecordingIndexHeader) + "\n4,1,2,l.png,r.png,7\n", "x", &s);
+  ASSERT_EQ(entries.size(), 1u);
+  EXPECT_EQ(entries[0].index, 4);
+}
+
 TEST(RecordingIndex, MalformedLinesNameLineAndField) {
   const std::string header = std::string(kRecordingIndexHeader) + "\n";
   auto message = [&](const std::string& body) {
@@ -286,6 +296,24 @@ TEST(Recording, KilledWriterLeavesReadableRecording) {
   EXPECT_EQ(rec.meta.at("complete"), "false");
   EXPECT_EQ(s.missing_files, 0);
   ExpectRecordingHoldsTestFrames(rec, 64, 48, CV_8UC1);
+  ASSERT_EQ(s.notices.size(), 1u);
+  EXPECT_NE(s.notices[0].find("marked incomplete"), std::string::npos) << s.notices[0];
+  // Without meta.yaml (or with one that does not say), nothing tells that the writer finished: said so (it was
+  // read without a word).
+  for (const bool damaged : {false, true}) {
+    if (damaged) {
+      std::ofstream(folder + "/meta.yaml") << "\x89garbage\n";
+    } else {
+      std::filesystem::remove(folder + "/meta.yaml");
+    }
+    RecordingReadSummary again;
+    OpenRecording(folder, &again);
+    ASSERT_EQ(again.notices.size(), 1u);
+    EXPECT_NE(again.notices[0].find(damaged ? "whether the recording is complete is unknown (meta.yaml has no "
+                                            : "whether the recording is complete is unknown (no meta.yaml)"),
+              std::string::npos)
+        << again.notices[0];
+  }
 }
 
 }  // namespace
