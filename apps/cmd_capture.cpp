@@ -259,11 +259,16 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
   if (!summary.fatal_error.empty()) RB_FAIL(summary.fatal_error);
   RB_CHECK(summary.results > 0 || !summary.stopped, "stopped by request before the first result");
   if (summary.results == 0 && summary.frames_captured + summary.frames_skipped > 0) {
-    // The reason is above: the frames' errors, else the notes (a space-time window longer than the recording); it
-    // said "see the errors above" when there was none.
-    RB_FAIL("no frame went through the pipeline", !summary.errors.empty()    ? " (see the errors above)"
-                                                  : !summary.notices.empty() ? " (see the notes above)"
-                                                                             : "");
+    // The first reason in the error line itself, the rest above: with --quiet nothing is above (the line pointed at
+    // notes that were never printed); without errors, the note that says why (a space-time window longer than the
+    // recording).
+    const std::vector<std::string>& reasons = !summary.errors.empty() ? summary.errors : summary.notices;
+    RB_FAIL("no frame went through the pipeline",
+            reasons.empty()
+                ? std::string()
+                : StrCat(": ", reasons.front(),
+                         cli.quiet || reasons.size() == 1 ? std::string()
+                                                          : StrCat(" (and ", reasons.size() - 1, " more above)")));
   }
   if (summary.failed > 0 || summary.frames_skipped > 0) SetExitCode(3);
 }

@@ -592,10 +592,13 @@ std::string TaskErrorLine(const std::string& output) {
     if (cr != std::string::npos) line = line.substr(cr + 1);
     if (line.empty()) continue;
     last = line;
-    if (line.find("error:") != std::string::npos) last_error = line;
-    if (NamesACause(line)) last_cause = line;
+    if (line.find("error:") != std::string::npos) {
+      last_error = line;
+    } else if (NamesACause(line)) {
+      last_cause = line;
+    }
   }
-  const bool summing_up = last_error.find("see the errors above") != std::string::npos;
+  const bool summing_up = last_error.find("more above)") != std::string::npos;
   if (!last_cause.empty() && (last_error.empty() || summing_up)) {
     return last_error.empty() ? last_cause : last_error + " (last: " + last_cause + ")";
   }

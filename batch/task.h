@@ -152,7 +152,7 @@ std::int64_t ProcessStartTicks(int pid);
 
 // The line of a command's output that says why it failed or only partly succeeded: its last line containing
 // "error:"; but a line naming a frame that failed or was skipped (or a system error such as "No space left on
-// device") is preferred to an "error:" line that only sums up ("see the errors above"), and is the line of a
+// device") is preferred to an "error:" line that only sums up ("… (and 3 more above)": then both), and is the line of a
 // partial success; else the last line.
 std::string TaskErrorLine(const std::string& output);
 

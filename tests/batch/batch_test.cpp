@@ -958,9 +958,11 @@ TEST(RunTask, TheErrorLineNamesTheRealCause) {
                           "\n1 frames in, 0 results, 1 failed, 0 skipped\n"
                           "results in rec_0: shaded/\n"),
             full);
-  EXPECT_EQ(TaskErrorLine(full + "\nrangebayes replay: error: no frame went through the pipeline (see the errors "
-                                 "above)\n"),
-            "rangebayes replay: error: no frame went through the pipeline (see the errors above) (last: " + full + ")");
+  const std::string first = "frame 0: sinks: rec_0/raw/000000.ply: write failed: " + std::string(std::strerror(ENOSPC));
+  EXPECT_EQ(TaskErrorLine(first + "\n" + full + "\nrangebayes replay: error: no frame went through the pipeline: " +
+                          first + " (and 1 more above)\n"),
+            "rangebayes replay: error: no frame went through the pipeline: " + first +
+                " (and 1 more above) (last: " + full + ")");
   // A partial replay: the skipped frame, not the summary or the last line.
   EXPECT_EQ(TaskErrorLine("1 frames in, 1 results, 0 failed, 1 skipped, 0 dropped\nframe 1 skipped: rp: frame 1: "
                           "left/000001.png is corrupt\nresults in rec: shaded/\n"),

@@ -91,8 +91,17 @@ TEST(ReplayCli, AWindowLongerThanTheRecordingPointsAtTheNote) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("note: the last 8 frame(s) did not fill a 9-frame space-time window"), std::string::npos)
       << r.output;
-  EXPECT_NE(r.output.find("error: no frame went through the pipeline (see the notes above)"), std::string::npos)
+  EXPECT_NE(r.output.find("error: no frame went through the pipeline: the last 8 frame(s) did not fill a 9-frame "
+                          "space-time window"),
+            std::string::npos)
       << r.output;
+  // With --quiet the note is not printed: the error line alone says why (it pointed at "the notes above").
+  const RunResult quiet = RunRangebayes(std::string("replay ") + kBundled +
+                                        " --matcher spacetime --window-frames 9 -q --out " + dir.path() + "/quiet");
+  EXPECT_EQ(quiet.exit_code, 1) << quiet.output;
+  EXPECT_EQ(quiet.output.find("note:"), std::string::npos) << quiet.output;
+  EXPECT_NE(quiet.output.find("the last 8 frame(s) did not fill a 9-frame space-time window"), std::string::npos)
+      << quiet.output;
 }
 
 // With outputs off, their folders are not made and the closing line lists only what was written (it named five
