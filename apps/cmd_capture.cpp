@@ -184,9 +184,15 @@ void PrintSummary(const PipelineSummary& s, const std::string& out_dir, bool qui
   if (!out_dir.empty()) {
     // What this run wrote: a folder exists once its first file is written (an output that is off has none).
     std::string parts;
-    for (const auto& [folder, what] : {std::pair<const char*, const char*>{"shaded",
-                                                                           "shaded/ (raw | smoothed | "
-                                                                           "decimated renderings)"},
+    // The shaded pictures' panels: the raw mesh, and the smoothed and decimated ones where those were made (it
+    // named three panels on two-panel pictures).
+    const auto made = [&](const char* folder) {
+      std::error_code ec;
+      return std::filesystem::is_directory(std::filesystem::path(out_dir) / folder, ec);
+    };
+    const std::string shaded = StrCat("shaded/ (raw", made("smoothed") ? " | smoothed" : "",
+                                      made("decimated") ? " | decimated" : "", " renderings)");
+    for (const auto& [folder, what] : {std::pair<const char*, const char*>{"shaded", shaded.c_str()},
                                        {"depth", "depth/"},
                                        {"raw", "raw/ (PLY)"},
                                        {"smoothed", "smoothed/ (PLY)"},

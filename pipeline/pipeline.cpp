@@ -972,9 +972,13 @@ std::string PipelineSummary::BriefReport() const {
                 "max ms", "items/s");
   out += line;
   for (const StageTiming& t : stages) {
-    std::snprintf(line, sizeof(line), "  %-12s %7lld %7lld %10.1f %10.1f %9.2f\n", t.name.c_str(),
-                  static_cast<long long>(t.items), static_cast<long long>(t.errors), t.mean_ms(), t.max_ms,
-                  t.total_ms > 0 ? 1000.0 * static_cast<double>(t.items) / t.total_ms : 0.0);
+    // A rate over less than a millisecond in all measures nothing (a stage that is off passes its items on at
+    // once: "3846153.85 items/s").
+    char rate[32] = "-";
+    if (t.total_ms >= 1.0)
+      std::snprintf(rate, sizeof(rate), "%.2f", 1000.0 * static_cast<double>(t.items) / t.total_ms);
+    std::snprintf(line, sizeof(line), "  %-12s %7lld %7lld %10.1f %10.1f %9s\n", t.name.c_str(),
+                  static_cast<long long>(t.items), static_cast<long long>(t.errors), t.mean_ms(), t.max_ms, rate);
     out += line;
   }
   for (const std::string& n : notices) out += "note: " + n + "\n";

@@ -119,6 +119,16 @@ TEST(ReplayCli, OutputsThatAreOffLeaveNoFolder) {
   EXPECT_NE(r.output.find("/out: "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("smoothed/"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("shaded/"), std::string::npos) << r.output;
+  // Decimation off: the pictures have two panels and the closing line says so (it named three); the stage that is
+  // off has no rate (it printed millions of items/s).
+  const RunResult two =
+      RunRangebayes(std::string("replay ") + kBundled +
+                    " --count 1 --downsample 4 --tolerance fast --no-decimate --out " + dir.path() + "/two");
+  ASSERT_EQ(two.exit_code, 0) << two.output;
+  EXPECT_NE(two.output.find("shaded/ (raw | smoothed renderings)"), std::string::npos) << two.output;
+  const size_t row = two.output.find("  decimate ");
+  ASSERT_NE(row, std::string::npos) << two.output;
+  EXPECT_EQ(two.output.substr(row, two.output.find('\n', row) - row).back(), '-') << two.output;
 }
 
 // A second run into the folder of a first is refused (its frames would mix with the first run's, which it would
