@@ -231,6 +231,12 @@ void RunToFolder(FrameSource& source, const StereoRig& rig, PipelineOptions opti
     // Printed even with --quiet: the operator needs the token to control the run.
     std::fprintf(stderr, "rangebayes: console at %s (control token %s; or open %s#token=%s)\n",
                  console->url().c_str(), console->token().c_str(), console->url().c_str(), console->token().c_str());
+    if (!IsLoopbackAddress(address.address)) {
+      std::fprintf(stderr,
+                   "rangebayes: warning: the console is open to the network on %s: whoever reaches this machine sees "
+                   "the camera images and meshes (the controls need the token)\n",
+                   address.address.c_str());
+    }
     std::fflush(stderr);
   }
   FileSinkOptions sink_options;

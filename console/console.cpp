@@ -1,6 +1,7 @@
 #include "console/console.h"
 
 #include <pthread.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -145,7 +146,12 @@ Console::~Console() {
 }
 
 std::string Console::url() const {
-  const std::string& a = server_->address();
+  std::string a = server_->address();
+  if (a == "0.0.0.0" || a == "::") {
+    // Every interface: the address others reach it at is this machine's name (0.0.0.0 is no address to open).
+    char name[256] = {};
+    if (::gethostname(name, sizeof(name) - 1) == 0 && name[0] != '\0') a = name;
+  }
   const std::string host = a.find(':') != std::string::npos ? "[" + a + "]" : a;
   return StrCat("http://", host, ":", server_->port(), "/");
 }

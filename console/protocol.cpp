@@ -180,6 +180,10 @@ UiAddress ParseUiAddress(const std::string& text) {
     a.address = text.substr(0, colon);
     port = text.substr(colon + 1);
     RB_CHECK(!a.address.empty(), "--ui ", text, ": empty address before ':'");
+    // An IPv6 address in brackets, as in a URL ("[::1]:8080"; it was refused as not numeric).
+    if (a.address.size() > 2 && a.address.front() == '[' && a.address.back() == ']') {
+      a.address = a.address.substr(1, a.address.size() - 2);
+    }
   }
   RB_CHECK(!port.empty() && port.size() <= 5 && std::all_of(port.begin(), port.end(), [](char c) {
              return c >= '0' && c <= '9';
@@ -189,6 +193,8 @@ UiAddress ParseUiAddress(const std::string& text) {
   RB_CHECK(a.port <= 65535, "--ui ", text, ": port ", a.port, " is above 65535");
   return a;
 }
+
+bool IsLoopbackAddress(const std::string& address) { return address == "::1" || address.starts_with("127."); }
 
 bool ConstantTimeEqual(std::string_view a, std::string_view b) {
   // Compares over the longer length so that the time does not depend on where the strings differ.

@@ -46,12 +46,16 @@ struct WireMeshOptions {
 // with the cell size chosen from the surface area so that about max_faces faces remain.
 Mesh WireMesh(const Mesh& mesh, const WireMeshOptions& options = {});
 
-// "--ui [ADDR:]PORT": address (default 127.0.0.1) and port 0–65535 (0: any free port). Throws Error.
+// "--ui [ADDR:]PORT": address (default 127.0.0.1; an IPv6 one may be in brackets, "[::1]:8080") and port 0–65535
+// (0: any free port). Throws Error.
 struct UiAddress {
   std::string address = "127.0.0.1";
   int port = 0;
 };
 UiAddress ParseUiAddress(const std::string& text);
+
+// Whether a numeric address (as UiAddress holds it) is a loopback one: 127.0.0.0/8 or ::1.
+bool IsLoopbackAddress(const std::string& address);
 
 // Equal strings in a time that depends only on their lengths (for tokens).
 bool ConstantTimeEqual(std::string_view a, std::string_view b);

@@ -95,6 +95,12 @@ TEST(ConsoleProtocol, UiAddress) {
   EXPECT_EQ(ParseUiAddress("0.0.0.0:9000").address, "0.0.0.0");
   EXPECT_EQ(ParseUiAddress("0.0.0.0:9000").port, 9000);
   EXPECT_EQ(ParseUiAddress("127.0.0.1:0").port, 0);
+  EXPECT_EQ(ParseUiAddress("[::1]:8093").address, "::1");
+  EXPECT_EQ(ParseUiAddress("[::1]:8093").port, 8093);
+  EXPECT_TRUE(IsLoopbackAddress("127.0.0.1"));
+  EXPECT_TRUE(IsLoopbackAddress("::1"));
+  EXPECT_FALSE(IsLoopbackAddress("0.0.0.0"));
+  EXPECT_FALSE(IsLoopbackAddress("192.168.1.2"));
   EXPECT_THROW(ParseUiAddress("http"), Error);
   EXPECT_THROW(ParseUiAddress("70000"), Error);
   EXPECT_THROW(ParseUiAddress(":80"), Error);
