@@ -153,7 +153,14 @@ RecordingWriter::RecordingWriter(const std::string& folder, const std::optional<
   const fs::path root(folder);
   std::error_code ec;
   if (fs::exists(root / "frames.csv", ec)) {
-    RB_CHECK(options_.overwrite, folder, ": already holds a recording (frames.csv); choose another folder");
+    RB_CHECK(options_.overwrite, folder, ": already holds a recording (frames.csv); choose another folder",
+             options_.overwrite_flag.empty() ? "" : ", or " + options_.overwrite_flag + " to replace it");
+    // Replaced, not written over: the old frames beyond the new ones (and a synthetic recording's ground truth of
+    // another size) stayed beside the new recording.
+    for (const char* name : {"left", "right", "ground_truth", "frames.csv", "meta.yaml", "rig.yaml"}) {
+      fs::remove_all(root / name, ec);
+      RB_CHECK(!ec, folder, "/", name, ": cannot remove the recording it replaces (", ec.message(), ")");
+    }
   }
   CreateFolder((root / "left").string());
   CreateFolder((root / "right").string());

@@ -48,7 +48,10 @@ struct RecordingWriterOptions {
   int png_compression = 1;          // 0–9: zlib level of the PNG images (1: fast, files ~10% larger than 9)
   int fsync_every_frames = 0;       // 0: never fsync (a process crash keeps everything flushed; power loss
                                     // may not); n > 0: fsync frames.csv every n frames
-  bool overwrite = false;           // allow a folder that already holds a frames.csv (it is replaced)
+  // Allow a folder that already holds a frames.csv: that recording (left/, right/, ground_truth/, frames.csv,
+  // meta.yaml, rig.yaml) is removed first.
+  bool overwrite = false;
+  std::string overwrite_flag;  // the command's option that sets `overwrite`, named in the refusal (may be empty)
   std::shared_ptr<FileSysCalls> files;  // the file system calls; null: the system's (tests inject faults)
   void Check() const;
 };

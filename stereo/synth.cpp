@@ -547,6 +547,7 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   meta["pixel_jitter_cell_px"] = std::to_string(options.pixel_jitter_cell_px);
   RecordingWriterOptions writer_options;
   writer_options.overwrite = write_options.overwrite;
+  writer_options.overwrite_flag = write_options.overwrite_flag;
   writer_options.png_compression = 9;
   RecordingWriter writer(folder, recording.rig, meta, writer_options);
   for (size_t t = 0; t < recording.left.size(); ++t) {

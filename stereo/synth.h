@@ -85,7 +85,8 @@ SynthRecording RenderSynthetic(const SynthOptions& options);
 // jitter, ground_truth/points_left_m.pfm: the true 3-D point of each left pixel's ray, 3-channel). Throws Error
 // when FOLDER already holds a recording and `overwrite` is false, or on a write failure.
 struct SynthWriteOptions {
-  bool overwrite = false;
+  bool overwrite = false;                      // replace a recording in the folder (RecordingWriterOptions)
+  std::string overwrite_flag = "--overwrite";  // how the caller sets `overwrite`, named when it is refused
   void Check() const {}
 };
 void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions& options, const std::string& folder,

@@ -444,6 +444,7 @@ the intrinsics.)")
         if (!folder.empty()) {
           SynthWriteOptions write;
           write.overwrite = overwrite;
+          write.overwrite_flag = "overwrite=True";
           WriteSyntheticRecording(recording, options, folder, write);
         }
         return recording;

@@ -77,8 +77,33 @@ TEST(Recording, RefusesToOverwriteAnExistingRecording) {
   { RecordingWriter writer(folder, std::nullopt, {}); }
   EXPECT_THROW(RecordingWriter(folder, std::nullopt, {}), Error);
   RecordingWriterOptions options;
+  options.overwrite_flag = "--overwrite";
+  try {
+    RecordingWriter again(folder, std::nullopt, {}, options);
+    ADD_FAILURE() << "a recording was written over";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("already holds a recording (frames.csv); choose another folder, or "
+                                         "--overwrite to replace it"),
+              std::string::npos)
+        << e.what();
+  }
+  // Replaced: the old recording's frames beyond the new ones and its ground truth do not stay beside it.
   options.overwrite = true;
-  EXPECT_NO_THROW(RecordingWriter(folder, std::nullopt, {}, options));
+  {
+    RecordingWriter writer(folder, std::nullopt, {}, options);
+    for (int i = 0; i < 3; ++i) writer.Write(TestFrame(i, 32, 24, CV_8UC1));
+  }
+  std::filesystem::create_directories(folder + "/ground_truth");
+  std::ofstream(folder + "/ground_truth/depth_left_m.pfm") << "old";
+  {
+    RecordingWriter writer(folder, std::nullopt, {}, options);
+    writer.Write(TestFrame(0, 32, 24, CV_8UC1));
+  }
+  EXPECT_EQ(OpenRecording(folder).num_frames(), 1);
+  size_t left_files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(folder + "/left")) ++left_files;
+  EXPECT_EQ(left_files, 1u);
+  EXPECT_FALSE(std::filesystem::exists(folder + "/ground_truth"));
 }
 
 TEST(Recording, WriterRejectsMismatchedAndNonIncreasingFrames) {
