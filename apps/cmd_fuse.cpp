@@ -75,8 +75,10 @@ RgbImage AlignedPicture(const std::vector<Scan>& scans, const std::vector<Eigen:
 }
 
 void RunFuse(const FuseArgs& args) {
-  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).norm() > 0)) {
-    UsageError("--view needs a nonzero direction x y z");
+  // Finite too: an infinite one passed and failed in the renderer after the whole alignment and fusion.
+  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).norm() > 0) ||
+      !Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).allFinite()) {
+    UsageError("--view needs a nonzero, finite direction x y z");
   }
   if (args.scans.size() < 2 && !args.no_align) UsageError("fuse needs at least two scans (or --no-align)");
   RangeGridScanOptions scan_options;

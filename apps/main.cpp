@@ -38,6 +38,17 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // One line, exit 2, for every usage error (CLI11's own codes vary by kind).
     std::string message = e.what();
+    // A first word that is no subcommand: named, with the subcommands there are (CLI11 said "A subcommand is
+    // required", and `rangebayes capture --help` printed the general help with exit 0).
+    if (argc > 1 && argv[1][0] != '-') {
+      bool known = false;
+      std::string names;
+      for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+        known = known || sub->check_name(argv[1]);
+        names += (names.empty() ? "" : ", ") + sub->get_name();
+      }
+      if (!known) message = std::string("unknown subcommand '") + argv[1] + "' (the subcommands: " + names + ")";
+    }
     for (char& c : message) {
       if (c == '\n') c = ' ';
     }

@@ -147,8 +147,12 @@ std::string NoiseCalibrationSummary::BriefReport(const DisparityNoiseModel& mode
                 plane.plane[0], plane.plane[1], plane.plane[2], plane.plane[3], plane.ransac_inliers,
                 plane.observations, plane.inliers, plane.inlier_rms_px);
   out += line;
-  std::snprintf(line, sizeof(line), "constant sigma_d %.4f px (robust 1.4826*MAD %.4f px), outlier fraction %.3f\n",
-                fit.constant_sigma_px, fit.robust_sigma_px, outlier_fraction);
+  // The σ written when the model is constant: SGBM's 1/16-px steps floor it (the line printed 0.0000 px beside a
+  // file that said 0.018).
+  const double constant = model.form == NoiseForm::kConstant ? model.sigma_px : fit.constant_sigma_px;
+  std::snprintf(line, sizeof(line), "constant sigma_d %.4f px%s (robust 1.4826*MAD %.4f px), outlier fraction %.3f\n",
+                constant, constant > fit.constant_sigma_px ? " (the matcher's quantisation floor)" : "",
+                fit.robust_sigma_px, outlier_fraction);
   out += line;
   if (model.form == NoiseForm::kFloorPlusScale) {
     std::snprintf(line, sizeof(line),

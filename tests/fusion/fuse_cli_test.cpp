@@ -202,6 +202,16 @@ TEST(FuseCli, NonUnitQuaternionIsAClearError) {
   EXPECT_NE(run.output.find("scan bun045_piece.ply: quaternion"), std::string::npos) << run.output;
 }
 
+// An infinite view direction passed the option's check and failed in the renderer after the whole alignment and
+// fusion ("render: view_direction must be nonzero").
+TEST(FuseCli, ANonFiniteViewIsAUsageError) {
+  const std::string dir = FreshTempDir("fuse_view");
+  const RunResult run = RunRangebayes("fuse " + Pieces() + " --view inf 0 0 --out " + dir + "/out");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("--view needs a nonzero, finite direction x y z"), std::string::npos) << run.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out"));
+}
+
 TEST(FuseCli, ScansThatDoNotOverlapAreNamed) {
   const std::string dir = FreshTempDir("fuse_apart");
   std::ofstream(dir + "/apart.conf") << "bmesh bun000_piece.ply 0 0 0 0 0 0 1\nbmesh bun045_piece.ply 1 0 0 0 0 0 1\n";
