@@ -179,8 +179,8 @@ void AddCommands(CLI::App& app) {
     sub->add_option("--out,-o", args->out, "Output folder (train/, test/, train_pairs.txt, test_pairs.txt)")
         ->required();
     sub->add_option("--seed", args->seed, "Random seed: the same seed writes the same meshes");
-    sub->add_option("--noise", args->k, "Noise sigma in units of the mean edge length l_e (k), [0, 5]")
-        ->check(RealRange(0.0, 5.0));
+    sub->add_option("--noise", args->k, "Noise sigma in units of the mean edge length l_e (k), (0, 5]")
+        ->check(PositiveUpTo(5.0));
     sub->add_option("--noise-max", args->k_max,
                     "A mixture of noise levels: copies spread evenly over k in [--noise, --noise-max] (each noisy "
                     "PLY then holds its own covariance); 0: one level, [0, 5]")
@@ -227,8 +227,8 @@ void AddCommands(CLI::App& app) {
         ->check(RealRange(0.0, 1e6));
     sub->add_option("--noise", args->noise_k,
                     "Noise sigma / l_e of the noisy meshes without covariances (default: the pairs list's "
-                    "'# noise:' line, else estimated per mesh)")
-        ->check(NotNaN())
+                    "'# noise:' line, else estimated per mesh), (0, 5]")
+        ->check(PositiveUpTo(5.0))
         ->default_str("");
     sub->add_option("--prior-weight", args->prior_weight, "Prior weight beta of the smoother, (0, 1e6]")
         ->check(RealRange(1e-12, 1e6));

@@ -79,6 +79,13 @@ CLI::Validator PositiveReal() {
   });
 }
 
+CLI::Validator PositiveUpTo(double hi) {
+  return RealCheck("(0, " + CLI::detail::to_string(hi) + "]", [hi](double v) {
+    return v > 0 && v <= hi ? std::string()
+                            : "must be in (0, " + CLI::detail::to_string(hi) + "], got " + CLI::detail::to_string(v);
+  });
+}
+
 CLI::Validator PositiveOrInf() {
   return RealCheck("POSITIVE or inf", [](double v) {
     return v > 0 ? std::string() : "must be a number > 0 or inf, got " + CLI::detail::to_string(v);

@@ -33,6 +33,7 @@ CLI::Validator PositiveReal();     // a finite number > 0
 CLI::Validator PositiveOrInf();    // a number > 0, inf included (no limit)
 CLI::Validator NonNegativeReal();  // a finite number ≥ 0
 CLI::Validator RealRange(double lo, double hi);  // a number in [lo, hi] (NaN refused)
+CLI::Validator PositiveUpTo(double hi);          // a number in (0, hi]
 // Counts and indices: CLI11's checks for these print the largest double as the range's end.
 CLI::Validator PositiveInteger();     // an integer > 0
 CLI::Validator NonNegativeInteger();  // an integer ≥ 0

@@ -250,7 +250,8 @@ void RightAngledObjectOptions::Check() const {
 }
 
 void SynthNoiseOptions::Check() const {
-  RB_CHECK(k >= 0 && k <= 5, "synth meshes: noise k must be in [0, 5], got ", k);
+  // Noise-free pairs teach nothing, and a training set of them was refused later by learn-prior.
+  RB_CHECK(k > 0 && k <= 5, "synth meshes: noise k must be in (0, 5], got ", k);
 }
 
 void SynthMeshSetOptions::Check() const {

@@ -37,7 +37,7 @@ Mesh MakeRightAngledObject(const RightAngledObjectOptions& options, std::uint64_
 
 struct SynthNoiseOptions {
   SynthNoise kind = SynthNoise::kNormal;
-  double k = 0.3;  // noise σ in units of the clean mesh's mean edge length l_e; [0, 5]
+  double k = 0.3;  // noise σ in units of the clean mesh's mean edge length l_e; (0, 5]
   void Check() const;
 };
 

@@ -12,7 +12,7 @@
 namespace rangebayes {
 
 void TrainingSetOptions::Check() const {
-  RB_CHECK(std::isnan(noise_k) || (noise_k >= 0 && noise_k <= 5), "training set: noise k must be in [0, 5], got ",
+  RB_CHECK(std::isnan(noise_k) || (noise_k > 0 && noise_k <= 5), "training set: noise k must be in (0, 5], got ",
            noise_k);
 }
 
@@ -20,6 +20,8 @@ TrainingSet ReadTrainingSet(const std::string& pairs_list_path, const TrainingSe
   options.Check();
   const PairsList list = ReadPairsList(pairs_list_path);
   const double k = !std::isnan(options.noise_k) ? options.noise_k : list.noise_k;
+  RB_CHECK(std::isnan(k) || (k > 0 && k <= 5), pairs_list_path, ": its '# noise:' line gives k = ", k,
+           ", outside (0, 5] (noise-free pairs teach nothing); give learn-prior --noise K");
   TrainingSet set;
   set.pairs_list = std::filesystem::absolute(pairs_list_path).lexically_normal().string();
   double k_used_sum = 0;

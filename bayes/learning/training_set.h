@@ -15,7 +15,7 @@ namespace rangebayes {
 
 struct TrainingSetOptions {
   // σ / l_e of the noisy meshes that carry no covariance (they get the generic model of bayes/noise_model.h);
-  // NaN: the pairs list's `# noise:` line, else estimated per mesh. [0, 5] or NaN.
+  // NaN: the pairs list's `# noise:` line, else estimated per mesh. (0, 5] or NaN.
   double noise_k = std::numeric_limits<double>::quiet_NaN();
   ProgressCallback progress;  // once per pair read
   void Check() const;

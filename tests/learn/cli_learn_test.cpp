@@ -107,6 +107,24 @@ TEST(LearnCli, SynthThenLearn) {
     EXPECT_EQ(same.exit_code, 2) << same.output;
     EXPECT_NE(same.output.find("name the same file"), std::string::npos) << same.output;
   }
+  // Noise-free pairs: refused where they would be made (synth-meshes --noise 0 wrote a set that learn-prior then
+  // refused with "noise: noise_edge_multiple 0 is outside (0, 10]"), and a list that says k = 0 names itself.
+  const RunResult noise_free = RunRangebayes("synth-meshes --out '" + (dir / "k0").string() + "' --noise 0 -q");
+  EXPECT_EQ(noise_free.exit_code, 2) << noise_free.output;
+  EXPECT_NE(noise_free.output.find("--noise: must be in (0, 5], got 0"), std::string::npos) << noise_free.output;
+  {
+    std::ifstream in((dir / "train_pairs.txt").string());
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t k = text.find("k=");
+    ASSERT_NE(k, std::string::npos) << text;
+    text.replace(k, text.find('\n', k) - k, "k=0");
+    std::ofstream((dir / "k0_pairs.txt").string()) << text;
+    const RunResult k0 = RunRangebayes("learn-prior --pairs '" + (dir / "k0_pairs.txt").string() + "' --out '" +
+                                       (dir / "k0.yaml").string() + "' -q");
+    EXPECT_EQ(k0.exit_code, 1) << k0.output;
+    EXPECT_NE(k0.output.find("k0_pairs.txt: its '# noise:' line gives k = 0, outside (0, 5]"), std::string::npos)
+        << k0.output;
+  }
   const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
