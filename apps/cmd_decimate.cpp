@@ -169,7 +169,16 @@ void Run(const DecimateArgs& a) {
   }
 
   std::fputs(s.BriefReport().c_str(), stdout);
-  if (a.polygons) std::printf("written as one polygon per patch\n");
+  if (a.polygons) {
+    // What the file holds ("output: N faces" counts triangles): one polygon per patch, the triangles of a patch
+    // that is not a disk.
+    const std::vector<std::vector<int>>& polygons = out[0].polygons;
+    const auto triangles = std::count_if(polygons.begin(), polygons.end(), [](const auto& p) { return p.size() == 3; });
+    std::printf(
+        "written as one polygon per patch: %zu polygons, %lld of them triangles (a patch that is not a disk "
+        "is written as its triangles)\n",
+        polygons.size(), static_cast<long long>(triangles));
+  }
   for (const std::string& w : written) std::printf("wrote %s\n", w.c_str());
 }
 

@@ -448,6 +448,8 @@ Eigen::VectorXd LearnPrior(const std::vector<TrainingPair>& pairs, const LearnPr
   if (options.bump_search_sweeps > 0) {
     theta = BumpSearch(pairs, options, &spline, problems, &report);
     summary.method += StrCat(" + bump search (filtering, ", summary.bump_search_moves, " moves)");
+    // Said, as the interleaved phase says it: "0 moves (searches only)" read as a search that found nothing.
+    if (report.OutOfTime()) summary.termination += "; the time limit ended the bump search";
   }
   summary.total_time_s = Seconds(start);
   if (summary_out != nullptr) *summary_out = std::move(summary);

@@ -125,6 +125,11 @@ TEST(LearnCli, SynthThenLearn) {
     EXPECT_NE(k0.output.find("k0_pairs.txt: its '# noise:' line gives k = 0, outside (0, 5]"), std::string::npos)
         << k0.output;
   }
+  // A time limit that ends the bump search is said in the summary (it read "0 moves ... (searches only)").
+  const RunResult cut = RunRangebayes("learn-prior --pairs '" + (dir / "train_pairs.txt").string() + "' --out '" +
+                                      (dir / "cut.yaml").string() + "' --time-limit 0.001 -q");
+  ASSERT_EQ(cut.exit_code, 0) << cut.output;
+  EXPECT_NE(cut.output.find("the time limit ended the bump search"), std::string::npos) << cut.output;
   const RunResult bad = RunRangebayes("learn-prior --pairs '" + (dir / "missing.txt").string() + "' --out x.yaml");
   EXPECT_EQ(bad.exit_code, 1) << bad.output;
   const RunResult usage = RunRangebayes("learn-prior --pairs a --out b --method nope");
