@@ -202,6 +202,10 @@ void RunNoise(const NoiseArgs& a, const CLI::App& sub) {
   if (options.form == NoiseForm::kFloorPlusScale && options.matcher == NoiseCalibrationMatcher::kSgbm) {
     UsageError("--form floor-plus-scale needs a matcher that predicts sigma_d (block or spacetime), not sgbm");
   }
+  // The single-frame matchers read one frame (--frames was read and ignored with them).
+  if (sub.count("--frames") > 0 && options.matcher != NoiseCalibrationMatcher::kSpaceTime) {
+    UsageError("--frames applies to --matcher spacetime (block and sgbm match one frame: --frame)");
+  }
   options.first_frame = a.frame;
   options.frames = a.frames;
   options.min_disparity_px = a.min_disparity_px;

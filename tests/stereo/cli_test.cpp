@@ -56,6 +56,10 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("frames 0..8 requested but the recording has 4"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out + "/noise9.yaml"));
+  // The block matcher reads one frame: --frames with it is a usage error (it was read and ignored).
+  r = RunRangebayes("calibrate noise " + rec + " --target plane --frames 3 --out " + out + "/noise3.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--frames applies to --matcher spacetime"), std::string::npos) << r.output;
 }
 
 // A noise model fitted with `calibrate noise --matcher spacetime` describes what `spacetime` outputs: on another
