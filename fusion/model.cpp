@@ -1,5 +1,6 @@
 #include "fusion/model.h"
 
+#include <Eigen/Geometry>
 #include <string_view>
 #include <utility>
 
@@ -67,7 +68,21 @@ Mesh FuseModel(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry
     }
   }
   const NoisyMesh fused = FuseScans(options.smooth ? smoothed : scans, world_from_scan, options.fusion, &out.fusion);
-  RB_CHECK(fused.mesh.num_faces() > 0, "fusion produced no surface (the scans share no observed voxels)");
+  if (fused.mesh.num_faces() == 0) {
+    // A voxel as large as the scans leaves no cell with a zero crossing: the voxel, not the overlap, is then the
+    // cause (--voxel 1 on scans a tenth of that across blamed the overlap).
+    Eigen::AlignedBox3d box;
+    for (size_t i = 0; i < scans.size(); ++i) {
+      const Vertices& V = scans[i].noisy.mesh.V;
+      for (Eigen::Index v = 0; v < V.rows(); ++v) box.extend(world_from_scan[i] * V.row(v).transpose().eval());
+    }
+    const double extent = box.isEmpty() ? 0.0 : box.sizes().maxCoeff();
+    RB_FAIL("fusion produced no surface (",
+            out.fusion.voxel_size > 0.25 * extent ? StrCat("voxel ", out.fusion.voxel_size, " against scans ", extent,
+                                                           " across: choose a smaller --voxel")
+                                                  : std::string("the scans share no observed voxels"),
+            ")");
+  }
   if (!options.decimate) return fused.mesh;
   DecimateOptions decimation = options.decimation;
   decimation.progress = [&](double fraction, std::string_view) { report(fraction, "decimation"); };

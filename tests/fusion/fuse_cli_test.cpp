@@ -151,6 +151,12 @@ TEST(FuseCli, NoAlignChecksTheGivenPoses) {
   ASSERT_EQ(run.exit_code, 0) << run.output;
   ExpectAlignedPairs(dir + "/on/report.txt");
   EXPECT_GT(ReadMesh(dir + "/on/fused.ply").num_faces(), 5000);
+  // A voxel larger than the scans: named as the cause (it said that the scans share no observed voxels).
+  run = RunRangebayes("fuse " + Pieces() + " --poses " + std::string(RB_SOURCE_DIR) + "/" + kData +
+                      "pieces.conf --no-align --voxel 1 --out " + dir + "/big -q");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_NE(run.output.find("fusion produced no surface (voxel 1 against scans "), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("choose a smaller --voxel"), std::string::npos) << run.output;
 }
 
 // --smooth smooths each scan before fusion: each scan's smoothing is reported, and the model changes the way
