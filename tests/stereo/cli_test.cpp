@@ -44,6 +44,7 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("slope n/a"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("nan"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("lie on the fitted plane"), std::string::npos) << r.output;  // the plane's own range
   std::ifstream yaml(out + "/noise.yaml");
   const std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
   EXPECT_EQ(text.find("Nan"), std::string::npos) << text;
@@ -56,6 +57,13 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("frames 0..8 requested but the recording has 4"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out + "/noise9.yaml"));
+  // A search range beside the plane's disparities: most pixels are mismatches, said (a model of them was written
+  // without a word, σ 20x the true one).
+  r = RunRangebayes("calibrate noise " + rec + " --target plane --min-disparity 20 --num-disparities 8 --out " + out +
+                    "/noise_off.yaml");
+  EXPECT_NE(r.output.find("disparities lie on the fitted plane: check that --min-disparity and --num-disparities"),
+            std::string::npos)
+      << r.output;
   // The block matcher reads one frame: --frames with it is a usage error (it was read and ignored).
   r = RunRangebayes("calibrate noise " + rec + " --target plane --frames 3 --out " + out + "/noise3.yaml");
   EXPECT_EQ(r.exit_code, 2) << r.output;
