@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "apps/command.h"
@@ -127,8 +128,13 @@ void Run(const DecimateArgs& a) {
 
   if (animated) {
     CreateFolder(a.out_dir);
-    for (const std::string& out : outputs) CheckFileToWrite(out);
-    for (const std::string& out : outputs) RequireDistinctOutputs({{"an output pose", out}, {"--png", a.png}});
+    std::vector<std::pair<std::string, std::string>> written;
+    for (const std::string& out : outputs) {
+      CheckFileToWrite(out);
+      written.emplace_back("an output pose", out);
+    }
+    written.emplace_back("--png", a.png);
+    RequireDistinctOutputs(written);
   } else {
     CheckOutputMesh(a.files[1]);
     RequireDistinctOutputs({{"OUT", a.files[1]}, {"--png", a.png}});

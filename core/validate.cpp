@@ -208,8 +208,7 @@ void CheckComputableScale(const Vertices& V, std::string_view what) {
              V(i, 1), ", ", V(i, 2), "), beyond ±", kMaxCoordinate,
              ", where lengths squared and areas overflow: rescale the mesh (for example to metres)");
   }
-  if (V.rows() == 0) return;
-  const Eigen::RowVector3d extent = V.colwise().maxCoeff() - V.colwise().minCoeff();
+  const Eigen::RowVector3d extent = BoundingBoxExtent(V);
   RB_CHECK(!(extent.array() > 0).any() || extent.stableNorm() >= kMinExtent, what, ": the mesh spans only ",
            extent.stableNorm(), ", below ", kMinExtent,
            ", where lengths squared and areas underflow: rescale the mesh (for example to millimetres)");
