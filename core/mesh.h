@@ -47,4 +47,17 @@ inline Eigen::RowVector3d BoundingBoxExtent(const Vertices& V) {
   return V.colwise().maxCoeff() - V.colwise().minCoeff();
 }
 
+// The axis-aligned bounding box of the rows of V whose coordinates are all finite; false, with lo and hi
+// untouched, when there is no such row.
+inline bool FiniteBoundingBox(const Vertices& V, Eigen::RowVector3d* lo, Eigen::RowVector3d* hi) {
+  bool any = false;
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    if (!V.row(i).allFinite()) continue;
+    *lo = any ? lo->cwiseMin(V.row(i)) : Eigen::RowVector3d(V.row(i));
+    *hi = any ? hi->cwiseMax(V.row(i)) : Eigen::RowVector3d(V.row(i));
+    any = true;
+  }
+  return any;
+}
+
 }  // namespace rangebayes

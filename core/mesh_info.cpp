@@ -20,18 +20,7 @@ MeshInfo DescribeMesh(const NoisyMesh& noisy) {
   info.has_normals = mesh.N.rows() > 0;
   info.has_covariance = noisy.has_covariance();
   info.has_pixels = noisy.pixel.rows() > 0;
-  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::RowVector3d hi = -lo;
-  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
-    if (!mesh.V.row(i).allFinite()) continue;
-    lo = lo.cwiseMin(mesh.V.row(i));
-    hi = hi.cwiseMax(mesh.V.row(i));
-  }
-  info.has_bounding_box = (lo.array() <= hi.array()).all();
-  if (info.has_bounding_box) {
-    info.box_min = lo;
-    info.box_max = hi;
-  }
+  info.has_bounding_box = FiniteBoundingBox(mesh.V, &info.box_min, &info.box_max);
   info.mean_edge_length =
       topology.edges.rows() > 0 ? MeanEdgeLength(mesh, topology) : std::numeric_limits<double>::quiet_NaN();
   info.components = ComputeComponents(mesh).count;

@@ -46,8 +46,6 @@ std::vector<int> CountVertexAndFaceProblems(const Mesh& mesh, const ValidateMesh
   const int64_t nv = mesh.V.rows();
   const int64_t nf = mesh.F.rows();
   std::vector<char> finite(static_cast<size_t>(nv), 1);
-  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::RowVector3d hi = -lo;
   for (int64_t v = 0; v < nv; ++v) {
     if (!mesh.V.row(v).allFinite()) {
       finite[static_cast<size_t>(v)] = 0;
@@ -55,10 +53,11 @@ std::vector<int> CountVertexAndFaceProblems(const Mesh& mesh, const ValidateMesh
       continue;
     }
     if (mesh.V.row(v).cwiseAbs().maxCoeff() > kMaxCoordinate) ++result.out_of_scale_vertices;
-    lo = lo.cwiseMin(mesh.V.row(v));
-    hi = hi.cwiseMax(mesh.V.row(v));
   }
-  if ((lo.array() < hi.array()).any() && (hi - lo).stableNorm() < kMinExtent) result.below_scale_extent = 1;
+  Eigen::RowVector3d lo, hi;
+  if (FiniteBoundingBox(mesh.V, &lo, &hi) && (lo.array() < hi.array()).any() && (hi - lo).stableNorm() < kMinExtent) {
+    result.below_scale_extent = 1;
+  }
 
   std::vector<int> good;
   good.reserve(static_cast<size_t>(nf));

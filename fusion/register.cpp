@@ -261,10 +261,7 @@ NormalEquations Assemble(const std::vector<std::pair<int, int>>& pairs, const st
 // For the error of a scan that overlaps no other: when its size is far from the others' (a scan in millimetres
 // among scans in metres), say so, since no pose makes it overlap.
 std::string SizeHint(const std::vector<Scan>& scans, size_t s) {
-  const auto diagonal = [](const Scan& scan) {
-    const Vertices& V = scan.noisy.mesh.V;
-    return V.rows() == 0 ? 0.0 : (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
-  };
+  const auto diagonal = [](const Scan& scan) { return BoundingBoxExtent(scan.noisy.mesh.V).norm(); };
   std::vector<double> sizes;
   for (const Scan& scan : scans) sizes.push_back(diagonal(scan));
   std::nth_element(sizes.begin(), sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2), sizes.end());

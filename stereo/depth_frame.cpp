@@ -6,6 +6,14 @@
 #include "core/error.h"
 
 namespace rangebayes {
+namespace {
+
+// σ_Z = σ_d · dZ/dd, with dZ/dd = f·B/(d + doffs)² = Z²/(f·B).
+float DepthSigma(double depth_m, double focal_baseline, float sigma_disparity_px) {
+  return static_cast<float>(depth_m * depth_m / focal_baseline * sigma_disparity_px);
+}
+
+}  // namespace
 
 void DepthFromDisparityOptions::Check() const {
   RB_CHECK(min_depth_m >= 0.0 && max_depth_m > min_depth_m, "depth range [", min_depth_m, ", ", max_depth_m,
@@ -56,8 +64,7 @@ DepthFrame DepthFromDisparity(const cv::Mat& disparity_px, const cv::Mat& sigma_
       RB_CHECK(!(s[x] < 0.0f) && s[x] != std::numeric_limits<float>::infinity(), "sigma_disparity at (", x, ", ", y,
                ") is ", s[x], " px: it must be finite and >= 0 (NaN: unknown)");
       z[x] = static_cast<float>(depth);
-      // dZ/dd = f·B/(d + doffs)² = Z²/(f·B).
-      sz[x] = static_cast<float>(depth * depth / fb * s[x]);
+      sz[x] = DepthSigma(depth, fb, s[x]);
     }
   }
   return frame;
@@ -72,7 +79,6 @@ DepthFrame DepthFromDisparity(const DisparityResult& result, const CameraIntrins
                result.edge_sigma_disparity_px.size() == result.disparity_px.size(),
            "edge_sigma_disparity size ", result.edge_sigma_disparity_px.cols, "x", result.edge_sigma_disparity_px.rows,
            " differs from the disparity");
-  // σ_Z = σ_d · Z² / (f·B), as above, where there is a depth.
   const double fb = intrinsics.fx_px * baseline_m;
   frame.edge_sigma_depth_m.create(frame.depth_m.size(), CV_32F);
   for (int y = 0; y < frame.depth_m.rows; ++y) {
@@ -80,7 +86,7 @@ DepthFrame DepthFromDisparity(const DisparityResult& result, const CameraIntrins
     const float* s = result.edge_sigma_disparity_px.ptr<float>(y);
     float* o = frame.edge_sigma_depth_m.ptr<float>(y);
     for (int x = 0; x < frame.depth_m.cols; ++x) {
-      o[x] = static_cast<float>(static_cast<double>(z[x]) * z[x] / fb * s[x]);
+      o[x] = DepthSigma(z[x], fb, s[x]);  // NaN where there is no depth
     }
   }
   return frame;

@@ -603,7 +603,7 @@ class Flipper {
     const Vertices& V0 = *in.dense_poses[0];
     const int nv = static_cast<int>(V0.rows());
     weight_ = VertexAreas(V0, *in.dense_F);
-    area_eps_ = 1e-14 * (V0.colwise().maxCoeff() - V0.colwise().minCoeff()).squaredNorm();
+    area_eps_ = 1e-14 * BoundingBoxExtent(V0).squaredNorm();
     patch_normal_.resize(in.dense_poses.size());
     vertex_normal_.resize(in.dense_poses.size());
     for (size_t m = 0; m < in.dense_poses.size(); ++m) {
