@@ -130,16 +130,29 @@ Vec<N> BestOfStarts(const std::function<double(const Vec<N>&)>& f, const std::ar
 double Clamp(double v) { return std::clamp(v, kMinLog, kMaxLog); }
 double Logistic(double v) { return 1.0 / (1.0 + std::exp(-v)); }
 
-// −log-likelihood of residuals r_i under (1 − ε)·N(0, s_i²) + ε/(2R).
-double MixtureNll(const std::vector<double>& r, const std::function<double(size_t)>& sigma, double eps,
-                  double range) {
+// Density at r of an error N(0, s²) rounded to steps of q (q = 0: not rounded): the normal convolved with the
+// uniform on ±q/2. Exact (the normal's mass over [r − q/2, r + q/2], over q) where s is under four steps; above,
+// the normal with Sheppard's variance s² + q²/12, which differs from it by under 1e-4 and costs one exp.
+double RoundedNormalDensity(double r, double s, double q) {
+  if (q > 0 && s < 4 * q) {
+    const double a = std::abs(r) - 0.5 * q, b = std::abs(r) + 0.5 * q;  // the upper tail keeps far masses exact
+    return 0.5 * (std::erfc(a / (s * M_SQRT2)) - std::erfc(b / (s * M_SQRT2))) / q;
+  }
+  const double v = s * s + q * q / 12.0;
+  return std::exp(-0.5 * r * r / v - 0.5 * std::log(v) - 0.5 * kLogTwoPi);
+}
+
+// The σ of the whole error of a matcher with output step q whose error before rounding has σ s.
+double WithRounding(double s, double q) { return std::sqrt(s * s + q * q / 12.0); }
+
+// −log-likelihood of residuals r_i under (1 − ε)·N(0, s_i²) rounded to steps of q, + ε/(2R).
+double MixtureNll(const std::vector<double>& r, const std::function<double(size_t)>& sigma, double eps, double range,
+                  double q) {
   const double uniform = eps / (2.0 * range);
   double nll = 0;
   for (size_t i = 0; i < r.size(); ++i) {
     const double s = std::max(sigma(i), 1e-9);
-    const double z = r[i] / s;
-    const double g = std::exp(-0.5 * z * z - std::log(s) - 0.5 * kLogTwoPi);
-    nll -= std::log((1.0 - eps) * g + uniform + 1e-300);
+    nll -= std::log((1.0 - eps) * RoundedNormalDensity(r[i], s, q) + uniform + 1e-300);
   }
   return nll;
 }
@@ -149,16 +162,20 @@ struct ConstantFit {
   int iterations = 0;
 };
 
-ConstantFit FitConstant(const std::vector<double>& r, double range) {
+// σ of the error before rounding to steps of q (see RoundedNormalDensity) and the outlier share.
+ConstantFit FitConstant(const std::vector<double>& r, double range, double q) {
   double s0 = 1.4826 * Median([&] {
                 std::vector<double> a;
                 for (double v : r) a.push_back(std::abs(v));
                 return a;
               }());
-  s0 = std::max(s0, 1e-4);
+  // Not below the rounding's own σ: where most residuals are equal (an error under a step) the robust σ is 0, and
+  // from far below a step the likelihood is flat in σ (the simplex never saw the one-step residuals as noise).
+  s0 = std::max({s0, q / std::sqrt(12.0), 1e-4});
   const auto f = [&](const Vec<2>& p) {
     const double s = std::exp(Clamp(p[0]));
-    return MixtureNll(r, [s](size_t) { return s; }, Logistic(p[1]), range);
+    return MixtureNll(
+        r, [s](size_t) { return s; }, Logistic(p[1]), range, q);
   };
   ConstantFit fit;
   const Vec<2> best = NelderMead<2>(f, {std::log(s0), std::log(0.05 / 0.95)}, 0.3, 500, &fit.iterations, &fit.nll);
@@ -234,7 +251,8 @@ void NoiseFitOptions::Check() const {
            " must be ≥ 0");
   RB_CHECK(depth_bins >= 1 && depth_bins <= 50, "depth_bins ", depth_bins, " not in [1, 50]");
   RB_CHECK(min_samples >= 10, "min_samples ", min_samples, " must be at least 10");
-  RB_CHECK(min_sigma_px >= 0 && std::isfinite(min_sigma_px), "min_sigma_px ", min_sigma_px, " must be ≥ 0");
+  RB_CHECK(quantisation_step_px >= 0 && std::isfinite(quantisation_step_px), "quantisation_step_px ",
+           quantisation_step_px, " must be ≥ 0");
   RB_CHECK(max_samples >= min_samples, "max_samples ", max_samples, " must be at least min_samples ", min_samples);
 }
 
@@ -349,8 +367,8 @@ struct NoiseColumns {
 
 // The learned form, σ = sqrt(floor² + (scale·σ_pred)² + (jump_scale·jump)²) plus outliers: the best of three
 // starts, which begin at s0 (the constant fit's σ) and e0 (its outlier share, as a logit).
-void FitLearned(const NoiseColumns& columns, double range, double s0, double e0, const ProgressCallback& progress,
-                DisparityNoiseModel* model, NoiseFitSummary* sum) {
+void FitLearned(const NoiseColumns& columns, double range, double q, double s0, double e0,
+                const ProgressCallback& progress, DisparityNoiseModel* model, NoiseFitSummary* sum) {
   const std::vector<double>& r = columns.r;
   const std::vector<double>& pred = columns.pred;
   const std::vector<double>& jump = columns.jump;
@@ -361,9 +379,8 @@ void FitLearned(const NoiseColumns& columns, double range, double s0, double e0,
   const auto f = [&](const Vec<4>& p) {
     const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1])), c = std::exp(Clamp(p[2]));
     return MixtureNll(
-        r,
-        [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
-        Logistic(p[3]), range);
+        r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i] + c * c * jump[i] * jump[i]); },
+        Logistic(p[3]), range, q);
   };
   const std::array<Vec<4>, 3> starts = {
       Vec<4>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), std::log(0.1 * s0 / mean_jump), e0},
@@ -371,7 +388,7 @@ void FitLearned(const NoiseColumns& columns, double range, double s0, double e0,
       Vec<4>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), std::log(0.2 * s0 / mean_jump), e0}};
   double best_nll = 0;
   const Vec<4> best = BestOfStarts<4>(f, starts, 2500, progress, &sum->iterations, &best_nll);
-  model->floor_px = std::exp(Clamp(best[0]));
+  model->floor_px = WithRounding(std::exp(Clamp(best[0])), q);
   model->scale = std::exp(Clamp(best[1]));
   model->jump_scale = std::exp(Clamp(best[2]));
   model->outlier_fraction = Logistic(best[3]);
@@ -379,15 +396,15 @@ void FitLearned(const NoiseColumns& columns, double range, double s0, double e0,
 }
 
 // The floor-and-scale form, σ = sqrt(floor² + (scale·σ_pred)²) plus outliers; s0 and e0 as in FitLearned.
-void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, double e0, const ProgressCallback& progress,
-                      DisparityNoiseModel* model, NoiseFitSummary* sum) {
+void FitFloorAndScale(const NoiseColumns& columns, double range, double q, double s0, double e0,
+                      const ProgressCallback& progress, DisparityNoiseModel* model, NoiseFitSummary* sum) {
   const std::vector<double>& r = columns.r;
   const std::vector<double>& pred = columns.pred;
   const double med_pred = std::max(Median(pred), 1e-6);
   const auto f = [&](const Vec<3>& p) {
     const double fl = std::exp(Clamp(p[0])), k = std::exp(Clamp(p[1]));
     return MixtureNll(
-        r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range);
+        r, [&](size_t i) { return std::sqrt(fl * fl + k * k * pred[i] * pred[i]); }, Logistic(p[2]), range, q);
   };
   // Three starts: mostly floor, balanced, mostly scale; the likelihood can have a shallow second basin.
   const std::array<Vec<3>, 3> starts = {Vec<3>{std::log(0.9 * s0), std::log(0.3 * s0 / med_pred), e0},
@@ -395,7 +412,7 @@ void FitFloorAndScale(const NoiseColumns& columns, double range, double s0, doub
                                         Vec<3>{std::log(0.2 * s0), std::log(0.95 * s0 / med_pred), e0}};
   double best_nll = 0;
   const Vec<3> best = BestOfStarts<3>(f, starts, 1500, progress, &sum->iterations, &best_nll);
-  model->floor_px = std::exp(Clamp(best[0]));
+  model->floor_px = WithRounding(std::exp(Clamp(best[0])), q);
   model->scale = std::exp(Clamp(best[1]));
   model->outlier_fraction = Logistic(best[2]);
   sum->log_likelihood = -best_nll;
@@ -420,7 +437,8 @@ void FitDepthTrend(const std::vector<NoiseSample>& valid, double range, const No
     }
     NoiseDepthBin bin;
     bin.depth_m = Median(db);
-    bin.sigma_px = FitConstant(rb, range).sigma;
+    bin.sigma_px =
+        WithRounding(FitConstant(rb, range, options.quantisation_step_px).sigma, options.quantisation_step_px);
     bin.count = static_cast<int>(rb.size());
     sum.depth_bins.push_back(bin);
   }
@@ -466,26 +484,25 @@ DisparityNoiseModel FitDisparityNoiseModel(const std::vector<NoiseSample>& sampl
   range = std::max(range, 1e-6);
   sum.robust_sigma_px = 1.4826 * Median(absr);
 
-  const ConstantFit constant = FitConstant(columns.r, range);
-  sum.constant_sigma_px = constant.sigma;
+  const double q = options.quantisation_step_px;
+  const ConstantFit constant = FitConstant(columns.r, range, q);
+  sum.constant_sigma_px = WithRounding(constant.sigma, q);
 
   DisparityNoiseModel model;
   model.form = options.form;
   model.samples = static_cast<int>(valid.size());
-  model.sigma_px = constant.sigma;
-  const double s0 = constant.sigma;
+  model.sigma_px = sum.constant_sigma_px;
+  const double s0 = std::max(constant.sigma, 1e-4);
   const double e0 = std::log(std::max(constant.eps, 1e-3) / (1 - std::max(constant.eps, 1e-3)));
   if (options.form == NoiseForm::kConstant) {
     model.outlier_fraction = constant.eps;
     sum.log_likelihood = -constant.nll;
     sum.iterations = constant.iterations;
   } else if (options.form == NoiseForm::kLearned) {
-    FitLearned(columns, range, s0, e0, options.progress, &model, &sum);
+    FitLearned(columns, range, q, s0, e0, options.progress, &model, &sum);
   } else {
-    FitFloorAndScale(columns, range, s0, e0, options.progress, &model, &sum);
+    FitFloorAndScale(columns, range, q, s0, e0, options.progress, &model, &sum);
   }
-  model.sigma_px = std::max(model.sigma_px, options.min_sigma_px);
-  model.floor_px = std::max(model.floor_px, options.min_sigma_px);
   sum.outlier_fraction = model.outlier_fraction;
   FitDepthTrend(valid, range, options, &sum);
   model.depth_slope_px_per_m = sum.depth_slope_px_per_m;

@@ -76,9 +76,11 @@ struct NoiseFitOptions {
   int depth_bins = 6;             // depth bins (equal counts) for the depth check; [1, 50]
   int min_samples = 50;           // fewer samples is an error; ≥ 10
   int max_samples = 60000;        // larger sets are thinned by a regular stride (speed); ≥ min_samples
-  // Lower bound on the fitted σ (constant) and floor (floor-plus-scale), e.g. the quantisation of a matcher's
-  // output (1/16 px steps: 0.018 px); ≥ 0.
-  double min_sigma_px = 0.0;
+  // The step of the matcher's output (SGBM: 1/16 px; 0: continuous). The Gaussian part is then fitted as the
+  // error before rounding to the step: its density convolved with the rounding's uniform on ±step/2, so that
+  // residuals one step apart are not taken for outliers where the error is below a step. The written σ
+  // (constant) and floor (other forms) include the rounding's variance step²/12, so that σ_d is the whole error.
+  double quantisation_step_px = 0.0;  // ≥ 0
   // The non-constant forms: after each of the fit's starts (stage "fit", the share of starts done).
   ProgressCallback progress;
   void Check() const;
@@ -91,7 +93,7 @@ struct NoiseDepthBin {
 };
 
 struct NoiseFitSummary {
-  double constant_sigma_px = 0.0;   // constant-form fit (always computed)
+  double constant_sigma_px = 0.0;   // constant-form fit (always computed; with the rounding, as written)
   double robust_sigma_px = 0.0;     // 1.4826 · median |residual|, for comparison
   double log_likelihood = 0.0;      // of the returned model, summed over samples
   double outlier_fraction = 0.0;

@@ -126,8 +126,7 @@ DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const St
   fit_options.form = options.form.value_or(has_pred ? NoiseForm::kFloorPlusScale : NoiseForm::kConstant);
   RB_CHECK(fit_options.form != NoiseForm::kFloorPlusScale || has_pred,
            "noise calibration: the floor-plus-scale form needs a matcher that predicts sigma_d");
-  // SGBM reports disparities in 1/16 px steps: its error cannot be resolved below the step's own σ.
-  if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit_options.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
+  if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit_options.quantisation_step_px = kSgbmDisparityStepPx;
   DisparityNoiseModel model = FitDisparityNoiseModel(s.samples, fit_options, &s.fit);
   s.outlier_fraction = fit_options.form == NoiseForm::kConstant ? s.fit.outlier_fraction : model.outlier_fraction;
   model.matcher = NoiseCalibrationMatcherName(options.matcher);
@@ -147,11 +146,9 @@ std::string NoiseCalibrationSummary::BriefReport(const DisparityNoiseModel& mode
                 plane.plane[0], plane.plane[1], plane.plane[2], plane.plane[3], plane.ransac_inliers,
                 plane.observations, plane.inliers, plane.inlier_rms_px);
   out += line;
-  // The σ written when the model is constant: SGBM's 1/16-px steps floor it (the line printed 0.0000 px beside a
-  // file that said 0.018).
-  const double constant = model.form == NoiseForm::kConstant ? model.sigma_px : fit.constant_sigma_px;
+  // With SGBM the σ includes the rounding to its 1/16-px steps, as the file does (NoiseFitOptions).
   std::snprintf(line, sizeof(line), "constant sigma_d %.4f px%s (robust 1.4826*MAD %.4f px), outlier fraction %.3f\n",
-                constant, constant > fit.constant_sigma_px ? " (the matcher's quantisation floor)" : "",
+                fit.constant_sigma_px, matcher == NoiseCalibrationMatcher::kSgbm ? " with SGBM's 1/16-px rounding" : "",
                 fit.robust_sigma_px, outlier_fraction);
   out += line;
   if (model.form == NoiseForm::kFloorPlusScale) {
@@ -266,7 +263,7 @@ DisparityNoiseModel CalibrateDisparityNoiseFromGroundTruth(const std::vector<std
   fit.form = NoiseForm::kLearned;
   fit.max_samples = options.max_samples;
   fit.depth_bins = 1;
-  if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit.min_sigma_px = 1.0 / 16.0 / std::sqrt(12.0);
+  if (options.matcher == NoiseCalibrationMatcher::kSgbm) fit.quantisation_step_px = kSgbmDisparityStepPx;
   fit.progress = options.progress;
   if (options.progress) options.progress(0.0, "fit");
   DisparityNoiseModel model = FitDisparityNoiseModel(all, fit, &s.fit);

@@ -54,7 +54,7 @@ cv::Mat FixedPointDisparityToFloat(const cv::Mat& disparity16, int min_disparity
     const short* in = disparity16.ptr<short>(y);
     float* o = out.ptr<float>(y);
     for (int x = 0; x < disparity16.cols; ++x) {
-      o[x] = in[x] <= invalid_up_to ? nan : static_cast<float>(in[x]) * (1.0f / 16.0f);
+      o[x] = in[x] <= invalid_up_to ? nan : static_cast<float>(in[x] * kSgbmDisparityStepPx);
     }
   }
   return out;

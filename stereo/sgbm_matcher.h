@@ -7,6 +7,8 @@ namespace rangebayes {
 
 // The largest block OpenCV's SGBM takes (px).
 inline constexpr int kSgbmMaxBlockSizePx = 11;
+// SGBM's disparities are fixed point with four fractional bits: steps of 1/16 px.
+inline constexpr double kSgbmDisparityStepPx = 1.0 / 16.0;
 
 struct SgbmMatcherOptions {
   int min_disparity_px = 0;        // any integer: smallest disparity searched

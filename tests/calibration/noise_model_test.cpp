@@ -107,6 +107,40 @@ TEST(FitDisparityNoiseModel, ConstantWithinTenPercentAtThreeLevels) {
   }
 }
 
+// A matcher whose output is rounded to 1/16 px (SGBM) with an error below a step, and 2% mismatches over ±8 px:
+// residuals about a target on the steps' grid are 0 or one step, and about a target between steps spread over
+// the step. Neither is an outlier. The fit treated the one-step residuals of an exact target as 15-40% outliers
+// under σ 0.018 px.
+TEST(FitDisparityNoiseModel, ResidualsRoundedToTheMatchersStepAreNoOutliers) {
+  const double step = 1.0 / 16.0;
+  for (const double sigma : {0.02, 0.05, 0.2}) {
+    for (const bool on_grid : {true, false}) {
+      std::mt19937 rng(5);
+      std::normal_distribution<double> normal(0.0, sigma);
+      std::uniform_real_distribution<double> unit(0.0, 1.0);
+      std::vector<NoiseSample> samples;
+      for (int i = 0; i < 20000; ++i) {
+        const double target = 30.0 + (on_grid ? 0.0 : step * unit(rng));
+        const double measured = unit(rng) < 0.02 ? target + 16.0 * (unit(rng) - 0.5) : target + normal(rng);
+        NoiseSample s;
+        s.residual_px = std::round(measured / step) * step - target;
+        s.depth_m = 1.0;
+        samples.push_back(s);
+      }
+      NoiseFitOptions options;
+      options.quantisation_step_px = step;
+      NoiseFitSummary summary;
+      const DisparityNoiseModel m = FitDisparityNoiseModel(samples, options, &summary);
+      // The whole error: the error before rounding and the rounding's variance step²/12.
+      const double whole = std::sqrt(sigma * sigma + step * step / 12.0);
+      const std::string where = "sigma " + std::to_string(sigma) + (on_grid ? " on the grid" : " between steps");
+      EXPECT_NEAR(m.sigma_px, whole, 0.1 * whole) << where;
+      EXPECT_NEAR(m.outlier_fraction, 0.02, 0.005) << where;
+      EXPECT_NEAR(summary.constant_sigma_px, m.sigma_px, 1e-12) << where;
+    }
+  }
+}
+
 TEST(FitDisparityNoiseModel, FloorPlusScaleWithinTenPercent) {
   for (const auto& [floor, scale] : {std::pair{0.15, 2.5}, std::pair{0.05, 1.0}, std::pair{0.3, 3.0}}) {
     const auto samples = Simulate(15000, 0.03, 11, [floor = floor, scale = scale](double p) {
