@@ -20,6 +20,7 @@
 #include "calibration/disparity_noise_model.h"
 #include "calibration/stereo_rig.h"
 #include "capture/recording.h"
+#include "capture/stop_signal.h"
 #include "core/error.h"
 #include "core/files.h"
 #include "core/mesh_io.h"
@@ -375,10 +376,21 @@ void AddSynth(CLI::App& app) {
   sub->callback([o] {
     o->s.scene = ParseSynthScene(o->scene);
     o->s.pattern = ParseSynthPattern(o->pattern);
-    const SynthRecording rec = RenderSynthetic(o->s);
+    InstallStopSignalHandlers();
+    ProgressPrinter progress(o->quiet);
     SynthWriteOptions w;
     w.overwrite = o->overwrite;
-    WriteSyntheticRecording(rec, o->s, o->out, w);
+    w.progress = progress.callback();
+    w.stop = &StopFlag();
+    const SynthRecording rec = WriteSynthetic(o->s, o->out, w);
+    progress.Finish();
+    const int written = static_cast<int>(rec.pattern_ids.size());
+    RB_CHECK(written > 0, "synth: stopped by request before the first frame (", o->out,
+             " holds the ground truth and no frame)");
+    if (written < o->s.frames) {
+      Notice(false, StrCat("synth: stopped by request after ", written, " of ", o->s.frames, " frames: ", o->out,
+                           " holds those frames and the ground truth"));
+    }
     std::printf("synth: %s, written to %s\n", rec.BriefReport(o->s).c_str(), o->out.c_str());
   });
 }

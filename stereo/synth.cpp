@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
@@ -434,19 +435,14 @@ cv::Mat Shade(const std::vector<Sample>& samples, const PatternImage& pattern, i
   return image;
 }
 
-}  // namespace
+// The scene's ground truth and rig (a recording without frames) and what the frames are shaded from.
+struct SynthGeometry {
+  SynthRecording rec;
+  std::vector<Sample> left, right;  // supersamples of each camera's pixels
+  int pattern_width = 0, pattern_height = 0;
+};
 
-std::string SynthRecording::BriefReport(const SynthOptions& options) const {
-  double lo = 0, hi = 0;
-  cv::minMaxLoc(disparity_px, &lo, &hi, nullptr, nullptr, disparity_px == disparity_px);  // NaN (no surface) left out
-  char line[256];
-  std::snprintf(line, sizeof(line), "%s under %s pattern, %d frames of %dx%d, disparity %.1f-%.1f px",
-                ToString(options.scene).c_str(), ToString(options.pattern).c_str(), static_cast<int>(left.size()),
-                disparity_px.cols, disparity_px.rows, lo, hi);
-  return line;
-}
-
-SynthRecording RenderSynthetic(const SynthOptions& options) {
+SynthGeometry BuildGeometry(const SynthOptions& options) {
   options.Check();
   const int w = options.width, h = options.height, ss = options.supersample;
   const double f = options.focal_px > 0.0 ? options.focal_px : static_cast<double>(w);
@@ -454,7 +450,8 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   const double B = options.baseline_m;
   const std::vector<Primitive> scene = BuildScene(options.scene);
 
-  SynthRecording rec;
+  SynthGeometry g;
+  SynthRecording& rec = g.rec;
   rec.intrinsics = {f, f, cx, cy, w, h};
   StereoRig& rig = rec.rig;
   rig.width = w;
@@ -487,14 +484,14 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   const int ph = static_cast<int>(std::ceil(1.3 * h / options.pattern_cell_px)) + 2;
   proj.cx = 0.5 * pw;
   proj.cy = 0.5 * ph;
+  g.pattern_width = pw;
+  g.pattern_height = ph;
 
   const JitterField jitter = options.pixel_jitter_px > 0.0
                                  ? JitterField(options.pixel_jitter_px, options.pixel_jitter_cell_px, w, h, options.seed)
                                  : JitterField();
-  const std::vector<Sample> left =
-      GeometrySamples(scene, proj, Vector3d::Zero(), f, cx, cy, w, h, ss, jitter, /*right_camera=*/false);
-  const std::vector<Sample> right =
-      GeometrySamples(scene, proj, Vector3d(B, 0, 0), f, cx, cy, w, h, ss, jitter, /*right_camera=*/true);
+  g.left = GeometrySamples(scene, proj, Vector3d::Zero(), f, cx, cy, w, h, ss, jitter, /*right_camera=*/false);
+  g.right = GeometrySamples(scene, proj, Vector3d(B, 0, 0), f, cx, cy, w, h, ss, jitter, /*right_camera=*/true);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   rec.depth_m.create(h, w, CV_32F);
   rec.disparity_px.create(h, w, CV_32F);
@@ -519,21 +516,29 @@ SynthRecording RenderSynthetic(const SynthOptions& options) {
   RB_CHECK(hi < w, "synth: the scene's disparities reach ", hi, " px at ", w,
            " px wide: no pixel is seen by both "
            "cameras (a smaller baseline or focal length)");
-  for (int t = 0; t < options.frames; ++t) {
-    const PatternImage pattern(options.pattern, t, options.frames, pw, ph, options.seed);
-    const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
-    rec.left.push_back(
-        Shade(left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed));
-    rec.right.push_back(Shade(right, pattern, w, h, ss, options.ambient, options.optics_blur_px,
-                              options.image_noise_gray, noise_seed + 1));
-    rec.pattern_ids.push_back(pattern.pattern_id());
-  }
-
-  return rec;
+  return g;
 }
 
-void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions& options, const std::string& folder,
-                             const SynthWriteOptions& write_options) {
+// Frame t: both images under pattern t.
+StereoFrame ShadeFrame(const SynthGeometry& g, const SynthOptions& options, int t) {
+  const int w = options.width, h = options.height, ss = options.supersample;
+  const PatternImage pattern(options.pattern, t, options.frames, g.pattern_width, g.pattern_height, options.seed);
+  const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
+  StereoFrame frame;
+  frame.left =
+      Shade(g.left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed);
+  frame.right = Shade(g.right, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray,
+                      noise_seed + 1);
+  frame.index = t;
+  frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
+  frame.pattern_id = pattern.pattern_id();
+  return frame;
+}
+
+// A recording writer for FOLDER with the scene's meta.yaml.
+std::unique_ptr<RecordingWriter> OpenWriter(const SynthRecording& recording, const SynthOptions& options,
+                                            const std::string& folder, const SynthWriteOptions& write_options) {
+  write_options.Check();
   RecordingMeta meta;
   meta["source"] = "rangebayes synth";
   meta["scene"] = ToString(options.scene);
@@ -549,17 +554,11 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   writer_options.overwrite = write_options.overwrite;
   writer_options.overwrite_flag = write_options.overwrite_flag;
   writer_options.png_compression = 9;
-  RecordingWriter writer(folder, recording.rig, meta, writer_options);
-  for (size_t t = 0; t < recording.left.size(); ++t) {
-    StereoFrame frame;
-    frame.left = recording.left[t];
-    frame.right = recording.right[t];
-    frame.index = static_cast<std::int64_t>(t);
-    frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
-    frame.pattern_id = recording.pattern_ids[t];
-    writer.Write(frame);
-  }
-  writer.Finish();
+  return std::make_unique<RecordingWriter>(folder, recording.rig, meta, writer_options);
+}
+
+// FOLDER/ground_truth: depth and disparity of the left view (and the true points under pixel jitter).
+void WriteGroundTruth(const SynthRecording& recording, const std::string& folder) {
   const std::filesystem::path gt = std::filesystem::path(folder) / "ground_truth";
   CreateFolder(gt.string());
   WritePfm(recording.depth_m, (gt / "depth_left_m.pfm").string());
@@ -577,6 +576,67 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
       }
     WritePfm(points, (gt / "points_left_m.pfm").string());
   }
+}
+
+}  // namespace
+
+std::string SynthRecording::BriefReport(const SynthOptions& options) const {
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(disparity_px, &lo, &hi, nullptr, nullptr, disparity_px == disparity_px);  // NaN (no surface) left out
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s under %s pattern, %d frames of %dx%d, disparity %.1f-%.1f px",
+                ToString(options.scene).c_str(), ToString(options.pattern).c_str(),
+                static_cast<int>(pattern_ids.size()), disparity_px.cols, disparity_px.rows, lo, hi);
+  return line;
+}
+
+SynthRecording RenderSynthetic(const SynthOptions& options) {
+  SynthGeometry g = BuildGeometry(options);
+  for (int t = 0; t < options.frames; ++t) {
+    StereoFrame frame = ShadeFrame(g, options, t);
+    g.rec.left.push_back(frame.left);
+    g.rec.right.push_back(frame.right);
+    g.rec.pattern_ids.push_back(frame.pattern_id);
+  }
+  return std::move(g.rec);
+}
+
+void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions& options, const std::string& folder,
+                             const SynthWriteOptions& write_options) {
+  const std::unique_ptr<RecordingWriter> writer = OpenWriter(recording, options, folder, write_options);
+  WriteGroundTruth(recording, folder);
+  for (size_t t = 0; t < recording.left.size(); ++t) {
+    StereoFrame frame;
+    frame.left = recording.left[t];
+    frame.right = recording.right[t];
+    frame.index = static_cast<std::int64_t>(t);
+    frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
+    frame.pattern_id = recording.pattern_ids[t];
+    writer->Write(frame);
+  }
+  writer->Finish();
+}
+
+SynthRecording WriteSynthetic(const SynthOptions& options, const std::string& folder,
+                              const SynthWriteOptions& write_options) {
+  SynthGeometry g = BuildGeometry(options);
+  const std::unique_ptr<RecordingWriter> writer = OpenWriter(g.rec, options, folder, write_options);
+  WriteGroundTruth(g.rec, folder);  // it holds for every frame: a recording stopped early is whole as far as it goes
+  for (int t = 0; t < options.frames; ++t) {
+    if (write_options.stop && write_options.stop->load()) break;
+    const StereoFrame frame = ShadeFrame(g, options, t);
+    writer->Write(frame);
+    g.rec.pattern_ids.push_back(frame.pattern_id);
+    if (write_options.progress) write_options.progress(static_cast<double>(t + 1) / options.frames, "frames");
+  }
+  const int written = static_cast<int>(g.rec.pattern_ids.size());
+  RecordingMeta extra;
+  if (written < options.frames) {
+    extra["frames"] = std::to_string(written);
+    extra["stopped"] = StrCat("by request after ", written, " of ", options.frames, " frames");
+  }
+  writer->Finish(extra);
+  return std::move(g.rec);
 }
 
 }  // namespace rangebayes

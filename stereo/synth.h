@@ -2,6 +2,7 @@
 // demo input of the stereo and space-time matchers.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "calibration/stereo_rig.h"
 #include "core/camera.h"
+#include "core/progress.h"
 
 namespace rangebayes {
 
@@ -80,16 +82,26 @@ struct SynthRecording {
 // by the projector with cast shadows, supersampled, then noise and 8-bit quantisation.
 SynthRecording RenderSynthetic(const SynthOptions& options);
 
-// Writes the recording format of capture/recording.h into FOLDER (rig.yaml, meta.yaml, frames.csv,
-// left/ right/ PNGs) plus ground_truth/depth_left_m.pfm and ground_truth/disparity_left_px.pfm (and, with pixel
-// jitter, ground_truth/points_left_m.pfm: the true 3-D point of each left pixel's ray, 3-channel). Throws Error
-// when FOLDER already holds a recording and `overwrite` is false, or on a write failure.
+// The recording format of capture/recording.h in FOLDER (rig.yaml, meta.yaml, frames.csv, left/ right/ PNGs) plus
+// ground_truth/depth_left_m.pfm and ground_truth/disparity_left_px.pfm (and, with pixel jitter,
+// ground_truth/points_left_m.pfm: the true 3-D point of each left pixel's ray, 3-channel). Throws Error when
+// FOLDER already holds a recording and `overwrite` is false, or on a write failure.
 struct SynthWriteOptions {
   bool overwrite = false;                      // replace a recording in the folder (RecordingWriterOptions)
   std::string overwrite_flag = "--overwrite";  // how the caller sets `overwrite`, named when it is refused
+  ProgressCallback progress;                   // WriteSynthetic: after each frame (stage "frames")
+  const std::atomic<bool>* stop = nullptr;     // WriteSynthetic: polled between frames (e.g. &StopFlag())
   void Check() const {}
 };
+
+// Writes a rendered recording.
 void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions& options, const std::string& folder,
                              const SynthWriteOptions& write_options = {});
+
+// Renders and writes frame by frame, holding one frame in memory; the ground truth is written first. On a stop
+// request the recording is finished with the frames written so far (meta.yaml: `frames` and `stopped` say how
+// many of how many). Returns the recording without its images: pattern_ids holds one id per frame written.
+SynthRecording WriteSynthetic(const SynthOptions& options, const std::string& folder,
+                              const SynthWriteOptions& write_options = {});
 
 }  // namespace rangebayes

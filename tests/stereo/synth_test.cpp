@@ -3,8 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 #include "capture/recording.h"
@@ -90,6 +92,45 @@ TEST(Synth, WritesARecordingThatReadsBack) {
   SynthWriteOptions w;
   w.overwrite = true;
   EXPECT_NO_THROW(WriteSyntheticRecording(rec, o, folder, w));
+}
+
+// Streaming: the frames written one by one are the frames rendered in memory, with progress per frame; a stop
+// request keeps the frames written before it in a finished recording with its ground truth, saying so in
+// meta.yaml (synth rendered every frame before writing any, and Ctrl-C lost them all).
+TEST(Synth, WritesFrameByFrameAndKeepsTheFramesBeforeAStop) {
+  const SynthOptions o = Small(SynthScene::kBox);
+  const SynthRecording whole = RenderSynthetic(o);
+  const std::string folder = TempPath("synth_stream_test");
+  std::filesystem::remove_all(folder);
+  std::vector<double> fractions;
+  SynthWriteOptions w;
+  w.progress = [&fractions](double fraction, std::string_view) { fractions.push_back(fraction); };
+  const SynthRecording streamed = WriteSynthetic(o, folder, w);
+  EXPECT_EQ(fractions, (std::vector<double>{1.0 / 3.0, 2.0 / 3.0, 1.0}));
+  EXPECT_EQ(streamed.pattern_ids, whole.pattern_ids);
+  EXPECT_TRUE(streamed.left.empty());
+  const Recording back = OpenRecording(folder);
+  ASSERT_EQ(back.num_frames(), 3);
+  for (int t = 0; t < 3; ++t) {
+    EXPECT_EQ(cv::norm(LoadRecordingFrame(back, t).right, whole.right[static_cast<size_t>(t)], cv::NORM_INF), 0.0);
+  }
+  EXPECT_EQ(cv::norm(ReadPfm(folder + "/ground_truth/disparity_left_px.pfm"), whole.disparity_px, cv::NORM_INF), 0.0);
+
+  std::atomic<bool> stop{false};
+  w.overwrite = true;
+  w.stop = &stop;
+  w.progress = [&stop](double fraction, std::string_view) {
+    if (fraction > 0.5) stop = true;  // after the second frame
+  };
+  const SynthRecording stopped = WriteSynthetic(o, folder, w);
+  EXPECT_EQ(stopped.pattern_ids.size(), 2u);
+  const Recording cut = OpenRecording(folder);
+  ASSERT_EQ(cut.num_frames(), 2);
+  EXPECT_EQ(cut.meta.at("complete"), "true");
+  EXPECT_EQ(cut.meta.at("frames"), "2");
+  EXPECT_EQ(cut.meta.at("stopped"), "by request after 2 of 3 frames");
+  EXPECT_EQ(cv::norm(LoadRecordingFrame(cut, 1).left, whole.left[1], cv::NORM_INF), 0.0);
+  EXPECT_TRUE(std::filesystem::exists(folder + "/ground_truth/depth_left_m.pfm"));
 }
 
 // Pixel jitter: δ has the asked σ, the ground truth is that of the jittered ray (a fronto-parallel plane keeps
