@@ -21,6 +21,18 @@ int PrintError(const CLI::App& app, const std::string& message, const char* suff
   return exit_code;
 }
 
+// "unknown subcommand 'X' (the subcommands: ...)" when the first argument is a word that names no subcommand;
+// empty otherwise.
+std::string UnknownSubcommand(const CLI::App& app, int argc, char** argv) {
+  if (argc < 2 || argv[1][0] == '-') return {};
+  std::string names;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
+    if (sub->check_name(argv[1])) return {};
+    names += (names.empty() ? "" : ", ") + sub->get_name();
+  }
+  return std::string("unknown subcommand '") + argv[1] + "' (the subcommands: " + names + ")";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -30,6 +42,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
+    // `rangebayes capture --help` printed the general help with exit 0, as if `capture` were a command.
+    const std::string unknown = UnknownSubcommand(app, argc, argv);
+    if (!unknown.empty()) return PrintError(app, unknown, " (see --help)", 2);
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
@@ -39,16 +54,9 @@ int main(int argc, char** argv) {
     // One line, exit 2, for every usage error (CLI11's own codes vary by kind).
     std::string message = e.what();
     // A first word that is no subcommand: named, with the subcommands there are (CLI11 said "A subcommand is
-    // required", and `rangebayes capture --help` printed the general help with exit 0).
-    if (argc > 1 && argv[1][0] != '-') {
-      bool known = false;
-      std::string names;
-      for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
-        known = known || sub->check_name(argv[1]);
-        names += (names.empty() ? "" : ", ") + sub->get_name();
-      }
-      if (!known) message = std::string("unknown subcommand '") + argv[1] + "' (the subcommands: " + names + ")";
-    }
+    // required").
+    const std::string unknown = UnknownSubcommand(app, argc, argv);
+    if (!unknown.empty()) message = unknown;
     for (char& c : message) {
       if (c == '\n') c = ' ';
     }

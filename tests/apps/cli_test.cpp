@@ -36,6 +36,11 @@ TEST(Cli, UnknownSubcommandIsOneLineExitTwo) {
   EXPECT_NE(r.output.find("error: unknown subcommand 'frobnicate' (the subcommands: info, "), std::string::npos)
       << r.output;
   EXPECT_EQ(r.output.find('\n'), r.output.size() - 1) << r.output;
+  // With --help it printed the general help and exit 0, as if the word were a command.
+  const RunResult help = RunRangebayes("frobnicate --help");
+  EXPECT_EQ(help.exit_code, 2);
+  EXPECT_NE(help.output.find("error: unknown subcommand 'frobnicate'"), std::string::npos) << help.output;
+  EXPECT_EQ(RunRangebayes("info --help").exit_code, 0);
 }
 
 TEST(Cli, NoSubcommandIsUsageError) {
