@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,11 +75,19 @@ RgbImage AlignedPicture(const std::vector<Scan>& scans, const std::vector<Eigen:
 
 void RunFuse(const FuseArgs& args) {
   // Finite too: an infinite one passed and failed in the renderer after the whole alignment and fusion.
-  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).norm() > 0) ||
+  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).stableNorm() > 0) ||
       !Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).allFinite()) {
     UsageError("--view needs a nonzero, finite direction x y z");
   }
   if (args.scans.size() < 2 && !args.no_align) UsageError("fuse needs at least two scans (or --no-align)");
+  // Pose files name scans by file name: two scans of one name wrote a poses.conf that fuse then refused.
+  for (size_t a = 0; a < args.scans.size(); ++a) {
+    for (size_t b = a + 1; b < args.scans.size(); ++b) {
+      if (FileBaseName(args.scans[a]) != FileBaseName(args.scans[b])) continue;
+      UsageError(StrCat(args.scans[a], " and ", args.scans[b], " have the same file name, by which poses.conf and ",
+                        "--poses name scans: rename one (or link it under another name)"));
+    }
+  }
   RangeGridScanOptions scan_options;
   scan_options.sigma_range = args.sigma_range;
   scan_options.sigma_lateral = args.sigma_lateral;
@@ -117,7 +124,7 @@ void RunFuse(const FuseArgs& args) {
   ModelSummary summary;
   const auto write_report = [&] {
     if (summary.pair_report.empty()) return;
-    std::ofstream(dir + "report.txt") << summary.pair_report;
+    WriteFileAtomically(dir + "report.txt", summary.pair_report);
     std::printf("%s", summary.pair_report.c_str());
     std::printf("report:     %sreport.txt\n", dir.c_str());
   };
@@ -130,6 +137,7 @@ void RunFuse(const FuseArgs& args) {
   }
   if (options.align) std::printf("alignment:  %s\n", summary.registration.BriefReport().c_str());
   write_report();
+  for (const std::string& notice : summary.notices) Notice(args.quiet, notice);
   std::vector<ScanPose> out_poses;
   for (size_t k = 0; k < scans.size(); ++k) out_poses.push_back({FileBaseName(scans[k].name), poses[k]});
   WriteScanPoses(out_poses, dir + "poses.conf");

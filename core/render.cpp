@@ -24,9 +24,11 @@ struct CameraAxes {
 
 CameraAxes MakeAxes(const RenderOptions& options) {
   CameraAxes axes;
-  const Eigen::Vector3d forward = options.view_direction.normalized();
+  // stableNormalized: a direction of 1e200 (or 1e-300) has a norm that overflows (underflows) as a plain sum of
+  // squares, and normalized() then gave a zero vector and a blank picture.
+  const Eigen::Vector3d forward = options.view_direction.stableNormalized();
   Eigen::Vector3d up = options.up;
-  if (up.norm() < 1e-12 || std::abs(forward.dot(up.normalized())) > 0.999) {
+  if (!(up.stableNorm() > 0) || std::abs(forward.dot(up.stableNormalized())) > 0.999) {
     // Pick the coordinate axis least aligned with the view direction.
     Eigen::Index k = 0;
     forward.cwiseAbs().minCoeff(&k);
@@ -257,7 +259,8 @@ void FillTriangle(const FaceContext& ctx, const ScreenTriangle& t, std::vector<d
 void RenderOptions::Check(const Mesh& mesh) const {
   RB_CHECK(width_px >= 1 && width_px <= 16384, "render: width_px ", width_px, " is outside [1, 16384]");
   RB_CHECK(height_px >= 1 && height_px <= 16384, "render: height_px ", height_px, " is outside [1, 16384]");
-  RB_CHECK(view_direction.allFinite() && view_direction.norm() > 0, "render: view_direction must be nonzero");
+  RB_CHECK(view_direction.allFinite() && view_direction.stableNorm() > 0,
+           "render: view_direction must be nonzero and finite");
   RB_CHECK(field_of_view_deg > 0 && field_of_view_deg < 170, "render: field_of_view_deg ", field_of_view_deg,
            " is outside (0, 170)");
   RB_CHECK(margin_fraction >= 0 && margin_fraction <= 0.45, "render: margin_fraction ", margin_fraction,

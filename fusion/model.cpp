@@ -1,6 +1,7 @@
 #include "fusion/model.h"
 
 #include <Eigen/Geometry>
+#include <cstdio>
 #include <string_view>
 #include <utility>
 
@@ -24,6 +25,7 @@ std::vector<Eigen::Isometry3d> PlaceScans(const std::vector<Scan>& scans,
   ModelSummary& out = summary != nullptr ? *summary : local;
   out.registration = {};
   out.pair_report.clear();
+  out.notices.clear();
   RB_CHECK(!scans.empty(), "no scans");
   RB_CHECK(initial_world_from_scan.size() == scans.size(), initial_world_from_scan.size(), " initial poses for ",
            scans.size(), " scans");
@@ -40,6 +42,17 @@ std::vector<Eigen::Isometry3d> PlaceScans(const std::vector<Scan>& scans,
   const std::string misaligned = CheckPoses(scans, initial_world_from_scan, options.registration, &out.registration);
   out.pair_report = FormatPairReport(out.registration, scans);
   RB_CHECK(misaligned.empty(), misaligned, "; align them first instead of fusing the given poses as they are");
+  // Two bunnies 10 cm apart were fused side by side without a word.
+  const std::vector<int>& apart = out.registration.apart;
+  if (!apart.empty()) {
+    std::string names;
+    for (const int s : apart) names += (names.empty() ? "" : ", ") + FileBaseName(scans[static_cast<size_t>(s)].name);
+    char shares[96];
+    std::snprintf(shares, sizeof(shares), "%.1f%% of the samples found a partner, %.1f%% needed to check a pose",
+                  100.0 * out.registration.apart_overlap, 100.0 * options.registration.min_overlap);
+    out.notices.push_back(StrCat(names, ": the given poses place ", apart.size() == 1 ? "it" : "them",
+                                 " apart from every other scan (", shares, "): fused there, unchecked"));
+  }
   return initial_world_from_scan;
 }
 

@@ -45,6 +45,9 @@ struct ModelSummary {
   FuseSummary fusion;
   bool decimated = false;
   DecimateSummary decimation;
+  // What the caller should hear about (PlaceScans: scans the given poses place apart from every other, fused
+  // there unchecked).
+  std::vector<std::string> notices;
 };
 
 // The poses (world_from_scan, one per scan) at which the scans are fused. align: RegisterScans (the first scan

@@ -553,7 +553,12 @@ std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::
                                     options.final_samples_per_scan, [&options](double part) {
                                       if (options.progress) options.progress(part, "checking the poses");
                                     });
-  FillPairReports(problem, &linear.systems, &local);
+  const std::vector<double> best_overlap = FillPairReports(problem, &linear.systems, &local).first;
+  for (int s = 0; s < n; ++s) {
+    if (best_overlap[s] >= options.min_overlap) continue;
+    local.apart.push_back(s);
+    local.apart_overlap = std::max(local.apart_overlap, best_overlap[s]);
+  }
   std::string worst;
   const std::vector<int> misaligned = FindMisaligned(problem, linear.systems, &worst);
   if (summary) *summary = local;

@@ -61,6 +61,10 @@ struct RegisterSummary {
   std::vector<double> cost;   // robust cost after each iteration's correspondences were built
   int finest_level_start = 0;  // index in cost of the last level's first iteration (costs compare within a level)
   std::vector<PairReport> pairs;  // pairs with at least one correspondence, a < b first, then a > b
+  // CheckPoses: the scans under min_overlap of whose samples found a partner at the given poses (not judged),
+  // and the largest share among them.
+  std::vector<int> apart;
+  double apart_overlap = 0;
   double time_s = 0;
   std::string BriefReport() const;   // one line
 };
@@ -77,7 +81,8 @@ std::vector<Eigen::Isometry3d> RegisterScans(const std::vector<Scan>& scans,
 
 // The pair report of the scans at the given poses, without moving them (what `fuse --no-align` writes): the
 // correspondences of the finest level. Returns "" when every scan passes RegisterScans' alignment test, else one
-// line naming the scans that fail it (no overlap is required: scans that meet no other are simply not judged).
+// line naming the scans that fail it. No overlap is required (a calibrated rig may place scans that meet no
+// other): scans under min_overlap are not judged, and summary->apart lists them.
 std::string CheckPoses(const std::vector<Scan>& scans, const std::vector<Eigen::Isometry3d>& poses,
                        const RegisterOptions& options = {}, RegisterSummary* summary = nullptr);
 

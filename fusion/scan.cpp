@@ -237,17 +237,23 @@ void InflateForIncidence(const RangeGridScanOptions& options, Scan* scan) {
   }
 }
 
-// A noise level as large as the scan itself, or below what float coordinates of its size can hold (7 digits), is
-// a mistake of units (millimetres given for a scan in metres, or the reverse): registration would then fail for a
-// reason it cannot name (every residual inside one σ, or a thousand σ away).
+// A noise level near the size of the scan, or a millionth of it, is a mistake of units (millimetres given for a
+// scan in metres, or the reverse): registration and fusion would then go wrong for a reason they cannot name
+// (every residual inside one σ, the discontinuity cuts off; or a thousand σ away). Real sensors lie between: a
+// long-range depth camera near 1/100 of its scene, a metrology scanner near 1e-5 of its part; a small piece of a
+// scan may be only ten times its noise. The bounds were 1 and 1e-7, which let both mistakes through on the
+// Stanford bunny scans (σ 0.2 for 0.2 mm on scans of 0.25 m; the scans in millimetres with σ in metres).
+constexpr double kMaxNoiseOfDiagonal = 0.25;
+constexpr double kMinNoiseOfDiagonal = 1e-6;
+
 void CheckNoiseAgainstScanSize(const RangeGridScanOptions& options, const Vertices& V, const std::string& name) {
   const double diagonal = BoundingBoxExtent(V).norm();
   for (const auto& [what, sigma] : {std::pair<const char*, double>{"sigma_range", options.sigma_range},
                                     std::pair<const char*, double>{"sigma_lateral", options.sigma_lateral}}) {
-    RB_CHECK(sigma < diagonal, name, ": ", what, " ", sigma, " is not smaller than the scan itself (bounding-box ",
-             "diagonal ", diagonal, "); give the noise in the scan's units");
-    RB_CHECK(sigma >= 1e-7 * diagonal, name, ": ", what, " ", sigma, " is below the precision of the scan's ",
-             "coordinates (bounding-box diagonal ", diagonal, "); give the noise in the scan's units");
+    RB_CHECK(sigma <= kMaxNoiseOfDiagonal * diagonal, name, ": ", what, " ", sigma, " is over ", kMaxNoiseOfDiagonal,
+             " of the scan's size (bounding-box diagonal ", diagonal, "); give the noise in the scan's units");
+    RB_CHECK(sigma >= kMinNoiseOfDiagonal * diagonal, name, ": ", what, " ", sigma, " is under ", kMinNoiseOfDiagonal,
+             " of the scan's size (bounding-box diagonal ", diagonal, "); give the noise in the scan's units");
   }
 }
 
@@ -311,6 +317,14 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
     for (int i = 0; i < nv; ++i) {
       const Eigen::Vector3d p = mesh.mesh.V.row(i);
       scan.ray.row(i) = p.norm() > 0 ? p.normalized() : Eigen::Vector3d(0, 0, 1);
+      // Fusion weighs each vertex by 1 / its variance along the ray: a zero or indefinite covariance made the
+      // fused mesh NaN where it fell (exit 0), as smoothing refuses it.
+      const Eigen::Matrix3d& c = mesh.covariance[static_cast<size_t>(i)];
+      Eigen::Matrix3d information;
+      const Eigen::Vector3d ray = scan.ray.row(i);
+      RB_CHECK(InformationFromCovariance(c, &information) && ray.dot(c * ray) > 0, name, ": the covariance of vertex ",
+               i,
+               " is not finite, positive semi-definite and non-zero along the ray from the sensor (the scan's origin)");
     }
     OrientTowardsSensor(&scan);
     return scan;

@@ -510,6 +510,7 @@ class ModelSummary:
     smoothing: list[SmoothSummary]
     fusion: FuseSummary
     decimation: Optional[DecimateSummary]
+    notices: list[str]
 
 def fuse(
     scans: Sequence[Union[StrPath, Mesh, NoisyMesh]],

@@ -102,7 +102,9 @@ void BindFusion(py::module_& m) {
       .def_property_readonly(
           "decimation",
           [](const ModelSummary& s) { return s.decimated ? py::cast(s.decimation) : py::object(py::none()); },
-          "DecimateSummary when decimate=True, else None");
+          "DecimateSummary when decimate=True, else None")
+      .def_readonly("notices", &ModelSummary::notices,
+                    "what fuse() also raised as UserWarnings (scans the given poses place apart from every other)");
 
   m.def(
       "fuse",
@@ -177,6 +179,7 @@ void BindFusion(py::module_& m) {
           poses = PlaceScans(scans, initial, options, &summary);
           model = FuseModel(scans, poses, options, &summary);
         }
+        WarnNotices(summary.notices, "fuse");
         return py::make_tuple(std::move(model), PosesToArray(poses), std::move(summary));
       },
       py::arg("scans"), py::arg("poses") = py::none(),

@@ -91,6 +91,20 @@ Mesh GridWithStray(bool stray) {
   return mesh;
 }
 
+// A direction is a direction at any length: 1e200 overflowed the norm and gave a blank picture, 1e-300 was refused.
+TEST(Render, TheViewDirectionsLengthDoesNotMatter) {
+  RenderOptions options;
+  options.width_px = 64;
+  options.height_px = 48;
+  options.view_direction = {-1, -1, -1};
+  const RgbImage reference = RenderMesh(UnitCube(), options);
+  for (const double scale : {1e200, 1e-300}) {
+    options.view_direction = Eigen::Vector3d(-1, -1, -1) * scale;
+    const RgbImage image = RenderMesh(UnitCube(), options);
+    EXPECT_EQ(image.rgb, reference.rgb) << "scale " << scale;
+  }
+}
+
 TEST(Render, CentralBoxLeavesOutStrayVertices) {
   const Mesh clean = GridWithStray(false), stray = GridWithStray(true);
   const Eigen::AlignedBox3d all = CentralBox(stray, 1.0);

@@ -270,6 +270,26 @@ TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
                                             poses[0].world_from_scan, poses[1].world_from_scan);
   EXPECT_LT(error.rotation_deg, 0.3) << run.output;
   EXPECT_GT(ReadMesh(dir + "/out/fused.ply").num_faces(), 5000);
+
+  // A zero covariance weighed its vertex infinitely: the fused mesh held NaN vertices, exit 0.
+  NoisyMesh zero = ReadNoisyMesh(dir + "/bun045_piece_camera.ply");
+  zero.covariance[7].setZero();
+  WriteNoisyMesh(zero, dir + "/bun045_piece_camera.ply");
+  const RunResult refused =
+      RunRangebayes("fuse " + files + "--poses " + dir + "/camera.conf --out " + dir + "/out_zero -q");
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("bun045_piece_camera.ply: the covariance of vertex 7 is not finite, positive "
+                                "semi-definite and non-zero along the ray"),
+            std::string::npos)
+      << refused.output;
+
+  // Pose files name scans by file name: two scans of one name wrote a poses.conf that fuse refused to read.
+  std::filesystem::create_directories(dir + "/again");
+  std::filesystem::copy_file(dir + "/bun000_piece_camera.ply", dir + "/again/bun000_piece_camera.ply");
+  const RunResult same = RunRangebayes("fuse " + dir + "/bun000_piece_camera.ply " + dir +
+                                       "/again/bun000_piece_camera.ply --out " + dir + "/out_same -q");
+  EXPECT_EQ(same.exit_code, 2) << same.output;
+  EXPECT_NE(same.output.find("have the same file name"), std::string::npos) << same.output;
 }
 
 // The mesh commands (info, smooth, convert, decimate) read a range-grid scan (no faces, only the grid) as `fuse`

@@ -81,6 +81,20 @@ TEST(Model, GivenPosesAreCheckedAndKept) {
   }
   EXPECT_NE(failed.pair_report.find("view1 view0 "), std::string::npos) << failed.pair_report;
 
+  // Poses that place the scans apart (no overlap) are not judged, and said: two views 10 cm apart were fused side by
+  // side without a word. A calibrated rig may place scans that meet no other, so it is no error.
+  std::vector<Eigen::Isometry3d> apart = reference;
+  apart[1].pretranslate(Eigen::Vector3d(10.0, 0, 0));
+  ModelSummary placed;
+  EXPECT_NO_THROW(PlaceScans(scans, apart, options, &placed));
+  EXPECT_EQ(placed.registration.apart, (std::vector<int>{0, 1}));
+  ASSERT_EQ(placed.notices.size(), 1u);
+  EXPECT_NE(placed.notices[0].find("view0, view1: the given poses place them apart from every other scan"),
+            std::string::npos)
+      << placed.notices[0];
+  PlaceScans(scans, reference, options, &placed);
+  EXPECT_TRUE(placed.notices.empty());
+
   const std::vector<Scan> one = {scans[0]};
   EXPECT_TRUE(PlaceScans(one, {off[1]}, options, &summary)[0].isApprox(off[1], 0.0));
   EXPECT_TRUE(summary.pair_report.empty());

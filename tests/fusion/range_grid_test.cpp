@@ -115,7 +115,9 @@ TEST(RangeGrid, BadGridsNameTheFileAndCell) {
 // instead of failing the registration later with a misleading line about the initial poses.
 TEST(RangeGrid, NoiseInTheWrongUnitsIsRefused) {
   const std::string path = std::string(RB_SOURCE_DIR) + "/tests/data/scans/bun000_piece.ply";
-  for (const double sigma : {1.0, 1e-12}) {
+  // The piece's diagonal is 0.097 m; the bounds are 0.25 and 1e-6 of it. 0.05 and 5e-8 were let through by the
+  // old bounds (1 and 1e-7), as millimetres given for metres and the reverse were on the whole bunny scans.
+  for (const double sigma : {1.0, 0.05, 1e-12, 5e-8}) {
     RangeGridScanOptions options;
     options.sigma_range = sigma;
     try {
