@@ -2,10 +2,12 @@
 // worker processes (batch/submit.h, batch/task.h).
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "apps/command.h"
@@ -55,9 +57,13 @@ void PrintTaskEnd(const BatchTaskStatus& s) {
   std::fflush(stdout);
 }
 
-// Where each subcommand of `sub` names its outputs, from its own options: an option named --out (with its short
-// name) or --png, and a positional named OUT, take output paths; a positional of several words whose help starts
-// "IN OUT" (decimate's FILES) ends with its output unless an output option is given.
+// The options that name a file or folder a command writes, whatever the command: a new option that writes must be
+// named so or added here (`learn-prior --plot` was missed, and its task wrote beside the manifest).
+constexpr std::array<std::string_view, 5> kOutputOptionNames = {"out", "png", "plot", "record", "ui-record-dir"};
+
+// Where each subcommand of `sub` names its outputs, from its own options: an option named in kOutputOptionNames
+// (with its short name), and a positional named OUT, take output paths; a positional of several words whose help
+// starts "IN OUT" (decimate's FILES) ends with its output unless an output option is given.
 void AddSyntaxes(const CLI::App& parent, const std::string& prefix, SubcommandSyntaxes* syntaxes) {
   for (const CLI::App* sub : parent.get_subcommands([](const CLI::App*) { return true; })) {
     const std::string name = prefix + sub->get_name();
@@ -66,9 +72,9 @@ void AddSyntaxes(const CLI::App& parent, const std::string& prefix, SubcommandSy
     for (const CLI::Option* opt : sub->get_options()) {
       if (opt->nonpositional()) {
         if (opt->get_type_size_max() <= 0) continue;  // a flag
-        const bool output =
-            std::find(opt->get_lnames().begin(), opt->get_lnames().end(), "out") != opt->get_lnames().end() ||
-            std::find(opt->get_lnames().begin(), opt->get_lnames().end(), "png") != opt->get_lnames().end();
+        const bool output = std::any_of(opt->get_lnames().begin(), opt->get_lnames().end(), [](const std::string& l) {
+          return std::find(kOutputOptionNames.begin(), kOutputOptionNames.end(), l) != kOutputOptionNames.end();
+        });
         for (const std::string& l : opt->get_lnames()) {
           syntax.value_options.push_back("--" + l);
           if (output) syntax.output_options.push_back("--" + l);

@@ -110,7 +110,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_flag("--no-decimate", o->no_decimate, "Skip Bayesian decimation");
   sub->add_flag("--decimate", o->decimate,
                 "With --live-path: run decimation too (off there by default: over the 2-core frame budget)");
-  sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)");
+  sub->add_option("--lambda", o->lambda, "Decimation: energy cost of one patch (unitless, > 0)")->check(PositiveReal());
   sub->add_option("--queue", o->queue_capacity, "Items waiting between two stages (1-64; 0: 4, or 1 with --live-path)")
       ->check(CLI::Range(0, 64));
   sub->add_flag("--live-path", o->live_path,

@@ -97,7 +97,8 @@ void AddMatchOptions(CLI::App* sub, MatchCliOptions* o, bool by_frames) {
          block(std::string("disparity sigma scale k (unitless); < 0: the fitted default ") +
                (by_frames ? "1.8 (1.7 with --subpixel-iterations 0)" : "1.7 (1.8 with --subpixel-iterations > 0)")))
       ->default_str(by_frames ? "1.8" : "1.7");
-  sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)");
+  sub->add_option("--max-sigma", o->max_sigma_px, "Drop pixels whose disparity sigma exceeds this (px; 0: keep all)")
+      ->check(NonNegativeReal());
   sub->add_option("--subpixel-iterations", o->subpixel_iterations,
                   block("Gauss-Newton sub-pixel steps after the parabola (0-5; 0: parabola only, fastest)"))
       ->check(CLI::Range(0, 5))

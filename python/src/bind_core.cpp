@@ -34,7 +34,7 @@ Vector Vector3(py::handle value, const std::string& what) {
                 static_cast<typename Vector::Scalar>(v[2]));
 }
 
-// render()'s defaults: the library's, in a 640×480 picture seen obliquely (as the decimate command's pictures).
+// render()'s defaults: the library's, in a 640×480 picture seen obliquely.
 RenderOptions PythonRenderDefaults() {
   RenderOptions options;
   options.width_px = 640;
@@ -389,7 +389,8 @@ DecimatedMesh (with its per-corner normals). Format by extension (.ply/.obj/.off
         return ArrayFromRgb(image);
       },
       py::arg("mesh"),
-      R"(A picture of a mesh (Mesh, NoisyMesh or DecimatedMesh) as the CLI's --png pictures draw it: (h, w, 3) uint8
+      R"(A picture of a mesh (Mesh, NoisyMesh or DecimatedMesh) with the renderer of the CLI's --png pictures (their
+sizes and views differ by command; give width_px, height_px, view_direction to match one): (h, w, 3) uint8
 RGB, z-buffered, Lambert-shaded, headless. A mesh from a depth image is seen as its camera saw it, any other along
 view_direction (default (-0.6, -0.5, -1)); frame_like: frame the view on another mesh (the noisy input of a
 smoothed result, so both pictures match). Keywords: rangebayes.RENDER_OPTIONS (width_px 640, height_px 480,

@@ -263,7 +263,7 @@ stereo every 2nd pixel, triangulation every 4th, fast smoothing within an 80 ms 
 other keywords given win over it; frames may then be dropped, counted in summary.dropped).
 smoothing takes the SmoothOptions fields and prior as smooth() does ('sqrt', 'quadratic', 'cauchy', a learned
 prior .yaml path or a LearnedPrior, whose β is used unless prior_weight is given: `replay --prior FILE`).
-CLI flags map as --num-disparities N: sgbm={"num_disparities": N} (or spacetime=...), --block B:
+CLI flags map as --num-disparities N: sgbm={"num_disparities": N} (or spacetime=...), --window B:
 sgbm={"block_size_px": B} / spacetime={"window_px": B}, --downsample N: triangulate={"downsample": N},
 --tolerance T / --max-iterations I / --prior-weight W: smoothing={...}, --lambda L: decimation={"lambda": L},
 --first/--count/--repeat: playback={...}. The GIL is released while the pipeline runs; frames that fail are

@@ -769,6 +769,14 @@ TEST(SubmitBatch, TheCliRefusesAnAbsoluteOutput) {
   EXPECT_NE(output.find("tasks.txt:2: the output '" + dir.path() + "/d.obj' is an absolute path"), std::string::npos)
       << output;
   EXPECT_FALSE(fs::exists(dir.path() + "/out"));
+  // Every option that writes is an output, --plot too (it was resolved beside the manifest like an input).
+  const std::string plot =
+      MakeManifest(dir.path(), "learn-prior --pairs in/tet.obj --out p.yaml --plot " + dir.path() + "/p.png\n");
+  EXPECT_EQ(
+      RunShell(std::string(RB_BINARY) + " batch submit " + plot + " --out " + dir.path() + "/out --local 1", &output),
+      1);
+  EXPECT_NE(output.find("tasks.txt:1: the output '" + dir.path() + "/p.png' is an absolute path"), std::string::npos)
+      << output;
 }
 
 // A line of DIR/manifest.txt edited after its task ran: the old result is not counted for the new line.
