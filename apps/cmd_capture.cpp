@@ -55,7 +55,7 @@ struct PipelineCli {
   bool no_warm_start = false;
   std::string tolerance = "default";
   std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
-  std::string prior_file;  // a learned prior (rangebayes learn-prior); empty: the square root
+  std::string prior = "sqrt";          // as `smooth --prior`: sqrt, quadratic, cauchy or a learned prior's file
   mutable std::shared_ptr<const SplinePotential> learned_prior;  // kept alive for the run's SmoothOptions
   int max_iterations = 0;
   bool no_decimate = false;
@@ -74,8 +74,10 @@ struct PipelineCli {
 
 void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_option("--noise-model", o->noise_model,
-                  "noise.yaml from 'rangebayes calibrate noise' (a learned model gives every pixel its sigma_d); a "
-                  "model of another matcher or (learned) resolution fails every frame with an error");
+                  "noise.yaml from 'rangebayes calibrate noise' (a learned model gives every pixel its sigma_d); "
+                  "--matcher spacetime takes models of 'calibrate noise --matcher block' (its configuration over the "
+                  "window's frames); a model of another matcher or (learned) resolution fails every frame with an "
+                  "error");
   sub->add_option("--matcher", o->matcher, "Stereo matcher: sgbm (OpenCV semi-global) or spacetime (ours, with sigma)")
       ->check(CLI::IsMember({"sgbm", "spacetime"}));
   sub->add_option("--window-frames", o->window_frames,
@@ -95,9 +97,7 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
   sub->add_flag("--no-smooth", o->no_smooth, "Skip Bayesian smoothing");
   AddToleranceOption(sub, &o->tolerance);
   AddPriorWeightOption(sub, &o->prior_weight);
-  sub->add_option("--prior", o->prior_file,
-                  "Learned smoothing prior FILE.yaml from 'rangebayes learn-prior' (its beta unless --prior-weight "
-                  "is given; default: the square root)");
+  AddPriorOption(sub, &o->prior);
   sub->add_option("--max-iterations", o->max_iterations, "Smoothing iteration cap (0: the tolerance preset's)")
       ->check(NonNegativeInteger());
   sub->add_option("--smooth-budget", o->smooth_budget_ms,
@@ -156,13 +156,7 @@ PipelineOptions MakePipelineOptions(const PipelineCli& o) {
   p.smooth_warm_start = !o.no_warm_start;
   p.smooth = !o.no_smooth;
   p.smoothing.tolerance = ParseSmoothTolerance(o.tolerance);
-  std::optional<LearnedPrior> prior;
-  if (!o.prior_file.empty()) {
-    prior = ReadLearnedPrior(o.prior_file);
-    o.learned_prior = std::make_shared<const SplinePotential>(prior->spline, prior->theta);
-    p.smoothing.potential = o.learned_prior.get();
-  }
-  p.smoothing.prior_weight = ResolvePriorWeight(o.prior_weight, prior ? &*prior : nullptr);
+  o.learned_prior = ApplySmoothingPrior(o.prior, o.prior_weight, &p.smoothing).potential;
   p.smoothing.max_iterations = o.max_iterations;
   p.decimate = !o.no_decimate;
   p.decimation.lambda = o.lambda;

@@ -53,14 +53,6 @@ struct SmoothArgs {
   bool quiet = false;
 };
 
-// --prior FILE.yaml: a spline potential written by `rangebayes learn-prior`.
-bool IsPriorFile(const std::string& prior) {
-  auto ends = [&](const std::string& suffix) {
-    return prior.size() > suffix.size() && prior.compare(prior.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  return ends(".yaml") || ends(".yml");
-}
-
 Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
   if (v.empty()) return Eigen::Vector3d(0, 0, -1);
   if (v.size() != 3) UsageError("--view needs three numbers x y z");
@@ -73,17 +65,9 @@ void RunSmooth(const SmoothArgs& args) {
   if (args.noise && args.sigma) UsageError("give --noise or --sigma, not both");
   const Eigen::Vector3d view = ViewDirection(args.view);
   SmoothOptions options;
-  std::unique_ptr<SplinePotential> learned;
-  std::optional<LearnedPrior> prior;
-  if (IsPriorFile(args.prior)) {
-    prior = ReadLearnedPrior(args.prior);
-    learned = std::make_unique<SplinePotential>(prior->spline, prior->theta);
-    options.potential = learned.get();
-  } else {
-    options.prior = ParsePriorKind(args.prior);
-  }
+  const SmoothingPrior smoothing_prior = ApplySmoothingPrior(args.prior, args.prior_weight, &options);
+  const std::optional<LearnedPrior>& prior = smoothing_prior.learned;
   options.tolerance = ParseSmoothTolerance(args.tolerance);
-  options.prior_weight = ResolvePriorWeight(args.prior_weight, prior ? &*prior : nullptr);
   options.sqrt_epsilon_squared = args.epsilon_squared;
   options.num_threads = args.threads;
   options.Check();
@@ -114,7 +98,7 @@ void RunSmooth(const SmoothArgs& args) {
                                       ? " (the default: " + args.prior + " records no prior_weight)"
                                       : "";
   std::printf("prior:      %s, beta %.4g%s%s\n", args.prior.c_str(), options.prior_weight, beta_source.c_str(),
-              !learned && options.prior == PriorKind::kSqrt
+              !prior && options.prior == PriorKind::kSqrt
                   ? (", eps2 " + std::to_string(options.sqrt_epsilon_squared)).c_str()
                   : "");
   std::printf("minimiser:  CG, tolerance %s, threads %s\n", args.tolerance.c_str(),
@@ -199,14 +183,7 @@ RB_REGISTER_COMMANDS(20, [](CLI::App& app) {
       ->check(PositiveReal())
       ->check(RealRange(0.0, 10.0));
   sub->add_option("--sigma", args->sigma, "Noise std in model units (> 0); instead of --noise")->check(PositiveReal());
-  sub->add_option("--prior", args->prior,
-                  "Pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
-                  "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")
-      ->check([](const std::string& v) {
-        return (v == "sqrt" || v == "quadratic" || v == "cauchy" || IsPriorFile(v))
-                   ? std::string()
-                   : std::string("expected sqrt, quadratic, cauchy or a .yaml learned prior");
-      });
+  AddPriorOption(sub, &args->prior);
   AddToleranceOption(sub, &args->tolerance);
   AddPriorWeightOption(sub, &args->prior_weight);
   sub->add_option("--eps2", args->epsilon_squared, "epsilon^2 of the sqrt potential, (0, 4]")

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "apps/command.h"
+#include "bayes/learn_prior_io.h"
 #include "core/error.h"
 #include "stereo/sgbm_matcher.h"
 
@@ -21,6 +22,17 @@ void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight) {
                   "and covariances (stereo) use beta / their pixel stride (at most 4); default: a learned prior's "
                   "own beta, else the library's measured default")
       ->check(RealRange(0.0, 1e6));
+}
+
+void AddPriorOption(CLI::App* sub, std::string* prior) {
+  sub->add_option("--prior", *prior,
+                  "Pairwise potential: sqrt (paper), quadratic, cauchy, or a learned prior FILE.yaml from "
+                  "'rangebayes learn-prior' (its beta is used unless --prior-weight is given)")
+      ->check([](const std::string& v) {
+        return (v == "sqrt" || v == "quadratic" || v == "cauchy" || IsLearnedPriorFile(v))
+                   ? std::string()
+                   : std::string("expected sqrt, quadratic, cauchy or a .yaml learned prior");
+      });
 }
 
 void AddToleranceOption(CLI::App* sub, std::string* tolerance) {

@@ -14,6 +14,9 @@ void AddQuietFlag(CLI::App* sub, bool* quiet);
 // library's rule (bayes/learn_prior_io.h ResolvePriorWeight) picks a learned prior's own β or the default.
 void AddPriorWeightOption(CLI::App* sub, std::optional<double>* prior_weight);
 
+// --prior NAME: sqrt, quadratic, cauchy or a learned prior FILE.yaml (bayes/learn_prior_io.h ApplySmoothingPrior).
+void AddPriorOption(CLI::App* sub, std::string* prior);
+
 // --tolerance fast|default|tight: the smoother's stopping preset (ParseSmoothTolerance).
 void AddToleranceOption(CLI::App* sub, std::string* tolerance);
 

@@ -252,4 +252,26 @@ double ResolvePriorWeight(std::optional<double> explicit_prior_weight, const Lea
   return SmoothOptions{}.prior_weight;
 }
 
+bool IsLearnedPriorFile(const std::string& name) {
+  const auto ends = [&](const std::string& suffix) {
+    return name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  return ends(".yaml") || ends(".yml");
+}
+
+SmoothingPrior ApplySmoothingPrior(const std::string& name, std::optional<double> explicit_prior_weight,
+                                   SmoothOptions* options) {
+  SmoothingPrior result;
+  if (IsLearnedPriorFile(name)) {
+    result.learned = ReadLearnedPrior(name);
+    result.potential = std::make_shared<const SplinePotential>(result.learned->spline, result.learned->theta);
+    options->potential = result.potential.get();
+  } else {
+    options->prior = ParsePriorKind(name);
+    options->potential = nullptr;
+  }
+  options->prior_weight = ResolvePriorWeight(explicit_prior_weight, result.learned ? &*result.learned : nullptr);
+  return result;
+}
+
 }  // namespace rangebayes

@@ -5,10 +5,12 @@
 
 #include <Eigen/Core>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "bayes/smooth.h"
 #include "bayes/spline_potential.h"
 
 namespace rangebayes {
@@ -39,6 +41,20 @@ LearnedPrior ReadLearnedPrior(const std::string& path);
 // one, a learned prior's own β (when it records one, > 0); otherwise SmoothOptions{}.prior_weight.
 // learned may be null (no learned prior).
 double ResolvePriorWeight(std::optional<double> explicit_prior_weight, const LearnedPrior* learned);
+
+// True for a name that is a learned prior's file (.yaml or .yml), not a potential's name.
+bool IsLearnedPriorFile(const std::string& name);
+
+// The prior of a smoothing run by name, one rule for every entry point (`smooth --prior`, `replay`/`live --prior`,
+// Python): "sqrt", "quadratic" or "cauchy" set options->prior; a learned prior's file sets options->potential to
+// its spline (held by the result: keep it alive while the options are used). options->prior_weight then follows
+// ResolvePriorWeight. Throws Error on another name or a bad file. (`replay --prior cauchy` was refused as a file.)
+struct SmoothingPrior {
+  std::optional<LearnedPrior> learned;               // when the name is a file
+  std::shared_ptr<const SplinePotential> potential;  // its spline, which options->potential points at
+};
+SmoothingPrior ApplySmoothingPrior(const std::string& name, std::optional<double> explicit_prior_weight,
+                                   SmoothOptions* options);
 
 // A list of training pairs: one `NOISY GROUND_TRUTH` per line (paths without spaces, relative ones taken from
 // the list's folder), blank lines and `#` comments skipped. A comment `# noise: KIND k=K` (what synth-meshes

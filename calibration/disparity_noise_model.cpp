@@ -198,7 +198,12 @@ double DisparityNoiseModel::Apply(double sigma_pred_px, double jump_px) const {
 void DisparityNoiseModel::CheckApplicable(const std::string& matcher_name, int width_px,
                                           const std::string& what) const {
   RB_CHECK(matcher.empty() || matcher == matcher_name, what, ": the noise model was fitted for matcher '", matcher,
-           "', not '", matcher_name, "'");
+           "', not '", matcher_name, "'",
+           matcher == "spacetime" && matcher_name == "block"
+               ? " ('spacetime' models describe the static-scene preset of `rangebayes spacetime`; replay's and "
+                 "live's space-time matcher is the block matcher over the window's frames: fit one with "
+                 "`calibrate noise --matcher block`)"
+               : "");
   if (form != NoiseForm::kLearned) return;
   RB_CHECK(width_px >= 0.75 * width_min_px && width_px <= 1.25 * width_max_px, what,
            ": the noise model was fitted on images ", width_min_px, "-", width_max_px, " px wide, not ", width_px,

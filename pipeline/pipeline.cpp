@@ -547,7 +547,11 @@ class Stages {
     if (d.range_end_fraction >= kRangeEndWarning) ++range_end->results;
     range_end->max = std::max(range_end->max, d.range_end_fraction);
     if (options.noise_model) {
-      const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "spacetime";
+      // The space-time matcher of the pipeline runs the block matcher's configuration (SpaceTimeMatcherOptions{})
+      // over the window's frames: the models of `calibrate noise --matcher block` are fitted on it (σ_pred, from
+      // the cost's curvature, carries the frame count). Its 'spacetime' models are of `rangebayes spacetime`'s
+      // static-scene preset (another window, a Gauss–Newton step), and the default 'block' model was refused.
+      const char* name = item.settings.matcher == PipelineMatcher::kSgbm ? "sgbm" : "block";
       options.noise_model->CheckApplicable(name, d.disparity_px.cols, options.noise_model_name);
       if (options.noise_model->form == NoiseForm::kLearned) {
         d.sigma_disparity_px =

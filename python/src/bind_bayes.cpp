@@ -23,13 +23,6 @@ std::optional<double> OptionalNumber(py::handle value, const char* name) {
   return number;
 }
 
-bool IsPriorFile(const std::string& prior) {
-  auto ends = [&](const std::string& suffix) {
-    return prior.size() > suffix.size() && prior.compare(prior.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  return ends(".yaml") || ends(".yml");
-}
-
 }  // namespace
 
 void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* options,
@@ -43,7 +36,7 @@ void ApplySmoothingPrior(py::handle prior, bool beta_given, SmoothOptions* optio
     p = &*read;
   } else if (py::isinstance<py::str>(prior)) {
     const std::string name = prior.cast<std::string>();
-    if (IsPriorFile(name)) {
+    if (IsLearnedPriorFile(name)) {
       read = ReadLearnedPrior(name);
       p = &*read;
     } else {

@@ -82,6 +82,39 @@ TEST(ReplayCli, BundledRecordingEndToEnd) {
       << r.output;
 }
 
+// The model `calibrate noise` writes by default (the block matcher) is the one replay's space-time matcher takes:
+// it runs that configuration over the window's frames. It was refused ("fitted for matcher 'block', not
+// 'spacetime'"), and a model of `rangebayes spacetime`'s static-scene preset was taken instead.
+TEST(ReplayCli, TheSpaceTimeMatcherTakesTheBlockMatchersNoiseModel) {
+  const TempDir dir("cli_replay_noise");
+  const auto model = [&](const std::string& matcher) {
+    const std::string path = dir.path() + "/" + matcher + ".yaml";
+    std::ofstream(path) << "%YAML:1.0\n---\nform: constant\nsigma_px: 0.3\nmatcher: " << matcher << "\n";
+    return path;
+  };
+  const std::string replay = std::string("replay ") + kBundled +
+                             " --matcher spacetime --count 1 --downsample 4 --tolerance fast --no-decimate --out " +
+                             dir.path();
+  RunResult r = RunRangebayes(replay + "/block --noise-model " + model("block"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes(replay + "/spacetime --noise-model " + model("spacetime"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("fitted for matcher 'spacetime', not 'block'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("fit one with `calibrate noise --matcher block`"), std::string::npos) << r.output;
+}
+
+// --prior takes what `smooth --prior` takes, names too (`replay --prior cauchy` was refused as an unreadable file).
+TEST(ReplayCli, ThePriorIsNamedAsInSmooth) {
+  const TempDir dir("cli_replay_prior");
+  const std::string replay = std::string("replay ") + kBundled +
+                             " --count 1 --downsample 4 --tolerance fast --no-decimate --out " + dir.path();
+  RunResult r = RunRangebayes(replay + "/cauchy --prior cauchy");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = RunRangebayes(replay + "/other --prior huber");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("expected sqrt, quadratic, cauchy or a .yaml learned prior"), std::string::npos) << r.output;
+}
+
 // A space-time window longer than the recording matches nothing: the error points at the note that says why (it
 // pointed at "the errors above", of which there were none).
 TEST(ReplayCli, AWindowLongerThanTheRecordingPointsAtTheNote) {
