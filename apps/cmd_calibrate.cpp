@@ -237,13 +237,7 @@ void RunNoise(const NoiseArgs& a, const CLI::App& sub) {
   const DisparityNoiseModel model = CalibrateDisparityNoise(rec, rig, options, &summary);
   WriteDisparityNoiseModel(model, a.out);
   std::fputs(summary.BriefReport(model).c_str(), stdout);
-  // A plane that most pixels miss: a search range beside the plane's disparities (the model of a fit to mismatches
-  // was written without a word, σ 20x the true one) or a target that is not one plane.
-  if (summary.plane.ransac_inliers < 0.7 * summary.plane.observations) {
-    Notice(a.quiet, StrCat("warning: only ", summary.plane.ransac_inliers, " of ", summary.plane.observations,
-                           " disparities lie on the fitted plane: check that --min-disparity and --num-disparities "
-                           "cover the plane and that the recording shows one plane"));
-  }
+  for (const std::string& notice : summary.notices) Notice(a.quiet, notice);
   std::printf("wrote %s (%s, %d samples)\n", a.out.c_str(), NoiseFormName(model.form), model.samples);
   if (!a.png.empty()) {
     WritePng(NoiseReportFigure(summary.samples, model, summary.fit), a.png);

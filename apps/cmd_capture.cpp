@@ -55,7 +55,7 @@ struct PipelineCli {
   bool no_warm_start = false;
   std::string tolerance = "default";
   std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
-  std::string prior = "sqrt";          // as `smooth --prior`: sqrt, quadratic, cauchy or a learned prior's file
+  std::string prior = PriorKindName(SmoothOptions{}.prior);      // as `smooth --prior` takes it
   mutable std::shared_ptr<const SplinePotential> learned_prior;  // kept alive for the run's SmoothOptions
   int max_iterations = 0;
   bool no_decimate = false;

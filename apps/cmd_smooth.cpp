@@ -32,7 +32,7 @@ struct SmoothArgs {
   std::string output;
   std::optional<double> noise;  // empty: the file's covariances, else estimated
   std::optional<double> sigma;
-  std::string prior = "sqrt";
+  std::string prior = PriorKindName(SmoothOptions{}.prior);
   std::string tolerance = "default";
   std::optional<double> prior_weight;  // empty: ResolvePriorWeight's rule
   double epsilon_squared = SmoothOptions{}.sqrt_epsilon_squared;

@@ -137,10 +137,4 @@ CLI::Validator CountOrAll() {
   });
 }
 
-CLI::Validator NotNaN() {
-  return RealCheck("", [](double v) {
-    return std::isnan(v) ? std::string("nan is not a value (leave the option out for the default)") : std::string();
-  });
-}
-
 }  // namespace rangebayes::apps

@@ -41,8 +41,5 @@ CLI::Validator PositiveUpTo(double hi);          // a number in (0, hi]
 CLI::Validator PositiveInteger();     // an integer > 0
 CLI::Validator NonNegativeInteger();  // an integer ≥ 0
 CLI::Validator CountOrAll();          // -1 (all) or an int count in 1..2147483647
-// Any number but NaN: for options whose absence the library marks with NaN ("estimate it"), so that a NaN given
-// is not silently taken for the option left out.
-CLI::Validator NotNaN();
 
 }  // namespace rangebayes::apps

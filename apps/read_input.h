@@ -1,5 +1,5 @@
-// Reading the input mesh of the mesh commands (`info`, `smooth`, `decimate`, `convert`) and checking their output
-// mesh, one way for all of them.
+// Reading the input mesh of the mesh commands (`smooth`, `decimate`, `convert`; `info` reads range grids and
+// meshes alike with ReadMeshOrRangeGrid) and checking their output mesh, one way for all of them.
 #pragma once
 
 #include <string>

@@ -52,6 +52,9 @@ void NoiseCalibrationOptions::Check() const {
 
 namespace {
 
+// Under this share of the disparities on the fitted plane, the model describes mismatches, not the matcher's noise.
+constexpr double kMinPlaneInlierShare = 0.7;
+
 // The matcher as its command runs it (`stereo --matcher sgbm` / `block`, `spacetime` over `frames` frames), so
 // that the model fits the disparities that command will produce: the space-time preset's Gauss–Newton step and
 // window, not the plain block matcher's parabola (whose bias the fit took for a floor, 1.4× too wide σ_d after).
@@ -120,6 +123,14 @@ DisparityNoiseModel CalibrateDisparityNoise(const Recording& recording, const St
   geometry.baseline_m = rectifier.baseline_m();
   geometry.doffs_px = rectifier.doffs_px();
   s.samples = PlaneDisparityResiduals(obs, geometry, {}, &s.plane);
+  // A plane that most pixels miss: a search range beside the plane's disparities (the model of a fit to mismatches
+  // was written without a word, σ 20x the true one) or a target that is not one plane.
+  if (s.plane.ransac_inliers < kMinPlaneInlierShare * s.plane.observations) {
+    s.notices.push_back(StrCat("warning: only ", s.plane.ransac_inliers, " of ", s.plane.observations,
+                               " disparities lie on the fitted plane: check that the disparity search range (",
+                               options.min_disparity_px, " + ", options.num_disparities,
+                               ") covers the plane and that the recording shows one plane"));
+  }
 
   const bool has_pred = !match.sigma_disparity_px.empty();
   NoiseFitOptions fit_options;

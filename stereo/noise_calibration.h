@@ -50,6 +50,8 @@ struct NoiseCalibrationSummary {
   NoiseFitSummary fit;
   double outlier_fraction = 0.0;    // of the returned model's fit
   std::vector<NoiseSample> samples;  // the residuals the model was fitted to (for NoiseReportFigure)
+  // Warnings for the caller to show (the CLI as notes, Python as UserWarnings): a plane that most disparities miss.
+  std::vector<std::string> notices;
 
   // Matcher and valid pixels, the plane, the constant and the fitted model, σ_d by depth, one per line.
   std::string BriefReport(const DisparityNoiseModel& model) const;

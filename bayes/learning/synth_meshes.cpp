@@ -233,12 +233,6 @@ std::string RightAngledShapeName(RightAngledShape shape) {
   return "?";
 }
 
-SynthNoise ParseSynthNoise(const std::string& name) {
-  if (name == "normal") return SynthNoise::kNormal;
-  if (name == "scanner") return SynthNoise::kScanner;
-  RB_FAIL("unknown synthetic noise '", name, "' (expected normal or scanner)");
-}
-
 std::string SynthNoiseName(SynthNoise noise) { return noise == SynthNoise::kNormal ? "normal" : "scanner"; }
 
 void RightAngledObjectOptions::Check() const {

@@ -17,7 +17,6 @@ enum class SynthNoise {
   kNormal,   // Gaussian along the (area-weighted) vertex normals, σ = k·l_e; no covariance stored
   kScanner,  // ray-aligned: σ_ray = k·l_e along the ray from a virtual camera, σ_ray/10 across; covariance stored
 };
-SynthNoise ParseSynthNoise(const std::string& name);  // "normal", "scanner"; Error otherwise
 std::string SynthNoiseName(SynthNoise noise);
 
 struct RightAngledObjectOptions {

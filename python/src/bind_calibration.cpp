@@ -151,6 +151,7 @@ GIL released.)");
             target_arg.is_none() ? "plane" : FieldFromPython<std::string>(target_arg, "calibrate_noise: target");
         NoiseCalibrationReport report;
         DisparityNoiseModel model;
+        std::vector<std::string> notices;  // raised once the GIL is held again
         if (target == "ground-truth") {
           GroundTruthNoiseOptions options;
           options.progress = PythonProgress(PopKeyword(kw, "progress"));
@@ -204,9 +205,11 @@ GIL released.)");
           report.brief = summary.BriefReport(model);
           report.fit = summary.fit;
           report.samples = std::move(summary.samples);
+          notices = summary.notices;
         } else {
           throw py::value_error("calibrate_noise: target '" + target + "' is not one of 'plane', 'ground-truth'");
         }
+        WarnNotices(notices, "calibrate_noise");
         return std::make_pair(std::move(model), std::move(report));
       },
       py::arg("inputs"),

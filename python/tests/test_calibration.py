@@ -88,6 +88,9 @@ def test_noise_from_a_plane_is_the_cli_model(tmp_path, cli):
         rb.calibrate_noise(rec, target="cube")
     with pytest.raises(TypeError, match="one recording folder"):
         rb.calibrate_noise([rec, rec])
+    # The warning of the CLI about a search range beside the plane is a UserWarning here (it was the CLI's alone).
+    with pytest.warns(UserWarning, match="disparities lie on the fitted plane"):
+        rb.calibrate_noise(rec, min_disparity_px=20, num_disparities=8)
     with pytest.raises(TypeError, match="rig must be a StereoRig or a rig file"):
         rb.calibrate_noise(rec, rig=5)
     with pytest.raises(TypeError, match="target: cannot convert"):

@@ -61,7 +61,7 @@ TEST(StereoCli, NoiseCalibrationOnAPlaneAtOneDepthHasNoNan) {
   // without a word, σ 20x the true one).
   r = RunRangebayes("calibrate noise " + rec + " --target plane --min-disparity 20 --num-disparities 8 --out " + out +
                     "/noise_off.yaml");
-  EXPECT_NE(r.output.find("disparities lie on the fitted plane: check that --min-disparity and --num-disparities"),
+  EXPECT_NE(r.output.find("disparities lie on the fitted plane: check that the disparity search range (20 + 8)"),
             std::string::npos)
       << r.output;
   // The block matcher reads one frame: --frames with it is a usage error (it was read and ignored).
