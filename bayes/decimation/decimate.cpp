@@ -36,6 +36,7 @@ struct Prepared {
   std::vector<int> kept_faces;     // per prepared face, its input face
   std::vector<int> split_source;   // per split vertex, its input vertex
   std::vector<char> locked;        // split vertices that share an input vertex with another copy
+  std::vector<int> weld_group;     // per split vertex: its input vertex where locked, else −1
   std::vector<Vertices> poses;     // per pose, positions of the split vertices
   EdgeTopology topology;           // of F
   std::vector<char> boundary_vertex;
@@ -152,8 +153,12 @@ void LockSharedCopies(int nv, Prepared* out, int* split_vertices, int* unreferen
   std::vector<int> copies(nv, 0);
   for (int s : out->split_source) ++copies[s];
   out->locked.assign(ns, 0);
+  out->weld_group.assign(ns, -1);
   for (int s = 0; s < ns; ++s) {
-    if (copies[out->split_source[s]] > 1) out->locked[s] = 1;
+    if (copies[out->split_source[s]] > 1) {
+      out->locked[s] = 1;
+      out->weld_group[s] = out->split_source[s];
+    }
   }
   for (int v = 0; v < nv; ++v) {
     if (copies[v] > 1) ++*split_vertices;
@@ -455,7 +460,7 @@ void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budg
     topts.record_faces = record_faces;
   }
   a->triangulation =
-      TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.locked, topts, prep.boundary_vertex);
+      TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.weld_group, topts, prep.boundary_vertex);
   CheckTopology(prep, signature, a);
   a->seconds_geometry = Seconds(t1);
 }
@@ -1132,7 +1137,7 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   flip.representative = &best->triangulation.representative;
   flip.coarse_face_patch = &best->triangulation.face_patch;
   flip.num_patches = best->num_patches;
-  flip.locked = &prep.locked;
+  flip.weld_group = &prep.weld_group;
   EdgeFlipSummary fs;
   FlipEdgesToFit(flip, options.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
   return fs.flips;
