@@ -871,10 +871,39 @@ class LambdaSearch {
     return faces < fewest_faces_ || (faces == fewest_faces_ && l > fewest_lambda_);
   }
 
+  // The faces attempt a has at the target (its triangulation recorded there, or its own when it has fewer), or
+  // −1 when it has more.
+  int FacesAtTarget(const Attempt& a) const {
+    if (!a.triangulation.recorded.empty()) return static_cast<int>(a.triangulation.recorded.front().F.rows());
+    return FacesOf(a) <= target_ ? FacesOf(a) : -1;
+  }
+
+  // Keeps a copy of the attempt at l, at the target, when it has more faces there within the target than every
+  // attempt before it (Finish's fallback where the face count jumps).
+  void RememberClosest(double l, const Attempt& attempt) {
+    const int faces = FacesAtTarget(attempt);
+    if (faces <= closest_faces_) return;
+    Attempt copy;
+    copy.face_patch = attempt.face_patch;
+    copy.num_patches = attempt.num_patches;
+    copy.stats = attempt.stats;
+    copy.seconds_partition = attempt.seconds_partition;
+    copy.seconds_geometry = attempt.seconds_geometry;
+    copy.triangulation =
+        attempt.triangulation.recorded.empty() ? attempt.triangulation : attempt.triangulation.recorded.front();
+    copy.triangulation.recorded.clear();
+    CheckTopology(prep_, signature_, &copy);
+    if (copy.fell_back) return;
+    closest_ = std::move(copy);
+    closest_faces_ = faces;
+    closest_lambda_ = l;
+  }
+
   // Records an evaluated attempt at l in the bracket. True when it fits.
   bool Apply(double l, Attempt attempt) {
     ++steps_;
     s_.seconds_search_geometry += attempt.seconds_geometry;
+    RememberClosest(l, attempt);
     const bool ok = FacesOf(attempt) <= budget_;
     if (ok) {
       if (hi_ <= 0.0 || l < hi_) {
@@ -1020,16 +1049,23 @@ class LambdaSearch {
       *lambda = hi_;
       best = std::move(fits_);
       if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
-      // No λ tried had too many: the patches need fewer faces than the target even at the smallest λ (a mesh
-      // whose flat regions merge at any λ), which the output's count alone does not say.
-      if (lo_ <= 0.0 && FacesOf(best) < target_ - 1) {
-        s_.notices.push_back(StrCat("target ", target_, " faces not reached: ", FacesOf(best), " faces at lambda ",
-                                    *lambda,
-                                    ", the smallest tried; the patches fit in fewer "
-                                    "faces at every lambda (flat regions merge at any lambda)"));
+      // The face count need not fall with λ, and where it jumps (a curved patch that keeps vertices against
+      // flipped triangles merges into one that does not) the smallest fitting λ can come far below the target.
+      // Then the attempt closest to the target within it, whichever λ it had (its patches may need more than the
+      // budget when straightened: less is left for chain detail).
+      const int found = FacesOf(best);
+      if (found < target_ - 1 && closest_faces_ > found) {
+        *lambda = closest_lambda_;
+        best = std::move(closest_);
       }
+      NoteBelowTarget(best, *lambda);
+    } else if (closest_faces_ > 0) {
+      // No λ tried fits the budget, but some fit the target with less left for chain detail: the closest to it.
+      *lambda = closest_lambda_;
+      best = std::move(closest_);
+      NoteBelowTarget(best, *lambda);
     } else {
-      // No λ tried fits the budget: the attempt with the fewest faces (at the largest λ among equals).
+      // No λ tried fits the target: the attempt with the fewest faces (at the largest λ among equals).
       *lambda = lo_;
       if (fewest_lambda_ > 0.0 && fewest_faces_ < FacesOf(too_many_)) {
         *lambda = fewest_lambda_;
@@ -1038,11 +1074,35 @@ class LambdaSearch {
         best = std::move(too_many_);
       }
       UseRecorded(prep_, options_, target_, signature_, &best);
-      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
-                                  *lambda,
-                                  ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
+      if (FacesOf(best) > target_) {
+        s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
+                                    *lambda,
+                                    ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
+      }
     }
     return best;
+  }
+
+  // A notice when the output (best, at lambda) has fewer faces than the budget and than target − 1 (the
+  // normal result: the budget filled with chain detail), saying what was reached and why.
+  void NoteBelowTarget(const Attempt& best, double lambda) {
+    const int faces = FacesOf(best);
+    if (faces >= std::min(budget_, target_ - 1)) return;
+    if (lo_ <= 0.0) {
+      // No λ tried had too many: the patches need fewer faces than the target even at the smallest λ (a mesh
+      // whose flat regions merge at any λ), which the output's count alone does not say.
+      s_.notices.push_back(StrCat("target ", target_, " faces not reached: ", faces, " faces at lambda ", lambda,
+                                  ", the smallest tried; the patches fit in fewer "
+                                  "faces at every lambda (flat regions merge at any lambda)"));
+      return;
+    }
+    s_.notices.push_back(StrCat(
+        "target ", target_, " faces not reached: ", faces, " faces (", best.num_patches,
+        best.num_patches == 1 ? " patch" : " patches", ") at lambda ", lambda,
+        ", the closest to the target of the lambdas tried; at lambda ", lo_, " the straightened patches need ",
+        FacesOf(too_many_), " faces (", too_many_.num_patches, too_many_.num_patches == 1 ? " patch" : " patches",
+        "): the face count jumps there (it need not fall with lambda: curved patches keep vertices against flipped "
+        "triangles), and no lambda tried gave a count in between"));
   }
 
   const Prepared& prep_;
@@ -1060,6 +1120,11 @@ class LambdaSearch {
   Attempt fewest_;
   int fewest_faces_ = std::numeric_limits<int>::max();
   double fewest_lambda_ = 0.0;
+  // Of all attempts, at the target (FacesAtTarget, its triangulation there), the one with the most faces within
+  // it (closest_faces_ 0: none); ties go to the first.
+  Attempt closest_;
+  int closest_faces_ = 0;
+  double closest_lambda_ = 0.0;
   double lo_ = 0.0, hi_ = 0.0;
   std::map<double, Attempt> climbs_;
   double base_lambda_ = 0.0;

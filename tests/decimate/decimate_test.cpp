@@ -802,7 +802,8 @@ TEST(Decimate, TargetThatEveryLambdaMeetsStopsAtTheSmallestLambda) {
 
 // Four separate triangles need four faces at any λ. A target below that is reported as not reachable, with
 // the fewest faces there are; it threw an internal error before (the guide found no λ that fits, and no full
-// decimation was run).
+// decimation was run). A target of exactly four is reached although no λ fits its budget (3 of 4): no notice (it
+// said "not reachable", judged against the budget instead of the output).
 TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
   std::vector<Eigen::Vector3d> V;
   std::vector<std::array<int, 3>> faces;
@@ -823,8 +824,8 @@ TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
     EXPECT_EQ(out.mesh.num_faces(), 4) << "target " << target;
     EXPECT_EQ(summary.lambda_fits, 0.0);
     bool noticed = false;
-    for (const auto& n : summary.notices) noticed |= n.find("not reachable") != std::string::npos;
-    EXPECT_TRUE(noticed) << "target " << target;
+    for (const auto& n : summary.notices) noticed |= n.find("not reach") != std::string::npos;
+    EXPECT_EQ(noticed, target < 4) << "target " << target;
     EXPECT_LE(summary.bisection_steps, 2) << "target " << target;
   }
 }
@@ -891,6 +892,34 @@ TEST(Decimate, UnreachableTargetGivesTheFewestFacesTried) {
   bool noticed = false;
   for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0;
   EXPECT_TRUE(noticed) << expected;
+}
+
+// A closed scan (100k faces) whose face count is not monotone in λ: in the search's warm-started climbs the
+// straightened patches need 13,956 faces at λ 13,035 (2 patches) and 80 at λ 13,177 (1 closed patch). Targets
+// just below the jump came out as that one patch of 80 faces without a word (380 too, though λ 114 had given 380
+// within the target); now the output is the tried result closest to the target within it, and a notice says
+// when that is still far below. No small mesh built here jumps like this (spheres, ellipsoids and tori reduce
+// smoothly with λ), so the scan from the shared data folder; skipped where it is absent.
+TEST(Decimate, TargetJustBelowAJumpInTheFaceCountIsNotSilentlyFarBelow) {
+  const std::string path = "/work/shared/data/meshes/nllr/child_noisy_n3.off";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found";
+  const Mesh child = ReadMesh(path);
+  DecimateOptions options;
+  options.target_faces = 380;
+  DecimateSummary summary;
+  DecimatedMesh out = Decimate(child, options, &summary);
+  EXPECT_GE(out.mesh.num_faces(), 379);
+  EXPECT_LE(out.mesh.num_faces(), 380);
+  for (const auto& n : summary.notices) EXPECT_EQ(n.find("not reach"), std::string::npos) << n;
+  options.target_faces = 300;
+  out = Decimate(child, options, &summary);
+  EXPECT_LE(out.mesh.num_faces(), 300);
+  if (out.mesh.num_faces() < std::min(summary.budget_faces, 299)) {
+    const std::string expected = StrCat("target 300 faces not reached: ", out.mesh.num_faces(), " faces (");
+    bool noticed = false;
+    for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0 && n.find("jumps") != std::string::npos;
+    EXPECT_TRUE(noticed) << expected;
+  }
 }
 
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
