@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -55,13 +56,9 @@ int Find(std::vector<int>& parent, int i) {
 
 // Throws unless every pose has pose 1's connectivity and positions within the scale of CheckComputableScale.
 void CheckPoses(const std::vector<Mesh>& poses) {
-  const Mesh& base = poses[0];
-  const int nv = base.num_vertices();
   for (size_t m = 0; m < poses.size(); ++m) {
-    RB_CHECK(poses[m].num_vertices() == nv && poses[m].num_faces() == base.num_faces() &&
-                 (poses[m].F.array() == base.F.array()).all(),
-             "decimate: pose ", m + 1, " does not have the connectivity of pose 1 (", poses[m].num_vertices(),
-             " vertices, ", poses[m].num_faces(), " faces vs ", nv, ", ", base.num_faces(), ")");
+    const std::string difference = ConnectivityDifference(poses[0], poses[m]);
+    RB_CHECK(difference.empty(), "decimate: pose ", m + 1, " does not have the connectivity of pose 1: ", difference);
     CheckComputableScale(poses[m].V, StrCat("decimate: pose ", m + 1));
   }
 }
@@ -1325,6 +1322,39 @@ void RecordOutcome(const Attempt& best, const WeldedOutput& welded, DecimateSumm
 }
 
 }  // namespace
+
+std::string ConnectivityDifference(const Mesh& first, const Mesh& pose) {
+  if (pose.num_vertices() != first.num_vertices() || pose.num_faces() != first.num_faces()) {
+    return StrCat(pose.num_vertices(), " vertices and ", pose.num_faces(), " faces against ", first.num_vertices(),
+                  " and ", first.num_faces());
+  }
+  // Faces as corner sets, to tell faces in another order from other faces.
+  auto corner_sets = [](const Faces& F) {
+    std::vector<std::array<int, 3>> sets(F.rows());
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      sets[f] = {F(f, 0), F(f, 1), F(f, 2)};
+      std::sort(sets[f].begin(), sets[f].end());
+    }
+    std::sort(sets.begin(), sets.end());
+    return sets;
+  };
+  const bool same_sets = corner_sets(first.F) == corner_sets(pose.F);
+  for (int f = 0; f < first.num_faces(); ++f) {
+    const Eigen::RowVector3i a = first.F.row(f), b = pose.F.row(f);
+    if (a == b) continue;
+    std::string what = same_sets ? "other vertices (the same triangles, in another order)" : "other vertices";
+    for (int k = 0; k < 3; ++k) {
+      if (b == Eigen::RowVector3i(a(k), a((k + 1) % 3), a((k + 2) % 3))) what = "its corners in another order";
+      if (b == Eigen::RowVector3i(a(k), a((k + 2) % 3), a((k + 1) % 3))) what = "reversed orientation";
+    }
+    int differing = 0;
+    for (int g = f; g < first.num_faces(); ++g) differing += first.F.row(g) == pose.F.row(g) ? 0 : 1;
+    return StrCat("face ", f + 1, " (counting from 1) has ", what, ", and ", differing,
+                  differing == 1 ? " face differs" : " faces differ",
+                  " (the poses need the same faces in the same order)");
+  }
+  return "";
+}
 
 void DecimateOptions::Check() const {
   RB_CHECK(lambda > 0.0 && std::isfinite(lambda), "decimate: lambda must be positive, got ", lambda);

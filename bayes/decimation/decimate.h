@@ -165,6 +165,12 @@ DecimatedMesh Decimate(const Mesh& mesh, const DecimateOptions& options = {}, De
 std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options = {},
                                             DecimateSummary* summary = nullptr);
 
+// What keeps `pose` from having the connectivity of `first` (DecimateAnimated needs the same vertex count and the
+// same faces in the same order, corners included), in words: the counts, or the first face that differs (same
+// corners reversed, rotated, or other vertices, and whether the triangles are the same in another order) and how
+// many differ; empty when they agree.
+std::string ConnectivityDifference(const Mesh& first, const Mesh& pose);
+
 // Shading error of a decimation that shares the dense mesh's patch map: the area-weighted mean angle
 // (degrees) between each dense face normal and the patch's shading normal at the face centroid, for `pose`
 // with patches `dense_face_patch` (fields fitted on that pose). Used to compare animated decimations.

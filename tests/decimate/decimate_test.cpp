@@ -1011,6 +1011,42 @@ TEST(Decimate, AnimatedPosesShareOnePatchMap) {
   EXPECT_THROW(DecimateAnimated({flat, Grid(5)}), Error);
 }
 
+// The error for poses of different connectivity said only the counts, equal when a face was reversed ("400
+// vertices, 722 faces vs 400, 722"): it says what differs.
+TEST(Decimate, ConnectivityDifferenceSaysWhatDiffers) {
+  const Mesh grid = Grid(4);
+  EXPECT_EQ(ConnectivityDifference(grid, grid), "");
+  EXPECT_EQ(ConnectivityDifference(grid, Grid(5)),
+            StrCat(Grid(5).num_vertices(), " vertices and ", Grid(5).num_faces(), " faces against ",
+                   grid.num_vertices(), " and ", grid.num_faces()));
+  Mesh reversed = grid, rotated = grid, other = grid;
+  std::swap(reversed.F(2, 1), reversed.F(2, 2));
+  std::swap(reversed.F(5, 1), reversed.F(5, 2));
+  rotated.F.row(2) << grid.F(2, 1), grid.F(2, 2), grid.F(2, 0);
+  other.F(2, 0) = grid.num_vertices() - 1;
+  EXPECT_EQ(ConnectivityDifference(grid, reversed),
+            "face 3 (counting from 1) has reversed orientation, and 2 faces differ (the poses need the same faces in "
+            "the same order)");
+  EXPECT_NE(ConnectivityDifference(grid, rotated).find("face 3 (counting from 1) has its corners in another order"),
+            std::string::npos);
+  EXPECT_NE(ConnectivityDifference(grid, other).find("face 3 (counting from 1) has other vertices, and 1 face differs"),
+            std::string::npos);
+  Mesh reordered = grid;
+  reordered.F.row(0) = grid.F.row(1);
+  reordered.F.row(1) = grid.F.row(0);
+  EXPECT_NE(
+      ConnectivityDifference(grid, reordered)
+          .find("face 1 (counting from 1) has other vertices (the same triangles, in another order), and 2 faces"),
+      std::string::npos);
+  try {
+    DecimateAnimated({grid, reversed});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pose 2 does not have the connectivity of pose 1: face 3"), std::string::npos)
+        << e.what();
+  }
+}
+
 // The repository's fandisk (CAD, creases) at 2% and 10% of its faces: valid output and no fallback.
 TEST(Decimate, FandiskAtTwoAndTenPercent) {
   const Mesh fandisk = ReadMesh("tests/data/meshes/fandisk_gt.obj");
