@@ -136,6 +136,11 @@ void Run(const DecimateArgs& a) {
     written.emplace_back("--png", a.png);
     RequireDistinctOutputs(written);
   } else {
+    // As for a pose in animated mode: the input replaced by its own result is refused before any work.
+    std::error_code error;
+    if (std::filesystem::equivalent(a.files[1], a.files[0], error)) {
+      UsageError(a.files[0] + " would be overwritten by its own result: give another OUT");
+    }
     CheckOutputMesh(a.files[1]);
     RequireDistinctOutputs({{"OUT", a.files[1]}, {"--png", a.png}});
   }
@@ -147,6 +152,9 @@ void Run(const DecimateArgs& a) {
     NoisyMesh input = ReadInputMesh(path, a.quiet);
     if (poses.empty()) first.pixel = std::move(input.pixel);
     poses.push_back(std::move(input.mesh));
+    const std::string difference = ConnectivityDifference(poses[0], poses.back());
+    RB_CHECK(difference.empty(), "decimate: ", path, " does not have the connectivity of ", inputs[0], ": ",
+             difference);
   }
   DecimateSummary s;
   std::vector<DecimatedMesh> out;
@@ -214,7 +222,7 @@ RB_REGISTER_COMMANDS(40, [](CLI::App& app) {
                   "bounding-box diagonal (with --target-faces the budget decides instead)")
       ->check(NonNegativeReal());
   sub->add_option("--chain-reserve", a->chain_reserve,
-                  "With --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 1)")
+                  "With --target-faces: share of the triangle budget kept for patch-boundary detail, in [0, 0.99]")
       ->check(RealRange(0.0, 0.99))
       ->needs(target_faces);  // without a budget there is nothing to reserve (it was accepted and did nothing)
   sub->add_flag("--uniform-weights", a->uniform, "Weight every face 1 (the paper) instead of by its area");

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -36,6 +37,7 @@ struct Prepared {
   std::vector<int> kept_faces;     // per prepared face, its input face
   std::vector<int> split_source;   // per split vertex, its input vertex
   std::vector<char> locked;        // split vertices that share an input vertex with another copy
+  std::vector<int> weld_group;     // per split vertex: its input vertex where locked, else −1
   std::vector<Vertices> poses;     // per pose, positions of the split vertices
   EdgeTopology topology;           // of F
   std::vector<char> boundary_vertex;
@@ -54,13 +56,9 @@ int Find(std::vector<int>& parent, int i) {
 
 // Throws unless every pose has pose 1's connectivity and positions within the scale of CheckComputableScale.
 void CheckPoses(const std::vector<Mesh>& poses) {
-  const Mesh& base = poses[0];
-  const int nv = base.num_vertices();
   for (size_t m = 0; m < poses.size(); ++m) {
-    RB_CHECK(poses[m].num_vertices() == nv && poses[m].num_faces() == base.num_faces() &&
-                 (poses[m].F.array() == base.F.array()).all(),
-             "decimate: pose ", m + 1, " does not have the connectivity of pose 1 (", poses[m].num_vertices(),
-             " vertices, ", poses[m].num_faces(), " faces vs ", nv, ", ", base.num_faces(), ")");
+    const std::string difference = ConnectivityDifference(poses[0], poses[m]);
+    RB_CHECK(difference.empty(), "decimate: pose ", m + 1, " does not have the connectivity of pose 1: ", difference);
     CheckComputableScale(poses[m].V, StrCat("decimate: pose ", m + 1));
   }
 }
@@ -152,8 +150,12 @@ void LockSharedCopies(int nv, Prepared* out, int* split_vertices, int* unreferen
   std::vector<int> copies(nv, 0);
   for (int s : out->split_source) ++copies[s];
   out->locked.assign(ns, 0);
+  out->weld_group.assign(ns, -1);
   for (int s = 0; s < ns; ++s) {
-    if (copies[out->split_source[s]] > 1) out->locked[s] = 1;
+    if (copies[out->split_source[s]] > 1) {
+      out->locked[s] = 1;
+      out->weld_group[s] = out->split_source[s];
+    }
   }
   for (int v = 0; v < nv; ++v) {
     if (copies[v] > 1) ++*split_vertices;
@@ -455,7 +457,7 @@ void GeometryOnce(const Prepared& prep, const DecimateOptions& options, int budg
     topts.record_faces = record_faces;
   }
   a->triangulation =
-      TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.locked, topts, prep.boundary_vertex);
+      TriangulatePatches(poses, prep.F, a->face_patch, a->num_patches, prep.weld_group, topts, prep.boundary_vertex);
   CheckTopology(prep, signature, a);
   a->seconds_geometry = Seconds(t1);
 }
@@ -866,10 +868,39 @@ class LambdaSearch {
     return faces < fewest_faces_ || (faces == fewest_faces_ && l > fewest_lambda_);
   }
 
+  // The faces attempt a has at the target (its triangulation recorded there, or its own when it has fewer), or
+  // −1 when it has more.
+  int FacesAtTarget(const Attempt& a) const {
+    if (!a.triangulation.recorded.empty()) return static_cast<int>(a.triangulation.recorded.front().F.rows());
+    return FacesOf(a) <= target_ ? FacesOf(a) : -1;
+  }
+
+  // Keeps a copy of the attempt at l, at the target, when it has more faces there within the target than every
+  // attempt before it (Finish's fallback where the face count jumps).
+  void RememberClosest(double l, const Attempt& attempt) {
+    const int faces = FacesAtTarget(attempt);
+    if (faces <= closest_faces_) return;
+    Attempt copy;
+    copy.face_patch = attempt.face_patch;
+    copy.num_patches = attempt.num_patches;
+    copy.stats = attempt.stats;
+    copy.seconds_partition = attempt.seconds_partition;
+    copy.seconds_geometry = attempt.seconds_geometry;
+    copy.triangulation =
+        attempt.triangulation.recorded.empty() ? attempt.triangulation : attempt.triangulation.recorded.front();
+    copy.triangulation.recorded.clear();
+    CheckTopology(prep_, signature_, &copy);
+    if (copy.fell_back) return;
+    closest_ = std::move(copy);
+    closest_faces_ = faces;
+    closest_lambda_ = l;
+  }
+
   // Records an evaluated attempt at l in the bracket. True when it fits.
   bool Apply(double l, Attempt attempt) {
     ++steps_;
     s_.seconds_search_geometry += attempt.seconds_geometry;
+    RememberClosest(l, attempt);
     const bool ok = FacesOf(attempt) <= budget_;
     if (ok) {
       if (hi_ <= 0.0 || l < hi_) {
@@ -1015,16 +1046,23 @@ class LambdaSearch {
       *lambda = hi_;
       best = std::move(fits_);
       if (budget_ < target_) UseRecorded(prep_, options_, target_, signature_, &best);
-      // No λ tried had too many: the patches need fewer faces than the target even at the smallest λ (a mesh
-      // whose flat regions merge at any λ), which the output's count alone does not say.
-      if (lo_ <= 0.0 && FacesOf(best) < target_ - 1) {
-        s_.notices.push_back(StrCat("target ", target_, " faces not reached: ", FacesOf(best), " faces at lambda ",
-                                    *lambda,
-                                    ", the smallest tried; the patches fit in fewer "
-                                    "faces at every lambda (flat regions merge at any lambda)"));
+      // The face count need not fall with λ, and where it jumps (a curved patch that keeps vertices against
+      // flipped triangles merges into one that does not) the smallest fitting λ can come far below the target.
+      // Then the attempt closest to the target within it, whichever λ it had (its patches may need more than the
+      // budget when straightened: less is left for chain detail).
+      const int found = FacesOf(best);
+      if (found < target_ - 1 && closest_faces_ > found) {
+        *lambda = closest_lambda_;
+        best = std::move(closest_);
       }
+      NoteBelowTarget(best, *lambda);
+    } else if (closest_faces_ > 0) {
+      // No λ tried fits the budget, but some fit the target with less left for chain detail: the closest to it.
+      *lambda = closest_lambda_;
+      best = std::move(closest_);
+      NoteBelowTarget(best, *lambda);
     } else {
-      // No λ tried fits the budget: the attempt with the fewest faces (at the largest λ among equals).
+      // No λ tried fits the target: the attempt with the fewest faces (at the largest λ among equals).
       *lambda = lo_;
       if (fewest_lambda_ > 0.0 && fewest_faces_ < FacesOf(too_many_)) {
         *lambda = fewest_lambda_;
@@ -1033,11 +1071,35 @@ class LambdaSearch {
         best = std::move(too_many_);
       }
       UseRecorded(prep_, options_, target_, signature_, &best);
-      s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
-                                  *lambda,
-                                  ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
+      if (FacesOf(best) > target_) {
+        s_.notices.push_back(StrCat("target ", target_, " faces not reachable: ", FacesOf(best), " faces at lambda ",
+                                    *lambda,
+                                    ", the fewest of the lambdas tried (the patches' corners and guarded vertices)"));
+      }
     }
     return best;
+  }
+
+  // A notice when the output (best, at lambda) has fewer faces than the budget and than target − 1 (the
+  // normal result: the budget filled with chain detail), saying what was reached and why.
+  void NoteBelowTarget(const Attempt& best, double lambda) {
+    const int faces = FacesOf(best);
+    if (faces >= std::min(budget_, target_ - 1)) return;
+    if (lo_ <= 0.0) {
+      // No λ tried had too many: the patches need fewer faces than the target even at the smallest λ (a mesh
+      // whose flat regions merge at any λ), which the output's count alone does not say.
+      s_.notices.push_back(StrCat("target ", target_, " faces not reached: ", faces, " faces at lambda ", lambda,
+                                  ", the smallest tried; the patches fit in fewer "
+                                  "faces at every lambda (flat regions merge at any lambda)"));
+      return;
+    }
+    s_.notices.push_back(StrCat(
+        "target ", target_, " faces not reached: ", faces, " faces (", best.num_patches,
+        best.num_patches == 1 ? " patch" : " patches", ") at lambda ", lambda,
+        ", the closest to the target of the lambdas tried; at lambda ", lo_, " the straightened patches need ",
+        FacesOf(too_many_), " faces (", too_many_.num_patches, too_many_.num_patches == 1 ? " patch" : " patches",
+        "): the face count jumps there (it need not fall with lambda: curved patches keep vertices against flipped "
+        "triangles), and no lambda tried gave a count in between"));
   }
 
   const Prepared& prep_;
@@ -1055,6 +1117,11 @@ class LambdaSearch {
   Attempt fewest_;
   int fewest_faces_ = std::numeric_limits<int>::max();
   double fewest_lambda_ = 0.0;
+  // Of all attempts, at the target (FacesAtTarget, its triangulation there), the one with the most faces within
+  // it (closest_faces_ 0: none); ties go to the first.
+  Attempt closest_;
+  int closest_faces_ = 0;
+  double closest_lambda_ = 0.0;
   double lo_ = 0.0, hi_ = 0.0;
   std::map<double, Attempt> climbs_;
   double base_lambda_ = 0.0;
@@ -1132,7 +1199,7 @@ int FlipEdgesBeforeRefit(const Prepared& prep, const DecimateOptions& options, A
   flip.representative = &best->triangulation.representative;
   flip.coarse_face_patch = &best->triangulation.face_patch;
   flip.num_patches = best->num_patches;
-  flip.locked = &prep.locked;
+  flip.weld_group = &prep.weld_group;
   EdgeFlipSummary fs;
   FlipEdgesToFit(flip, options.min_cos_to_patch_normal, options.refit.flip_sweeps, &best->triangulation.F, &fs);
   return fs.flips;
@@ -1255,6 +1322,39 @@ void RecordOutcome(const Attempt& best, const WeldedOutput& welded, DecimateSumm
 }
 
 }  // namespace
+
+std::string ConnectivityDifference(const Mesh& first, const Mesh& pose) {
+  if (pose.num_vertices() != first.num_vertices() || pose.num_faces() != first.num_faces()) {
+    return StrCat(pose.num_vertices(), " vertices and ", pose.num_faces(), " faces against ", first.num_vertices(),
+                  " and ", first.num_faces());
+  }
+  // Faces as corner sets, to tell faces in another order from other faces.
+  auto corner_sets = [](const Faces& F) {
+    std::vector<std::array<int, 3>> sets(F.rows());
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      sets[f] = {F(f, 0), F(f, 1), F(f, 2)};
+      std::sort(sets[f].begin(), sets[f].end());
+    }
+    std::sort(sets.begin(), sets.end());
+    return sets;
+  };
+  const bool same_sets = corner_sets(first.F) == corner_sets(pose.F);
+  for (int f = 0; f < first.num_faces(); ++f) {
+    const Eigen::RowVector3i a = first.F.row(f), b = pose.F.row(f);
+    if (a == b) continue;
+    std::string what = same_sets ? "other vertices (the same triangles, in another order)" : "other vertices";
+    for (int k = 0; k < 3; ++k) {
+      if (b == Eigen::RowVector3i(a(k), a((k + 1) % 3), a((k + 2) % 3))) what = "its corners in another order";
+      if (b == Eigen::RowVector3i(a(k), a((k + 2) % 3), a((k + 1) % 3))) what = "reversed orientation";
+    }
+    int differing = 0;
+    for (int g = f; g < first.num_faces(); ++g) differing += first.F.row(g) == pose.F.row(g) ? 0 : 1;
+    return StrCat("face ", f + 1, " (counting from 1) has ", what, ", and ", differing,
+                  differing == 1 ? " face differs" : " faces differ",
+                  " (the poses need the same faces in the same order)");
+  }
+  return "";
+}
 
 void DecimateOptions::Check() const {
   RB_CHECK(lambda > 0.0 && std::isfinite(lambda), "decimate: lambda must be positive, got ", lambda);

@@ -21,17 +21,24 @@
 // Target faces: a triangle budget is split between patches (each costs its corner vertices) and the detail
 // of the patch boundaries (chain vertices). The search finds in log λ the smallest λ (to lambda_resolution)
 // whose patches, with every chain straightened as far as the manifold and flip guards allow, fit in
-// (1 − chain_reserve_share) of the budget (fewer patches fit at larger λ, so "fits" is monotone up to the
-// hill climbing's local optima); at that λ the chains are then straightened only down to the full budget,
+// (1 − chain_reserve_share) of the budget (fewer patches usually fit at larger λ, but not always: see below); at
+// that λ the chains are then straightened only down to the full budget,
 // least chain error first, so the kept chain vertices are those where the boundaries curve most. Full
 // decimations (hill climbing + triangulation) decide the bracket; the search is guided by the hill climbing
 // alone, predicting the count from the vertices where ≥ 3 patch sides meet (times the faces per such vertex
 // measured on the last full runs, 2 before any), with power-law extrapolation and safeguarded interpolation.
 // Each round runs a full decimation at the guide's smallest fitting λ and, beside it on a second core, another
 // one resolution step below it, which counts only when the first fits. The hill climbings of the search start from the
-// partition at the smallest λ climbed (warm starts: coarsening it costs a fraction of a climb from single faces, and
-// each λ's result depends on λ alone), and the output at the full budget is recorded on the way of the fitting run's
-// chain pass.
+// partition at the smallest λ climbed (warm starts: coarsening it costs a fraction of a climb from single faces),
+// and the output at the full budget is recorded on the way of the fitting run's chain pass. A climb's local optimum
+// depends on where it starts, so a run with `lambda` set to a λ the search reports (a climb from single faces) can
+// give other patches and another face count.
+// The face count need not fall with λ: a large curved patch keeps vertices against flipped triangles, and when it
+// merges into one patch that wraps around (closed patches are reduced by other guards) the count can jump from
+// far above the target to far below it within the resolution. Where the smallest fitting λ's output comes below
+// target − 1, the output is that of the λ tried whose output at the target has the most faces within it (its
+// straightened patches may need more than the budget); a notice says so whenever the output has fewer faces than
+// both the budget and target − 1, with what was reached and why.
 #pragma once
 
 #include <string>
@@ -50,7 +57,8 @@ struct DecimateOptions {
   double lambda = 2.0;  // λ, the energy one patch costs (normal difference² × faces), > 0
   // > 0: find λ for this many output triangles (see "Target faces" above). The output normally has target_faces
   // or target_faces − 1 triangles; more when even one patch per component needs more (a notice says so), fewer
-  // when the patches at the λ found come below the target with straight chains only.
+  // when the patches at the λ found come below the target with all their chain vertices, or when the face count
+  // jumps past the target between two λ a resolution step apart (a notice says so when below the budget).
   int target_faces = 0;
   // With target_faces: share of the budget kept for patch-boundary detail, [0, 1). λ is the smallest for which
   // the patches with fully straightened chains fit in (1 − share)·target_faces triangles; the rest of the
@@ -103,8 +111,10 @@ struct DecimateSummary {
   bool converged = false;  // the last round found no improving move
   int bisection_steps = 0;  // full decimations the λ search ran
   // The λ search's final bracket (target_faces > 0): at lambda_too_many the straightened patches need
-  // faces_too_many > budget_faces triangles, at lambda_fits (the λ used) faces_fits ≤ budget_faces.
-  // lambda_too_many = 0 when even the smallest λ tried fits; lambda_fits = 0 when no λ tried fits.
+  // faces_too_many > budget_faces triangles, at lambda_fits faces_fits ≤ budget_faces. lambda_fits is the λ used
+  // unless its output came below target − 1 and another λ tried gave more faces within the target (see "Target
+  // faces"), or no λ tried fits. lambda_too_many = 0 when even the smallest λ tried fits; lambda_fits = 0 when no
+  // λ tried fits.
   int budget_faces = 0;
   double lambda_too_many = 0.0, lambda_fits = 0.0;
   int faces_too_many = 0, faces_fits = 0;
@@ -154,6 +164,12 @@ DecimatedMesh Decimate(const Mesh& mesh, const DecimateOptions& options = {}, De
 // faces and patches. Throws Error when the poses differ in vertex count or faces.
 std::vector<DecimatedMesh> DecimateAnimated(const std::vector<Mesh>& poses, const DecimateOptions& options = {},
                                             DecimateSummary* summary = nullptr);
+
+// What keeps `pose` from having the connectivity of `first` (DecimateAnimated needs the same vertex count and the
+// same faces in the same order, corners included), in words: the counts, or the first face that differs (same
+// corners reversed, rotated, or other vertices, and whether the triangles are the same in another order) and how
+// many differ; empty when they agree.
+std::string ConnectivityDifference(const Mesh& first, const Mesh& pose);
 
 // Shading error of a decimation that shares the dense mesh's patch map: the area-weighted mean angle
 // (degrees) between each dense face normal and the patch's shading normal at the face centroid, for `pose`

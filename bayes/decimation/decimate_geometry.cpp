@@ -177,7 +177,7 @@ class StarLists {
 class Reducer {
  public:
   Reducer(const std::vector<const Vertices*>& poses, const Faces& F, const std::vector<int>& face_patch,
-          int num_patches, const std::vector<char>& locked, const PatchTriangulationOptions& options,
+          int num_patches, const std::vector<int>& weld_group, const PatchTriangulationOptions& options,
           const std::vector<char>& boundary_vertex)
       : poses_(poses), patch_(face_patch), options_(options), vf_(static_cast<int>(poses[0]->rows()), F) {
     const int nv = static_cast<int>(poses[0]->rows());
@@ -233,8 +233,17 @@ class Reducer {
     kept_.assign(nv, 0);
     collapsed_to_.assign(nv, -1);
     locked_.assign(nv, 0);
+    weld_group_.assign(nv, -1);
+    if (!weld_group.empty()) {
+      RB_CHECK(static_cast<int>(weld_group.size()) == nv, "decimation: weld_group has ", weld_group.size(),
+               " entries for ", nv, " vertices");
+      weld_group_ = weld_group;
+    }
     for (int v = 0; v < nv; ++v) {
-      if (!locked.empty() && locked[v]) kept_[v] = locked_[v] = 1;
+      if (weld_group_[v] >= 0) {
+        kept_[v] = locked_[v] = 1;
+        copies_[weld_group_[v]].push_back(v);
+      }
     }
     Classify();
   }
@@ -655,6 +664,7 @@ class Reducer {
     int apex_stamp = 0;
     if (!LinkConditionHolds(v, u, &apex_stamp)) return false;
     if (locked_[u] && JoinsLockedVertices(v, u, apex_stamp)) return false;
+    if (GivesCopiesACommonNeighbour(v, u, apex_stamp)) return false;
     if (!EveryPatchKeepsAFace()) return false;
     if (!MovedFacesStayValid(v, u, apex_stamp)) return false;
     ApplyCollapse(v, u, w);
@@ -728,6 +738,37 @@ class Reducer {
       for (int x : T_[f]) {
         if (x != v && x != u && locked_[x] && stamp_[x] != apex_stamp) return true;
       }
+    }
+    return false;
+  }
+
+  // Whether moving v onto u gives two copies of one weld group a common neighbour (conservatively: any copy
+  // that v neighbours already counts as one). Welded, their two edges to it would become one, shared by the
+  // faces of both sheets: two boundary edges merge (a hole closes) or an edge gets more than two faces.
+  bool GivesCopiesACommonNeighbour(int v, int u, int apex_stamp) const {
+    if (copies_.empty()) return false;
+    for (int f : moved_) {
+      for (int x : T_[f]) {
+        if (x == v || x == u || stamp_[x] == apex_stamp) continue;  // x: a new neighbour of u
+        if (weld_group_[x] >= 0) {
+          for (int other : copies_.at(weld_group_[x])) {
+            if (other != x && (Adjacent(other, u) || Adjacent(other, v))) return true;
+          }
+        }
+        if (weld_group_[u] >= 0) {
+          for (int other : copies_.at(weld_group_[u])) {
+            if (other != u && Adjacent(other, x)) return true;
+          }
+        }
+      }
+    }
+    return false;
+  }
+
+  bool Adjacent(int a, int b) const {
+    for (int f : vf_[a]) {
+      const auto& t = T_[f];
+      if (t[0] == b || t[1] == b || t[2] == b) return true;
     }
     return false;
   }
@@ -845,7 +886,9 @@ class Reducer {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
   std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals, where a patch has no axis
   std::vector<char> boundary_, kept_;
-  std::vector<char> locked_;  // the caller's locked vertices (a subset of kept_)
+  std::vector<char> locked_;                          // the caller's welded vertices (a subset of kept_)
+  std::vector<int> weld_group_;                       // per vertex, TriangulatePatches' weld_group (−1: none)
+  std::unordered_map<int, std::vector<int>> copies_;  // per weld group, its vertices
   std::vector<int> stamp_, version_;
   std::vector<int> collapsed_to_;
   std::vector<int> nb_mark_, nb_slot_;
@@ -918,7 +961,7 @@ bool InPatchCone(const Eigen::Vector3d& cross, const Eigen::Vector3d& axis, cons
 
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,
-                                      const std::vector<char>& locked, const PatchTriangulationOptions& options,
+                                      const std::vector<int>& weld_group, const PatchTriangulationOptions& options,
                                       const std::vector<char>& boundary_vertex) {
   RB_CHECK(!poses.empty(), "decimation: no poses");
   RB_CHECK(static_cast<int>(face_patch.size()) == F.rows(), "decimation: face_patch has ", face_patch.size(),
@@ -928,7 +971,7 @@ PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses,
   for (const Vertices* V : poses) {
     RB_CHECK(V != nullptr && V->rows() == poses[0]->rows(), "decimation: poses differ in vertex count");
   }
-  Reducer reducer(poses, F, face_patch, num_patches, locked, options, boundary_vertex);
+  Reducer reducer(poses, F, face_patch, num_patches, weld_group, options, boundary_vertex);
   return reducer.Run();
 }
 

@@ -73,7 +73,7 @@ struct PatchTriangulationOptions {
 struct PatchTriangulation {
   Faces F;                      // output faces, indices into the dense vertex array
   std::vector<int> face_patch;  // per output face
-  int kept_corner_vertices = 0;     // vertices kept unconditionally (≥ 3 feature edges, locked, loop anchors)
+  int kept_corner_vertices = 0;     // vertices kept unconditionally (≥ 3 feature edges, welded, loop anchors)
   int blocked_vertices = 0;         // removable vertices kept because every collapse was refused
   int collapses = 0;
   long long collapse_attempts = 0;  // collapses tested (refused ones included)
@@ -90,14 +90,15 @@ struct PatchTriangulation {
 };
 
 // poses: M ≥ 1 vertex arrays of one connectivity F (manifold: each edge in ≤ 2 faces with opposite
-// orientation, each vertex a single fan). face_patch: per face in [0, num_patches). locked: per vertex,
-// vertices that must stay (may be empty); no collapse joins two of them by an edge F does not have (they are the
-// copies of vertices that a caller welds back together, where such an edge made in two sheets would be shared
-// by more than two faces). boundary_vertex: per vertex, 1 on the mesh boundary (empty: derived
-// here; callers that have the edge topology already pass it to save a sort).
+// orientation, each vertex a single fan). face_patch: per face in [0, num_patches). weld_group: per vertex, −1,
+// or the id shared by the copies of one vertex that the caller welds back together afterwards (may be empty).
+// Those vertices stay, and no collapse joins two of them by an edge F does not have or gives two copies of one
+// id a common neighbour that they did not have: welded, such an edge made in two sheets would be shared by
+// more than two faces, or two boundary edges would merge (closing a hole). boundary_vertex: per vertex, 1 on
+// the mesh boundary (empty: derived here; callers that have the edge topology already pass it to save a sort).
 PatchTriangulation TriangulatePatches(const std::vector<const Vertices*>& poses, const Faces& F,
                                       const std::vector<int>& face_patch, int num_patches,
-                                      const std::vector<char>& locked, const PatchTriangulationOptions& options = {},
+                                      const std::vector<int>& weld_group, const PatchTriangulationOptions& options = {},
                                       const std::vector<char>& boundary_vertex = {});
 
 // A linear normal field n(p) = a + G·(E·(p − c)) over one patch in one pose: c the weighted centroid of its

@@ -167,6 +167,9 @@ struct CoarseState {
   double area_eps;
   Vertices X;
   std::vector<std::vector<int>> star;  // per vertex, its coarse faces
+  // Per coarse face, its area vector where the refit started. Each step is held within 90° of the one before it,
+  // and every step to this too: steps that each turn a triangle by less than 90° can add up to a reversal.
+  std::vector<Eigen::Vector3d> start;
   std::vector<Eigen::Vector3d> before;  // scratch of GuardedMove
 
   // Twice the area vector of coarse face f at the current positions.
@@ -176,7 +179,8 @@ struct CoarseState {
   }
 
   // Moves v from where it is towards `target`, halving the step while a triangle of its star would lose its
-  // area, reverse or leave its patch's cone (where it was inside before; InPatchCone); false when v stays.
+  // area, reverse (against where the step or the refit started) or leave its patch's cone (where it was inside
+  // before; InPatchCone); false when v stays.
   bool GuardedMove(int v, const Eigen::Vector3d& target) {
     if (!target.allFinite()) return false;
     const Eigen::Vector3d x0 = Row(X, v);
@@ -194,7 +198,7 @@ struct CoarseState {
         const std::array<int, 3> corners = {C(f, 0), C(f, 1), C(f, 2)};
 
         const bool cone_before = InPatchCone(before[i], pn, corners, vertex_normal, min_cos);
-        ok = len > area_eps && now.dot(before[i]) > 0.0 &&
+        ok = len > area_eps && now.dot(before[i]) > 0.0 && now.dot(start[f]) > 0.0 &&
              (!cone_before || InPatchCone(now, pn, corners, vertex_normal, min_cos));
       }
       if (ok) return true;
@@ -574,9 +578,12 @@ Vertices RefitVertices(const RefitInput& in, const VertexRefitOptions& options, 
                  area_eps,
                  V,
                  std::vector<std::vector<int>>(nv),
+                 {},
                  {}};
+  st.start.resize(C.rows());
   for (int f = 0; f < C.rows(); ++f) {
     for (int j = 0; j < 3; ++j) st.star[C(f, j)].push_back(f);
+    st.start[f] = st.CrossOf(f);
   }
   std::vector<char> movable(nv, 0);
   for (int v = 0; v < nv; ++v) movable[v] = kept[v] && !st.star[v].empty() && !(has_fixed && (*in.fixed)[v]);
@@ -617,6 +624,11 @@ class Flipper {
     star_.resize(nv);
     for (int f = 0; f < C_.rows(); ++f) {
       for (int k = 0; k < 3; ++k) star_[C_(f, k)].push_back(f);
+    }
+    if (in.weld_group != nullptr && !in.weld_group->empty()) {
+      for (int v = 0; v < nv; ++v) {
+        if ((*in.weld_group)[v] >= 0) copies_[(*in.weld_group)[v]].push_back(v);
+      }
     }
     face_samples_.resize(C_.rows());
     d2_.assign(in.dense_poses.size(), std::vector<double>(nv, 0.0));
@@ -724,6 +736,21 @@ class Flipper {
     s.erase(std::find(s.begin(), s.end(), f));
   }
 
+  // Whether a new edge cd joins two welded vertices, or gives two copies of one weld group a common neighbour
+  // (welded, two edges would become one: see TriangulatePatches).
+  bool BreaksWeld(int c, int d, const std::unordered_set<uint64_t>& exists) const {
+    if (copies_.empty()) return false;
+    const std::vector<int>& group = *in_.weld_group;
+    if (group[c] >= 0 && group[d] >= 0) return true;
+    for (const auto& [x, y] : {std::make_pair(c, d), std::make_pair(d, c)}) {
+      if (group[x] < 0) continue;
+      for (int other : copies_.at(group[x])) {
+        if (other != x && exists.count(EdgeKey(other, y))) return true;
+      }
+    }
+    return false;
+  }
+
   bool TryFlip(int f1, int f2, std::unordered_set<uint64_t>* exists) {
     // f1 = (u, v, c) with the edge u → v, f2 = (v, u, d).
     int k1 = -1;
@@ -740,7 +767,7 @@ class Flipper {
       if (C_(f2, l) != u && C_(f2, l) != v) d = C_(f2, l);
     }
     if (d < 0 || d == c || exists->count(EdgeKey(c, d))) return false;
-    if (in_.locked != nullptr && !in_.locked->empty() && (*in_.locked)[c] && (*in_.locked)[d]) return false;
+    if (BreaksWeld(c, d, *exists)) return false;
     const int patch = (*in_.coarse_face_patch)[f1];
     // At the coarse positions, and at the dense ones where the refit starts (its guard then keeps the cone).
     for (size_t m = 0; m < in_.dense_poses.size(); ++m) {
@@ -798,6 +825,7 @@ class Flipper {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
   std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals where a patch has no axis
   std::vector<std::vector<int>> star_;                      // per dense vertex, its coarse faces
+  std::unordered_map<int, std::vector<int>> copies_;        // per weld group, its vertices
   std::vector<std::vector<int>> face_samples_;              // per coarse face, its dense vertices
   std::vector<std::vector<double>> d2_;                     // per pose, per dense vertex: squared distance to its face
   std::vector<char> changed_;                               // per coarse face: flipped in the last sweep
@@ -827,8 +855,8 @@ void FlipEdgesToFit(const EdgeFlipInput& in, double min_cos_to_patch_normal, int
            "decimate: edge flip patch map size mismatch");
   RB_CHECK(static_cast<Eigen::Index>(in.coarse_face_patch->size()) == coarse_F->rows(),
            "decimate: edge flip coarse patch size mismatch");
-  RB_CHECK(in.locked == nullptr || in.locked->empty() || static_cast<Eigen::Index>(in.locked->size()) == nv,
-           "decimate: edge flip locked size mismatch");
+  RB_CHECK(in.weld_group == nullptr || in.weld_group->empty() || static_cast<Eigen::Index>(in.weld_group->size()) == nv,
+           "decimate: edge flip weld_group size mismatch");
   if (max_sweeps <= 0 || coarse_F->rows() == 0) return;
   Flipper flipper(in, min_cos_to_patch_normal, coarse_F);
   s.fit_rms_before = flipper.Rms();

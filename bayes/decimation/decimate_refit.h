@@ -8,12 +8,13 @@
 //   x_v = argmin Q_v(x) + α_v ‖x − x_v⁰‖²,   α_v = regularisation · trace(quadric matrix of v) / 3
 //
 // The step towards x_v is halved up to `max_halvings` times while any triangle of v would lose area, reverse
-// its orientation or leave the cone of its patch normal (InPatchCone in bayes/decimation/decimate_geometry.h: the
-// dense normals at its corners for a closed patch); otherwise the vertex stays. Since Q_v + α_v‖·‖² is
-// convex and equals Q_v at x_v⁰, every accepted step lowers Q_v: the refit never increases the quadric error.
-// Then `fit_rounds` rounds fit the kept vertices to the dense vertices themselves (each projected onto the
-// nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser of the
-// area-weighted point-to-plane distances of the samples on its faces, weighted by their barycentric share, plus
+// its orientation (against its orientation before the step or before the refit: no sequence of moves turns a
+// triangle by more than 90°) or leave the cone of its patch normal (InPatchCone in
+// bayes/decimation/decimate_geometry.h: the dense normals at its corners for a closed patch); otherwise the vertex
+// stays. Since Q_v + α_v‖·‖² is convex and equals Q_v at x_v⁰, every accepted step lowers Q_v: the refit never
+// increases the quadric error. Then `fit_rounds` rounds fit the kept vertices to the dense vertices themselves (each
+// projected onto the nearest coarse face around the vertex it collapsed onto; per kept vertex the regularised minimiser
+// of the area-weighted point-to-plane distances of the samples on its faces, weighted by their barycentric share, plus
 // the boundary planes), under the same guard; this lowers the surface distance further (Hoppe et al. 1993).
 // That distance is one-sided: a coarse cone over a rounded tip grows outward until its faces reach the dense
 // vertices there. So the fit also holds the coarse surface on the dense one (the other half of the symmetric
@@ -80,9 +81,10 @@ Vertices RefitVertices(const RefitInput& input, const VertexRefitOptions& option
 // taken when the samples of the two faces, each moved to the nearer new triangle (first pose), come closer to
 // their faces (squared distances weighted by the dense vertex areas, summed over the poses) by more than 1e-6
 // of the sum, so that every flip lowers the sum and the sweeps end. A flip is refused when the new edge exists
-// already (so the mesh stays manifold with the same vertices, faces and patches) or joins two locked vertices, or
-// when, in any pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold
-// onto its partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
+// already (so the mesh stays manifold with the same vertices, faces and patches), joins two vertices of weld
+// groups or gives two copies of one weld group a common neighbour (TriangulatePatches' weld_group), or when, in any
+// pose, a new triangle would lose its area, leave the cone of its patch normal (InPatchCone) or fold onto its
+// partner. Sweeps over the edges in a fixed order until one flips nothing or `max_sweeps` ran.
 struct EdgeFlipInput {
   std::vector<const Vertices*> dense_poses;            // per pose, the dense positions (the samples)
   std::vector<const Vertices*> coarse_poses;           // per pose, the coarse vertices' positions; empty: dense
@@ -91,9 +93,9 @@ struct EdgeFlipInput {
   const std::vector<int>* representative = nullptr;    // per dense vertex, its kept vertex, or −1
   const std::vector<int>* coarse_face_patch = nullptr; // per coarse face, its patch
   int num_patches = 0;
-  // Per dense vertex, 1 for a vertex that is welded to others afterwards (may be null or empty): no flip makes an
-  // edge between two of them (TriangulatePatches' locked vertices).
-  const std::vector<char>* locked = nullptr;
+  // Per dense vertex, −1 or the id shared by the copies of one vertex that are welded together afterwards (may be
+  // null or empty; TriangulatePatches' weld_group).
+  const std::vector<int>* weld_group = nullptr;
 };
 
 struct EdgeFlipSummary {

@@ -175,6 +175,19 @@ TEST(DecimateCli, AnimatedWritesOneMeshPerPose) {
   EXPECT_NE(onto.output.find("would be overwritten by its own result"), std::string::npos) << onto.output;
   EXPECT_EQ(std::filesystem::last_write_time(dir + "/pose1.obj"), before);
   EXPECT_EQ(ReadMesh(dir + "/pose1.obj").F, a.F);
+
+  // A pose with a reversed face: the error names both files and what differs (it said "pose 2 does not have the
+  // connectivity of pose 1 (N vertices, M faces vs N, M)").
+  Mesh c = b;
+  std::swap(c.F(0, 1), c.F(0, 2));
+  WriteMesh(c, dir + "/pose3.obj");
+  const RunResult reversed =
+      RunRangebayes("decimate " + dir + "/pose1.obj " + dir + "/pose3.obj --out " + dir + "/out3 --lambda 5 --quiet");
+  EXPECT_EQ(reversed.exit_code, 1) << reversed.output;
+  EXPECT_NE(reversed.output.find(dir + "/pose3.obj does not have the connectivity of " + dir +
+                                 "/pose1.obj: face 1 (counting from 1) has reversed orientation"),
+            std::string::npos)
+      << reversed.output;
 }
 
 // Usage errors: exit 2 and one line that says what is wrong.
@@ -194,6 +207,30 @@ TEST(DecimateCli, UsageAndInputErrors) {
   const RunResult missing = RunRangebayes("decimate no_such_mesh.obj /tmp/rb_x.obj");
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.output.find("no_such_mesh.obj"), std::string::npos);
+}
+
+// `decimate IN IN` replaced the input by its result (exit 0) while animated mode refused a pose overwritten by
+// its own result: refused too, before any work, the input left as it was.
+TEST(DecimateCli, RefusesToOverwriteItsInput) {
+  const std::string dir = FreshTempDir("decimate_cli_in_place");
+  const Mesh a = ReadMesh("tests/data/meshes/fandisk_gt.obj");
+  WriteMesh(a, dir + "/in.obj");
+  const auto before = std::filesystem::last_write_time(dir + "/in.obj");
+  const RunResult r = RunRangebayes("decimate " + dir + "/in.obj " + dir + "/../" +
+                                    std::filesystem::path(dir).filename().string() + "/in.obj --quiet");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would be overwritten by its own result"), std::string::npos) << r.output;
+  EXPECT_EQ(std::filesystem::last_write_time(dir + "/in.obj"), before);
+  EXPECT_EQ(ReadMesh(dir + "/in.obj").F, a.F);
+}
+
+// The help said [0, 1) while the check refused values above 0.99: both say [0, 0.99].
+TEST(DecimateCli, ChainReserveHelpAndCheckAgree) {
+  const RunResult help = RunRangebayes("decimate --help");
+  EXPECT_NE(help.output.find("detail, in [0, 0.99]"), std::string::npos) << help.output;
+  const RunResult high = RunRangebayes("decimate a.obj b.obj --target-faces 10 --chain-reserve 0.995");
+  EXPECT_EQ(high.exit_code, 2) << high.output;
+  EXPECT_NE(high.output.find("[0, 0.99]"), std::string::npos) << high.output;
 }
 
 }  // namespace

@@ -7,9 +7,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <map>
+#include <numeric>
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -489,6 +492,130 @@ TEST(Decimate, WeldingSheetsSharingTwoVerticesAddsNoEdgeBetweenThem) {
   }
 }
 
+// Every output triangle that is an input triangle (the same three input vertices) faces the input's way: its
+// normal at the output positions within 90° of the input triangle's at the input positions. Returns how many
+// such triangles there are.
+int ExpectInputTrianglesKeepTheirOrientation(const Mesh& dense, const DecimatedMesh& out) {
+  std::map<std::array<int, 3>, int> by_corners;  // sorted corners → the input face
+  for (int f = 0; f < dense.num_faces(); ++f) {
+    std::array<int, 3> key = {dense.F(f, 0), dense.F(f, 1), dense.F(f, 2)};
+    std::sort(key.begin(), key.end());
+    by_corners[key] = f;
+  }
+  auto normal = [](const Mesh& m, int f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    return Eigen::Vector3d((b - a).cross(c - a));
+  };
+  int same = 0;
+  for (int f = 0; f < out.mesh.num_faces(); ++f) {
+    std::array<int, 3> key;
+    for (int k = 0; k < 3; ++k) key[k] = out.vertex_source[out.mesh.F(f, k)];
+    std::sort(key.begin(), key.end());
+    const auto it = by_corners.find(key);
+    if (it == by_corners.end()) continue;
+    ++same;
+    EXPECT_GT(normal(out.mesh, f).dot(normal(dense, it->second)), 0.0)
+        << "output face " << f << " is input face " << it->second << " reversed";
+  }
+  return same;
+}
+
+// The vertex refit held each step within 90° of the orientation just before it, so steps of less than 90° each
+// could add up to a reversal: on the noisy fandisk (σ 0.7 of the mean edge, default options) 5 output
+// triangles were input triangles reversed, none with refit_vertices = false. Heavily noisy closed and open
+// surfaces, where many output triangles are input ones (vertices blocked by the guards).
+TEST(Decimate, RefitKeepsTheOrientationOfInputTriangles) {
+  std::mt19937 rng(7);
+  int same = 0;
+  for (const bool closed : {true, false}) {
+    Mesh dense = closed ? Sphere(4) : Grid(30, 0.5);
+    const double sigma = 0.7 * MeanEdgeLength(dense);
+    std::normal_distribution<double> noise(0.0, sigma);
+    for (int v = 0; v < dense.num_vertices(); ++v) {
+      for (int c = 0; c < 3; ++c) dense.V(v, c) += noise(rng);
+    }
+    for (int target : {0, 200}) {
+      SCOPED_TRACE(::testing::Message() << (closed ? "sphere" : "grid") << ", target " << target);
+      DecimateOptions options;
+      options.target_faces = target;
+      same += ExpectInputTrianglesKeepTheirOrientation(dense, Decimate(dense, options));
+    }
+  }
+  EXPECT_GT(same, 0);  // the check had something to check
+}
+
+// A 20×20-vertex plane with 6 one-triangle holes that meet in pairs at 3 vertices (each a non-manifold vertex: two
+// fans touching there). The cut copies of such a vertex are welded back after the decimation; when a collapse
+// or flip gave both copies an edge to one third vertex, welding merged the two boundary edges and zipped the
+// holes shut (--target-faces 20 gave one boundary component, the outline, instead of 4).
+Mesh PlaneWithHolesMeetingInPairs() {
+  Mesh plane = testing::Grid(19, 19);
+  std::set<int> drop;
+  for (const auto& [i, j] : {std::pair{5, 5}, std::pair{10, 12}, std::pair{14, 6}}) {
+    drop.insert(2 * (j * 19 + i));                // cell (i, j)'s first triangle, at its corner (i, j)
+    drop.insert(2 * ((j - 1) * 19 + i - 1) + 1);  // cell (i−1, j−1)'s second triangle, at its corner (i, j)
+  }
+  Mesh zip;
+  zip.V = plane.V;
+  zip.F.resize(plane.num_faces() - static_cast<int>(drop.size()), 3);
+  int kept = 0;
+  for (int f = 0; f < plane.num_faces(); ++f) {
+    if (!drop.count(f)) zip.F.row(kept++) = plane.F.row(f);
+  }
+  return zip;
+}
+
+// Components of the graph of boundary edges (edges of one face): unlike boundary loops, well defined where a
+// vertex has several fans (the loop through it can be split there in more than one way).
+int BoundaryComponents(const Mesh& mesh) {
+  const EdgeTopology topology = ComputeEdgeTopology(mesh);
+  std::vector<int> parent(mesh.num_vertices());
+  std::iota(parent.begin(), parent.end(), 0);
+  std::function<int(int)> find = [&](int i) { return parent[i] == i ? i : parent[i] = find(parent[i]); };
+  std::set<int> on_boundary;
+  for (int e = 0; e < topology.edge_faces.rows(); ++e) {
+    if (topology.edge_faces.size(e) != 1) continue;
+    on_boundary.insert(topology.edges(e, 0));
+    on_boundary.insert(topology.edges(e, 1));
+    parent[find(topology.edges(e, 0))] = find(topology.edges(e, 1));
+  }
+  std::set<int> roots;
+  for (int v : on_boundary) roots.insert(find(v));
+  return static_cast<int>(roots.size());
+}
+
+// Vertices with more than one outgoing boundary edge: where several fans meet.
+int VerticesOfSeveralFans(const Mesh& mesh) {
+  std::set<std::pair<int, int>> directed;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    for (int k = 0; k < 3; ++k) directed.insert({mesh.F(f, k), mesh.F(f, (k + 1) % 3)});
+  }
+  std::map<int, int> open;
+  for (const auto& [a, b] : directed) open[a] += directed.count({b, a}) ? 0 : 1;
+  return static_cast<int>(std::count_if(open.begin(), open.end(), [](const auto& o) { return o.second > 1; }));
+}
+
+TEST(Decimate, HolesMeetingAtNonManifoldVerticesStayOpen) {
+  const Mesh zip = PlaneWithHolesMeetingInPairs();
+  ASSERT_EQ(BoundaryComponents(zip), 4);  // the outline, and 3 pairs of holes
+  ASSERT_EQ(VerticesOfSeveralFans(zip), 3);
+  const int zip_chi = Signature(zip)[0].first;
+  for (int target : {0, 20, 40}) {
+    SCOPED_TRACE(target);
+    DecimateOptions options;
+    options.target_faces = target;
+    const DecimatedMesh out = Decimate(zip, options);
+    EXPECT_LT(out.mesh.num_faces(), zip.num_faces());
+    EXPECT_EQ(BoundaryComponents(out.mesh), 4);  // zipped shut at target 20: 1
+    EXPECT_EQ(VerticesOfSeveralFans(out.mesh), 3);
+    const auto signature = Signature(out.mesh);
+    ASSERT_EQ(signature.size(), 1u);
+    EXPECT_EQ(signature[0].first, zip_chi);  // Euler characteristic
+    const EdgeTopology topology = ComputeEdgeTopology(out.mesh);
+    for (int e = 0; e < topology.edge_faces.rows(); ++e) EXPECT_LE(topology.edge_faces.size(e), 2);
+  }
+}
+
 // The summary speaks of the input and the output: the kept-vertex counts add up to the output's vertices (they
 // counted the cut copies: 15 for 11 output vertices here), and the components notice tells the input's one
 // component from the pieces it was cut into (it said "3 components").
@@ -675,7 +802,8 @@ TEST(Decimate, TargetThatEveryLambdaMeetsStopsAtTheSmallestLambda) {
 
 // Four separate triangles need four faces at any λ. A target below that is reported as not reachable, with
 // the fewest faces there are; it threw an internal error before (the guide found no λ that fits, and no full
-// decimation was run).
+// decimation was run). A target of exactly four is reached although no λ fits its budget (3 of 4): no notice (it
+// said "not reachable", judged against the budget instead of the output).
 TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
   std::vector<Eigen::Vector3d> V;
   std::vector<std::array<int, 3>> faces;
@@ -696,8 +824,8 @@ TEST(Decimate, TargetBelowOnePatchPerComponentIsReported) {
     EXPECT_EQ(out.mesh.num_faces(), 4) << "target " << target;
     EXPECT_EQ(summary.lambda_fits, 0.0);
     bool noticed = false;
-    for (const auto& n : summary.notices) noticed |= n.find("not reachable") != std::string::npos;
-    EXPECT_TRUE(noticed) << "target " << target;
+    for (const auto& n : summary.notices) noticed |= n.find("not reach") != std::string::npos;
+    EXPECT_EQ(noticed, target < 4) << "target " << target;
     EXPECT_LE(summary.bisection_steps, 2) << "target " << target;
   }
 }
@@ -764,6 +892,34 @@ TEST(Decimate, UnreachableTargetGivesTheFewestFacesTried) {
   bool noticed = false;
   for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0;
   EXPECT_TRUE(noticed) << expected;
+}
+
+// A closed scan (100k faces) whose face count is not monotone in λ: in the search's warm-started climbs the
+// straightened patches need 13,956 faces at λ 13,035 (2 patches) and 80 at λ 13,177 (1 closed patch). Targets
+// just below the jump came out as that one patch of 80 faces without a word (380 too, though λ 114 had given 380
+// within the target); now the output is the tried result closest to the target within it, and a notice says
+// when that is still far below. No small mesh built here jumps like this (spheres, ellipsoids and tori reduce
+// smoothly with λ), so the scan from the shared data folder; skipped where it is absent.
+TEST(Decimate, TargetJustBelowAJumpInTheFaceCountIsNotSilentlyFarBelow) {
+  const std::string path = "/work/shared/data/meshes/nllr/child_noisy_n3.off";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found";
+  const Mesh child = ReadMesh(path);
+  DecimateOptions options;
+  options.target_faces = 380;
+  DecimateSummary summary;
+  DecimatedMesh out = Decimate(child, options, &summary);
+  EXPECT_GE(out.mesh.num_faces(), 379);
+  EXPECT_LE(out.mesh.num_faces(), 380);
+  for (const auto& n : summary.notices) EXPECT_EQ(n.find("not reach"), std::string::npos) << n;
+  options.target_faces = 300;
+  out = Decimate(child, options, &summary);
+  EXPECT_LE(out.mesh.num_faces(), 300);
+  if (out.mesh.num_faces() < std::min(summary.budget_faces, 299)) {
+    const std::string expected = StrCat("target 300 faces not reached: ", out.mesh.num_faces(), " faces (");
+    bool noticed = false;
+    for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0 && n.find("jumps") != std::string::npos;
+    EXPECT_TRUE(noticed) << expected;
+  }
 }
 
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
@@ -853,6 +1009,42 @@ TEST(Decimate, AnimatedPosesShareOnePatchMap) {
   EXPECT_GT(PatchShadingErrorDeg(folded, alone.dense_face_patch), 5 * PatchShadingErrorDeg(folded, both[1].dense_face_patch));
   // Poses of different connectivity are refused.
   EXPECT_THROW(DecimateAnimated({flat, Grid(5)}), Error);
+}
+
+// The error for poses of different connectivity said only the counts, equal when a face was reversed ("400
+// vertices, 722 faces vs 400, 722"): it says what differs.
+TEST(Decimate, ConnectivityDifferenceSaysWhatDiffers) {
+  const Mesh grid = Grid(4);
+  EXPECT_EQ(ConnectivityDifference(grid, grid), "");
+  EXPECT_EQ(ConnectivityDifference(grid, Grid(5)),
+            StrCat(Grid(5).num_vertices(), " vertices and ", Grid(5).num_faces(), " faces against ",
+                   grid.num_vertices(), " and ", grid.num_faces()));
+  Mesh reversed = grid, rotated = grid, other = grid;
+  std::swap(reversed.F(2, 1), reversed.F(2, 2));
+  std::swap(reversed.F(5, 1), reversed.F(5, 2));
+  rotated.F.row(2) << grid.F(2, 1), grid.F(2, 2), grid.F(2, 0);
+  other.F(2, 0) = grid.num_vertices() - 1;
+  EXPECT_EQ(ConnectivityDifference(grid, reversed),
+            "face 3 (counting from 1) has reversed orientation, and 2 faces differ (the poses need the same faces in "
+            "the same order)");
+  EXPECT_NE(ConnectivityDifference(grid, rotated).find("face 3 (counting from 1) has its corners in another order"),
+            std::string::npos);
+  EXPECT_NE(ConnectivityDifference(grid, other).find("face 3 (counting from 1) has other vertices, and 1 face differs"),
+            std::string::npos);
+  Mesh reordered = grid;
+  reordered.F.row(0) = grid.F.row(1);
+  reordered.F.row(1) = grid.F.row(0);
+  EXPECT_NE(
+      ConnectivityDifference(grid, reordered)
+          .find("face 1 (counting from 1) has other vertices (the same triangles, in another order), and 2 faces"),
+      std::string::npos);
+  try {
+    DecimateAnimated({grid, reversed});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pose 2 does not have the connectivity of pose 1: face 3"), std::string::npos)
+        << e.what();
+  }
 }
 
 // The repository's fandisk (CAD, creases) at 2% and 10% of its faces: valid output and no fallback.
@@ -1230,15 +1422,23 @@ TEST(DecimateRefit, EdgeFlipsTakeTheDiagonalAlongARidge) {
     EXPECT_GT((b - a).cross(c - a).z(), 0.0);
   }
 
-  // Not when the new edge joins two locked vertices (copies welded back afterwards).
-  std::vector<char> locked(n * n, 0);
-  locked[c00] = locked[c11] = 1;
-  in.locked = &locked;
+  // Not when the new edge joins two welded vertices (copies of two input vertices, welded back afterwards).
+  std::vector<int> weld_group(n * n, -1);
+  weld_group[c00] = 0;
+  weld_group[c11] = 1;
+  in.weld_group = &weld_group;
   Faces held = C;
   FlipEdgesToFit(in, 0.02, 4, &held, &summary);
   EXPECT_EQ(summary.flips, 0);
   EXPECT_EQ(held, C);
-  in.locked = nullptr;
+  // Nor when it gives two copies of one vertex a common neighbour: c11 neighbours c10, the other copy of c00's
+  // group, already, and welded, the two edges to it would become one.
+  std::fill(weld_group.begin(), weld_group.end(), -1);
+  weld_group[c00] = weld_group[c10] = 0;
+  FlipEdgesToFit(in, 0.02, 4, &held, &summary);
+  EXPECT_EQ(summary.flips, 0);
+  EXPECT_EQ(held, C);
+  in.weld_group = nullptr;
 
   // An edge between two patches is a chain: never flipped. No sweeps: nothing happens.
   coarse_patch = {0, 1};
