@@ -894,32 +894,22 @@ TEST(Decimate, UnreachableTargetGivesTheFewestFacesTried) {
   EXPECT_TRUE(noticed) << expected;
 }
 
-// A closed scan (100k faces) whose face count is not monotone in λ: in the search's warm-started climbs the
-// straightened patches need 13,956 faces at λ 13,035 (2 patches) and 80 at λ 13,177 (1 closed patch). Targets
-// just below the jump came out as that one patch of 80 faces without a word (380 too, though λ 114 had given 380
-// within the target); now the output is the tried result closest to the target within it, and a notice says
-// when that is still far below. No small mesh built here jumps like this (spheres, ellipsoids and tori reduce
-// smoothly with λ), so the scan from the shared data folder; skipped where it is absent.
-TEST(Decimate, TargetJustBelowAJumpInTheFaceCountIsNotSilentlyFarBelow) {
-  const std::string path = "/work/shared/data/meshes/nllr/child_noisy_n3.off";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found";
-  const Mesh child = ReadMesh(path);
+// A mesh whose face count is not monotone in λ: the noisy fandisk (a closed scan) needs 2,282 faces at λ 2,578
+// (2 patches) and 20 at λ 2,606 (1 closed patch). A target in that gap came out as the one patch without a word
+// (the reviewer's case was a 100k-face scan at 300 faces, 80 given); the output is the tried result closest to the
+// target within it, and a notice says it is far below and why.
+TEST(Decimate, TargetInAJumpOfTheFaceCountIsNotSilentlyFarBelow) {
+  const Mesh fandisk = ReadMesh("tests/data/meshes/fandisk_noisy_gauss0.3.obj");
   DecimateOptions options;
-  options.target_faces = 380;
+  options.target_faces = 30;
   DecimateSummary summary;
-  DecimatedMesh out = Decimate(child, options, &summary);
-  EXPECT_GE(out.mesh.num_faces(), 379);
-  EXPECT_LE(out.mesh.num_faces(), 380);
-  for (const auto& n : summary.notices) EXPECT_EQ(n.find("not reach"), std::string::npos) << n;
-  options.target_faces = 300;
-  out = Decimate(child, options, &summary);
-  EXPECT_LE(out.mesh.num_faces(), 300);
-  if (out.mesh.num_faces() < std::min(summary.budget_faces, 299)) {
-    const std::string expected = StrCat("target 300 faces not reached: ", out.mesh.num_faces(), " faces (");
-    bool noticed = false;
-    for (const auto& n : summary.notices) noticed |= n.rfind(expected, 0) == 0 && n.find("jumps") != std::string::npos;
-    EXPECT_TRUE(noticed) << expected;
-  }
+  const DecimatedMesh out = Decimate(fandisk, options, &summary);
+  EXPECT_LE(out.mesh.num_faces(), 30);
+  ASSERT_LT(out.mesh.num_faces(), 29);
+  const std::string expected = StrCat("target 30 faces not reached: ", out.mesh.num_faces(), " faces (");
+  bool noticed = false;
+  for (const std::string& n : summary.notices) noticed |= n.rfind(expected, 0) == 0;
+  EXPECT_TRUE(noticed) << expected;
 }
 
 // Without a chain reserve the whole budget goes to patches: more patches than with the default reserve.
