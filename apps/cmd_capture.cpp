@@ -78,7 +78,9 @@ void AddPipelineOptions(CLI::App* sub, PipelineCli* o) {
                   "--matcher spacetime takes models of 'calibrate noise --matcher block' (its configuration over the "
                   "window's frames); a model of another matcher or (learned) resolution fails every frame with an "
                   "error");
-  sub->add_option("--matcher", o->matcher, "Stereo matcher: sgbm (OpenCV semi-global) or spacetime (ours, with sigma)")
+  sub->add_option("--matcher", o->matcher,
+                  "Stereo matcher: sgbm (OpenCV semi-global) or spacetime (ours, with sigma: the block matcher "
+                  "over --window-frames frames, not the static-scene preset of 'rangebayes spacetime')")
       ->check(CLI::IsMember({"sgbm", "spacetime"}));
   sub->add_option("--window-frames", o->window_frames,
                   "Frames per space-time window (1: single-frame stereo; >1 needs --matcher spacetime)")
