@@ -386,7 +386,7 @@ void AddSynth(CLI::App& app) {
     const SynthRecording rec = WriteSynthetic(o->s, o->out, w);
     progress.Finish();
     const int written = static_cast<int>(rec.pattern_ids.size());
-    RB_CHECK(written > 0, "synth: stopped by request before the first frame (", o->out,
+    RB_CHECK(written > 0, "stopped by request before the first frame (", o->out,
              " holds the ground truth and no frame)");
     if (written < o->s.frames) {
       Notice(false, StrCat("synth: stopped by request after ", written, " of ", o->s.frames, " frames: ", o->out,

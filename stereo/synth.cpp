@@ -519,20 +519,27 @@ SynthGeometry BuildGeometry(const SynthOptions& options) {
   return g;
 }
 
+// Frame t of a recording at 30 frames/s.
+StereoFrame MakeFrame(const cv::Mat& left, const cv::Mat& right, int t, int pattern_id) {
+  StereoFrame frame;
+  frame.left = left;
+  frame.right = right;
+  frame.index = t;
+  frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
+  frame.pattern_id = pattern_id;
+  return frame;
+}
+
 // Frame t: both images under pattern t.
 StereoFrame ShadeFrame(const SynthGeometry& g, const SynthOptions& options, int t) {
   const int w = options.width, h = options.height, ss = options.supersample;
   const PatternImage pattern(options.pattern, t, options.frames, g.pattern_width, g.pattern_height, options.seed);
   const std::uint64_t noise_seed = options.seed * 0x100000001B3ULL + static_cast<std::uint64_t>(t) * 2 + 1;
-  StereoFrame frame;
-  frame.left =
-      Shade(g.left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed);
-  frame.right = Shade(g.right, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray,
-                      noise_seed + 1);
-  frame.index = t;
-  frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
-  frame.pattern_id = pattern.pattern_id();
-  return frame;
+  return MakeFrame(
+      Shade(g.left, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray, noise_seed),
+      Shade(g.right, pattern, w, h, ss, options.ambient, options.optics_blur_px, options.image_noise_gray,
+            noise_seed + 1),
+      t, pattern.pattern_id());
 }
 
 // A recording writer for FOLDER with the scene's meta.yaml.
@@ -606,13 +613,7 @@ void WriteSyntheticRecording(const SynthRecording& recording, const SynthOptions
   const std::unique_ptr<RecordingWriter> writer = OpenWriter(recording, options, folder, write_options);
   WriteGroundTruth(recording, folder);
   for (size_t t = 0; t < recording.left.size(); ++t) {
-    StereoFrame frame;
-    frame.left = recording.left[t];
-    frame.right = recording.right[t];
-    frame.index = static_cast<std::int64_t>(t);
-    frame.timestamp_left_ns = frame.timestamp_right_ns = static_cast<std::int64_t>(t) * 33'333'333;
-    frame.pattern_id = recording.pattern_ids[t];
-    writer->Write(frame);
+    writer->Write(MakeFrame(recording.left[t], recording.right[t], static_cast<int>(t), recording.pattern_ids[t]));
   }
   writer->Finish();
 }
