@@ -304,6 +304,41 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
   return scan;
 }
 
+namespace {
+
+// The rays of a mesh scan with covariances. A ray-aligned covariance (a scanner's, a stereo mesh's) is longest
+// along its ray. Where those axes lie along the lines from the origin, the sensor is at the origin (a mesh in its
+// camera's frame, as `replay` writes them): the rays are p / |p|, and OrientTowardsSensor turns the faces to it.
+// Where they do not (a range grid read as a mesh whose scanner's origin lies inside the object, as the Stanford
+// scans'; a scan moved into world coordinates), the axes are the rays, pointed into the surface as the file's
+// faces say: the rays from the origin flipped normals there and fused the scan with holes (98 components instead
+// of 39 on two bunny scans). A mesh whose covariances are not elongated keeps the rays from the origin.
+Vertices SensorRays(const NoisyMesh& mesh, const std::string& name) {
+  const int nv = mesh.mesh.num_vertices();
+  Vertices from_origin(nv, 3), axes(nv, 3);
+  int elongated = 0, along_origin = 0;
+  for (int i = 0; i < nv; ++i) {
+    const Eigen::Vector3d p = mesh.mesh.V.row(i);
+    from_origin.row(i) = p.norm() > 0 ? p.normalized() : Eigen::Vector3d(0, 0, 1);
+    const Eigen::Matrix3d& c = mesh.covariance[static_cast<size_t>(i)];
+    RB_CHECK(c.allFinite(), name, ": the covariance of vertex ", i, " is not finite");
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(c);
+    axes.row(i) = eig.eigenvectors().col(2);
+    // Elongated: the largest variance at least twice the next (stereo and the scanners here: 10–1000×).
+    if (!(eig.eigenvalues()(2) >= 2.0 * eig.eigenvalues()(1))) continue;
+    ++elongated;
+    if (std::abs(axes.row(i).dot(from_origin.row(i))) >= std::cos(25.0 * M_PI / 180.0)) ++along_origin;
+  }
+  if (elongated < nv / 2 || along_origin >= 0.9 * elongated) return from_origin;
+  const Normals faces = AreaWeightedVertexNormals(mesh.mesh);
+  for (int i = 0; i < nv; ++i) {
+    if (axes.row(i).dot(faces.row(i)) > 0) axes.row(i) *= -1.0;
+  }
+  return axes;
+}
+
+}  // namespace
+
 Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   RB_CHECK(mesh.mesh.num_vertices() > 0 && mesh.mesh.num_faces() > 0, name,
            ": empty scan (", mesh.mesh.num_vertices(), " vertices, ", mesh.mesh.num_faces(), " faces)");
@@ -313,18 +348,15 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   const int nv = mesh.mesh.num_vertices();
   if (mesh.has_covariance()) {
     scan.noisy = mesh;
-    scan.ray.resize(nv, 3);
+    scan.ray = SensorRays(mesh, name);
     for (int i = 0; i < nv; ++i) {
-      const Eigen::Vector3d p = mesh.mesh.V.row(i);
-      scan.ray.row(i) = p.norm() > 0 ? p.normalized() : Eigen::Vector3d(0, 0, 1);
       // Fusion weighs each vertex by 1 / its variance along the ray: a zero or indefinite covariance made the
       // fused mesh NaN where it fell (exit 0), as smoothing refuses it.
       const Eigen::Matrix3d& c = mesh.covariance[static_cast<size_t>(i)];
       Eigen::Matrix3d information;
       const Eigen::Vector3d ray = scan.ray.row(i);
       RB_CHECK(InformationFromCovariance(c, &information) && ray.dot(c * ray) > 0, name, ": the covariance of vertex ",
-               i,
-               " is not finite, positive semi-definite and non-zero along the ray from the sensor (the scan's origin)");
+               i, " is not finite, positive semi-definite and non-zero along its ray");
     }
     OrientTowardsSensor(&scan);
     return scan;

@@ -279,7 +279,7 @@ TEST(FuseCli, AcceptsNoisyMeshesWithCovariances) {
       RunRangebayes("fuse " + files + "--poses " + dir + "/camera.conf --out " + dir + "/out_zero -q");
   EXPECT_EQ(refused.exit_code, 1) << refused.output;
   EXPECT_NE(refused.output.find("bun045_piece_camera.ply: the covariance of vertex 7 is not finite, positive "
-                                "semi-definite and non-zero along the ray"),
+                                "semi-definite and non-zero along its ray"),
             std::string::npos)
       << refused.output;
 

@@ -70,6 +70,24 @@ TEST(RangeGrid, StanfordPiecesReadWithFanRays) {
   EXPECT_NEAR(scan.mean_edge, 8e-4, 2e-4);  // 0.5 mm motion steps, interlaced rows, plus diagonals
 }
 
+// The same scan read as a mesh with covariances (what `convert` writes of it and Python's read_mesh returns): no
+// sensor position is known, and the Stanford scanner's origin lies inside the bunny. The rays come from the
+// covariances' long axes, pointed as the faces say; the rays from the origin flipped normals and fused the two
+// bunny scans with 98 components instead of 39.
+TEST(RangeGrid, AGridReadAsAMeshKeepsItsRays) {
+  const Scan grid = ReadScan(std::string(RB_SOURCE_DIR) + "/tests/data/scans/bun000_piece.ply");
+  const Scan mesh = MakeScanFromMesh(grid.noisy, "piece");
+  ASSERT_EQ(mesh.num_vertices(), grid.num_vertices());
+  int rays = 0, normals = 0;
+  for (int i = 0; i < grid.num_vertices(); ++i) {
+    rays += grid.ray.row(i).dot(mesh.ray.row(i)) > 0.99 ? 1 : 0;
+    normals += grid.normal.row(i).dot(mesh.normal.row(i)) > 0.99 ? 1 : 0;
+  }
+  EXPECT_GT(rays, 0.99 * grid.num_vertices());
+  EXPECT_GT(normals, 0.99 * grid.num_vertices());
+  EXPECT_EQ(mesh.noisy.mesh.F, grid.noisy.mesh.F);  // not turned over
+}
+
 TEST(RangeGrid, FacesInTheFileWinOverItsGridInBothReaders) {
   // The grid alone would give three triangles; the file lists one face of its own.
   std::string text = GridPly("1 0\n1 1\n1 2\n1 3\n1 4\n0\n");
