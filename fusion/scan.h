@@ -6,7 +6,8 @@
 //    the discontinuity cut of reconstruction/triangulate.h, and a ray-aligned covariance per vertex from the
 //    scanner geometry read off the grid (see below);
 //  - MakeScanFromMesh: a NoisyMesh with covariances (what `rangebayes replay` / `mesh` write): the covariance
-//    is kept, the ray runs from the camera at the origin of the mesh's frame;
+//    is kept, the ray runs from the camera at the origin of the mesh's frame (or, where the covariances' long
+//    axes cross the lines from the origin, along those axes, pointed as the faces say);
 //  - MakeScanFromMesh on a plain mesh: the generic noise model (bayes/noise_model.h), rays against the normals.
 #pragma once
 
@@ -67,8 +68,9 @@ Scan MakeRangeGridScan(const RangeGridScan& grid, const std::string& name, const
                        RangeGridScanSummary* summary = nullptr);
 
 // A scan from a mesh: its covariances when it has them (the sensor at the origin of its frame, as for
-// meshes from depth images), else the generic noise model and rays opposite to the vertex normals. Throws
-// Error naming the scan when it has no faces.
+// meshes from depth images; rays along the covariances' long axes where those cross the lines from the origin,
+// as for a range grid read as a mesh), else the generic noise model and rays opposite to the vertex normals.
+// Throws Error naming the scan when it has no faces, or a covariance that is not positive along its ray.
 Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name);
 
 // The scan smoothed by Bayesian smoothing (bayes/smooth.h) with its own covariances, before fusion: same
