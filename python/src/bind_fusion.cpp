@@ -127,7 +127,7 @@ void BindFusion(py::module_& m) {
         }
 
         // Scans: file paths (read as `fuse` reads them) or meshes (Mesh: the generic noise model; NoisyMesh:
-        // its covariances, the sensor at the origin of its frame).
+        // its covariances, rays as MakeScanFromMesh finds them).
         std::vector<std::string> paths;
         std::vector<NoisyMesh> meshes;
         std::vector<bool> is_path;
