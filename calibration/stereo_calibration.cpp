@@ -19,9 +19,9 @@
 #include <set>
 #include <string>
 
+#include "calibration/image_read.h"
 #include "core/error.h"
 #include "core/files.h"
-#include "core/image_file.h"
 
 #ifdef RB_HAVE_ARUCO
 #include <opencv2/aruco/charuco.hpp>
@@ -204,17 +204,7 @@ PairDetection Combine(const Detection& l, const Detection& r, const BoardModel& 
   return p;
 }
 
-cv::Mat ReadGray(const std::string& path) {
-  CheckImageFile(path, "image");
-  cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception& e) {
-    RB_FAIL(path, ": not a readable image (", e.err, ")");
-  }
-  RB_CHECK(!img.empty(), path, ": not a readable image");
-  return img;
-}
+cv::Mat ReadGray(const std::string& path) { return ReadImage(path, cv::IMREAD_GRAYSCALE); }
 
 struct StageResult {
   cv::Mat K_left, D_left, K_right, D_right, R, T;

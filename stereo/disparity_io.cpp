@@ -12,7 +12,6 @@
 #include "calibration/middlebury.h"
 #include "core/error.h"
 #include "core/files.h"
-#include "core/image_file.h"
 #include "stereo/pfm.h"
 
 namespace rangebayes {
@@ -23,18 +22,6 @@ bool EndsWithPfm(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext == ".pfm";
-}
-
-cv::Mat ReadImage(const std::string& path, int flags) {
-  CheckImageFile(path, "image");
-  cv::Mat image;
-  try {
-    image = cv::imread(path, flags);
-  } catch (const cv::Exception& e) {
-    RB_FAIL(path, ": unreadable image (", e.err, ")");
-  }
-  RB_CHECK(!image.empty(), path, ": unreadable image");
-  return image;
 }
 
 cv::Mat ReadDisparityMap(const std::string& path, double scale) {

@@ -5,13 +5,10 @@
 #include <optional>
 #include <string>
 
+#include "calibration/image_read.h"  // ReadImage, for the readers here and their callers
 #include "calibration/stereo_rig.h"
 
 namespace rangebayes {
-
-// Reads an image with cv::imread's `flags` (cv::IMREAD_COLOR, cv::IMREAD_UNCHANGED, ...). Throws Error naming the
-// file when it is missing, not a file, or not a readable image.
-cv::Mat ReadImage(const std::string& path, int flags);
 
 // Reads a disparity map as CV_32F pixels with NaN where unknown. PFM: values as stored, non-finite → NaN (scale
 // must be 1). PNG/PGM/PPM (8 or 16 bit; one channel, or channels that are all equal): value / scale, 0 → NaN
