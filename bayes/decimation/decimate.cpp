@@ -36,8 +36,9 @@ struct Prepared {
   Faces F;                         // faces over split vertex ids
   std::vector<int> kept_faces;     // per prepared face, its input face
   std::vector<int> split_source;   // per split vertex, its input vertex
-  std::vector<char> locked;        // split vertices that share an input vertex with another copy
-  std::vector<int> weld_group;     // per split vertex: its input vertex where locked, else −1
+  // Per split vertex: its input vertex where that has several copies (welded back after decimation), else −1.
+  std::vector<int> weld_group;
+  std::vector<char> locked;        // weld_group ≥ 0, as the refit's `fixed` takes it
   std::vector<Vertices> poses;     // per pose, positions of the split vertices
   EdgeTopology topology;           // of F
   std::vector<char> boundary_vertex;
@@ -149,12 +150,12 @@ void LockSharedCopies(int nv, Prepared* out, int* split_vertices, int* unreferen
   const int ns = static_cast<int>(out->split_source.size());
   std::vector<int> copies(nv, 0);
   for (int s : out->split_source) ++copies[s];
-  out->locked.assign(ns, 0);
   out->weld_group.assign(ns, -1);
+  out->locked.assign(ns, 0);
   for (int s = 0; s < ns; ++s) {
     if (copies[out->split_source[s]] > 1) {
-      out->locked[s] = 1;
       out->weld_group[s] = out->split_source[s];
+      out->locked[s] = 1;
     }
   }
   for (int v = 0; v < nv; ++v) {
@@ -1338,10 +1339,12 @@ std::string ConnectivityDifference(const Mesh& first, const Mesh& pose) {
     std::sort(sets.begin(), sets.end());
     return sets;
   };
-  const bool same_sets = corner_sets(first.F) == corner_sets(pose.F);
   for (int f = 0; f < first.num_faces(); ++f) {
     const Eigen::RowVector3i a = first.F.row(f), b = pose.F.row(f);
     if (a == b) continue;
+    // Only once a face differs: the sorts are not paid by the poses that agree (the normal case, checked by the
+    // command as it reads each pose and again by DecimateAnimated).
+    const bool same_sets = corner_sets(first.F) == corner_sets(pose.F);
     std::string what = same_sets ? "other vertices (the same triangles, in another order)" : "other vertices";
     for (int k = 0; k < 3; ++k) {
       if (b == Eigen::RowVector3i(a(k), a((k + 1) % 3), a((k + 2) % 3))) what = "its corners in another order";

@@ -232,7 +232,6 @@ class Reducer {
     version_.assign(nv, 0);
     kept_.assign(nv, 0);
     collapsed_to_.assign(nv, -1);
-    locked_.assign(nv, 0);
     weld_group_.assign(nv, -1);
     if (!weld_group.empty()) {
       RB_CHECK(static_cast<int>(weld_group.size()) == nv, "decimation: weld_group has ", weld_group.size(),
@@ -241,7 +240,7 @@ class Reducer {
     }
     for (int v = 0; v < nv; ++v) {
       if (weld_group_[v] >= 0) {
-        kept_[v] = locked_[v] = 1;
+        kept_[v] = 1;
         copies_[weld_group_[v]].push_back(v);
       }
     }
@@ -663,7 +662,7 @@ class Reducer {
     if (boundary_[v] && boundary_[u] && deleted_.size() != 1) return false;
     int apex_stamp = 0;
     if (!LinkConditionHolds(v, u, &apex_stamp)) return false;
-    if (locked_[u] && JoinsLockedVertices(v, u, apex_stamp)) return false;
+    if (weld_group_[u] >= 0 && JoinsLockedVertices(v, u, apex_stamp)) return false;
     if (GivesCopiesACommonNeighbour(v, u, apex_stamp)) return false;
     if (!EveryPatchKeepsAFace()) return false;
     if (!MovedFacesStayValid(v, u, apex_stamp)) return false;
@@ -736,7 +735,7 @@ class Reducer {
   bool JoinsLockedVertices(int v, int u, int apex_stamp) const {
     for (int f : moved_) {
       for (int x : T_[f]) {
-        if (x != v && x != u && locked_[x] && stamp_[x] != apex_stamp) return true;
+        if (x != v && x != u && weld_group_[x] >= 0 && stamp_[x] != apex_stamp) return true;
       }
     }
     return false;
@@ -886,8 +885,7 @@ class Reducer {
   std::vector<std::vector<Eigen::Vector3d>> patch_normal_;   // per pose, per patch: PatchConeAxes
   std::vector<std::vector<Eigen::Vector3d>> vertex_normal_;  // per pose: DenseVertexNormals, where a patch has no axis
   std::vector<char> boundary_, kept_;
-  std::vector<char> locked_;                          // the caller's welded vertices (a subset of kept_)
-  std::vector<int> weld_group_;                       // per vertex, TriangulatePatches' weld_group (−1: none)
+  std::vector<int> weld_group_;  // per vertex, TriangulatePatches' weld_group (−1: none; the others are kept_)
   std::unordered_map<int, std::vector<int>> copies_;  // per weld group, its vertices
   std::vector<int> stamp_, version_;
   std::vector<int> collapsed_to_;
