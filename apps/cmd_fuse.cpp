@@ -74,11 +74,8 @@ RgbImage AlignedPicture(const std::vector<Scan>& scans, const std::vector<Eigen:
 }
 
 void RunFuse(const FuseArgs& args) {
-  // Finite too: an infinite one passed and failed in the renderer after the whole alignment and fusion.
-  if (args.view.size() != 3 || !(Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).stableNorm() > 0) ||
-      !Eigen::Vector3d(args.view[0], args.view[1], args.view[2]).allFinite()) {
-    UsageError("--view needs a nonzero, finite direction x y z");
-  }
+  // Checked first: an infinite one passed and failed in the renderer after the whole alignment and fusion.
+  const Eigen::Vector3d view = ViewDirectionOption(args.view);
   if (args.scans.size() < 2 && !args.no_align) UsageError("fuse needs at least two scans (or --no-align)");
   // Pose files name scans by file name: two scans of one name wrote a poses.conf that fuse then refused.
   for (size_t a = 0; a < args.scans.size(); ++a) {
@@ -155,7 +152,7 @@ void RunFuse(const FuseArgs& args) {
               model.num_faces());
 
   RenderOptions render;
-  render.view_direction = Eigen::Vector3d(args.view[0], args.view[1], args.view[2]);
+  render.view_direction = view;
   render.width_px = 640;
   render.height_px = 640;
   WritePng(AlignedPicture(scans, poses, render), dir + "aligned.png");

@@ -53,12 +53,9 @@ struct SmoothArgs {
   bool quiet = false;
 };
 
+// --view, or along −z when it is not given.
 Eigen::Vector3d ViewDirection(const std::vector<double>& v) {
-  if (v.empty()) return Eigen::Vector3d(0, 0, -1);
-  if (v.size() != 3) UsageError("--view needs three numbers x y z");
-  const Eigen::Vector3d d(v[0], v[1], v[2]);
-  if (!(d.norm() > 0) || !d.allFinite()) UsageError("--view must be a nonzero direction");
-  return d;
+  return v.empty() ? Eigen::Vector3d(0, 0, -1) : ViewDirectionOption(v);
 }
 
 void RunSmooth(const SmoothArgs& args) {

@@ -40,6 +40,13 @@ void AddToleranceOption(CLI::App* sub, std::string* tolerance) {
       ->check(CLI::IsMember({"fast", "default", "tight"}));
 }
 
+Eigen::Vector3d ViewDirectionOption(const std::vector<double>& xyz) {
+  if (xyz.size() != 3) UsageError("--view needs a nonzero, finite direction x y z");
+  const Eigen::Vector3d d(xyz[0], xyz[1], xyz[2]);
+  if (!d.allFinite() || !(d.stableNorm() > 0)) UsageError("--view needs a nonzero, finite direction x y z");
+  return d;
+}
+
 void AddThreadsOption(CLI::App* sub, int* threads) {
   sub->add_option("--threads", *threads, "Worker threads (0: all cores)")
       ->check(CLI::Range(0, 1024));

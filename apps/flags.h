@@ -2,8 +2,10 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Core>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace rangebayes::apps {
 
@@ -22,6 +24,10 @@ void AddToleranceOption(CLI::App* sub, std::string* tolerance);
 
 // --threads N: worker threads (0: all cores, [0, 1024]).
 void AddThreadsOption(CLI::App* sub, int* threads);
+
+// The direction of a --view x y z option (three numbers): a usage error unless it is finite and nonzero. Any
+// length is a direction (the renderer normalises it stably: 1e200 and 1e-300 included).
+Eigen::Vector3d ViewDirectionOption(const std::vector<double>& xyz);
 
 // --window W: the matching window side (px, odd, 1-31; 0 where allowed: the matcher's default).
 // default_note says what the default is for this subcommand.
