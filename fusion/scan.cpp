@@ -313,16 +313,15 @@ namespace {
 // scans'; a scan moved into world coordinates), the axes are the rays, pointed into the surface as the file's
 // faces say: the rays from the origin flipped normals there and fused the scan with holes (98 components instead
 // of 39 on two bunny scans). A mesh whose covariances are not elongated keeps the rays from the origin.
-Vertices SensorRays(const NoisyMesh& mesh, const std::string& name) {
+Vertices SensorRays(const NoisyMesh& mesh) {
   const int nv = mesh.mesh.num_vertices();
   Vertices from_origin(nv, 3), axes(nv, 3);
   int elongated = 0, along_origin = 0;
   for (int i = 0; i < nv; ++i) {
     const Eigen::Vector3d p = mesh.mesh.V.row(i);
     from_origin.row(i) = p.norm() > 0 ? p.normalized() : Eigen::Vector3d(0, 0, 1);
-    const Eigen::Matrix3d& c = mesh.covariance[static_cast<size_t>(i)];
-    RB_CHECK(c.allFinite(), name, ": the covariance of vertex ", i, " is not finite");
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(c);
+    // A covariance that is not finite gives NaN here and is refused by the caller's check of every covariance.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(mesh.covariance[static_cast<size_t>(i)]);
     axes.row(i) = eig.eigenvectors().col(2);
     // Elongated: the largest variance at least twice the next (stereo and the scanners here: 10–1000×).
     if (!(eig.eigenvalues()(2) >= 2.0 * eig.eigenvalues()(1))) continue;
@@ -348,7 +347,7 @@ Scan MakeScanFromMesh(const NoisyMesh& mesh, const std::string& name) {
   const int nv = mesh.mesh.num_vertices();
   if (mesh.has_covariance()) {
     scan.noisy = mesh;
-    scan.ray = SensorRays(mesh, name);
+    scan.ray = SensorRays(mesh);
     for (int i = 0; i < nv; ++i) {
       // Fusion weighs each vertex by 1 / its variance along the ray: a zero or indefinite covariance made the
       // fused mesh NaN where it fell (exit 0), as smoothing refuses it.
